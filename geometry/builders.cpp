@@ -1,0 +1,353 @@
+#include "geometry/builders.hpp"
+
+#include <cmath>
+#include <numbers>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+#include "geometry/basis.hpp"
+#include "geometry/measures.hpp"
+#include "geometry/projection.hpp"
+#include "geometry/refine.hpp"
+
+namespace cellfsi::geometry {
+
+namespace {
+
+[[noreturn]] void bad(const std::string& builder, const std::string& arg, double value,
+                      const std::string& valid) {
+  std::ostringstream os;
+  os << builder << ": " << arg << " = " << value << " is invalid; valid: " << valid;
+  throw std::invalid_argument(os.str());
+}
+
+void check_degree(const std::string& b, int degree, int min_degree) {
+  if (degree < min_degree || degree > kMaxDegree)
+    bad(b, "degree", degree, std::to_string(min_degree) + " <= degree <= " + std::to_string(kMaxDegree));
+}
+
+void check_positive(const std::string& b, const std::string& arg, double v) {
+  if (!(v > 0) || !std::isfinite(v)) bad(b, arg, v, "a finite number > 0");
+}
+
+void check_count(const std::string& b, const std::string& arg, int n, int multiple_of) {
+  if (n < multiple_of || n % multiple_of != 0)
+    bad(b, arg, n, "a positive multiple of " + std::to_string(multiple_of));
+}
+
+KnotVector axis_knots(int n, int degree, bool periodic) {
+  return periodic ? KnotVector::periodic_uniform(degree, n, 0.0, 1.0)
+                  : KnotVector::open_uniform(degree, n, 0.0, 1.0);
+}
+
+// Unit circle as a rational quadratic with 9 control points (4 quarter arcs, C0 at the quarter knots),
+// counter- clockwise from (1, 0).
+struct Conic {
+  KnotVector knots;
+  std::vector<Vec3> points;
+  std::vector<double> weights;
+};
+Conic unit_circle() {
+  const double r = std::numbers::sqrt2 / 2;
+  Conic c;
+  c.knots = KnotVector::open(2, {0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1});
+  c.points = {{1, 0, 0},   {1, 1, 0},  {0, 1, 0},  {-1, 1, 0}, {-1, 0, 0},
+              {-1, -1, 0}, {0, -1, 0}, {1, -1, 0}, {1, 0, 0}};
+  c.weights = {1, r, 1, r, 1, r, 1, r, 1};
+  return c;
+}
+// Half circle in the (rho, z) plane from the south pole to the north pole (profile of a sphere of
+// revolution).
+Conic unit_half_circle() {
+  const double r = std::numbers::sqrt2 / 2;
+  Conic c;
+  c.knots = KnotVector::open(2, {0, 0, 0, 0.5, 0.5, 1, 1, 1});
+  c.points = {{0, 0, -1}, {1, 0, -1}, {1, 0, 0}, {1, 0, 1}, {0, 0, 1}};  // (rho, -, z)
+  c.weights = {1, r, 1, r, 1};
+  return c;
+}
+
+Mat3 rotation_z(double angle) { return Eigen::AngleAxisd(angle, Vec3::UnitZ()).toRotationMatrix(); }
+
+/// Elevates the listed directions to `degree` and refines them to the requested element counts.
+Patch elevate_and_refine(Patch patch, std::initializer_list<std::pair<int, int>> dir_and_elements,
+                         int degree) {
+  for (auto [dir, n] : dir_and_elements) {
+    patch = elevate_degree(patch, dir, degree - patch.degree(dir));
+    patch = refine_uniform(patch, dir, n);
+  }
+  return patch;
+}
+
+/// Membrane/bulky patch in 2D from an angular curve E(theta) (control points and weights of a closed curve):
+/// the radial direction interpolates linearly between inner(j) and outer(j) (exact, by the Greville
+/// identity).
+template <class Inner, class Outer>
+Patch radial_patch_2d(const KnotVector& radial, const KnotVector& angular, const std::vector<double>& weights,
+                      Inner inner, Outer outer) {
+  const std::vector<double> tau = radial.greville_unwrapped();
+  const int nr = radial.n_basis(), na = angular.n_basis();
+  std::vector<Vec3> cps(nr * na);
+  std::vector<double> ws(nr * na);
+  for (int j = 0; j < na; ++j)
+    for (int i = 0; i < nr; ++i) {
+      cps[i + nr * j] = inner(j) + tau[i] * (outer(j) - inner(j));
+      ws[i + nr * j] = weights[j];
+    }
+  return Patch({radial, angular}, 2, std::move(cps), std::move(ws));
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------------------------
+// Eulerian domains
+
+Patch rectangle(double lx, double ly, int nx, int ny, int degree, std::array<bool, 2> periodic,
+                const Vec3& origin) {
+  const std::string b = "rectangle";
+  check_positive(b, "lx", lx);
+  check_positive(b, "ly", ly);
+  check_count(b, "nx", nx, 1);
+  check_count(b, "ny", ny, 1);
+  check_degree(b, degree, 1);
+  if (periodic[0] && nx < degree) bad(b, "nx", nx, "a periodic direction needs nx >= degree");
+  if (periodic[1] && ny < degree) bad(b, "ny", ny, "a periodic direction needs ny >= degree");
+  const KnotVector kx = axis_knots(nx, degree, periodic[0]), ky = axis_knots(ny, degree, periodic[1]);
+  const auto tx = kx.greville_unwrapped(), ty = ky.greville_unwrapped();
+  std::vector<Vec3> cps;
+  cps.reserve(tx.size() * ty.size());
+  for (double v : ty)
+    for (double u : tx) cps.push_back(origin + Vec3(lx * u, ly * v, 0));
+  std::vector<double> ws(cps.size(), 1.0);
+  return Patch({kx, ky}, 2, std::move(cps), std::move(ws), {Vec3(lx, 0, 0), Vec3(0, ly, 0), Vec3::Zero()});
+}
+
+Patch box(double lx, double ly, double lz, int nx, int ny, int nz, int degree, std::array<bool, 3> periodic,
+          const Vec3& origin) {
+  const std::string b = "box";
+  check_positive(b, "lx", lx);
+  check_positive(b, "ly", ly);
+  check_positive(b, "lz", lz);
+  check_count(b, "nx", nx, 1);
+  check_count(b, "ny", ny, 1);
+  check_count(b, "nz", nz, 1);
+  check_degree(b, degree, 1);
+  const int n[3] = {nx, ny, nz};
+  for (int d = 0; d < 3; ++d)
+    if (periodic[d] && n[d] < degree) bad(b, "elements in a periodic direction", n[d], ">= degree");
+  const KnotVector kx = axis_knots(nx, degree, periodic[0]), ky = axis_knots(ny, degree, periodic[1]),
+                   kz = axis_knots(nz, degree, periodic[2]);
+  const auto tx = kx.greville_unwrapped(), ty = ky.greville_unwrapped(), tz = kz.greville_unwrapped();
+  std::vector<Vec3> cps;
+  cps.reserve(tx.size() * ty.size() * tz.size());
+  for (double w : tz)
+    for (double v : ty)
+      for (double u : tx) cps.push_back(origin + Vec3(lx * u, ly * v, lz * w));
+  std::vector<double> ws(cps.size(), 1.0);
+  return Patch({kx, ky, kz}, 3, std::move(cps), std::move(ws),
+               {Vec3(lx, 0, 0), Vec3(0, ly, 0), Vec3(0, 0, lz)});
+}
+
+void NarrowingChannel::validate() const {
+  const std::string b = "narrowing_channel";
+  check_positive(b, "length", length);
+  check_positive(b, "height", height);
+  check_positive(b, "throat_height", throat_height);
+  check_positive(b, "throat_length", throat_length);
+  check_positive(b, "transition_length", transition_length);
+  if (throat_height >= height) bad(b, "throat_height", throat_height, "0 < throat_height < height");
+  if (throat_length + 2 * transition_length >= length)
+    bad(b, "throat_length + 2 transition_length", throat_length + 2 * transition_length,
+        "< length (the period)");
+  if (throat_center < 0 || throat_center > length) bad(b, "throat_center", throat_center, "in [0, length]");
+}
+
+double NarrowingChannel::wall_offset(double x) const {
+  // Distance from the throat centre on the periodic line.
+  double dx = std::fmod(x - throat_center, length);
+  if (dx < -0.5 * length) dx += length;
+  if (dx > 0.5 * length) dx -= length;
+  dx = std::abs(dx);
+  const double half = 0.5 * throat_length;
+  double s;
+  if (dx <= half) {
+    s = 1.0;
+  } else if (dx >= half + transition_length) {
+    s = 0.0;
+  } else {
+    // C-infinity smooth step from 1 (t = 0) to 0 (t = 1): f(1-t) / (f(t) + f(1-t)), f(t) = exp(-1/t).
+    const double t = (dx - half) / transition_length;
+    auto f = [](double u) { return u > 0 ? std::exp(-1.0 / u) : 0.0; };
+    s = f(1 - t) / (f(t) + f(1 - t));
+  }
+  return 0.5 * (height - throat_height) * s;
+}
+
+Patch narrowing_channel(const NarrowingChannel& ch, int nx, int ny, int degree) {
+  const std::string b = "narrowing_channel";
+  ch.validate();
+  check_count(b, "nx", nx, 1);
+  check_count(b, "ny", ny, 1);
+  check_degree(b, degree, 1);
+  if (nx < degree) bad(b, "nx", nx, ">= degree (x is periodic)");
+  const KnotVector kx = KnotVector::periodic_uniform(degree, nx, 0.0, 1.0);
+  const KnotVector ky = KnotVector::open_uniform(degree, ny, 0.0, 1.0);
+  const Eigen::MatrixXd offset = l2_project(
+      kx, 1, [&](double u) { return Eigen::VectorXd::Constant(1, ch.wall_offset(u * ch.length)); },
+      degree + 4);
+  const auto tx = kx.greville_unwrapped(), ty = ky.greville_unwrapped();
+  std::vector<Vec3> cps;
+  for (double v : ty)
+    for (int i = 0; i < kx.n_basis(); ++i) {
+      const double d = offset(i, 0);
+      cps.emplace_back(ch.length * tx[i], -0.5 * ch.height + d + v * (ch.height - 2 * d), 0.0);
+    }
+  std::vector<double> ws(cps.size(), 1.0);
+  return Patch({kx, ky}, 2, std::move(cps), std::move(ws),
+               {Vec3(ch.length, 0, 0), Vec3::Zero(), Vec3::Zero()});
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Cells in 2D
+
+Patch hollow_ellipse(double a, double b, double h, int n_angular, int degree, const Vec3& center,
+                     double angle) {
+  const std::string bl = "hollow_ellipse";
+  check_positive(bl, "a", a);
+  check_positive(bl, "b", b);
+  check_positive(bl, "h", h);
+  if (h >= 2 * std::min(a, b)) bad(bl, "h", h, "0 < h < 2 min(a, b)");
+  check_count(bl, "n_angular", n_angular, 4);
+  check_degree(bl, degree, 2);
+  const Conic c = unit_circle();
+  const Mat3 R = rotation_z(angle);
+  auto ellipse = [&](double sa, double sb, int j) {
+    return Vec3(center + R * Vec3(sa * c.points[j][0], sb * c.points[j][1], 0));
+  };
+  Patch p = radial_patch_2d(
+      KnotVector::open_uniform(degree, 1), c.knots, c.weights,
+      [&](int j) { return ellipse(a - h / 2, b - h / 2, j); },
+      [&](int j) { return ellipse(a + h / 2, b + h / 2, j); });
+  return elevate_and_refine(std::move(p), {{1, n_angular}}, degree);
+}
+
+Patch bulky_ellipse(double a, double b, int n_radial, int n_angular, int degree, const Vec3& center,
+                    double angle) {
+  const std::string bl = "bulky_ellipse";
+  check_positive(bl, "a", a);
+  check_positive(bl, "b", b);
+  check_count(bl, "n_radial", n_radial, 1);
+  check_count(bl, "n_angular", n_angular, 4);
+  check_degree(bl, degree, 2);
+  const Conic c = unit_circle();
+  const Mat3 R = rotation_z(angle);
+  Patch p = radial_patch_2d(
+      KnotVector::open_uniform(degree, n_radial), c.knots, c.weights, [&](int) { return center; },
+      [&](int j) { return Vec3(center + R * Vec3(a * c.points[j][0], b * c.points[j][1], 0)); });
+  return elevate_and_refine(std::move(p), {{1, n_angular}}, degree);
+}
+
+Vec3 EvansFung::point(double t) const {
+  const double c = std::cos(t), s = std::sin(t), c2 = c * c;
+  return {R0 * c, 0.5 * s * (C0 + C2 * c2 + C4 * c2 * c2), 0.0};
+}
+
+Vec3 EvansFung::tangent(double t) const {
+  const double c = std::cos(t), s = std::sin(t), c2 = c * c;
+  const double poly = C0 + C2 * c2 + C4 * c2 * c2, dpoly = -2 * c * s * (C2 + 2 * C4 * c2);
+  return {-R0 * s, 0.5 * (c * poly + s * dpoly), 0.0};
+}
+
+double EvansFung::area() const { return R0 * std::numbers::pi * (C0 / 2 + C2 / 8 + C4 / 16); }
+
+Patch biconcave_rbc(double h, int n_angular, int degree, const Vec3& center, double angle, double area,
+                    const EvansFung& shape) {
+  const std::string bl = "biconcave_rbc";
+  check_positive(bl, "h", h);
+  check_positive(bl, "area", area);
+  check_count(bl, "n_angular", n_angular, 4);
+  check_degree(bl, degree, 2);
+  const double two_pi = 2 * std::numbers::pi;
+  const KnotVector ka = KnotVector::open_uniform(degree, n_angular, 0.0, 1.0);
+  // Mid-line: Greville interpolation of c(2 pi u); the seam value is taken from u = 0 so the curve closes
+  // exactly.
+  Eigen::MatrixXd mid = greville_interpolate(ka, 2, [&](double u) {
+    const Vec3 x = shape.point(u >= 1.0 ? 0.0 : two_pi * u);
+    return Eigen::VectorXd(x.head<2>());
+  });
+  mid.row(mid.rows() - 1) = mid.row(0);
+  // Scale so the mid-line encloses `area` (x y' - y x' is a polynomial of degree 2p - 1 per element: exact).
+  std::vector<Vec3> line(ka.n_basis());
+  for (int j = 0; j < ka.n_basis(); ++j) line[j] = Vec3(mid(j, 0), mid(j, 1), 0);
+  const Patch curve({ka}, 2, line, std::vector<double>(line.size(), 1.0));
+  const double scale = std::sqrt(area / enclosed_moments(curve).measure);
+  const Mat3 R = rotation_z(angle);
+  const auto tau = ka.greville();
+  auto offset_point = [&](int j, double side) {
+    const Vec3 t = shape.tangent(tau[j] >= 1.0 ? 0.0 : two_pi * tau[j]).normalized();
+    const Vec3 n(t[1], -t[0], 0);  // outward for the counter-clockwise curve
+    return Vec3(center + R * (scale * line[j] + side * 0.5 * h * n));
+  };
+  return radial_patch_2d(
+      KnotVector::open_uniform(degree, 1), ka, std::vector<double>(ka.n_basis(), 1.0),
+      [&](int j) { return offset_point(j, -1.0); }, [&](int j) { return offset_point(j, +1.0); });
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Cells in 3D
+
+namespace {
+/// Radial x polar x azimuth patch: scaled unit spheres interpolated linearly in the radial direction.
+Patch radial_patch_3d(const KnotVector& radial, const Vec3& inner_axes, const Vec3& outer_axes,
+                      const Vec3& center) {
+  const Conic prof = unit_half_circle(), circ = unit_circle();
+  const std::vector<double> tau = radial.greville_unwrapped();
+  const int nr = radial.n_basis(), np = prof.knots.n_basis(), na = circ.knots.n_basis();
+  std::vector<Vec3> cps(nr * np * na);
+  std::vector<double> ws(cps.size());
+  for (int k = 0; k < na; ++k)
+    for (int j = 0; j < np; ++j)
+      for (int i = 0; i < nr; ++i) {
+        const double rho = prof.points[j][0], z = prof.points[j][2];
+        const Vec3 unit(rho * circ.points[k][0], rho * circ.points[k][1], z);
+        const Vec3 axes = inner_axes + tau[i] * (outer_axes - inner_axes);
+        const int idx = i + nr * (j + np * k);
+        cps[idx] = center + axes.cwiseProduct(unit);
+        ws[idx] = prof.weights[j] * circ.weights[k];
+      }
+  return Patch({radial, prof.knots, circ.knots}, 3, std::move(cps), std::move(ws));
+}
+}  // namespace
+
+Patch hollow_ellipsoid(double a, double b, double c, double h, int n_polar, int n_azimuth, int degree,
+                       const Vec3& center) {
+  const std::string bl = "hollow_ellipsoid";
+  check_positive(bl, "a", a);
+  check_positive(bl, "b", b);
+  check_positive(bl, "c", c);
+  check_positive(bl, "h", h);
+  if (h >= 2 * std::min({a, b, c})) bad(bl, "h", h, "0 < h < 2 min(a, b, c)");
+  check_count(bl, "n_polar", n_polar, 2);
+  check_count(bl, "n_azimuth", n_azimuth, 4);
+  check_degree(bl, degree, 2);
+  const Vec3 axes(a, b, c), half(h / 2, h / 2, h / 2);
+  Patch p = radial_patch_3d(KnotVector::open_uniform(degree, 1), axes - half, axes + half, center);
+  return elevate_and_refine(std::move(p), {{1, n_polar}, {2, n_azimuth}}, degree);
+}
+
+Patch solid_ellipsoid(double a, double b, double c, int n_radial, int n_polar, int n_azimuth, int degree,
+                      const Vec3& center) {
+  const std::string bl = "solid_ellipsoid";
+  check_positive(bl, "a", a);
+  check_positive(bl, "b", b);
+  check_positive(bl, "c", c);
+  check_count(bl, "n_radial", n_radial, 1);
+  check_count(bl, "n_polar", n_polar, 2);
+  check_count(bl, "n_azimuth", n_azimuth, 4);
+  check_degree(bl, degree, 2);
+  Patch p = radial_patch_3d(KnotVector::open_uniform(degree, n_radial), Vec3::Zero(), Vec3(a, b, c), center);
+  return elevate_and_refine(std::move(p), {{1, n_polar}, {2, n_azimuth}}, degree);
+}
+
+}  // namespace cellfsi::geometry

@@ -1,0 +1,165 @@
+#include "geometry/measures.hpp"
+
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+#include "geometry/quadrature.hpp"
+#include "geometry/refine.hpp"
+
+namespace cellfsi::geometry {
+
+namespace {
+
+/// Calls f(x, dx, weight) at every quadrature point of the patch (weight = parametric weight).
+template <class F>
+void for_each_point(const Patch& patch, int extra_gauss, F&& f) {
+  const Index3 ng = default_gauss(patch, extra_gauss);
+  std::vector<QuadraturePoint> qp;
+  BasisValues bv;
+  MapValues mv;
+  for (int e = 0; e < patch.n_elements(); ++e) {
+    const Index3 m = patch.element_multi_index(e);
+    element_quadrature(patch, m, ng, qp);
+    for (const auto& q : qp) {
+      patch.basis(q.xi, 1, bv, &m);
+      patch.map(bv, mv);
+      f(mv.x, mv.dx, q.weight);
+    }
+  }
+}
+
+/// Reference point to integrate about (reduces cancellation for small bodies far from the origin).
+Vec3 reference_point(const Patch& patch) {
+  Vec3 lo, hi;
+  patch.bounding_box(lo, hi);
+  return 0.5 * (lo + hi);
+}
+
+/// Converts raw moments about `ref` (M0, M1 = int (x-ref), M2 = int (x-ref)(x-ref)^T) to RegionMoments.
+RegionMoments finish(double M0, const Vec3& M1, const Mat3& M2, const Vec3& ref) {
+  RegionMoments r;
+  const double s = M0 < 0 ? -1.0 : 1.0;  // orientation of the boundary
+  r.measure = s * M0;
+  const Vec3 c = s * M1 / r.measure;  // centroid relative to ref
+  r.centroid = ref + c;
+  r.second_moment = s * M2 - r.measure * c * c.transpose();
+  return r;
+}
+
+}  // namespace
+
+double patch_measure(const Patch& patch, int extra_gauss) {
+  const int P = patch.param_dim();
+  double total = 0;
+  for_each_point(patch, extra_gauss, [&](const Vec3&, const Mat3& dx, double w) {
+    const Eigen::MatrixXd J = dx.leftCols(P);
+    total += w * std::sqrt(std::abs((J.transpose() * J).determinant()));
+  });
+  return total;
+}
+
+RegionMoments patch_moments(const Patch& patch, int extra_gauss) {
+  const int P = patch.param_dim(), D = patch.physical_dim();
+  if (P != D) throw std::invalid_argument("patch_moments: needs parametric dimension == physical dimension");
+  const Vec3 ref = reference_point(patch);
+  double M0 = 0;
+  Vec3 M1 = Vec3::Zero();
+  Mat3 M2 = Mat3::Zero();
+  for_each_point(patch, extra_gauss, [&](const Vec3& x, const Mat3& dx, double w) {
+    const double detJ = std::abs(dx.topLeftCorner(D, D).determinant());
+    const Vec3 y = x - ref;
+    M0 += w * detJ;
+    M1 += w * detJ * y;
+    M2 += w * detJ * y * y.transpose();
+  });
+  return finish(M0, M1, M2, ref);
+}
+
+RegionMoments enclosed_moments(const Patch& boundary, int extra_gauss) {
+  const int P = boundary.param_dim(), D = boundary.physical_dim();
+  if (P != D - 1) throw std::invalid_argument("enclosed_moments: needs a curve in 2D or a surface in 3D");
+  for (int d = 0; d < P; ++d)
+    if (D == 2 && !boundary.closed(d))
+      throw std::invalid_argument("enclosed_moments: the boundary curve is not closed");
+  const Vec3 ref = reference_point(boundary);
+  double M0 = 0;
+  Vec3 M1 = Vec3::Zero();
+  Mat3 M2 = Mat3::Zero();
+  if (D == 2) {
+    // Green: int_A f dA = oint F . n ds with n ds = (y', -x') du for a counter-clockwise curve.
+    for_each_point(boundary, extra_gauss, [&](const Vec3& xx, const Mat3& dx, double w) {
+      const double x = xx[0] - ref[0], y = xx[1] - ref[1], xp = dx(0, 0), yp = dx(1, 0);
+      M0 += w * 0.5 * (x * yp - y * xp);
+      M1[0] += w * 0.5 * x * x * yp;
+      M1[1] += -w * 0.5 * y * y * xp;
+      M2(0, 0) += w * x * x * x / 3.0 * yp;
+      M2(1, 1) += -w * y * y * y / 3.0 * xp;
+      M2(0, 1) += w * 0.5 * x * x * y * yp;
+    });
+    M2(1, 0) = M2(0, 1);
+  } else {
+    // Divergence theorem with n dA = (S_u x S_v) du dv.
+    for_each_point(boundary, extra_gauss, [&](const Vec3& xx, const Mat3& dx, double w) {
+      const Vec3 x = xx - ref;
+      const Vec3 n = dx.col(0).cross(dx.col(1));
+      M0 += w * x.dot(n) / 3.0;
+      for (int i = 0; i < 3; ++i) M1[i] += w * 0.5 * x[i] * x[i] * n[i];
+      for (int i = 0; i < 3; ++i) {
+        M2(i, i) += w * x[i] * x[i] * x[i] / 3.0 * n[i];
+        for (int j = i + 1; j < 3; ++j) {
+          const int k = 3 - i - j;  // the third index: d/dx_k (x_i x_j x_k) = x_i x_j
+          M2(i, j) += w * x[i] * x[j] * x[k] * n[k];
+        }
+      }
+    });
+    for (int i = 0; i < 3; ++i)
+      for (int j = i + 1; j < 3; ++j) M2(j, i) = M2(i, j);
+  }
+  return finish(M0, M1, M2, ref);
+}
+
+PrincipalAxes principal_axes(const RegionMoments& moments, int dim) {
+  PrincipalAxes pa;
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(moments.second_moment.topLeftCorner(dim, dim));
+  // Eigen sorts ascending; we want descending (long axis first).
+  for (int k = 0; k < dim; ++k) {
+    pa.values[k] = es.eigenvalues()[dim - 1 - k];
+    pa.axes.col(k).setZero();
+    pa.axes.col(k).head(dim) = es.eigenvectors().col(dim - 1 - k);
+  }
+  return pa;
+}
+
+double long_axis_angle(const RegionMoments& moments) {
+  const PrincipalAxes pa = principal_axes(moments, 2);
+  double angle = std::atan2(pa.axes(1, 0), pa.axes(0, 0));
+  if (angle <= -std::numbers::pi / 2) angle += std::numbers::pi;
+  if (angle > std::numbers::pi / 2) angle -= std::numbers::pi;
+  return angle;
+}
+
+double swelling_degree(double enclosed, double boundary, int dim) {
+  if (dim == 2) return 4.0 * std::numbers::pi * enclosed / (boundary * boundary);
+  return 6.0 * std::sqrt(std::numbers::pi) * enclosed / std::pow(boundary, 1.5);
+}
+
+double effective_radius(double boundary, int dim) {
+  if (dim == 2) return boundary / (2.0 * std::numbers::pi);
+  return std::sqrt(boundary / (4.0 * std::numbers::pi));
+}
+
+MembraneShape membrane_shape(const Patch& membrane, int thickness_dir, int extra_gauss) {
+  const KnotVector& kv = membrane.knots(thickness_dir);
+  const Patch mid = isoparametric(membrane, thickness_dir, 0.5 * (kv.a() + kv.b()));
+  const int D = membrane.physical_dim();
+  MembraneShape s;
+  s.moments = enclosed_moments(mid, extra_gauss);
+  s.enclosed = s.moments.measure;
+  s.boundary = patch_measure(mid, extra_gauss);
+  s.swelling = swelling_degree(s.enclosed, s.boundary, D);
+  s.effective_radius = effective_radius(s.boundary, D);
+  return s;
+}
+
+}  // namespace cellfsi::geometry

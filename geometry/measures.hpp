@@ -1,0 +1,55 @@
+#pragma once
+// Measures of patches and of the regions that closed membranes enclose: length/area/volume, perimeter or
+// surface area, centroid, second moments and principal axes (for the inclination angle), swelling degree
+// Delta and effective radius R_0 (paper Sec. 3.1). Integrals use Gauss rules on the patch's elements;
+// rational maps are not integrated exactly, so accuracy improves with refinement and `extra_gauss`.
+#include "geometry/patch.hpp"
+
+namespace cellfsi::geometry {
+
+/// Zeroth, first and (central) second moments of a region.
+struct RegionMoments {
+  double measure = 0;  // area in 2D, volume in 3D
+  Vec3 centroid = Vec3::Zero();
+  Mat3 second_moment = Mat3::Zero();  // integral of (x - c)(x - c)^T over the region
+};
+
+/// Length, area or volume of the patch itself (its parametric dimension decides which).
+double patch_measure(const Patch& patch, int extra_gauss = 2);
+
+/// Moments of the region a patch covers (parametric dimension == physical dimension), e.g. a nucleus or the
+/// membrane band itself.
+RegionMoments patch_moments(const Patch& patch, int extra_gauss = 2);
+
+/// Moments of the region enclosed by a closed boundary: a closed curve in 2D (Green's theorem) or a closed
+/// surface in 3D (divergence theorem). Orientation does not matter.
+RegionMoments enclosed_moments(const Patch& boundary, int extra_gauss = 2);
+
+/// Principal axes of a region: eigenvalues of the central second moment in descending order and the matching
+/// unit eigenvectors as columns. The first axis is the long axis (least moment of inertia).
+struct PrincipalAxes {
+  Vec3 values = Vec3::Zero();
+  Mat3 axes = Mat3::Identity();
+};
+PrincipalAxes principal_axes(const RegionMoments& moments, int dim);
+
+/// 2D: angle of the long axis with the +x direction, in (-pi/2, pi/2].
+double long_axis_angle(const RegionMoments& moments);
+
+/// Swelling degree: 2D 4 pi A / P^2; 3D 6 sqrt(pi) V / S^(3/2).
+double swelling_degree(double enclosed, double boundary, int dim);
+/// Effective radius: 2D P / (2 pi); 3D sqrt(S / (4 pi)).
+double effective_radius(double boundary, int dim);
+
+/// Shape measures of a membrane patch (one parametric direction through the thickness), taken on its
+/// mid-surface (the isoparametric sub-patch at mid-thickness).
+struct MembraneShape {
+  double enclosed = 0;          // area (2D) / volume (3D) enclosed by the mid-surface
+  double boundary = 0;          // perimeter (2D) / surface area (3D) of the mid-surface
+  double swelling = 0;          // Delta_m
+  double effective_radius = 0;  // R_0
+  RegionMoments moments;        // of the enclosed region
+};
+MembraneShape membrane_shape(const Patch& membrane, int thickness_dir = 0, int extra_gauss = 2);
+
+}  // namespace cellfsi::geometry

@@ -1,0 +1,29 @@
+#pragma once
+// Writing patches for ParaView: the patch sampled on a structured grid (.vts) and its element (knot) lines as
+// polylines (.vtp); a .pvd collection groups files as parts and/or time steps.
+#include <string>
+#include <vector>
+
+#include "geometry/patch.hpp"
+
+namespace cellfsi::geometry {
+
+/// Writes the patch sampled with `samples_per_element` intervals per element and direction to `path` (.vts).
+/// Point data: "parametric" (xi), and for parametric dimension == physical dimension "jacobian" (det dx/dxi).
+void write_patch_vts(const Patch& patch, const std::string& path, int samples_per_element = 4);
+
+/// Writes the element boundaries (lines of constant parametric coordinate at every breakpoint), each sampled
+/// with `samples_per_element` intervals per element, to `path` (.vtp).
+void write_patch_elements_vtp(const Patch& patch, const std::string& path, int samples_per_element = 8);
+
+/// One dataset in a .pvd collection: file name relative to the .pvd, time step and part index.
+struct PvdEntry {
+  std::string file;
+  double time = 0;
+  int part = 0;
+  std::string name;  // shown by ParaView as the block name when non-empty
+};
+/// Writes a .pvd collection (atomically: to a temporary file renamed over `path`).
+void write_pvd(const std::string& path, const std::vector<PvdEntry>& entries);
+
+}  // namespace cellfsi::geometry

@@ -1,0 +1,131 @@
+// Builders: exact conics and quadrics, affine Eulerian domains, periodic wraps, and argument checking.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "geometry/builders.hpp"
+
+using namespace cellfsi::geometry;
+
+namespace {
+template <class F>
+void expect_invalid(F&& f, const std::string& mentions) {
+  try {
+    f();
+    ADD_FAILURE() << "no exception; expected one naming '" << mentions << "'";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(mentions), std::string::npos) << e.what();
+  }
+}
+}  // namespace
+
+TEST(Builders, RectangleIsAffineAndPeriodicInX) {
+  const double lx = 2.4e-3, ly = 1.2e-3;
+  const Patch r = rectangle(lx, ly, 12, 6, 3, {true, false}, Vec3(0, -6e-4, 0));
+  EXPECT_TRUE(r.knots(0).periodic());
+  EXPECT_FALSE(r.knots(1).periodic());
+  EXPECT_EQ(r.n_control(0), 12);  // periodic: one control variable per element
+  EXPECT_EQ(r.n_control(1), 9);
+  EXPECT_TRUE(r.closed(0));
+  EXPECT_FALSE(r.closed(1));
+  for (double u : {0.0, 0.123, 0.5, 0.99})
+    for (double v : {0.0, 0.31, 1.0}) {
+      const MapValues m = r.evaluate({u, v, 0});
+      EXPECT_NEAR(m.x[0], lx * u, 1e-17);
+      EXPECT_NEAR(m.x[1], -6e-4 + ly * v, 1e-17);
+      EXPECT_NEAR(m.dx(0, 0), lx, 1e-15);
+      EXPECT_NEAR(m.dx(1, 1), ly, 1e-15);
+      EXPECT_NEAR(m.dx(0, 1), 0.0, 1e-15);
+      // One period further the map moves by the period shift.
+      EXPECT_NEAR(r.point({u + 1.0, v, 0})[0], lx * (u + 1.0), 1e-17);
+    }
+}
+
+TEST(Builders, BoxIsAffine) {
+  const Patch b = box(1.2e-3, 1.2e-3, 1.2e-3, 4, 5, 6, 2, {true, true, false});
+  const Vec3 x = b.point({0.3, 0.6, 0.9});
+  EXPECT_LT((x - Vec3(0.36e-3, 0.72e-3, 1.08e-3)).norm(), 1e-17);
+  EXPECT_EQ(b.n_elements(), 120);
+}
+
+TEST(Builders, HollowEllipseBoundariesAreExactEllipses) {
+  const double a = 2e-4, b = 1e-4, h = 5e-7, angle = 1.1;
+  const Vec3 c(1.2e-3, 6e-4, 0);
+  const Patch e = hollow_ellipse(a, b, h, 208, 3, c, angle);
+  EXPECT_EQ(e.n_elements(0), 1);
+  EXPECT_EQ(e.n_elements(1), 208);
+  EXPECT_EQ(e.degree(0), 3);
+  EXPECT_EQ(e.degree(1), 3);
+  EXPECT_TRUE(e.closed(1));
+  const Mat3 Rt = Eigen::AngleAxisd(-angle, Vec3::UnitZ()).toRotationMatrix();
+  for (double r : {0.0, 0.5, 1.0}) {
+    const double sa = a - h / 2 + r * h, sb = b - h / 2 + r * h;
+    for (int s = 0; s < 97; ++s) {
+      const Vec3 y = Rt * (e.point({r, (s + 0.3) / 97, 0}) - c);
+      EXPECT_NEAR(y[0] * y[0] / (sa * sa) + y[1] * y[1] / (sb * sb), 1.0, 1e-13);
+    }
+  }
+}
+
+TEST(Builders, EllipsoidShellAndSphereSurfacesAreExactQuadrics) {
+  const double a = 3e-4, b = 2e-4, c = 2e-4, h = 5e-7;
+  const Patch shell = hollow_ellipsoid(a, b, c, h, 32, 96, 2);
+  EXPECT_EQ(shell.n_elements(), 3072);  // the paper's membrane mesh size (Sec. 3.6)
+  for (double r : {0.0, 0.5, 1.0})
+    for (double u : {0.05, 0.5, 0.77})
+      for (double v : {0.1, 0.6}) {
+        const Vec3 x = shell.point({r, u, v});
+        const double sa = a - h / 2 + r * h, sb = b - h / 2 + r * h, sc = c - h / 2 + r * h;
+        EXPECT_NEAR(x[0] * x[0] / (sa * sa) + x[1] * x[1] / (sb * sb) + x[2] * x[2] / (sc * sc), 1.0, 1e-13);
+      }
+  const Patch ball = solid_ellipsoid(1e-4, 1e-4, 1e-4, 7, 32, 32, 2);
+  EXPECT_EQ(ball.n_elements(), 7168);  // the paper's inclusion mesh size (Sec. 3.6)
+  EXPECT_NEAR(ball.point({1.0, 0.3, 0.8}).norm(), 1e-4, 1e-17);
+  EXPECT_NEAR(ball.point({0.5, 0.3, 0.8}).norm(), 0.5e-4, 1e-17);
+}
+
+TEST(Builders, NucleusMeshOfThePaper) {
+  const Patch nucleus = bulky_ellipse(2e-4, 2e-4, 40, 192, 2);  // CTC inclusion, paper Sec. 4.4
+  EXPECT_EQ(nucleus.n_elements(0), 40);
+  EXPECT_EQ(nucleus.n_elements(1), 192);
+  EXPECT_NEAR(nucleus.point({1.0, 0.37, 0}).norm(), 2e-4, 1e-17);
+  EXPECT_NEAR(nucleus.point({0.25, 0.37, 0}).norm(), 0.5e-4, 1e-17);
+}
+
+TEST(Builders, NarrowingChannelWallsFollowTheProfile) {
+  const NarrowingChannel ch;
+  auto wall_error = [&](int nx, int p) {
+    const Patch channel = narrowing_channel(ch, nx, 8, p);
+    double worst = 0;
+    for (int s = 0; s < 1000; ++s) {
+      const double u = (s + 0.5) / 1000;
+      const Vec3 top = channel.point({u, 1.0, 0}), bottom = channel.point({u, 0.0, 0});
+      EXPECT_NEAR(top[0], u * ch.length, 1e-17);
+      EXPECT_NEAR(top[1], -bottom[1], 1e-17);  // symmetric
+      worst = std::max(worst, std::abs(top[1] - (0.5 * ch.height - ch.wall_offset(top[0]))));
+    }
+    return worst;
+  };
+  // Converges under refinement at about the optimal rate p + 1 of an L2 projection.
+  for (int p : {2, 3}) {
+    const double e1 = wall_error(96, p), e2 = wall_error(192, p);
+    EXPECT_GT(std::log2(e1 / e2), p + 0.5) << "p=" << p << " errors " << e1 << " " << e2;
+  }
+  EXPECT_LT(wall_error(384, 3), 1e-4 * ch.height);  // the paper's channel resolution
+  // The throat is narrower than the CTC's diameter.
+  EXPECT_LT(ch.throat_height, 2 * 0.0005);
+}
+
+TEST(Builders, InvalidArgumentsAreNamed) {
+  expect_invalid([] { hollow_ellipse(2e-4, 1e-4, 5e-7, 10, 2); }, "n_angular");
+  expect_invalid([] { hollow_ellipse(2e-4, 1e-4, 3e-4, 8, 2); }, "h");
+  expect_invalid([] { hollow_ellipse(-2e-4, 1e-4, 5e-7, 8, 2); }, "a = -0.0002");
+  expect_invalid([] { hollow_ellipse(2e-4, 1e-4, 5e-7, 8, 1); }, "degree");
+  expect_invalid([] { rectangle(1, 1, 0, 4, 2); }, "nx");
+  expect_invalid([] { hollow_ellipsoid(3e-4, 2e-4, 2e-4, 5e-7, 3, 8, 2); }, "n_polar");
+  NarrowingChannel ch;
+  ch.throat_height = 0.003;
+  expect_invalid([&] { narrowing_channel(ch, 32, 8, 2); }, "throat_height");
+  expect_invalid([] { biconcave_rbc(5e-7, 64, 2, Vec3::Zero(), 0.0, -1.0); }, "area");
+}
