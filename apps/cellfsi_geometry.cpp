@@ -200,7 +200,10 @@ int main(int argc, char** argv) {
     PetscCall(PetscOptionsLeftRestore(nullptr, &n_left, &names, &values));
     if (!help) {
       validate(o);
-      run(o);
+      // The demo is serial: under mpirun only rank 0 builds and writes (no two ranks write one file).
+      PetscMPIInt rank = 0;
+      PetscCallMPI(MPI_Comm_rank(PETSC_COMM_WORLD, &rank));
+      if (rank == 0) run(o);
     }
   } catch (const std::exception& e) {
     PetscCall(PetscPrintf(PETSC_COMM_WORLD, "cellfsi-geometry: error: %s\n", e.what()));
