@@ -1,0 +1,44 @@
+#pragma once
+// The run contract of DESIGN.md section 4: DIR/options.yaml (effective options), DIR/metrics.csv (one row per
+// step, named columns), DIR/summary.json (scalars and final metrics), and a progress line. Rank 0 writes;
+// every file is rewritten atomically or appended line by line, so a run that stops mid-way leaves what it
+// wrote intact.
+#include <mpi.h>
+
+#include <fstream>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace cellfsi::app {
+
+class RunOutput {
+ public:
+  /// Creates DIR (rank 0) and writes DIR/options.yaml from the options database. Throws if DIR cannot be
+  /// made.
+  RunOutput(MPI_Comm comm, const std::string& dir, const std::string& scene);
+  const std::string& dir() const { return dir_; }
+
+  /// Appends one row to metrics.csv; the first call fixes the columns (in the given order).
+  void metrics_row(const std::vector<std::pair<std::string, double>>& row);
+  /// Prints "step k/n  t=...  newton ..  linear ..  elapsed ..  left ~.." at most every `every_seconds`.
+  void progress(int step, int n_steps, double t, int newton, int linear, bool force = false);
+
+  /// Writes summary.json: the fixed scalars plus `metrics` (status: "completed" or why it stopped).
+  void summary(const std::string& status, int steps, long newton, long linear,
+               const std::vector<std::pair<std::string, double>>& metrics);
+  double elapsed() const { return MPI_Wtime() - start_; }
+
+ private:
+  MPI_Comm comm_;
+  int rank_ = 0, size_ = 1;
+  std::string dir_, scene_;
+  std::vector<std::string> columns_;
+  std::ofstream csv_;
+  double start_ = 0, last_print_ = -1e9;
+};
+
+/// Writes text to path atomically (temporary file + rename).
+void write_atomically(const std::string& path, const std::string& text);
+
+}  // namespace cellfsi::app

@@ -1,0 +1,35 @@
+#pragma once
+// Output of the fluid state: a ParaView time series (fluid.pvd + one .vts per output step) with velocity,
+// pressure (dyn/cm^2), s^h and vorticity sampled on the patch; and section data: the flow rate through, and
+// the velocity profile across, the section xi_0 = const (a plane x = const for the builders' channels).
+#include <string>
+#include <vector>
+
+#include "fluid/fluid_solver.hpp"
+#include "geometry/patch_vtk.hpp"
+
+namespace cellfsi::fluid {
+
+/// Writes DIR/fluid_NNNNNN.vts for each call and keeps DIR/fluid.pvd listing them (rank 0 writes;
+/// collective).
+class FluidSeriesWriter {
+ public:
+  FluidSeriesWriter(std::string dir, int samples_per_element = 2);
+  void write(const FluidSolver& fluid);
+
+ private:
+  std::string dir_;
+  int samples_;
+  std::vector<geometry::PvdEntry> entries_;
+};
+
+/// Flow rate through the section xi_0 = u (integral of v . n over it; per unit depth in 2D) and the velocity
+/// along it at n_profile points equally spaced in xi_1 (2D) — collective; valid on every rank.
+struct SectionData {
+  double flow_rate = 0;
+  double area = 0;  // length (2D) or area (3D) of the section
+  std::vector<geometry::Vec3> points, velocity;
+};
+SectionData section(const FluidSolver& fluid, double u, int n_profile = 33);
+
+}  // namespace cellfsi::fluid

@@ -1,0 +1,162 @@
+#pragma once
+// Incompressible Navier-Stokes (VMS, paper Sec. 2.1-2.3) on one Eulerian NURBS patch, with PETSc.
+//
+// The control net is partitioned with a DMDA (dof = dim + 1: velocity, kinematic pressure; periodic
+// directions handled natively; stencil width = degree, exact for tensor-product splines). An element belongs
+// to the rank that owns the first control point of its support, so every element's control points lie in that
+// rank's ghosted region. Time: generalized-alpha for first-order systems (Jansen, Whiting & Hulbert 2000),
+// unknown U_{n+1}; velocity at t_{n+alpha_f}, its rate at t_{n+alpha_m}, pressure at t_{n+1}. Nonlinear
+// solver: PETSc SNES (Newton with line search) with options prefix "fluid_", linear solver KSP (GMRES,
+// restricted additive Schwarz with LU subdomain solves and nested-dissection ordering by default, as in the
+// paper).
+//
+// Boundaries: a periodic direction is periodic; both ends of every other direction are no-slip walls moving
+// with a prescribed uniform velocity (the open knot vectors interpolate there, so wall control values are the
+// wall velocity). With no traction boundary the pressure is defined up to a constant; one pressure control
+// value is pinned to 0, which removes exactly that null space (the continuity rows sum to zero).
+#include <petscdmda.h>
+#include <petscsnes.h>
+
+#include <array>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "fluid/vms_kernel.hpp"
+#include "geometry/inversion.hpp"
+#include "geometry/patch.hpp"
+
+namespace cellfsi::fluid {
+
+using geometry::Vec3;
+
+/// Physical and numerical settings; the defaults are the paper's plasma (CGS).
+struct FluidOptions {
+  double density = 1.025;    // rho_1 [g/cm^3]
+  double viscosity = 0.012;  // mu [g/(cm s)]
+  Vec3 body_force =
+      Vec3::Zero();      // f [dyn/cm^3], a force per unit volume (g = f / rho_1), DESIGN.md section 3
+  bool stokes = false;   // drop convection
+  double rho_inf = 0.5;  // generalized-alpha spectral radius at infinity, in [0, 1]
+  double dt = 5e-4;      // time step [s]
+  double c_i = 36.0;     // C_I of tau_M
+  /// Velocity of the wall at side s (0: xi = a, 1: xi = b) of non-periodic direction d. (Eigen vectors are
+  /// not zeroed by value-initialisation, hence the explicit zeros.)
+  std::array<std::array<Vec3, 2>, 3> wall_velocity{
+      {{Vec3::Zero(), Vec3::Zero()}, {Vec3::Zero(), Vec3::Zero()}, {Vec3::Zero(), Vec3::Zero()}}};
+  /// Reads -fluid_density, -fluid_viscosity, -fluid_body_force fx,fy[,fz], -fluid_stokes, -fluid_rho_inf,
+  /// -fluid_c_i, -fluid_wall_velocity_{x,y,z}{0,1} vx,vy[,vz]. Throws std::invalid_argument on invalid
+  /// values.
+  void set_from_options(int dim);
+  void validate() const;
+};
+
+/// What one time step cost.
+struct StepStats {
+  int newton_iterations = 0;
+  int linear_iterations = 0;
+  bool converged = false;
+  std::string reason;  // SNES converged reason
+};
+
+/// Velocity, its gradient and its time derivative at a point (at t_{n+1} after a step).
+struct PointSample {
+  bool found = false;
+  Vec3 v = Vec3::Zero();
+  geometry::Mat3 grad_v = geometry::Mat3::Zero();  // grad_v(i, j) = d v_i / d x_j
+  Vec3 vdot = Vec3::Zero();
+  double p = 0;  // kinematic pressure
+};
+
+/// An immersed-solid quadrature point (paper Eq. (10)): position and the kernel's data.
+struct ImmersedPointData {
+  Vec3 x = Vec3::Zero();
+  ImmersedPoint data;
+};
+
+class FluidSolver;
+/// SNES callbacks (the solver passes itself as context).
+PetscErrorCode fluid_residual(SNES, Vec U, Vec F, void* solver);
+PetscErrorCode fluid_jacobian(SNES, Vec U, Mat J, Mat P, void* solver);
+
+class FluidSolver {
+ public:
+  FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const FluidOptions& options);
+  ~FluidSolver();
+  FluidSolver(const FluidSolver&) = delete;
+  FluidSolver& operator=(const FluidSolver&) = delete;
+
+  /// Sets the velocity control values from a function of position (exact for fields in the spline space whose
+  /// control values are their Greville-point values, e.g. linear fields on affine meshes); pressure 0;
+  /// velocity rate 0. Wall control values take the wall velocity.
+  void set_initial_velocity(const std::function<Vec3(const Vec3&)>& v0);
+  /// Sets the scaling field s^h by control value (natural node index -> s); applies to owned nodes.
+  void set_scaling(const std::function<double(int node)>& s);
+  /// Immersed points, all of them on every rank (each rank keeps those in its elements).
+  void set_immersed_points(const std::vector<ImmersedPointData>& points);
+
+  /// Advances one time step.
+  StepStats step();
+  double time() const { return time_; }
+  int steps_taken() const { return steps_; }
+
+  /// Samples v, grad v, vdot and p at points (collective; every rank gets every value).
+  std::vector<PointSample> sample(const std::vector<Vec3>& points) const;
+
+  /// Residual and Jacobian of the current state (for tests): F(U) with U the current unknown at t_{n+1}.
+  void evaluate_residual(Vec U, Vec F);
+  void evaluate_jacobian(Vec U, Mat J);
+
+  DM dm() const { return da_; }
+  Vec solution() const { return U_; }  // U at the latest time level
+  Vec solution_rate() const { return Udot_; }
+  SNES snes() const { return snes_; }
+  const geometry::Patch& patch() const { return patch_; }
+  const FluidOptions& options() const { return opt_; }
+  int dim() const { return dim_; }
+  MPI_Comm comm() const { return comm_; }
+
+  /// Natural-ordered copy of a DMDA vector on rank 0 (empty elsewhere): node-major, dof-minor.
+  std::vector<double> gather_to_zero(Vec global) const;
+  /// The scaling field s^h by natural node index on rank 0 (empty elsewhere).
+  std::vector<double> scaling_on_zero() const { return gather_to_zero(S_); }
+
+ private:
+  friend PetscErrorCode fluid_residual(SNES, Vec, Vec, void*);
+  friend PetscErrorCode fluid_jacobian(SNES, Vec, Mat, Mat, void*);
+
+  struct Alpha {
+    double alpha_m = 0, alpha_f = 0, gamma = 0;
+  };
+  void assemble(Vec U, Vec F, Mat J);  // either of F, J may be null
+  void apply_dirichlet_values(Vec U, double t) const;
+  std::vector<PetscInt> dirichlet_rows() const;  // global PETSc indices of owned Dirichlet rows
+  bool owns_element(const geometry::Index3& e) const;
+
+  MPI_Comm comm_;
+  const geometry::Patch& patch_;
+  FluidOptions opt_;
+  int dim_ = 2, dof_ = 3;
+  Alpha alpha_;
+  DM da_ = nullptr, da_scalar_ = nullptr;
+  Vec U_ = nullptr, Udot_ = nullptr;            // at t_n between steps
+  Vec Un_loc_ = nullptr, Udotn_loc_ = nullptr;  // ghosted copies of t_n values during a step
+  Vec S_ = nullptr, S_loc_ = nullptr;           // scaling field s^h
+  Vec F_ = nullptr;
+  Mat J_ = nullptr;
+  SNES snes_ = nullptr;
+  double time_ = 0;
+  int steps_ = 0;
+  // ownership (global natural indices of owned nodes, ghosted corners)
+  PetscInt xs_[3]{}, xm_[3]{1, 1, 1}, gxs_[3]{}, gxm_[3]{1, 1, 1};
+  PetscInt pin_row_ = -1;  // global row of the pinned pressure (owned by this rank) or -1
+  geometry::PointInverter inverter_;
+  struct LocatedPoint {
+    geometry::Index3 element;
+    geometry::Param xi;
+    ImmersedPoint data;
+  };
+  std::vector<LocatedPoint> immersed_;
+};
+
+}  // namespace cellfsi::fluid

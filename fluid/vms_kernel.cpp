@@ -1,0 +1,341 @@
+// Pointwise VMS kernels; the formulas are those of vms_kernel.hpp. The tangent is derived by hand from them
+// and checked against finite differences in tests/unit/fluid/test_vms_kernel.cpp.
+//
+// Cost matters: these run at every quadrature point of every element, once per Newton iteration. So whatever
+// does not depend on the basis functions is formed once per point (r_M, v', a = v + v', ...) and the weight
+// is folded into per-function factors; the tangent's per-pair work is a small fixed sum of products (see
+// tangent_kernel); there is no heap allocation; dim is a template parameter so the small loops unroll.
+#include "fluid/vms_kernel.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+
+namespace cellfsi::fluid {
+
+namespace {
+
+using Vec3 = std::array<double, 3>;
+using Mat3 = std::array<Vec3, 3>;
+
+// Quantities of one point that every basis function shares.
+struct PointState {
+  double tau_m = 0, tau_c = 0;
+  Vec3 v_fine{};   // v' = -tau_M r_M
+  Vec3 a{};        // v + v': the advecting velocity of the SUPG and Reynolds-stress terms
+  double r_c = 0;  // div v
+};
+
+PointState point_state(const VmsParameters& prm, const PointFields& f, const Stabilization& tau) {
+  const int d = prm.dim;
+  PointState st;
+  st.tau_m = tau.tau_m;
+  st.tau_c = tau.tau_c;
+  for (int i = 0; i < d; ++i) {
+    double r_m = f.vdot[i] + f.dp[i] - prm.nu * f.lap_v[i] - prm.g[i];
+    if (!prm.stokes)
+      for (int j = 0; j < d; ++j) r_m += f.v[j] * f.dv[i][j];
+    st.v_fine[i] = -tau.tau_m * r_m;
+    st.a[i] = f.v[i] + st.v_fine[i];
+    st.r_c += f.dv[i][i];
+  }
+  return st;
+}
+
+template <int Dim>
+void residual_kernel(const VmsParameters& prm, const PointBasis& basis, const PointFields& f,
+                     const Stabilization& tau, double weight, double* R) {
+  constexpr int nc = Dim + 1;
+  const bool convective = !prm.stokes;
+  const PointState st = point_state(prm, f, tau);
+
+  // The Galerkin convection and the cross term both multiply N_A: together N_A ((v + v').grad) v_i.
+  double mass[Dim];       // weight (vdot + (a.grad) v - g)
+  double fine[Dim];       // weight v'
+  double a[Dim];          // v + v' (zero in Stokes mode: no SUPG/Reynolds line)
+  double visc[Dim][Dim];  // weight nu (dv + dv^T)
+  for (int i = 0; i < Dim; ++i) {
+    mass[i] = f.vdot[i] - prm.g[i];
+    if (convective)
+      for (int j = 0; j < Dim; ++j) mass[i] += st.a[j] * f.dv[i][j];
+    mass[i] *= weight;
+    fine[i] = weight * st.v_fine[i];
+    a[i] = convective ? st.a[i] : 0.0;
+    for (int j = 0; j < Dim; ++j) visc[i][j] = weight * prm.nu * (f.dv[i][j] + f.dv[j][i]);
+  }
+  const double pressure = weight * (f.p - st.tau_c * st.r_c);  // p + p'
+  const double div = weight * st.r_c;
+
+  for (int A = 0; A < basis.n; ++A) {
+    const double N = basis.N[A];
+    double dN[Dim];
+    for (int j = 0; j < Dim; ++j) dN[j] = basis.dN[A * 3 + j];
+    double a_dN = 0, dN_fine = 0;
+    for (int j = 0; j < Dim; ++j) {
+      a_dN += a[j] * dN[j];
+      dN_fine += dN[j] * fine[j];
+    }
+    double* RA = R + A * nc;
+    for (int i = 0; i < Dim; ++i) {
+      double r = N * mass[i] - dN[i] * pressure - a_dN * fine[i];
+      for (int j = 0; j < Dim; ++j) r += visc[i][j] * dN[j];
+      RA[i] += r;
+    }
+    RA[Dim] += N * div - dN_fine;
+  }
+}
+
+// Every entry of the tangent is linear in the derivatives of the fields with respect to U_B, which are N_B,
+// dN_B and lapN_B times the TangentScales; lapN_B enters only through d r_M / dV_B, so each entry of the
+// (Dim+1) x (Dim+1) block of a pair (A, B) is
+//   K[c][e] = N_B X[c][0][e] + m_B X[c][1][e] + sum_j dN_B,j X[c][2+j][e]
+// with m_B the delta_ie part of d r_M,i / d V_{B,e} and coefficients X depending on A only. So the work per
+// pair is (Dim+1)^2 (Dim+2) products, and the formulas live in the per-A coefficients, one term at a time.
+template <int Dim>
+struct ColumnFactors {
+  double y[Dim + 2];  // N_B, m_B, dN_B
+};
+
+// Enough for p = 3 in 3D (64 functions) in one pass; more functions are handled in several passes.
+constexpr int kColumnChunk = 64;
+
+template <int Dim, bool kConvective>
+void tangent_kernel(const VmsParameters& prm, const PointBasis& basis, const PointFields& f,
+                    const TangentScales& ts, double weight, double* K) {
+  constexpr int nc = Dim + 1, ny = Dim + 2;
+  const int n = basis.n;
+  const std::size_t ld = static_cast<std::size_t>(n) * nc;
+  const double vel = ts.velocity, rate = ts.velocity_rate, pres = ts.pressure, nu = prm.nu;
+
+  const Stabilization tau = vms_stabilization(prm, f);
+  const PointState st = point_state(prm, f, tau);
+  const double tm = tau.tau_m, tc = tau.tau_c;
+
+  double v[Dim], v_fine[Dim], a[Dim], dv[Dim][Dim];
+  for (int i = 0; i < Dim; ++i) {
+    v[i] = f.v[i];
+    v_fine[i] = st.v_fine[i];
+    a[i] = st.a[i];
+    for (int j = 0; j < Dim; ++j) dv[i][j] = f.dv[i][j];
+  }
+  // N_A ((v + v').grad) v_i differentiated through v and v' (convective part) gives N_A N_B M[i][e].
+  [[maybe_unused]] double M[Dim][Dim];
+  if constexpr (kConvective) {
+    for (int i = 0; i < Dim; ++i)
+      for (int e = 0; e < Dim; ++e) {
+        double dvdv = 0;
+        for (int j = 0; j < Dim; ++j) dvdv += dv[i][j] * dv[j][e];
+        M[i][e] = vel * (dv[i][e] - tm * dvdv);
+      }
+  }
+
+  ColumnFactors<Dim> cols[kColumnChunk];
+  for (int b0 = 0; b0 < n; b0 += kColumnChunk) {
+    const int b1 = std::min(n, b0 + kColumnChunk);
+    for (int B = b0; B < b1; ++B) {
+      double* y = cols[B - b0].y;
+      y[0] = basis.N[B];
+      y[1] = rate * y[0] - nu * vel * basis.lapN[B];
+      for (int j = 0; j < Dim; ++j) {
+        y[2 + j] = basis.dN[B * 3 + j];
+        if constexpr (kConvective) y[1] += vel * v[j] * y[2 + j];
+      }
+    }
+
+    for (int A = 0; A < n; ++A) {
+      const double wN = weight * basis.N[A];
+      double wdN[Dim];
+      for (int j = 0; j < Dim; ++j) wdN[j] = weight * basis.dN[A * 3 + j];
+
+      // X[c][t][e]: coefficient of y_t in K[(A, c)][(B, e)], times the weight. Term by term, with
+      //   d v'_j / d V_{B,e} = -tau_M (m_B delta_je + [convective] velocity N_B dv[j][e]),
+      //   d v'_j / d P_B = -tau_M pressure dN_B,j,   d p' / d V_{B,e} = -tau_C velocity dN_B,e.
+      double X[nc][ny][nc] = {};
+      for (int i = 0; i < Dim; ++i) {
+        X[i][0][i] += rate * wN;        // N_A vdot_i
+        X[i][0][Dim] -= pres * wdN[i];  // -d_i N_A p
+        for (int j = 0; j < Dim; ++j) {
+          X[i][2 + j][i] += nu * vel * wdN[j];  // nu d_j N_A d_j v_i
+          X[i][2 + i][j] += nu * vel * wdN[j];  // nu d_j N_A d_i v_j
+          X[i][2 + j][j] += tc * vel * wdN[i];  // LSIC -d_i N_A p'
+        }
+      }
+      for (int e = 0; e < Dim; ++e) {
+        X[Dim][2 + e][e] += vel * wN;  // N_A div v
+        // PSPG -grad N_A . v' through the non-convective part of v'.
+        X[Dim][1][e] += tm * wdN[e];
+        X[Dim][2 + e][Dim] += tm * pres * wdN[e];
+      }
+      if constexpr (kConvective) {
+        double a_dN = 0, dNt_dv[Dim] = {};  // a . grad N_A, (grad N_A)^T dv
+        for (int j = 0; j < Dim; ++j) {
+          a_dN += a[j] * wdN[j];
+          for (int e = 0; e < Dim; ++e) dNt_dv[e] += wdN[j] * dv[j][e];
+        }
+        for (int i = 0; i < Dim; ++i) {
+          // N_A (v.grad) v_i + N_A (v'.grad) v_i (Galerkin + cross), through grad v: N_A (a . grad N_B).
+          for (int j = 0; j < Dim; ++j) X[i][2 + j][i] += vel * wN * a[j];
+          for (int e = 0; e < Dim; ++e) {
+            // The same two terms through v and v': N_A dv[i][j] (velocity N_B delta_je + d v'_j).
+            X[i][0][e] += wN * M[i][e];
+            X[i][1][e] -= tm * wN * dv[i][e];
+            X[i][2 + e][Dim] -= tm * pres * wN * dv[i][e];
+            // SUPG/Reynolds -(a . grad N_A) v'_i, through a = v + v' ...
+            X[i][0][e] += v_fine[i] * vel * (tm * dNt_dv[e] - wdN[e]);
+            X[i][1][e] += v_fine[i] * tm * wdN[e];
+            X[i][2 + e][Dim] += v_fine[i] * tm * pres * wdN[e];
+            // ... and through v'_i.
+            X[i][0][e] += tm * vel * a_dN * dv[i][e];
+          }
+          X[i][1][i] += tm * a_dN;
+          X[i][2 + i][Dim] += tm * pres * a_dN;
+        }
+        // PSPG through the convective part of v'.
+        for (int e = 0; e < Dim; ++e) X[Dim][0][e] += tm * vel * dNt_dv[e];
+      }
+
+      double* const block_row = K + static_cast<std::size_t>(A) * nc * ld;
+      for (int B = b0; B < b1; ++B) {
+        const double* y = cols[B - b0].y;
+        double* const block = block_row + B * nc;
+#pragma GCC unroll 4
+        for (int c = 0; c < nc; ++c) {
+          double k[nc];
+#pragma GCC unroll 4
+          for (int e = 0; e < nc; ++e) k[e] = y[0] * X[c][0][e];
+#pragma GCC unroll 5
+          for (int t = 1; t < ny; ++t) {
+            if (!kConvective && c < Dim && t == 1) continue;  // no m_B in the Stokes momentum rows
+#pragma GCC unroll 4
+            for (int e = 0; e < nc; ++e) k[e] += y[t] * X[c][t][e];
+          }
+          double* Kc = block + c * ld;
+#pragma GCC unroll 4
+          for (int e = 0; e < nc; ++e) Kc[e] += k[e];
+        }
+      }
+    }
+  }
+}
+
+template <int Dim>
+void immersed_tangent_kernel(const VmsParameters& prm, const PointBasis& basis, const PointFields& f,
+                             const TangentScales& ts, const ImmersedPoint& ip, double* K) {
+  constexpr int nc = Dim + 1;
+  const int n = basis.n;
+  const std::size_t ld = static_cast<std::size_t>(n) * nc;
+  const bool convective = !prm.stokes;
+  const double w = ip.weight, vel = ts.velocity;
+  double v[Dim], dv[Dim][Dim];  // local copies: K may alias f
+  for (int i = 0; i < Dim; ++i) {
+    v[i] = f.v[i];
+    for (int j = 0; j < Dim; ++j) dv[i][j] = f.dv[i][j];
+  }
+  for (int A = 0; A < n; ++A) {
+    const double mass_A = -w * ip.beta * basis.N[A];
+    Vec3 visc_dN_A{};  // -w nu velocity dN_A
+    for (int j = 0; j < Dim; ++j) visc_dN_A[j] = -w * prm.nu * vel * basis.dN[A * 3 + j];
+    for (int B = 0; B < n; ++B) {
+      const double N_B = basis.N[B];
+      const double* dN_B = basis.dN + B * 3;
+      double gg = 0, v_dN = 0;
+      for (int j = 0; j < Dim; ++j) {
+        gg += visc_dN_A[j] * dN_B[j];
+        v_dN += v[j] * dN_B[j];
+      }
+      double diag = mass_A * ts.velocity_rate * N_B + gg;
+      if (convective) diag += mass_A * vel * v_dN;
+      for (int i = 0; i < Dim; ++i) {
+        double* Ki = K + (static_cast<std::size_t>(A) * nc + i) * ld + B * nc;
+        for (int e = 0; e < Dim; ++e) {
+          double k = visc_dN_A[e] * dN_B[i];
+          if (convective) k += mass_A * vel * N_B * dv[i][e];
+          Ki[e] += k;
+        }
+        Ki[i] += diag;
+      }
+    }
+  }
+}
+
+}  // namespace
+
+Stabilization vms_stabilization(const VmsParameters& prm, const PointFields& f) {
+  assert(prm.dim == 2 || prm.dim == 3);
+  const int d = prm.dim;
+  double v_G_v = 0, G_G = 0, trace = 0;
+  for (int i = 0; i < d; ++i) {
+    trace += f.G[i][i];
+    for (int j = 0; j < d; ++j) {
+      G_G += f.G[i][j] * f.G[i][j];
+      v_G_v += f.v[i] * f.G[i][j] * f.v[j];
+    }
+  }
+  double inv_tau2 = 4.0 / (prm.dt * prm.dt) + prm.c_i * prm.nu * prm.nu * G_G;
+  if (!prm.stokes) inv_tau2 += v_G_v;
+  Stabilization tau;
+  tau.tau_m = 1.0 / std::sqrt(f.s * inv_tau2);
+  tau.tau_c = 1.0 / (tau.tau_m * trace);
+  return tau;
+}
+
+void vms_residual(const VmsParameters& prm, const PointBasis& basis, const PointFields& f, double weight,
+                  double* R, const Stabilization* frozen) {
+  assert(prm.dim == 2 || prm.dim == 3);
+  const Stabilization tau = frozen ? *frozen : vms_stabilization(prm, f);
+  if (prm.dim == 2)
+    residual_kernel<2>(prm, basis, f, tau, weight, R);
+  else
+    residual_kernel<3>(prm, basis, f, tau, weight, R);
+}
+
+void vms_tangent(const VmsParameters& prm, const PointBasis& basis, const PointFields& f,
+                 const TangentScales& ts, double weight, double* K) {
+  assert(prm.dim == 2 || prm.dim == 3);
+  if (prm.dim == 2) {
+    if (prm.stokes)
+      tangent_kernel<2, false>(prm, basis, f, ts, weight, K);
+    else
+      tangent_kernel<2, true>(prm, basis, f, ts, weight, K);
+  } else {
+    if (prm.stokes)
+      tangent_kernel<3, false>(prm, basis, f, ts, weight, K);
+    else
+      tangent_kernel<3, true>(prm, basis, f, ts, weight, K);
+  }
+}
+
+void immersed_residual(const VmsParameters& prm, const PointBasis& basis, const PointFields& f,
+                       const ImmersedPoint& ip, double* R) {
+  assert(prm.dim == 2 || prm.dim == 3);
+  const int d = prm.dim, nc = d + 1;
+  Vec3 mass{};  // -weight beta (vdot + (v.grad) v - g)
+  Mat3 flux{};  // weight (stress - nu (dv + dv^T))
+  for (int i = 0; i < d; ++i) {
+    double m = f.vdot[i] - prm.g[i];
+    if (!prm.stokes)
+      for (int j = 0; j < d; ++j) m += f.v[j] * f.dv[i][j];
+    mass[i] = -ip.weight * ip.beta * m;
+    for (int j = 0; j < d; ++j)
+      flux[i][j] = ip.weight * (ip.stress[i][j] - prm.nu * (f.dv[i][j] + f.dv[j][i]));
+  }
+  for (int A = 0; A < basis.n; ++A) {
+    const double* dN = basis.dN + A * 3;
+    for (int i = 0; i < d; ++i) {
+      double r = basis.N[A] * mass[i];
+      for (int j = 0; j < d; ++j) r += flux[i][j] * dN[j];
+      R[A * nc + i] += r;
+    }
+  }
+}
+
+void immersed_tangent(const VmsParameters& prm, const PointBasis& basis, const PointFields& f,
+                      const TangentScales& ts, const ImmersedPoint& ip, double* K) {
+  assert(prm.dim == 2 || prm.dim == 3);
+  if (prm.dim == 2)
+    immersed_tangent_kernel<2>(prm, basis, f, ts, ip, K);
+  else
+    immersed_tangent_kernel<3>(prm, basis, f, ts, ip, K);
+}
+
+}  // namespace cellfsi::fluid

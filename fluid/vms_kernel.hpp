@@ -1,0 +1,104 @@
+#pragma once
+// Pointwise kernels of the VMS Navier-Stokes formulation (paper Eqs. (8), (14)-(17); Bazilevs et al. 2007)
+// and of the immersed-solid terms of Eq. (10). Plain functions of plain data at one quadrature point: no
+// mesh, no PETSc.
+//
+// Unknowns per basis function A: velocity v_A (dim components) then kinematic pressure p_A (pressure /
+// rho_1); a residual or tangent row/column index is A * (dim + 1) + c, c < dim velocity, c == dim pressure.
+// Time discretisation (generalized-alpha, DESIGN.md section 3): the caller evaluates the fields at
+// v = v_{n+alpha_f}, vdot = vdot_{n+alpha_m}, p = p_{n+1}; TangentScales carries d(field)/d(unknown at n+1).
+//
+// Residual (test functions w = N_A e_i, q = N_A), with r_M = vdot + (v.grad)v + grad p - nu lap v - g, r_C =
+// div v, v' = -tau_M r_M, p' = -tau_C r_C:
+//   R^M_{A,i} = N_A (vdot_i + (v.grad)v_i - g_i) + nu d_j N_A (d_j v_i + d_i v_j) - d_i N_A p (Galerkin)
+//             + N_A (v'.grad)v_i (cross)
+//             - ((v + v').grad N_A) v'_i                                                   (SUPG and
+//             Reynolds)
+//             - d_i N_A p'                                                                             (LSIC)
+//   R^C_A     = N_A div v - grad N_A . v'                                                              (PSPG)
+// In Stokes mode every convective term is dropped: (v.grad)v in r_M and in the Galerkin term, the cross term,
+// the whole SUPG/Reynolds line, and v.G v in tau_M (the PSPG and LSIC terms stay: they stabilise equal-order
+// pairs).
+#include <array>
+
+namespace cellfsi::fluid {
+
+/// Physical and numerical parameters of the fluid at a point.
+struct VmsParameters {
+  int dim = 2;                // spatial dimension, 2 or 3
+  double nu = 0;              // kinematic viscosity mu / rho_1 [cm^2/s]
+  std::array<double, 3> g{};  // body force per unit mass [cm/s^2] (f / rho_1 for a force f per volume)
+  double dt = 0;              // time step, in tau_M's 4 / dt^2
+  double c_i = 36.0;          // C_I of tau_M (paper: 36)
+  bool stokes = false;        // drop convection (inertia negligible)
+};
+
+/// Values at the point of the n basis functions whose support contains it, in physical coordinates.
+struct PointBasis {
+  int n = 0;
+  const double* N = nullptr;     // N[A]
+  const double* dN = nullptr;    // dN[A * 3 + j] = d N_A / d x_j
+  const double* lapN = nullptr;  // lapN[A] = Laplacian of N_A (second derivatives needed by nu lap v)
+};
+
+/// Coarse-scale fields at the point (at the generalized-alpha levels) and the element metric.
+struct PointFields {
+  std::array<double, 3> v{};                  // velocity
+  std::array<std::array<double, 3>, 3> dv{};  // dv[i][j] = d v_i / d x_j
+  std::array<double, 3> lap_v{};              // Laplacian of each velocity component
+  std::array<double, 3> vdot{};               // time derivative of velocity
+  double p = 0;                               // kinematic pressure
+  std::array<double, 3> dp{};                 // its gradient
+  std::array<std::array<double, 3>, 3>
+      G{};         // G_ij = sum_k dxi_k/dx_i dxi_k/dx_j, parent coordinates xi in [-1,1]^d
+  double s = 1.0;  // scaling field s^h at the point (paper Eq. (16))
+};
+
+/// tau_M and tau_C of Eqs. (16)-(17).
+struct Stabilization {
+  double tau_m = 0;
+  double tau_c = 0;
+};
+Stabilization vms_stabilization(const VmsParameters& prm, const PointFields& f);
+
+/// Derivatives of the point fields with respect to the unknowns at t_{n+1}: d v / d V_B = velocity N_B,
+/// d vdot / d V_B = velocity_rate N_B, d p / d P_B = pressure N_B (generalized-alpha: alpha_f, alpha_m/(gamma
+/// dt), 1).
+struct TangentScales {
+  double velocity = 1.0;
+  double velocity_rate = 0.0;
+  double pressure = 1.0;
+};
+
+/// Adds weight * (the residual above) to R[A * (dim + 1) + c], A < basis.n.
+/// If `frozen` is given, its tau_M and tau_C are used instead of computing them from the fields.
+void vms_residual(const VmsParameters& prm, const PointBasis& basis, const PointFields& f, double weight,
+                  double* R, const Stabilization* frozen = nullptr);
+
+/// Adds weight * (the approximate tangent) to K, row-major, size (n (dim+1))^2:
+/// K[(A (dim+1) + c) * n (dim+1) + B (dim+1) + e] = d R_{A,c} / d U_{B,e}.
+/// The approximation (documented, tested): the exact derivative of vms_residual with tau_M and tau_C held
+/// fixed. In Stokes mode tau_M does not depend on v, so the tangent is exact.
+void vms_tangent(const VmsParameters& prm, const PointBasis& basis, const PointFields& f,
+                 const TangentScales& ts, double weight, double* K);
+
+/// One quadrature point of an immersed solid (paper Eq. (10)), in the data the coupling layer provides.
+struct ImmersedPoint {
+  double weight = 0;                              // quadrature weight in the reference configuration
+  std::array<std::array<double, 3>, 3> stress{};  // (1/rho_1) F S F^T, symmetric
+  double beta = 0;                                // density factor 1 - rho_2 / rho_1
+};
+
+/// Adds the Eq. (10) terms of one immersed point to the momentum rows of R (continuity rows untouched):
+///   R^M_{A,i} += weight * [ -beta N_A (vdot_i + (v.grad)v_i - g_i) - nu d_j N_A (d_j v_i + d_i v_j)
+///                           + d_j N_A stress_ij ]
+/// (the convective term is dropped in Stokes mode). basis and f are the Eulerian basis and fields at the
+/// point.
+void immersed_residual(const VmsParameters& prm, const PointBasis& basis, const PointFields& f,
+                       const ImmersedPoint& ip, double* R);
+/// Its exact tangent with respect to the Eulerian unknowns (the stress is held fixed: it depends on the
+/// solid).
+void immersed_tangent(const VmsParameters& prm, const PointBasis& basis, const PointFields& f,
+                      const TangentScales& ts, const ImmersedPoint& ip, double* K);
+
+}  // namespace cellfsi::fluid
