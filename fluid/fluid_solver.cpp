@@ -315,6 +315,26 @@ std::vector<PetscInt> FluidSolver::dirichlet_rows() const {
   return rows;
 }
 
+std::vector<Index3> FluidSolver::owned_elements() const {
+  std::vector<int> owned[3];
+  for (int d = 0; d < 3; ++d) {
+    if (d >= dim_) {
+      owned[d] = {0};
+      continue;
+    }
+    const geometry::KnotVector& kv = patch_.knots(d);
+    for (int e = 0; e < kv.n_elements(); ++e) {
+      const PetscInt first = kv.element_span(e) - kv.degree();
+      if (first >= xs_[d] && first < xs_[d] + xm_[d]) owned[d].push_back(e);
+    }
+  }
+  std::vector<Index3> out;
+  for (int ez : owned[2])
+    for (int ey : owned[1])
+      for (int ex : owned[0]) out.push_back({ex, ey, ez});
+  return out;
+}
+
 bool FluidSolver::owns_element(const Index3& e) const {
   for (int d = 0; d < dim_; ++d) {
     const geometry::KnotVector& kv = patch_.knots(d);
@@ -378,20 +398,6 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
     CELLFSI_PETSC(VecGetArray(F_loc, &f));
   }
   if (J) CELLFSI_PETSC(MatZeroEntries(J));
-
-  // Elements owned by this rank, per direction.
-  std::vector<int> owned[3];
-  for (int d = 0; d < 3; ++d) {
-    if (d >= D) {
-      owned[d] = {0};
-      continue;
-    }
-    const geometry::KnotVector& kv = patch_.knots(d);
-    for (int e = 0; e < kv.n_elements(); ++e) {
-      const PetscInt first = kv.element_span(e) - kv.degree();
-      if (first >= xs_[d] && first < xs_[d] + xm_[d]) owned[d].push_back(e);
-    }
-  }
 
   const Index3 ng = geometry::default_gauss(patch_);
   std::vector<geometry::QuadraturePoint> qp;
@@ -461,30 +467,27 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
   };
 
   PointFields pf;
-  for (int ez : owned[2])
-    for (int ey : owned[1])
-      for (int ex : owned[0]) {
-        const Index3 e{ex, ey, ez};
-        geometry::element_quadrature(patch_, e, ng, qp);
-        bool first_point = true;
-        int n = 0;
-        for (const auto& q : qp) {
-          physical_point(patch_, e, q.xi, bv, mv, pp);
-          if (first_point) {
-            gather(bv);
-            n = bv.n;
-            Re.assign(n * nd, 0.0);
-            if (J) Ke.assign(n * nd * n * nd, 0.0);
-            first_point = false;
-          }
-          fields(pp, pf);
-          const PointBasis pb{pp.n, pp.N.data(), pp.dN.data(), pp.lapN.data()};
-          const double w = q.weight * pp.detJ;
-          if (F) vms_residual(prm, pb, pf, w, Re.data());
-          if (J) vms_tangent(prm, pb, pf, ts, w, Ke.data());
-        }
-        scatter(n);
+  for (const Index3& e : owned_elements()) {
+    geometry::element_quadrature(patch_, e, ng, qp);
+    bool first_point = true;
+    int n = 0;
+    for (const auto& q : qp) {
+      physical_point(patch_, e, q.xi, bv, mv, pp);
+      if (first_point) {
+        gather(bv);
+        n = bv.n;
+        Re.assign(n * nd, 0.0);
+        if (J) Ke.assign(n * nd * n * nd, 0.0);
+        first_point = false;
       }
+      fields(pp, pf);
+      const PointBasis pb{pp.n, pp.N.data(), pp.dN.data(), pp.lapN.data()};
+      const double w = q.weight * pp.detJ;
+      if (F) vms_residual(prm, pb, pf, w, Re.data());
+      if (J) vms_tangent(prm, pb, pf, ts, w, Ke.data());
+    }
+    scatter(n);
+  }
 
   // Immersed-solid points (paper Eq. (10)) in this rank's elements.
   for (const LocatedPoint& ip : immersed_) {
@@ -600,6 +603,142 @@ StepStats FluidSolver::step() {
   }
   CELLFSI_PETSC(VecDestroy(&X));
   return st;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// L2 projection of initial data and L2 errors
+
+void FluidSolver::project_initial_state(const std::function<Vec3(const Vec3&)>& v0,
+                                        const std::function<Vec3(const Vec3&)>& vdot0) {
+  const int D = dim_;
+  Mat M;
+  CELLFSI_PETSC(DMCreateMatrix(da_scalar_, &M));
+  std::vector<Vec> rhs(2 * D);
+  for (auto& b : rhs) CELLFSI_PETSC(DMCreateGlobalVector(da_scalar_, &b));
+  std::vector<Vec> rhs_loc(2 * D);
+  for (int c = 0; c < 2 * D; ++c) {
+    CELLFSI_PETSC(DMCreateLocalVector(da_scalar_, &rhs_loc[c]));
+    CELLFSI_PETSC(VecSet(rhs_loc[c], 0.0));
+  }
+  std::vector<PetscScalar*> r(2 * D);
+  for (int c = 0; c < 2 * D; ++c) CELLFSI_PETSC(VecGetArray(rhs_loc[c], &r[c]));
+  const Index3 ng = geometry::default_gauss(patch_, 2);
+  std::vector<geometry::QuadraturePoint> qp;
+  BasisValues bv;
+  MapValues mv;
+  std::vector<PetscInt> lidx;
+  std::vector<double> Me;
+  for (const Index3& e : owned_elements()) {
+    geometry::element_quadrature(patch_, e, ng, qp);
+    bool first_point = true;
+    for (const auto& q : qp) {
+      patch_.basis(q.xi, 1, bv, &e);
+      patch_.map(bv, mv);
+      const double w = q.weight * std::abs(mv.dx.topLeftCorner(D, D).determinant());
+      const int n = bv.n;
+      if (first_point) {
+        lidx.resize(n);
+        int first[3] = {0, 0, 0}, np[3] = {1, 1, 1};
+        for (int d = 0; d < D; ++d) first[d] = bv.span[d] - patch_.degree(d), np[d] = patch_.degree(d) + 1;
+        int k = 0;
+        for (int c2 = 0; c2 < np[2]; ++c2)
+          for (int b1 = 0; b1 < np[1]; ++b1)
+            for (int a0 = 0; a0 < np[0]; ++a0, ++k) {
+              const PetscInt m[3] = {first[0] + a0, first[1] + b1, first[2] + c2};
+              lidx[k] = local_node(m, gxs_, gxm_);
+            }
+        Me.assign(n * n, 0.0);
+        first_point = false;
+      }
+      const Vec3 f0 = v0(mv.x), f1 = vdot0(mv.x);
+      for (int a = 0; a < n; ++a) {
+        for (int c = 0; c < D; ++c) {
+          r[c][lidx[a]] += w * bv.value[a] * f0[c];
+          r[D + c][lidx[a]] += w * bv.value[a] * f1[c];
+        }
+        for (int b = 0; b < n; ++b) Me[a * n + b] += w * bv.value[a] * bv.value[b];
+      }
+    }
+    CELLFSI_PETSC(MatSetValuesLocal(M, static_cast<PetscInt>(lidx.size()), lidx.data(),
+                                    static_cast<PetscInt>(lidx.size()), lidx.data(), Me.data(), ADD_VALUES));
+  }
+  CELLFSI_PETSC(MatAssemblyBegin(M, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(M, MAT_FINAL_ASSEMBLY));
+  for (int c = 0; c < 2 * D; ++c) {
+    CELLFSI_PETSC(VecRestoreArray(rhs_loc[c], &r[c]));
+    CELLFSI_PETSC(VecSet(rhs[c], 0.0));
+    CELLFSI_PETSC(DMLocalToGlobal(da_scalar_, rhs_loc[c], ADD_VALUES, rhs[c]));
+  }
+  KSP ksp;
+  CELLFSI_PETSC(KSPCreate(comm_, &ksp));
+  CELLFSI_PETSC(KSPSetOptionsPrefix(ksp, "fluid_projection_"));
+  CELLFSI_PETSC(KSPSetOperators(ksp, M, M));
+  CELLFSI_PETSC(KSPSetType(ksp, KSPCG));
+  PC pc;
+  CELLFSI_PETSC(KSPGetPC(ksp, &pc));
+  CELLFSI_PETSC(PCSetType(pc, PCJACOBI));
+  CELLFSI_PETSC(KSPSetTolerances(ksp, 1e-14, 1e-30, PETSC_DEFAULT, 2000));
+  CELLFSI_PETSC(KSPSetFromOptions(ksp));
+  Vec x;
+  CELLFSI_PETSC(VecDuplicate(rhs[0], &x));
+  for (int c = 0; c < 2 * D; ++c) {
+    CELLFSI_PETSC(KSPSolve(ksp, rhs[c], x));
+    KSPConvergedReason reason;
+    CELLFSI_PETSC(KSPGetConvergedReason(ksp, &reason));
+    if (reason < 0) throw std::runtime_error("L2 projection of the initial state did not converge");
+    CELLFSI_PETSC(VecStrideScatter(x, c % D, c < D ? U_ : Udot_, INSERT_VALUES));
+  }
+  CELLFSI_PETSC(VecStrideSet(U_, D, 0.0));
+  CELLFSI_PETSC(VecStrideSet(Udot_, D, 0.0));
+  apply_dirichlet_values(U_, time_);
+  CELLFSI_PETSC(VecDestroy(&x));
+  CELLFSI_PETSC(KSPDestroy(&ksp));
+  for (int c = 0; c < 2 * D; ++c) {
+    CELLFSI_PETSC(VecDestroy(&rhs[c]));
+    CELLFSI_PETSC(VecDestroy(&rhs_loc[c]));
+  }
+  CELLFSI_PETSC(MatDestroy(&M));
+}
+
+FluidSolver::L2Error FluidSolver::velocity_l2_error(const std::function<Vec3(const Vec3&)>& v_exact) const {
+  const int D = dim_, nd = dof_;
+  Vec U_loc;
+  CELLFSI_PETSC(DMGetLocalVector(da_, &U_loc));
+  CELLFSI_PETSC(DMGlobalToLocal(da_, U_, INSERT_VALUES, U_loc));
+  const PetscScalar* u;
+  CELLFSI_PETSC(VecGetArrayRead(U_loc, &u));
+  const Index3 ng = geometry::default_gauss(patch_, 3);
+  std::vector<geometry::QuadraturePoint> qp;
+  BasisValues bv;
+  MapValues mv;
+  double sums[2] = {0, 0};
+  for (const Index3& e : owned_elements()) {
+    geometry::element_quadrature(patch_, e, ng, qp);
+    for (const auto& q : qp) {
+      patch_.basis(q.xi, 1, bv, &e);
+      patch_.map(bv, mv);
+      const double w = q.weight * std::abs(mv.dx.topLeftCorner(D, D).determinant());
+      int first[3] = {0, 0, 0}, np[3] = {1, 1, 1};
+      for (int d = 0; d < D; ++d) first[d] = bv.span[d] - patch_.degree(d), np[d] = patch_.degree(d) + 1;
+      Vec3 vh = Vec3::Zero();
+      int k = 0;
+      for (int c2 = 0; c2 < np[2]; ++c2)
+        for (int b1 = 0; b1 < np[1]; ++b1)
+          for (int a0 = 0; a0 < np[0]; ++a0, ++k) {
+            const PetscInt m[3] = {first[0] + a0, first[1] + b1, first[2] + c2};
+            const PetscInt node = local_node(m, gxs_, gxm_);
+            for (int c = 0; c < D; ++c) vh[c] += bv.value[k] * u[node * nd + c];
+          }
+      const Vec3 ve = v_exact(mv.x);
+      sums[0] += w * (vh - ve).squaredNorm();
+      sums[1] += w * ve.squaredNorm();
+    }
+  }
+  CELLFSI_PETSC(VecRestoreArrayRead(U_loc, &u));
+  CELLFSI_PETSC(DMRestoreLocalVector(da_, &U_loc));
+  double all[2];
+  CELLFSI_PETSC(MPI_Allreduce(sums, all, 2, MPI_DOUBLE, MPI_SUM, comm_));
+  return {std::sqrt(all[0]), std::sqrt(all[1])};
 }
 
 // ---------------------------------------------------------------------------------------------------------------

@@ -90,6 +90,18 @@ class FluidSolver {
   /// control values are their Greville-point values, e.g. linear fields on affine meshes); pressure 0;
   /// velocity rate 0. Wall control values take the wall velocity.
   void set_initial_velocity(const std::function<Vec3(const Vec3&)>& v0);
+  /// Sets velocity and velocity rate to the L2 projections of v0 and vdot0 (optimal-order initial data; a rate
+  /// consistent with the flow keeps generalized-alpha second order from the first step); pressure 0. Wall control
+  /// values then take the wall velocity. Collective; solves mass-matrix systems with CG (prefix fluid_projection_).
+  void project_initial_state(const std::function<Vec3(const Vec3&)>& v0,
+                             const std::function<Vec3(const Vec3&)>& vdot0);
+
+  /// L2 norms over the domain of v_h - v_exact and of v_exact at the current time (collective).
+  struct L2Error {
+    double error = 0, norm = 0;
+  };
+  L2Error velocity_l2_error(const std::function<Vec3(const Vec3&)>& v_exact) const;
+
   /// Sets the scaling field s^h by control value (natural node index -> s); applies to owned nodes.
   void set_scaling(const std::function<double(int node)>& s);
   /// Immersed points, all of them on every rank (each rank keeps those in its elements).
@@ -132,6 +144,8 @@ class FluidSolver {
   void apply_dirichlet_values(Vec U, double t) const;
   std::vector<PetscInt> dirichlet_rows() const;  // global PETSc indices of owned Dirichlet rows
   bool owns_element(const geometry::Index3& e) const;
+  /// The elements whose first support node this rank owns (each element belongs to exactly one rank).
+  std::vector<geometry::Index3> owned_elements() const;
 
   MPI_Comm comm_;
   const geometry::Patch& patch_;
