@@ -147,7 +147,7 @@ void physical_point(const geometry::Patch& patch, const Index3& e, const Param& 
 // Construction
 
 FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const FluidOptions& options)
-    : comm_(comm), patch_(patch), opt_(options), inverter_(patch) {
+    : comm_(comm), patch_(patch), opt_(options), inverter_(patch), element_basis_(patch) {
   dim_ = patch.param_dim();
   if (dim_ != patch.physical_dim() || dim_ < 2)
     throw std::invalid_argument("FluidSolver: the Eulerian patch must be 2D in 2D or 3D in 3D");
@@ -194,6 +194,10 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
   CELLFSI_PETSC(DMCreateGlobalVector(da_scalar_, &S_));
   CELLFSI_PETSC(VecSet(S_, 1.0));
   CELLFSI_PETSC(DMCreateLocalVector(da_scalar_, &S_loc_));
+  // Block AIJ with one block per control point: element blocks are inserted node by node.
+  char mat_type[64] = MATBAIJ;
+  CELLFSI_PETSC(PetscOptionsGetString(nullptr, "fluid_", "-mat_type_jacobian", mat_type, sizeof mat_type, nullptr));
+  CELLFSI_PETSC(DMSetMatType(da_, mat_type));
   CELLFSI_PETSC(DMCreateMatrix(da_, &J_));
   CELLFSI_PETSC(MatSetOption(J_, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
 
@@ -397,32 +401,37 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
     CELLFSI_PETSC(VecSet(F_loc, 0.0));
     CELLFSI_PETSC(VecGetArray(F_loc, &f));
   }
-  if (J) CELLFSI_PETSC(MatZeroEntries(J));
+  if (J) {
+    // Dirichlet rows are zeroed after assembly; keeping their pattern lets the matrix be assembled again.
+    CELLFSI_PETSC(MatSetOption(J, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
+    CELLFSI_PETSC(MatZeroEntries(J));
+  }
 
-  const Index3 ng = geometry::default_gauss(patch_);
-  std::vector<geometry::QuadraturePoint> qp;
   BasisValues bv;
   MapValues mv;
   PhysicalPoint pp;
+  ElementValues scratch;
   std::vector<double> Re, Ke, Vf, Vd, S;
-  std::vector<PetscInt> lidx;
+  std::vector<PetscInt> lidx, lnode;
 
   // Gathers the element's nodal fields at the alpha levels: Vf = velocity at n+alpha_f and pressure at n+1,
-  // Vd = velocity rate at n+alpha_m, S = s^h; lidx = local dof indices.
-  auto gather = [&](const BasisValues& b) {
-    const int n = b.n;
+  // Vd = velocity rate at n+alpha_m, S = s^h; lnode = local node indices, lidx = local dof indices.
+  auto gather = [&](const int first[3]) {
+    int np[3] = {1, 1, 1};
+    for (int d = 0; d < D; ++d) np[d] = patch_.degree(d) + 1;
+    const int n = np[0] * np[1] * np[2];
     Vf.assign(n * nd, 0.0);
     Vd.assign(n * nd, 0.0);
     S.assign(n, 1.0);
     lidx.resize(n * nd);
-    int first[3] = {0, 0, 0}, np[3] = {1, 1, 1};
-    for (int d = 0; d < D; ++d) first[d] = b.span[d] - patch_.degree(d), np[d] = patch_.degree(d) + 1;
+    lnode.resize(n);
     int k = 0;
     for (int c2 = 0; c2 < np[2]; ++c2)
       for (int b1 = 0; b1 < np[1]; ++b1)
         for (int a0 = 0; a0 < np[0]; ++a0, ++k) {
           const PetscInt m[3] = {first[0] + a0, first[1] + b1, first[2] + c2};
           const PetscInt node = local_node(m, gxs_, gxm_);
+          lnode[k] = node;
           S[k] = sh[node];
           for (int c = 0; c < nd; ++c) {
             const PetscInt li = node * nd + c;
@@ -437,54 +446,51 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
             }
           }
         }
+    return n;
   };
 
-  auto fields = [&](const PhysicalPoint& p, PointFields& pf) {
+  auto fields = [&](const PointBasis& b, const std::array<std::array<double, 3>, 3>& G, PointFields& pf) {
     pf = PointFields{};
     pf.s = 0;
-    for (int k = 0; k < p.n; ++k) {
-      const double N = p.N[k];
+    for (int k = 0; k < b.n; ++k) {
+      const double N = b.N[k];
+      const double* dN = b.dN + 3 * k;
       pf.s += N * S[k];
       for (int i = 0; i < D; ++i) {
         const double vk = Vf[k * nd + i];
         pf.v[i] += N * vk;
         pf.vdot[i] += N * Vd[k * nd + i];
-        pf.lap_v[i] += p.lapN[k] * vk;
-        for (int j = 0; j < D; ++j) pf.dv[i][j] += p.dN[3 * k + j] * vk;
+        pf.lap_v[i] += b.lapN[k] * vk;
+        for (int j = 0; j < D; ++j) pf.dv[i][j] += dN[j] * vk;
       }
       const double pk = Vf[k * nd + D];
       pf.p += N * pk;
-      for (int j = 0; j < D; ++j) pf.dp[j] += p.dN[3 * k + j] * pk;
+      for (int j = 0; j < D; ++j) pf.dp[j] += dN[j] * pk;
     }
-    pf.G = p.G;
+    pf.G = G;
   };
 
   auto scatter = [&](int n) {
     if (F)
       for (int r = 0; r < n * nd; ++r) f[lidx[r]] += Re[r];
+    // Node blocks (the DMDA matrix has block size dof): one index per node instead of per unknown.
     if (J)
-      CELLFSI_PETSC(MatSetValuesLocal(J, n * nd, lidx.data(), n * nd, lidx.data(), Ke.data(), ADD_VALUES));
+      CELLFSI_PETSC(MatSetValuesBlockedLocal(J, n, lnode.data(), n, lnode.data(), Ke.data(), ADD_VALUES));
   };
 
   PointFields pf;
   for (const Index3& e : owned_elements()) {
-    geometry::element_quadrature(patch_, e, ng, qp);
-    bool first_point = true;
-    int n = 0;
-    for (const auto& q : qp) {
-      physical_point(patch_, e, q.xi, bv, mv, pp);
-      if (first_point) {
-        gather(bv);
-        n = bv.n;
-        Re.assign(n * nd, 0.0);
-        if (J) Ke.assign(n * nd * n * nd, 0.0);
-        first_point = false;
-      }
-      fields(pp, pf);
-      const PointBasis pb{pp.n, pp.N.data(), pp.dN.data(), pp.lapN.data()};
-      const double w = q.weight * pp.detJ;
-      if (F) vms_residual(prm, pb, pf, w, Re.data());
-      if (J) vms_tangent(prm, pb, pf, ts, w, Ke.data());
+    int first[3];
+    const ElementValues& ev = element_basis_.evaluate(e, scratch, first);
+    const int n = gather(first);
+    Re.assign(n * nd, 0.0);
+    if (J) Ke.assign(static_cast<size_t>(n * nd) * n * nd, 0.0);
+    for (int q = 0; q < ev.nq; ++q) {
+      const PointBasis pb{n, &ev.N[static_cast<size_t>(q) * n], &ev.dN[static_cast<size_t>(q) * n * 3],
+                          &ev.lapN[static_cast<size_t>(q) * n]};
+      fields(pb, ev.G[q], pf);
+      if (F) vms_residual(prm, pb, pf, ev.weight[q], Re.data());
+      if (J) vms_tangent(prm, pb, pf, ts, ev.weight[q], Ke.data());
     }
     scatter(n);
   }
@@ -492,12 +498,13 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
   // Immersed-solid points (paper Eq. (10)) in this rank's elements.
   for (const LocatedPoint& ip : immersed_) {
     physical_point(patch_, ip.element, ip.xi, bv, mv, pp);
-    gather(bv);
-    const int n = bv.n;
+    int first[3] = {0, 0, 0};
+    for (int d = 0; d < D; ++d) first[d] = bv.span[d] - patch_.degree(d);
+    const int n = gather(first);
     Re.assign(n * nd, 0.0);
-    if (J) Ke.assign(n * nd * n * nd, 0.0);
-    fields(pp, pf);
+    if (J) Ke.assign(static_cast<size_t>(n * nd) * n * nd, 0.0);
     const PointBasis pb{pp.n, pp.N.data(), pp.dN.data(), pp.lapN.data()};
+    fields(pb, pp.G, pf);
     if (F) immersed_residual(prm, pb, pf, ip.data, Re.data());
     if (J) immersed_tangent(prm, pb, pf, ts, ip.data, Ke.data());
     scatter(n);

@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "fluid/element_basis.hpp"
 #include "fluid/vms_kernel.hpp"
 #include "geometry/inversion.hpp"
 #include "geometry/patch.hpp"
@@ -90,9 +91,10 @@ class FluidSolver {
   /// control values are their Greville-point values, e.g. linear fields on affine meshes); pressure 0;
   /// velocity rate 0. Wall control values take the wall velocity.
   void set_initial_velocity(const std::function<Vec3(const Vec3&)>& v0);
-  /// Sets velocity and velocity rate to the L2 projections of v0 and vdot0 (optimal-order initial data; a rate
-  /// consistent with the flow keeps generalized-alpha second order from the first step); pressure 0. Wall control
-  /// values then take the wall velocity. Collective; solves mass-matrix systems with CG (prefix fluid_projection_).
+  /// Sets velocity and velocity rate to the L2 projections of v0 and vdot0 (optimal-order initial data; a
+  /// rate consistent with the flow keeps generalized-alpha second order from the first step); pressure 0.
+  /// Wall control values then take the wall velocity. Collective; solves mass-matrix systems with CG (prefix
+  /// fluid_projection_).
   void project_initial_state(const std::function<Vec3(const Vec3&)>& v0,
                              const std::function<Vec3(const Vec3&)>& vdot0);
 
@@ -165,6 +167,7 @@ class FluidSolver {
   PetscInt xs_[3]{}, xm_[3]{1, 1, 1}, gxs_[3]{}, gxm_[3]{1, 1, 1};
   PetscInt pin_row_ = -1;  // global row of the pinned pressure (owned by this rank) or -1
   geometry::PointInverter inverter_;
+  ElementBasis element_basis_;
   struct LocatedPoint {
     geometry::Index3 element;
     geometry::Param xi;

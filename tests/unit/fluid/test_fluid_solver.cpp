@@ -151,6 +151,7 @@ double jacobian_deviation(FluidSolver& fs, double amplitude) {
   Mat J;
   CELLFSI_PETSC(DMCreateMatrix(fs.dm(), &J));
   fs.evaluate_jacobian(U, J);
+  fs.evaluate_jacobian(U, J);  // a second assembly into the same matrix must work (Dirichlet rows keep their pattern)
   CELLFSI_PETSC(VecDuplicate(U, &F0));
   CELLFSI_PETSC(VecDuplicate(U, &F1));
   PetscInt n = 0;
