@@ -221,18 +221,22 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
   CELLFSI_PETSC(KSPSetTolerances(ksp, 1e-5, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
   CELLFSI_PETSC(KSPGetPC(ksp, &pc));
   CELLFSI_PETSC(PCSetType(pc, PCASM));
-  // At Re ~ 1e-4 the Jacobian barely changes between Newton iterations and steps, so by default the LU
-  // preconditioner is rebuilt only every 10th linear solve, across steps (measured on the 64 x 32 cubic shear
-  // scene: 33.3 s -> 9.3 s, identical result). -fluid_snes_lag_preconditioner 1 restores the paper's
-  // rebuild-every-time.
+  // Defaults beyond the paper, measured in docs/performance.md (bench/run_fluid_solvers.sh): MUMPS for the
+  // subdomain LU (it pivots, and factors ~8x faster than PETSc's own LU here), and reuse of the LU preconditioner
+  // for 10 linear solves across Newton iterations and steps (at Re ~ 1e-4 the Jacobian barely changes). The paper's
+  // exact setting: -fluid_sub_pc_factor_mat_solver_type petsc -fluid_snes_lag_preconditioner 1.
   const char* defaults[][2] = {{"-fluid_sub_pc_type", "lu"},
-                               {"-fluid_sub_pc_factor_mat_ordering_type", "nd"},
+                               {"-fluid_sub_pc_factor_mat_solver_type", "mumps"},
                                {"-fluid_snes_lag_preconditioner", "10"},
                                {"-fluid_snes_lag_preconditioner_persists", "true"}};
   for (auto& kv : defaults) {
     PetscBool set = PETSC_FALSE;
     CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, kv[0], &set));
-    if (!set) CELLFSI_PETSC(PetscOptionsSetValue(nullptr, kv[0], kv[1]));
+    if (set) continue;
+    CELLFSI_PETSC(PetscOptionsSetValue(nullptr, kv[0], kv[1]));
+    // Querying marks a default as used: if the user picks a preconditioner without subdomains it is not an unknown
+    // option of theirs.
+    CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, kv[0], &set));
   }
   CELLFSI_PETSC(SNESSetFromOptions(snes_));
 }
