@@ -25,26 +25,22 @@
 
 namespace {
 
-/// Fails on options nobody read (a misspelt key must not be silently ignored). Options of inner solvers (ASM
-/// subdomains, multigrid levels, field splits) are read only when the preconditioner is first set up, so
-/// before any work (`after_setup` false) they are skipped; the check after the first step covers them.
-void reject_unknown_options(bool after_setup) {
+/// Fails on options nobody read (a misspelt key must not be silently ignored). Call after the solvers are set
+/// up: inner solvers (ASM subdomains, multigrid levels) read their options only then.
+void reject_unknown_options() {
   PetscInt n = 0;
   char** names = nullptr;
   char** values = nullptr;
   CELLFSI_PETSC(PetscOptionsLeftGet(nullptr, &n, &names, &values));
-  std::string first;
-  for (PetscInt i = 0; i < n && first.empty(); ++i) {
-    const std::string name = names[i];
-    bool inner = false;
-    for (const char* p : {"fluid_sub_", "fluid_mg_", "fluid_fieldsplit_", "fluid_redundant_"})
-      inner = inner || name.rfind(p, 0) == 0;
-    if (after_setup || !inner) first = name;
-  }
+  const std::string first = n > 0 ? names[0] : "";
   CELLFSI_PETSC(PetscOptionsLeftRestore(nullptr, &n, &names, &values));
   if (!first.empty())
     throw std::invalid_argument("unknown option -" + first +
                                 " (misspelt? run with -help for the valid options)");
+}
+
+void print_error(const std::string& message) {
+  PetscFPrintf(PETSC_COMM_WORLD, PETSC_STDERR, "cellfsi: error: %s\n", message.c_str());
 }
 
 int run(const std::string& default_name) {
@@ -54,7 +50,8 @@ int run(const std::string& default_name) {
   CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-help", &help));
   app::Scene scene(PETSC_COMM_WORLD, settings);
   if (help) return 0;
-  reject_unknown_options(false);
+  scene.fluid().setup();
+  reject_unknown_options();
 
   int size = 1;
   MPI_Comm_size(PETSC_COMM_WORLD, &size);
@@ -64,35 +61,43 @@ int run(const std::string& default_name) {
     series = std::make_unique<fluid::FluidSeriesWriter>(settings.output_dir);
     series->write(scene.fluid());
   }
-  CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "cellfsi %s: %s, %d ranks, output in %s\n", CELLFSI_VERSION,
-                            settings.name.c_str(), size, settings.output_dir.c_str()));
   const int n_steps = static_cast<int>(std::ceil(settings.final_time / settings.dt - 1e-9));
+  CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
+                            "cellfsi %s: %s, %d ranks, %d steps of %g s to t = %g s, output in %s\n",
+                            CELLFSI_VERSION, settings.name.c_str(), size, n_steps, settings.dt,
+                            n_steps * settings.dt, settings.output_dir.c_str()));
   long newton = 0, linear = 0;
+  int done = 0;
   std::vector<std::pair<std::string, double>> last;
-  for (int k = 1; k <= n_steps; ++k) {
-    const fluid::StepStats st = scene.fluid().step();
-    newton += st.newton_iterations;
-    linear += st.linear_iterations;
-    if (!st.converged) {
-      const std::string why = "Newton diverged (" + st.reason + ") in step " + std::to_string(k) +
-                              " at t = " + std::to_string(scene.fluid().time() + settings.dt) + " s";
-      out.summary("failed: " + why, k - 1, newton, linear, last);
-      CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "cellfsi: error: %s; output so far is in %s\n", why.c_str(),
-                                settings.output_dir.c_str()));
-      return 2;
+  try {
+    for (int k = 1; k <= n_steps; ++k) {
+      const fluid::StepStats st = scene.fluid().step();
+      newton += st.newton_iterations;
+      linear += st.linear_iterations;
+      if (!st.converged) {
+        const std::string why = "Newton diverged (" + st.reason + ") in step " + std::to_string(k) +
+                                " at t = " + std::to_string(k * settings.dt) + " s";
+        out.summary("failed: " + why, done, newton, linear, last);
+        print_error(why + "; output so far is in " + settings.output_dir);
+        return 2;
+      }
+      done = k;
+      last = scene.metrics();
+      std::vector<std::pair<std::string, double>> row{{"step", k},
+                                                      {"time", scene.fluid().time()},
+                                                      {"newton_iterations", st.newton_iterations},
+                                                      {"linear_iterations", st.linear_iterations}};
+      row.insert(row.end(), last.begin(), last.end());
+      out.metrics_row(row);
+      out.progress(k, n_steps, scene.fluid().time(), st.newton_iterations, st.linear_iterations);
+      if (series && k % settings.output_every == 0) series->write(scene.fluid());
     }
-    if (k == 1) reject_unknown_options(true);
-    last = scene.metrics();
-    std::vector<std::pair<std::string, double>> row{{"step", k},
-                                                    {"time", scene.fluid().time()},
-                                                    {"newton_iterations", st.newton_iterations},
-                                                    {"linear_iterations", st.linear_iterations}};
-    row.insert(row.end(), last.begin(), last.end());
-    out.metrics_row(row);
-    out.progress(k, n_steps, scene.fluid().time(), st.newton_iterations, st.linear_iterations);
-    if (series && k % settings.output_every == 0) series->write(scene.fluid());
+  } catch (const std::exception& e) {
+    // Whatever stopped the run mid-way, the summary says so next to the output written so far.
+    out.summary(std::string("failed: ") + e.what(), done, newton, linear, last);
+    throw;
   }
-  out.summary("completed", n_steps, newton, linear, last);
+  out.summary("completed", done, newton, linear, last);
   CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
                             "cellfsi: completed %d steps in %.2f s; summary in %s/summary.json\n", n_steps,
                             out.elapsed(), settings.output_dir.c_str()));
@@ -125,10 +130,10 @@ int main(int argc, char** argv) {
   try {
     status = run(scene_name);
   } catch (const std::invalid_argument& e) {
-    PetscPrintf(PETSC_COMM_WORLD, "cellfsi: error: %s\n", e.what());
+    print_error(e.what());
     status = 1;
   } catch (const std::exception& e) {
-    PetscPrintf(PETSC_COMM_WORLD, "cellfsi: error: %s\n", e.what());
+    print_error(e.what());
     status = 2;
   }
   PetscFinalize();

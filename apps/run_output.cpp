@@ -76,6 +76,13 @@ RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& s
   MPI_Bcast(&ok, 1, MPI_INT, 0, comm);
   if (!ok) throw std::invalid_argument("-output_dir '" + dir_ + "' cannot be created: " + why);
   if (rank_ == 0) {
+    // A previous run's results in this folder would be mistaken for this run's: remove them first.
+    for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
+      const std::string name = entry.path().filename().string();
+      if (name == "summary.json" || name == "fluid.pvd" ||
+          (name.rfind("fluid_", 0) == 0 && entry.path().extension() == ".vts"))
+        std::filesystem::remove(entry.path());
+    }
     write_atomically(dir_ + "/options.yaml", options_yaml());
     csv_.open(dir_ + "/metrics.csv", std::ios::trunc);
     if (!csv_) throw std::runtime_error("cannot write '" + dir_ + "/metrics.csv'");

@@ -29,14 +29,20 @@ std::string str(double v) {
 struct Raw {
   char name[256] = "", domain[64] = "rectangle", flow[64] = "shear", output_dir[PETSC_MAX_PATH_LEN] = "";
   PetscInt dim = 2;
-  PetscReal size[3] = {0.0024, 0.0012, 0.0012};
+  // Arrays hold one more than the largest valid count, so PETSc reports an extra value instead of dropping
+  // it.
+  PetscReal size[4] = {0.0024, 0.0012, 0.0012, 0};
   PetscInt n_size = 0;
-  PetscReal origin[3] = {0, 0, 0};
+  PetscBool size_set = PETSC_FALSE;
+  PetscReal origin[4] = {0, 0, 0, 0};
   PetscInt n_origin = 0;
-  PetscBool periodic[3] = {PETSC_TRUE, PETSC_FALSE, PETSC_FALSE};
+  PetscBool origin_set = PETSC_FALSE;
+  PetscBool periodic[4] = {PETSC_TRUE, PETSC_FALSE, PETSC_FALSE, PETSC_FALSE};
   PetscInt n_periodic = 0;
-  PetscInt elements[3] = {64, 32, 32};
+  PetscBool periodic_set = PETSC_FALSE;
+  PetscInt elements[4] = {64, 32, 32, 0};
   PetscInt n_elements = 0;
+  PetscBool elements_set = PETSC_FALSE;
   PetscInt degree = 3;
   PetscReal shear_rate = 70.0, final_time = 0.05, dt = 5e-4;
   PetscInt output_every = 0;
@@ -74,9 +80,9 @@ PetscErrorCode read_raw(Raw& r, const geometry::NarrowingChannel& ch0) {
                              nullptr, r.ch[4], &r.ch[4], nullptr));
   PetscCall(PetscOptionsReal("-channel_throat_center", "Narrowing channel: x of the throat centre [cm]",
                              nullptr, r.ch[5], &r.ch[5], nullptr));
-  r.n_elements = 3;
+  r.n_elements = 4;
   PetscCall(PetscOptionsIntArray("-fluid_elements", "Eulerian elements NX,NY[,NZ]", nullptr, r.elements,
-                                 &r.n_elements, nullptr));
+                                 &r.n_elements, &r.elements_set));
   PetscCall(PetscOptionsInt("-fluid_degree", "Eulerian degree p (continuity p-1), 2..8", nullptr, r.degree,
                             &r.degree, nullptr));
   PetscCall(PetscOptionsString("-flow", "shear (moving walls), poiseuille (body force) or rest", nullptr,
@@ -99,7 +105,22 @@ SceneSettings SceneSettings::from_options(const std::string& default_name) {
   SceneSettings s;
   Raw r;
   std::snprintf(r.name, sizeof r.name, "%s", default_name.c_str());
-  CELLFSI_PETSC(read_raw(r, s.channel));
+  call_reporting_input_errors([&] { return read_raw(r, s.channel); }, {{"-dim", 'i'},
+                                                                       {"-domain_size", 'R'},
+                                                                       {"-domain_origin", 'R'},
+                                                                       {"-domain_periodic", 'B'},
+                                                                       {"-channel_length", 'r'},
+                                                                       {"-channel_height", 'r'},
+                                                                       {"-channel_throat_height", 'r'},
+                                                                       {"-channel_throat_length", 'r'},
+                                                                       {"-channel_transition_length", 'r'},
+                                                                       {"-channel_throat_center", 'r'},
+                                                                       {"-fluid_elements", 'I'},
+                                                                       {"-fluid_degree", 'i'},
+                                                                       {"-shear_rate", 'r'},
+                                                                       {"-final_time", 'r'},
+                                                                       {"-dt", 'r'},
+                                                                       {"-output_every", 'i'}});
   s.name = r.name;
   if (s.name.empty()) bad("scene", "''", "a non-empty name");
   if (r.dim != 2 && r.dim != 3) bad("dim", str(r.dim), "2 or 3");
@@ -110,22 +131,26 @@ SceneSettings SceneSettings::from_options(const std::string& default_name) {
   if (s.domain == "box" && s.dim != 3) bad("domain", "box", "box needs -dim 3");
   if (s.domain != "box" && s.dim == 3) bad("dim", "3", "3D needs -domain box");
   const int D = s.dim;
-  if (r.n_size != 3 && r.n_size != D)
-    bad("domain_size", std::to_string(r.n_size) + " values", std::to_string(D) + " values");
+  auto count = [&](const char* option, PetscBool set, PetscInt n) {
+    if (set && n != D)
+      bad(option, std::to_string(n) + " values",
+          std::to_string(D) + " comma-separated values (-dim " + std::to_string(D) + ")");
+  };
+  count("domain_size", r.size_set, r.n_size);
+  count("domain_origin", r.origin_set, r.n_origin);
+  count("domain_periodic", r.periodic_set, r.n_periodic);
+  count("fluid_elements", r.elements_set, r.n_elements);
   s.size.assign(r.size, r.size + D);
   for (int d = 0; d < D; ++d)
     if (!(s.size[d] > 0)) bad("domain_size", str(s.size[d]), "every extent > 0 [cm]");
   s.origin = Vec3(r.origin[0], r.origin[1], D == 3 ? r.origin[2] : 0.0);
-  if (D == 3 && r.n_periodic == 3 && r.periodic[2] == PETSC_FALSE && r.periodic[1] == PETSC_FALSE) {
-    // 2D default carried into 3D: periodic in x and y, walls in z.
-    r.periodic[1] = PETSC_TRUE;
-  }
+  // Default periodicity: every direction but the last (2D: x; 3D: x and y), the last bounded by walls.
+  if (!r.periodic_set)
+    for (int d = 0; d < D; ++d) r.periodic[d] = d < D - 1 ? PETSC_TRUE : PETSC_FALSE;
   for (int d = 0; d < 3; ++d) s.periodic[d] = d < D && r.periodic[d] == PETSC_TRUE;
   s.channel.length = r.ch[0], s.channel.height = r.ch[1], s.channel.throat_height = r.ch[2];
   s.channel.throat_length = r.ch[3], s.channel.transition_length = r.ch[4], s.channel.throat_center = r.ch[5];
   if (s.domain == "narrowing") s.channel.validate();
-  if (r.n_elements != 3 && r.n_elements != D)
-    bad("fluid_elements", std::to_string(r.n_elements) + " values", std::to_string(D) + " values");
   for (int d = 0; d < 3; ++d) s.elements[d] = d < D ? static_cast<int>(r.elements[d]) : 1;
   for (int d = 0; d < D; ++d)
     if (s.elements[d] < 1) bad("fluid_elements", std::to_string(s.elements[d]), "every count >= 1");

@@ -72,7 +72,9 @@ FluidSeriesWriter::FluidSeriesWriter(std::string dir, int samples_per_element)
 }
 
 void FluidSeriesWriter::write(const FluidSolver& fluid) {
+  // Both gathers are collective: every rank takes part before the others return.
   const std::vector<double> U = fluid.gather_to_zero(fluid.solution());
+  const std::vector<double> S = fluid.scaling_on_zero();
   PetscMPIInt rank = 0;
   MPI_Comm_rank(fluid.comm(), &rank);
   if (rank != 0) return;
@@ -101,7 +103,6 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
   vtkDoubleArray* pre = array("pressure", 1);
   vtkDoubleArray* vor = array("vorticity", D == 2 ? 1 : 3);
   vtkDoubleArray* sh = array("s_h", 1);
-  const std::vector<double> S = fluid.scaling_on_zero();
   BasisValues bv;
   MapValues mv;
   vtkIdType id = 0;
@@ -129,7 +130,7 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
   writer->SetInputData(grid);
   if (writer->Write() != 1 || writer->GetErrorCode() != 0)
     throw std::runtime_error("cannot write VTK file '" + path + "'");
-  entries_.push_back({name, fluid.time(), 0, ""});
+  entries_.push_back({name, fluid.time(), 0, ""});  // time is steps * dt: no accumulated round-off
   geometry::write_pvd((std::filesystem::path(dir_) / "fluid.pvd").string(), entries_);
 }
 

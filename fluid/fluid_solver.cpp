@@ -25,47 +25,84 @@ namespace {
   throw std::invalid_argument("option -" + name + " = " + value + " is invalid; valid: " + valid);
 }
 
-void get_real(const char* name, double& value) {
-  PetscBool set = PETSC_FALSE;
-  PetscReal v = value;
-  CELLFSI_PETSC(PetscOptionsGetReal(nullptr, nullptr, name, &v, &set));
-  if (set) value = v;
-}
-
-void get_vector(const char* name, int dim, Vec3& value) {
-  PetscReal v[3] = {value[0], value[1], value[2]};
-  PetscInt n = 3;
-  PetscBool set = PETSC_FALSE;
-  CELLFSI_PETSC(PetscOptionsGetRealArray(nullptr, nullptr, name, v, &n, &set));
-  if (!set) return;
-  if (n != dim)
-    bad_option(name + 1, std::to_string(n) + " values", std::to_string(dim) + " comma-separated values");
-  value = Vec3(v[0], v[1], dim == 3 ? v[2] : 0.0);
-}
-
 std::string str(double v) {
   std::ostringstream os;
   os << v;
   return os.str();
 }
 
-}  // namespace
+/// Raw option values (read in a PETSc options block, so -help lists them), checked afterwards.
+struct RawFluidOptions {
+  PetscReal density, viscosity, rho_inf, c_i;
+  PetscReal body_force[4] = {0, 0, 0, 0};
+  PetscInt n_body_force = 0;
+  PetscBool body_force_set = PETSC_FALSE, stokes = PETSC_FALSE;
+  PetscReal wall[3][2][4] = {};
+  PetscInt n_wall[3][2] = {};
+  PetscBool wall_set[3][2] = {};
+};
 
-void FluidOptions::set_from_options(int dim) {
-  get_real("-fluid_density", density);
-  get_real("-fluid_viscosity", viscosity);
-  get_vector("-fluid_body_force", dim, body_force);
-  PetscBool flag = stokes ? PETSC_TRUE : PETSC_FALSE;
-  CELLFSI_PETSC(PetscOptionsGetBool(nullptr, nullptr, "-fluid_stokes", &flag, nullptr));
-  stokes = flag == PETSC_TRUE;
-  get_real("-fluid_rho_inf", rho_inf);
-  get_real("-fluid_c_i", c_i);
+PetscErrorCode read_fluid_options(RawFluidOptions& r, int dim) {
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(PETSC_COMM_WORLD, nullptr, "Fluid (VMS Navier-Stokes; CGS units)", nullptr);
+  PetscCall(PetscOptionsReal("-fluid_density", "rho_1 [g/cm^3]", nullptr, r.density, &r.density, nullptr));
+  PetscCall(
+      PetscOptionsReal("-fluid_viscosity", "mu [g/(cm s)]", nullptr, r.viscosity, &r.viscosity, nullptr));
+  r.n_body_force = 4;
+  PetscCall(PetscOptionsRealArray("-fluid_body_force", "Body force per volume fx,fy[,fz] [dyn/cm^3]", nullptr,
+                                  r.body_force, &r.n_body_force, &r.body_force_set));
+  PetscCall(PetscOptionsBool("-fluid_stokes", "Drop convection (Stokes flow)", nullptr, r.stokes, &r.stokes,
+                             nullptr));
+  PetscCall(PetscOptionsReal("-fluid_rho_inf", "Generalized-alpha spectral radius at infinity, [0, 1]",
+                             nullptr, r.rho_inf, &r.rho_inf, nullptr));
+  PetscCall(PetscOptionsReal("-fluid_c_i", "C_I of tau_M", nullptr, r.c_i, &r.c_i, nullptr));
   const char axes[3] = {'x', 'y', 'z'};
   for (int d = 0; d < dim; ++d)
     for (int s = 0; s < 2; ++s) {
-      const std::string name = std::string("-fluid_wall_velocity_") + axes[d] + std::to_string(s);
-      get_vector(name.c_str(), dim, wall_velocity[d][s]);
+      char name[64];
+      std::snprintf(name, sizeof name, "-fluid_wall_velocity_%c%d", axes[d], s);
+      r.n_wall[d][s] = 4;
+      PetscCall(PetscOptionsRealArray(
+          name, "Velocity of the wall at the start (0) or end (1) of this direction [cm/s]", nullptr,
+          r.wall[d][s], &r.n_wall[d][s], &r.wall_set[d][s]));
     }
+  PetscOptionsEnd();
+  PetscFunctionReturn(0);
+}
+
+Vec3 vector_option(const std::string& name, const PetscReal* v, PetscInt n, int dim) {
+  if (n != dim)
+    bad_option(name, std::to_string(n) + " values", std::to_string(dim) + " comma-separated values");
+  return Vec3(v[0], v[1], dim == 3 ? v[2] : 0.0);
+}
+
+}  // namespace
+
+void FluidOptions::set_from_options(int dim) {
+  RawFluidOptions r;
+  r.density = density, r.viscosity = viscosity, r.rho_inf = rho_inf, r.c_i = c_i;
+  r.stokes = stokes ? PETSC_TRUE : PETSC_FALSE;
+  call_reporting_input_errors([&] { return read_fluid_options(r, dim); }, {{"-fluid_density", 'r'},
+                                                                           {"-fluid_viscosity", 'r'},
+                                                                           {"-fluid_body_force", 'R'},
+                                                                           {"-fluid_stokes", 'b'},
+                                                                           {"-fluid_rho_inf", 'r'},
+                                                                           {"-fluid_c_i", 'r'},
+                                                                           {"-fluid_wall_velocity_x0", 'R'},
+                                                                           {"-fluid_wall_velocity_x1", 'R'},
+                                                                           {"-fluid_wall_velocity_y0", 'R'},
+                                                                           {"-fluid_wall_velocity_y1", 'R'},
+                                                                           {"-fluid_wall_velocity_z0", 'R'},
+                                                                           {"-fluid_wall_velocity_z1", 'R'}});
+  density = r.density, viscosity = r.viscosity, rho_inf = r.rho_inf, c_i = r.c_i;
+  stokes = r.stokes == PETSC_TRUE;
+  if (r.body_force_set) body_force = vector_option("fluid_body_force", r.body_force, r.n_body_force, dim);
+  const char axes[3] = {'x', 'y', 'z'};
+  for (int d = 0; d < dim; ++d)
+    for (int s = 0; s < 2; ++s)
+      if (r.wall_set[d][s])
+        wall_velocity[d][s] = vector_option(std::string("fluid_wall_velocity_") + axes[d] + std::to_string(s),
+                                            r.wall[d][s], r.n_wall[d][s], dim);
   validate();
 }
 
@@ -196,7 +233,8 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
   CELLFSI_PETSC(DMCreateLocalVector(da_scalar_, &S_loc_));
   // Block AIJ with one block per control point: element blocks are inserted node by node.
   char mat_type[64] = MATBAIJ;
-  CELLFSI_PETSC(PetscOptionsGetString(nullptr, "fluid_", "-mat_type_jacobian", mat_type, sizeof mat_type, nullptr));
+  CELLFSI_PETSC(
+      PetscOptionsGetString(nullptr, "fluid_", "-mat_type_jacobian", mat_type, sizeof mat_type, nullptr));
   CELLFSI_PETSC(DMSetMatType(da_, mat_type));
   CELLFSI_PETSC(DMCreateMatrix(da_, &J_));
   CELLFSI_PETSC(MatSetOption(J_, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
@@ -222,9 +260,10 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
   CELLFSI_PETSC(KSPGetPC(ksp, &pc));
   CELLFSI_PETSC(PCSetType(pc, PCASM));
   // Defaults beyond the paper, measured in docs/performance.md (bench/run_fluid_solvers.sh): MUMPS for the
-  // subdomain LU (it pivots, and factors ~8x faster than PETSc's own LU here), and reuse of the LU preconditioner
-  // for 10 linear solves across Newton iterations and steps (at Re ~ 1e-4 the Jacobian barely changes). The paper's
-  // exact setting: -fluid_sub_pc_factor_mat_solver_type petsc -fluid_snes_lag_preconditioner 1.
+  // subdomain LU (it pivots, and factors ~8x faster than PETSc's own LU here), and reuse of the LU
+  // preconditioner for 10 linear solves across Newton iterations and steps (at Re ~ 1e-4 the Jacobian barely
+  // changes). The paper's exact setting: -fluid_sub_pc_factor_mat_solver_type petsc
+  // -fluid_snes_lag_preconditioner 1.
   const char* defaults[][2] = {{"-fluid_sub_pc_type", "lu"},
                                {"-fluid_sub_pc_factor_mat_solver_type", "mumps"},
                                {"-fluid_snes_lag_preconditioner", "10"},
@@ -234,8 +273,8 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
     CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, kv[0], &set));
     if (set) continue;
     CELLFSI_PETSC(PetscOptionsSetValue(nullptr, kv[0], kv[1]));
-    // Querying marks a default as used: if the user picks a preconditioner without subdomains it is not an unknown
-    // option of theirs.
+    // Querying marks a default as used: if the user picks a preconditioner without subdomains it is not an
+    // unknown option of theirs.
     CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, kv[0], &set));
   }
   CELLFSI_PETSC(SNESSetFromOptions(snes_));
@@ -586,6 +625,18 @@ void FluidSolver::evaluate_jacobian(Vec U, Mat J) {
 // ---------------------------------------------------------------------------------------------------------------
 // Time step
 
+void FluidSolver::setup() {
+  // The Jacobian at the initial state lets the linear solver set itself up: inner solvers (ASM subdomains,
+  // multigrid levels) read their options here, so misspelt ones are reported before any time step.
+  // Factorisations are deferred to the first solve, so this costs one Jacobian assembly.
+  CELLFSI_PETSC(SNESSetUp(snes_));
+  evaluate_jacobian(U_, J_);
+  KSP ksp;
+  CELLFSI_PETSC(SNESGetKSP(snes_, &ksp));
+  CELLFSI_PETSC(KSPSetOperators(ksp, J_, J_));
+  CELLFSI_PETSC(KSPSetUp(ksp));
+}
+
 StepStats FluidSolver::step() {
   StepStats st;
   CELLFSI_PETSC(DMGlobalToLocal(da_, U_, INSERT_VALUES, Un_loc_));
@@ -609,8 +660,8 @@ StepStats FluidSolver::step() {
     const double gm = alpha_.gamma;
     CELLFSI_PETSC(VecAXPBYPCZ(Udot_, 1.0 / (gm * opt_.dt), -1.0 / (gm * opt_.dt), -(1.0 - gm) / gm, X, U_));
     CELLFSI_PETSC(VecCopy(X, U_));
-    time_ += opt_.dt;
     ++steps_;
+    time_ = steps_ * opt_.dt;  // not accumulated: t_k = k dt exactly as written in outputs
   }
   CELLFSI_PETSC(VecDestroy(&X));
   return st;

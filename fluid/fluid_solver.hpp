@@ -109,6 +109,10 @@ class FluidSolver {
   /// Immersed points, all of them on every rank (each rank keeps those in its elements).
   void set_immersed_points(const std::vector<ImmersedPointData>& points);
 
+  /// Sets up the linear solver on the Jacobian of the current state, so every solver option (inner ones
+  /// included) has been read; optional (step() does it lazily otherwise). Call after setting the initial
+  /// state.
+  void setup();
   /// Advances one time step.
   StepStats step();
   double time() const { return time_; }

@@ -13,3 +13,78 @@
       throw std::runtime_error("PETSc error " + std::to_string(cellfsi_ierr_) + " at " + __FILE__ + ":" + \
                                std::to_string(__LINE__));                                                 \
   } while (0)
+
+#include <initializer_list>
+#include <utility>
+
+namespace cellfsi {
+
+namespace detail {
+inline PetscErrorCode record_first_message(MPI_Comm, int, const char*, const char*, PetscErrorCode n,
+                                           PetscErrorType, const char* mess, void* ctx) {
+  auto* m = static_cast<std::string*>(ctx);
+  if (m->empty() && mess) *m = mess;
+  return n;
+}
+}  // namespace detail
+
+/// Kinds of option values for call_reporting_input_errors: 'i' integer, 'r' real, 'I' integer list, 'R' real
+/// list, 'b' boolean.
+using OptionProbe = std::pair<const char*, char>;
+
+/// Runs `call` (which returns a PetscErrorCode, e.g. a function reading options) with PETSc's error handler
+/// replaced by one that records the message instead of printing a traceback. On error it finds, among
+/// `probes`, the option whose value does not parse and throws std::invalid_argument naming it, its value and
+/// PETSc's reason (for input such as "-fluid_degree abc").
+template <class Call>
+void call_reporting_input_errors(Call&& call, std::initializer_list<OptionProbe> probes) {
+  std::string message;
+  PetscPushErrorHandler(detail::record_first_message, &message);
+  const PetscErrorCode ierr = call();
+  PetscPopErrorHandler();
+  if (!ierr) return;
+  for (const auto& [name, kind] : probes) {
+    std::string why;
+    PetscPushErrorHandler(detail::record_first_message, &why);
+    PetscErrorCode e = 0;
+    PetscInt iv[8], n = 8;
+    PetscReal rv[8];
+    PetscBool bv[8] = {};
+    switch (kind) {
+      case 'i':
+        e = PetscOptionsGetInt(nullptr, nullptr, name, iv, nullptr);
+        break;
+      case 'r':
+        e = PetscOptionsGetReal(nullptr, nullptr, name, rv, nullptr);
+        break;
+      case 'I':
+        e = PetscOptionsGetIntArray(nullptr, nullptr, name, iv, &n, nullptr);
+        break;
+      case 'R':
+        e = PetscOptionsGetRealArray(nullptr, nullptr, name, rv, &n, nullptr);
+        break;
+      case 'B':
+        e = PetscOptionsGetBoolArray(nullptr, nullptr, name, bv, &n, nullptr);
+        break;
+      default:
+        e = PetscOptionsGetBool(nullptr, nullptr, name, bv, nullptr);
+        break;
+    }
+    PetscPopErrorHandler();
+    if (e) {
+      char value[256] = "";
+      PetscOptionsGetString(nullptr, nullptr, name, value, sizeof value, nullptr);
+      const char* what = kind == 'i'   ? "an integer"
+                         : kind == 'r' ? "a number"
+                         : kind == 'b' ? "true or false"
+                         : kind == 'B' ? "comma-separated true/false (or 1/0)"
+                                       : "comma-separated numbers";
+      throw std::invalid_argument("option " + std::string(name) + " = " + value +
+                                  " is invalid; valid: " + what + " (" + why + ")");
+    }
+  }
+  throw std::invalid_argument("invalid option value: " +
+                              (message.empty() ? std::string("(no message)") : message));
+}
+
+}  // namespace cellfsi
