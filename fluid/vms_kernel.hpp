@@ -82,6 +82,29 @@ void vms_residual(const VmsParameters& prm, const PointBasis& basis, const Point
 void vms_tangent(const VmsParameters& prm, const PointBasis& basis, const PointFields& f,
                  const TangentScales& ts, double weight, double* K);
 
+/// The n basis functions of one element at its nq quadrature points, laid out as in ElementValues, and the
+/// fields the caller evaluated at each point.
+struct ElementPoints {
+  int n = 0, nq = 0;
+  const double* N = nullptr;            // N[q * n + k]
+  const double* dN = nullptr;           // dN[(q * n + k) * 3 + j] = d N_k / d x_j
+  const double* lapN = nullptr;         // lapN[q * n + k]
+  const double* weight = nullptr;       // weight[q]: quadrature weight times |det dx/dxi|
+  const PointFields* fields = nullptr;  // fields[q]
+};
+
+/// Instruction set of vms_tangent_element's inner loops: the best the CPU has (on x86-64: AVX2 and FMA if
+/// present, detected at run time), or the baseline the build targets (SSE2 on x86-64); the choice changes
+/// round-off only. For tests and timings.
+enum class ElementKernelIsa { best, baseline };
+
+/// Element tangent: adds to K (layout of vms_tangent; K is accumulated into, not overwritten) the sum over
+/// the nq points of vms_tangent(prm, {n, N + q n, dN + 3 q n, lapN + q n}, fields[q], ts, weight[q], K),
+/// formed as small matrix products over the points instead of pair by pair (same result up to round-off).
+/// Thread safe; per-thread scratch memory, kept between calls.
+void vms_tangent_element(const VmsParameters& prm, const ElementPoints& points, const TangentScales& ts,
+                         double* K, ElementKernelIsa isa = ElementKernelIsa::best);
+
 /// One quadrature point of an immersed solid (paper Eq. (10)), in the data the coupling layer provides.
 struct ImmersedPoint {
   double weight = 0;                              // quadrature weight in the reference configuration

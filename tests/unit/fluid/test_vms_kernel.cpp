@@ -680,3 +680,125 @@ TEST(VmsKernel, PartitionOfUnitySumsGiveTheStrongForm) {
   cont.check();
   mom.check();
 }
+
+// vms_tangent_element against vms_tangent summed over the points. Each point gets its own make_case data
+// (basis values, fields, weight) under the parameters of the first, so the points differ as they do in an
+// element. Compared block by block ((c, e): the n x n entries of row component c and column component e),
+// relative to the block's largest entry: the blocks' scales differ by up to ~1e8 at physical scales.
+namespace {
+
+struct ElementCase {
+  VmsParameters prm;
+  TangentScales ts;
+  int n = 0, nq = 0;
+  std::vector<double> N, dN, lapN, weight;
+  std::vector<PointFields> fields;
+  int nc() const { return prm.dim + 1; }
+  int size() const { return n * nc(); }
+  ElementPoints points() const {
+    return {n, nq, N.data(), dN.data(), lapN.data(), weight.data(), fields.data()};
+  }
+};
+
+ElementCase make_element(int dim, int n, int nq, bool stokes, const Scales& sc, unsigned seed) {
+  ElementCase el;
+  el.n = n;
+  el.nq = nq;
+  for (int q = 0; q < nq; ++q) {
+    const Case c = make_case(dim, n, stokes, sc, seed + 1000 * q);
+    if (q == 0) {
+      el.prm = c.prm;
+      el.ts = c.ts;
+    }
+    el.N.insert(el.N.end(), c.N.begin(), c.N.end());
+    el.dN.insert(el.dN.end(), c.dN.begin(), c.dN.end());
+    el.lapN.insert(el.lapN.end(), c.lapN.begin(), c.lapN.end());
+    el.weight.push_back(c.weight);
+    el.fields.push_back(c.fields());
+  }
+  return el;
+}
+
+std::vector<double> summed_point_tangents(const ElementCase& el) {
+  std::vector<double> K(static_cast<size_t>(el.size()) * el.size(), 0.0);
+  for (int q = 0; q < el.nq; ++q) {
+    const PointBasis pb{el.n, &el.N[static_cast<size_t>(q) * el.n], &el.dN[static_cast<size_t>(q) * el.n * 3],
+                        &el.lapN[static_cast<size_t>(q) * el.n]};
+    vms_tangent(el.prm, pb, el.fields[q], el.ts, el.weight[q], K.data());
+  }
+  return K;
+}
+
+// max over blocks (c, e) of max |K - ref| / max |ref| in the block; a block that is zero in ref must be zero
+// in K.
+double worst_block_error(const ElementCase& el, const std::vector<double>& K,
+                         const std::vector<double>& ref) {
+  const int nc = el.nc(), m = el.size();
+  double worst = 0;
+  for (int c = 0; c < nc; ++c)
+    for (int e = 0; e < nc; ++e) {
+      double scale = 0, diff = 0;
+      for (int A = 0; A < el.n; ++A)
+        for (int B = 0; B < el.n; ++B) {
+          const size_t k = static_cast<size_t>(A * nc + c) * m + B * nc + e;
+          scale = std::max(scale, std::abs(ref[k]));
+          diff = std::max(diff, std::abs(K[k] - ref[k]));
+        }
+      worst = std::max(worst, scale > 0 ? diff / scale : (diff > 0 ? 1e300 : 0.0));
+    }
+  return worst;
+}
+
+const char* isa_name(ElementKernelIsa isa) { return isa == ElementKernelIsa::best ? "best" : "baseline"; }
+
+}  // namespace
+
+TEST(VmsKernel, ElementTangentEqualsTheSumOfThePointTangents) {
+  struct Shape {
+    int dim, n, nq;
+  };
+  unsigned seed = 900;
+  for (const Scales* sc : {&kPhysical, &kBalanced})
+    for (bool stokes : {false, true})
+      for (const Shape& sh : {Shape{2, 9, 9}, Shape{2, 16, 16}, Shape{3, 27, 27}}) {
+        const ElementCase el = make_element(sh.dim, sh.n, sh.nq, stokes, *sc, seed++);
+        const std::vector<double> ref = summed_point_tangents(el);
+        for (ElementKernelIsa isa : {ElementKernelIsa::best, ElementKernelIsa::baseline}) {
+          std::vector<double> K(ref.size(), 0.0);
+          vms_tangent_element(el.prm, el.points(), el.ts, K.data(), isa);
+          const double worst = worst_block_error(el, K, ref);
+          std::printf(
+              "  element vs summed point tangents, %-8s %dD %-6s n=%2d nq=%2d %-8s: %.2e (tol %.0e)\n",
+              sc->name, sh.dim, stokes ? "Stokes" : "NS", sh.n, sh.nq, isa_name(isa), worst, kRefTol);
+          EXPECT_LT(worst, kRefTol) << sc->name << " " << sh.dim << "D n=" << sh.n << " " << isa_name(isa);
+        }
+      }
+}
+
+// Sizes the register tiles do not divide (rows are tiled by 3 or 4, columns by 2 or 4 doubles), points fewer
+// or more than functions, one point, and p = 4 in 3D; K is added to, not overwritten.
+TEST(VmsKernel, ElementTangentHandlesOddSizesAndAccumulates) {
+  struct Shape {
+    int dim, n, nq;
+  };
+  unsigned seed = 950;
+  double worst = 0;
+  for (bool stokes : {false, true})
+    for (const Shape& sh : {Shape{2, 5, 7}, Shape{2, 10, 1}, Shape{2, 16, 9}, Shape{2, 9, 16}, Shape{3, 8, 3},
+                            Shape{3, 125, 2}, Shape{2, 1, 2}})
+      for (ElementKernelIsa isa : {ElementKernelIsa::best, ElementKernelIsa::baseline}) {
+        const ElementCase el = make_element(sh.dim, sh.n, sh.nq, stokes, kBalanced, seed++);
+        std::vector<double> ref = summed_point_tangents(el);
+        // Start from a filled matrix: the result must be the fill plus the tangent.
+        std::vector<double> K(ref.size());
+        for (size_t k = 0; k < K.size(); ++k) K[k] = 0.25 * std::sin(1.0 + k);
+        for (size_t k = 0; k < K.size(); ++k) ref[k] += K[k];
+        vms_tangent_element(el.prm, el.points(), el.ts, K.data(), isa);
+        const double w = worst_block_error(el, K, ref);
+        EXPECT_LT(w, kRefTol) << sh.dim << "D n=" << sh.n << " nq=" << sh.nq << (stokes ? " Stokes " : " NS ")
+                              << isa_name(isa);
+        worst = std::max(worst, w);
+      }
+  std::printf("  element vs summed point tangents, odd sizes, into a filled K: worst %.2e (tol %.0e)\n",
+              worst, kRefTol);
+}
