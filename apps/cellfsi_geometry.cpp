@@ -14,21 +14,13 @@
 #include <string>
 #include <vector>
 
+#include "fluid/petsc_error.hpp"
 #include "geometry/builders.hpp"
 #include "geometry/measures.hpp"
 #include "geometry/patch_vtk.hpp"
 
 namespace geo = cellfsi::geometry;
 
-// PETSc call check for functions that report errors by exception (Debian's PETSc is built for C, so PETSc's
-// own PetscCallThrow is not available).
-#define CELLFSI_PETSC_THROW(...)                                                                          \
-  do {                                                                                                    \
-    const PetscErrorCode cellfsi_ierr_ = __VA_ARGS__;                                                     \
-    if (PetscUnlikely(cellfsi_ierr_))                                                                     \
-      throw std::runtime_error("PETSc error " + std::to_string(cellfsi_ierr_) + " at " + __FILE__ + ":" + \
-                               std::to_string(__LINE__));                                                 \
-  } while (0)
 
 namespace {
 
@@ -92,14 +84,14 @@ class Collection {
 void print_membrane(const char* name, const geo::Patch& membrane) {
   const geo::MembraneShape s = geo::membrane_shape(membrane);
   const int D = membrane.physical_dim();
-  CELLFSI_PETSC_THROW(PetscPrintf(PETSC_COMM_WORLD, "  %-28s %-9s %12.5e %12.5e %8.4f %11.4e %4d\n", name,
+  CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "  %-28s %-9s %12.5e %12.5e %8.4f %11.4e %4d\n", name,
                                   D == 2 ? "membrane" : "shell", s.enclosed, s.boundary, s.swelling,
                                   s.effective_radius, membrane.n_elements()));
 }
 
 void print_body(const char* name, const geo::Patch& body) {
   const geo::RegionMoments m = geo::patch_moments(body);
-  CELLFSI_PETSC_THROW(PetscPrintf(PETSC_COMM_WORLD, "  %-28s %-9s %12.5e %12s %8s %11s %4d\n", name, "bulk",
+  CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "  %-28s %-9s %12.5e %12s %8s %11s %4d\n", name, "bulk",
                                   m.measure, "-", "-", "-", body.n_elements()));
 }
 
@@ -113,10 +105,10 @@ void run(const Options& o) {
   const double half_pi = std::numbers::pi / 2;
   const int s = static_cast<int>(o.samples), ms = static_cast<int>(o.mesh_samples);
 
-  CELLFSI_PETSC_THROW(PetscPrintf(PETSC_COMM_WORLD,
+  CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
                                   "cellfsi-geometry: writing the paper's domains and cells to %s\n",
                                   o.output_dir.c_str()));
-  CELLFSI_PETSC_THROW(PetscPrintf(PETSC_COMM_WORLD, "  %-28s %-9s %12s %12s %8s %11s %4s\n",
+  CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "  %-28s %-9s %12s %12s %8s %11s %4s\n",
                                   "patch (paper section)", "kind", "area/vol", "perim/surf", "Delta",
                                   "R0 [cm]", "elements"));
 
@@ -172,7 +164,7 @@ void run(const Options& o) {
     print_body("sphere (3.6)", sphere);
   }
   out.write();
-  CELLFSI_PETSC_THROW(PetscPrintf(PETSC_COMM_WORLD, "wrote %zu pieces; open %s in ParaView\n", out.size(),
+  CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "wrote %zu pieces; open %s in ParaView\n", out.size(),
                                   (dir / "geometry.pvd").c_str()));
 }
 

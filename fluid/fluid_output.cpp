@@ -24,15 +24,6 @@ using geometry::Vec3;
 
 namespace {
 
-std::vector<double> samples(const geometry::KnotVector& kv, int s) {
-  std::vector<double> u;
-  for (int e = 0; e < kv.n_elements(); ++e)
-    for (int k = 0; k < s; ++k)
-      u.push_back(kv.element_begin(e) + (kv.element_end(e) - kv.element_begin(e)) * k / s);
-  u.push_back(kv.b());
-  return u;
-}
-
 /// Velocity, its gradient and the kinematic pressure from natural-ordered nodal values (rank 0 data).
 struct Local {
   Vec3 x = Vec3::Zero(), v = Vec3::Zero();
@@ -82,7 +73,7 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
   const int D = fluid.dim(), dof = D + 1;
   const double rho = fluid.options().density;
   std::vector<double> u[3] = {{0.0}, {0.0}, {0.0}};
-  for (int d = 0; d < D; ++d) u[d] = samples(patch.knots(d), samples_);
+  for (int d = 0; d < D; ++d) u[d] = geometry::sample_values(patch.knots(d), samples_);
   const int n0 = u[0].size(), n1 = u[1].size(), n2 = u[2].size();
   const vtkIdType n = static_cast<vtkIdType>(n0) * n1 * n2;
 

@@ -260,10 +260,10 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
   CELLFSI_PETSC(KSPGetPC(ksp, &pc));
   CELLFSI_PETSC(PCSetType(pc, PCASM));
   // Defaults beyond the paper, measured in docs/performance.md (bench/run_fluid_solvers.sh): MUMPS for the
-  // subdomain LU (it pivots, and factors ~8x faster than PETSc's own LU here), and reuse of the LU
-  // preconditioner for 10 linear solves across Newton iterations and steps (at Re ~ 1e-4 the Jacobian barely
-  // changes). The paper's exact setting: -fluid_sub_pc_factor_mat_solver_type petsc
-  // -fluid_snes_lag_preconditioner 1.
+  // subdomain LU (it pivots: PETSc's LU without pivoting hit a zero pivot with s^h = 1e10 on an AIJ matrix; on the
+  // BAIJ matrix both factor at about the same speed), and reuse of the LU preconditioner for 10 linear solves across
+  // Newton iterations and steps (at Re ~ 1e-4 the Jacobian barely changes: 2.2x faster at 128 x 64). The paper's
+  // exact setting: -fluid_sub_pc_factor_mat_solver_type petsc -fluid_snes_lag_preconditioner 1.
   const char* defaults[][2] = {{"-fluid_sub_pc_type", "lu"},
                                {"-fluid_sub_pc_factor_mat_solver_type", "mumps"},
                                {"-fluid_snes_lag_preconditioner", "10"},

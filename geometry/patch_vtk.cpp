@@ -20,16 +20,6 @@ namespace cellfsi::geometry {
 
 namespace {
 
-/// Parametric sample values of one direction: every element split into `s` intervals, ends included.
-std::vector<double> samples(const KnotVector& kv, int s) {
-  std::vector<double> u;
-  for (int e = 0; e < kv.n_elements(); ++e)
-    for (int k = 0; k < s; ++k)
-      u.push_back(kv.element_begin(e) + (kv.element_end(e) - kv.element_begin(e)) * k / s);
-  u.push_back(kv.b());
-  return u;
-}
-
 /// VTK reports some failures (e.g. a missing directory) only through the error code, and prints them; the
 /// directory is checked first so the user gets one clear message.
 template <class Writer>
@@ -50,11 +40,19 @@ void check_samples(int s) {
 
 }  // namespace
 
+std::vector<double> sample_values(const KnotVector& kv, int s) {
+  std::vector<double> u;
+  for (int e = 0; e < kv.n_elements(); ++e)
+    for (int k = 0; k < s; ++k) u.push_back(kv.element_begin(e) + (kv.element_end(e) - kv.element_begin(e)) * k / s);
+  u.push_back(kv.b());
+  return u;
+}
+
 void write_patch_vts(const Patch& patch, const std::string& path, int samples_per_element) {
   check_samples(samples_per_element);
   const int P = patch.param_dim();
   std::vector<double> u[3] = {{0.0}, {0.0}, {0.0}};
-  for (int d = 0; d < P; ++d) u[d] = samples(patch.knots(d), samples_per_element);
+  for (int d = 0; d < P; ++d) u[d] = sample_values(patch.knots(d), samples_per_element);
   const int n0 = u[0].size(), n1 = u[1].size(), n2 = u[2].size();
 
   vtkNew<vtkStructuredGrid> grid;
@@ -102,7 +100,7 @@ void write_patch_elements_vtp(const Patch& patch, const std::string& path, int s
   BasisValues bv;
   MapValues mv;
   auto add_line = [&](int along, const Param& fixed) {
-    const std::vector<double> u = samples(patch.knots(along), samples_per_element);
+    const std::vector<double> u = sample_values(patch.knots(along), samples_per_element);
     std::vector<vtkIdType> ids;
     for (double t : u) {
       Param p = fixed;

@@ -8,6 +8,10 @@
 
 namespace cellfsi::geometry {
 
+/// Parametric sample values of one direction: every element split into `samples_per_element` equal intervals, the
+/// ends included (n_elements * samples_per_element + 1 values).
+std::vector<double> sample_values(const KnotVector& kv, int samples_per_element);
+
 /// Writes the patch sampled with `samples_per_element` intervals per element and direction to `path` (.vts).
 /// Point data: "parametric" (xi), and for parametric dimension == physical dimension "jacobian" (det dx/dxi).
 void write_patch_vts(const Patch& patch, const std::string& path, int samples_per_element = 4);
