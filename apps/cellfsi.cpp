@@ -14,7 +14,9 @@
 
 #include <cmath>
 #include <filesystem>
+#include <iomanip>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -98,6 +100,16 @@ int run(const std::string& default_name) {
     throw;
   }
   out.summary("completed", done, newton, linear, last);
+  // The velocity profile across the domain at x = mid-length (section xi_0 = 1/2), as CSV.
+  const fluid::SectionData sec = fluid::section(scene.fluid(), 0.5, 65);
+  std::ostringstream csv;
+  csv << std::setprecision(12) << "x,y,z,vx,vy,vz\n";
+  for (size_t i = 0; i < sec.points.size(); ++i)
+    csv << sec.points[i][0] << "," << sec.points[i][1] << "," << sec.points[i][2] << "," << sec.velocity[i][0]
+        << "," << sec.velocity[i][1] << "," << sec.velocity[i][2] << "\n";
+  int rank = 0;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  if (rank == 0) app::write_atomically(settings.output_dir + "/profile.csv", csv.str());
   CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
                             "cellfsi: completed %d steps in %.2f s; summary in %s/summary.json\n", n_steps,
                             out.elapsed(), settings.output_dir.c_str()));

@@ -79,7 +79,7 @@ RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& s
     // A previous run's results in this folder would be mistaken for this run's: remove them first.
     for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
       const std::string name = entry.path().filename().string();
-      if (name == "summary.json" || name == "fluid.pvd" ||
+      if (name == "summary.json" || name == "fluid.pvd" || name == "profile.csv" ||
           (name.rfind("fluid_", 0) == 0 && entry.path().extension() == ".vts"))
         std::filesystem::remove(entry.path());
     }

@@ -358,6 +358,12 @@ TEST_F(CellfsiApp, PoiseuilleWritesTheRunContract) {
       EXPECT_GT(fs::file_size(out_ / p), 0u) << p;
     }
   }
+  // profile.csv: the velocity across the channel at mid-length, 65 points from wall to wall; zero at the walls.
+  ASSERT_TRUE(fs::is_regular_file(out_ / "profile.csv"));
+  const std::vector<std::string> prof = lines(read_text(out_ / "profile.csv"));
+  ASSERT_EQ(prof.size(), 66u);
+  EXPECT_EQ(prof[0], "x,y,z,vx,vy,vz");
+  EXPECT_EQ(prof[1], "0.0015,0,0,0,0,0");
   // No temporary files of the atomic writes left behind.
   for (const auto& e : fs::directory_iterator(out_)) EXPECT_NE(e.path().extension(), ".tmp") << e.path();
 }
