@@ -1,0 +1,232 @@
+#include "solid/nurbs_solid.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+#include "geometry/quadrature.hpp"
+
+namespace cellfsi::solid {
+
+using geometry::BasisValues;
+using geometry::Index3;
+using geometry::MapValues;
+using geometry::Param;
+
+TimeParameters TimeParameters::from_rho_inf(double rho_inf, double dt) {
+  if (!(rho_inf >= 0 && rho_inf <= 1)) throw std::invalid_argument("rho_inf must be in [0, 1]");
+  if (!(dt > 0)) throw std::invalid_argument("dt must be > 0");
+  TimeParameters t;
+  t.dt = dt;
+  t.alpha_m = (3.0 - rho_inf) / (2.0 * (1.0 + rho_inf));
+  t.alpha_f = 1.0 / (1.0 + rho_inf);
+  t.gamma = 0.5 + t.alpha_m - t.alpha_f;
+  return t;
+}
+
+NurbsSolid::NurbsSolid(std::string name, geometry::Patch reference, std::shared_ptr<const Material> material,
+                       double density)
+    : name_(std::move(name)),
+      reference_(std::move(reference)),
+      material_(std::move(material)),
+      density_(density) {
+  dim_ = reference_.physical_dim();
+  if (reference_.param_dim() != dim_)
+    throw std::invalid_argument("NurbsSolid '" + name_ +
+                                "': the patch must fill its space (param dim == dim)");
+  if (!material_) throw std::invalid_argument("NurbsSolid '" + name_ + "': no material");
+  if (!(density > 0)) throw std::invalid_argument("NurbsSolid '" + name_ + "': density must be > 0");
+  time_ = TimeParameters::from_rho_inf(0.5, 1.0);
+
+  // Reduced unknowns: the last control layer of a closed (open-knot) direction is the first.
+  int m[3] = {1, 1, 1};
+  bool merge[3] = {false, false, false};
+  for (int d = 0; d < dim_; ++d) {
+    merge[d] = reference_.closed(d) && !reference_.knots(d).periodic();
+    m[d] = reference_.n_control(d) - (merge[d] ? 1 : 0);
+  }
+  n_reduced_ = m[0] * m[1] * m[2];
+  reduced_.resize(reference_.n_control());
+  for (int k = 0; k < reference_.n_control(); ++k) {
+    Index3 i = reference_.control_multi_index(k);
+    for (int d = 0; d < dim_; ++d)
+      if (merge[d] && i[d] == reference_.n_control(d) - 1) i[d] = 0;
+    reduced_[k] = i[0] + m[0] * (i[1] + m[1] * i[2]);
+  }
+
+  // Collocation points: Greville abscissae per direction, the duplicate of a closed direction dropped.
+  std::vector<double> tau[3] = {{0.0}, {0.0}, {0.0}};
+  for (int d = 0; d < dim_; ++d) {
+    tau[d] = reference_.knots(d).greville();
+    tau[d].resize(m[d]);
+  }
+  std::vector<Eigen::Triplet<double>> trip;
+  BasisValues bv;
+  int p = 0;
+  for (int c = 0; c < m[2]; ++c)
+    for (int b = 0; b < m[1]; ++b)
+      for (int a = 0; a < m[0]; ++a, ++p) {
+        const Param xi{tau[0][a], tau[1][b], tau[2][c]};
+        point_xi_.push_back(xi);
+        reference_.basis(xi, 0, bv);
+        for (int k = 0; k < bv.n; ++k)
+          if (bv.value[k] != 0.0) trip.emplace_back(p, reduced_[bv.index[k]], bv.value[k]);
+        reference_points_.push_back(reference_.point(xi));
+        // Interface faces: both ends of direction 0, unless a face collapses to a point (a body's centre).
+        if (a == 0 || a == m[0] - 1) face_points_.push_back(p);
+      }
+  // Drop a degenerate face (all its points coincide).
+  for (int side = 0; side < 2; ++side) {
+    const int a = side == 0 ? 0 : m[0] - 1;
+    double spread = 0;
+    for (int q : face_points_)
+      if (q % m[0] == a) spread = std::max(spread, (reference_points_[q] - reference_points_[a]).norm());
+    if (spread == 0.0) {
+      std::vector<int> keep;
+      for (int q : face_points_)
+        if (q % m[0] != a) keep.push_back(q);
+      face_points_ = keep;
+    }
+  }
+  collocation_.resize(n_reduced_, n_reduced_);
+  collocation_.setFromTriplets(trip.begin(), trip.end());
+  factor_.compute(collocation_);
+  if (factor_.info() != Eigen::Success)
+    throw std::runtime_error("NurbsSolid '" + name_ + "': the collocation matrix is singular");
+
+  u_ = Eigen::MatrixXd::Zero(n_reduced_, dim_);
+  u_n_ = u_;
+  rate_n_ = u_;
+  c_ = Eigen::MatrixXd::Zero(n_reduced_, dim_);
+  c_n_ = c_;
+}
+
+Eigen::MatrixXd NurbsSolid::control_from_points(const Eigen::MatrixXd& values) const {
+  Eigen::MatrixXd c = factor_.solve(values);
+  c += factor_.solve(values - collocation_ * c);  // one refinement step: exact to round-off
+  return c;
+}
+
+Eigen::MatrixXd NurbsSolid::points_from_control(const Eigen::MatrixXd& control) const {
+  return collocation_ * control;
+}
+
+void NurbsSolid::set_rate(const std::vector<Vec3>& rate) {
+  if (static_cast<int>(rate.size()) != n_points())
+    throw std::invalid_argument("set_rate: one value per point");
+  for (int i = 0; i < n_points(); ++i) rate_n_.row(i) = rate[i].head(dim_).transpose();
+}
+
+void NurbsSolid::begin_step(const TimeParameters& time) {
+  time_ = time;
+  u_ = u_n_ +
+       time.dt * rate_n_;  // predictor with unchanged rate: consistent with the generalized-alpha update
+  c_ = control_from_points(u_);
+}
+
+std::vector<Vec3> NurbsSolid::collocation_points() const {
+  std::vector<Vec3> x(n_points());
+  for (int i = 0; i < n_points(); ++i) {
+    x[i] = reference_points_[i];
+    x[i].head(dim_) += (u_n_.row(i) + time_.alpha_f * (u_.row(i) - u_n_.row(i))).transpose();
+  }
+  return x;
+}
+
+Vec3 NurbsSolid::kinematic_residual(const Vec3& u, const Vec3& u_n, const Vec3& rate_n,
+                                    const TimeParameters& t, const Vec3& v) {
+  const Vec3 rate = (u - u_n) / (t.gamma * t.dt) - (1.0 - t.gamma) / t.gamma * rate_n;
+  return rate_n + t.alpha_m * (rate - rate_n) - v;
+}
+
+Mat3 NurbsSolid::kinematic_tangent(const TimeParameters& t, const Mat3& grad_v, int dim) {
+  Mat3 T = Mat3::Identity() * (t.alpha_m / (t.gamma * t.dt)) - t.alpha_f * grad_v;
+  for (int i = dim; i < 3; ++i) T.row(i).setZero(), T.col(i).setZero(), T(i, i) = 1.0;
+  return T;
+}
+
+double NurbsSolid::kinematic_update(const std::vector<VelocitySample>& samples) {
+  if (static_cast<int>(samples.size()) != n_points())
+    throw std::invalid_argument("kinematic_update: expected " + std::to_string(n_points()) +
+                                " samples, got " + std::to_string(samples.size()));
+  double norm2 = 0;
+  for (int i = 0; i < n_points(); ++i) {
+    Vec3 u = Vec3::Zero(), un = Vec3::Zero(), rn = Vec3::Zero();
+    u.head(dim_) = u_.row(i).transpose();
+    un.head(dim_) = u_n_.row(i).transpose();
+    rn.head(dim_) = rate_n_.row(i).transpose();
+    Vec3 R = kinematic_residual(u, un, rn, time_, samples[i].v);
+    for (int c = dim_; c < 3; ++c) R[c] = 0;
+    norm2 += R.squaredNorm();
+    const Mat3 T = kinematic_tangent(time_, samples[i].grad_v, dim_);
+    const Vec3 du = T.partialPivLu().solve(-R);  // step 2: a d x d solve per point
+    u_.row(i) += du.head(dim_).transpose();
+  }
+  c_ = control_from_points(u_);  // step 3
+  return std::sqrt(norm2);
+}
+
+Eigen::MatrixXd NurbsSolid::displacement_control_alpha() const { return c_n_ + time_.alpha_f * (c_ - c_n_); }
+
+std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density) const {
+  if (!(fluid_density > 0)) throw std::invalid_argument("quadrature_data: fluid density must be > 0");
+  const Eigen::MatrixXd c = displacement_control_alpha();
+  const double beta = 1.0 - density_ / fluid_density;
+  std::vector<QuadratureData> out;
+  std::vector<geometry::QuadraturePoint> qp;
+  BasisValues bv;
+  MapValues mv;
+  const Index3 ng = geometry::default_gauss(reference_);
+  for (int e = 0; e < reference_.n_elements(); ++e) {
+    const Index3 m = reference_.element_multi_index(e);
+    geometry::element_quadrature(reference_, m, ng, qp);
+    for (const auto& q : qp) {
+      reference_.basis(q.xi, 1, bv, &m);
+      reference_.map(bv, mv);
+      Mat3 dudxi = Mat3::Zero();
+      Vec3 u = Vec3::Zero();
+      for (int k = 0; k < bv.n; ++k) {
+        const int r = reduced_[bv.index[k]];
+        for (int i = 0; i < dim_; ++i) {
+          u[i] += bv.value[k] * c(r, i);
+          for (int a = 0; a < dim_; ++a) dudxi(i, a) += bv.d1[3 * k + a] * c(r, i);
+        }
+      }
+      const Eigen::MatrixXd dXdxi = mv.dx.topLeftCorner(dim_, dim_);
+      Mat3 F = Mat3::Identity();
+      F.topLeftCorner(dim_, dim_) += dudxi.topLeftCorner(dim_, dim_) * dXdxi.inverse();
+      const Mat3 S = material_->second_piola(F, dim_);
+      QuadratureData d;
+      d.x = mv.x + u;
+      d.weight = q.weight * std::abs(dXdxi.determinant());
+      d.stress = F * S * F.transpose() / fluid_density;
+      d.beta = beta;
+      out.push_back(d);
+    }
+  }
+  return out;
+}
+
+std::vector<Vec3> NurbsSolid::interface_points() const {
+  const std::vector<Vec3> x = collocation_points();
+  std::vector<Vec3> out;
+  for (int q : face_points_) out.push_back(x[q]);
+  return out;
+}
+
+void NurbsSolid::end_step() {
+  const double g = time_.gamma, dt = time_.dt;
+  const Eigen::MatrixXd rate = (u_ - u_n_) / (g * dt) - (1.0 - g) / g * rate_n_;
+  u_n_ = u_;
+  rate_n_ = rate;
+  c_n_ = c_;
+}
+
+geometry::Patch NurbsSolid::current_patch() const {
+  std::vector<geometry::Vec3> cps = reference_.control_points();
+  for (int k = 0; k < reference_.n_control(); ++k)
+    for (int i = 0; i < dim_; ++i) cps[k][i] += c_(reduced_[k], i);
+  return geometry::Patch(reference_.all_knots(), dim_, std::move(cps), reference_.weights(),
+                         reference_.shifts());
+}
+
+}  // namespace cellfsi::solid

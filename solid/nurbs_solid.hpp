@@ -1,0 +1,79 @@
+#pragma once
+// The paper's immersed solid (Sec. 2.2-2.3): a Lagrangian NURBS patch whose displacement, in the patch's own
+// (rational) basis, satisfies the kinematic equation (19) by collocation at the Greville points.
+//
+// The state lives at the collocation points (displacement and its rate, advanced by generalized-alpha point
+// by point, steps 1-2: one d x d Newton solve per point); the control variables follow from them through the
+// collocation matrix, factorised once (step 3). In a closed direction (a membrane around a cell: first and
+// last control layers coincide) those two layers are one unknown, and the duplicate Greville point is
+// dropped, so the system stays square. Degenerate points (a disk's centre, a sphere's poles) need nothing
+// special: their Greville points coincide in space, receive the same velocity, and so move together.
+#include <memory>
+
+#include <Eigen/Sparse>
+
+#include "geometry/patch.hpp"
+#include "solid/material.hpp"
+#include "solid/solid_solver.hpp"
+
+namespace cellfsi::solid {
+
+class NurbsSolid final : public SolidSolver {
+ public:
+  /// `reference`: the body in its reference (stress-free) configuration, parametric dimension == physical
+  /// dimension; direction 0 runs through a membrane's thickness or from a bulky body's centre (the geometry
+  /// builders' convention), which is where interface points are taken. density: rho_2 [g/cm^3].
+  NurbsSolid(std::string name, geometry::Patch reference, std::shared_ptr<const Material> material,
+             double density);
+
+  std::string name() const override { return name_; }
+  int dim() const override { return dim_; }
+  void begin_step(const TimeParameters& time) override;
+  std::vector<Vec3> collocation_points() const override;
+  double kinematic_update(const std::vector<VelocitySample>& samples) override;
+  std::vector<QuadratureData> quadrature_data(double fluid_density) const override;
+  std::vector<Vec3> interface_points() const override;
+  void end_step() override;
+
+  /// Sets the displacement rate at the collocation points (e.g. the fluid velocity there at t = 0, so the
+  /// first step starts consistent); the displacement stays as it is.
+  void set_rate(const std::vector<Vec3>& rate);
+
+  int n_points() const { return static_cast<int>(reference_points_.size()); }
+  const std::vector<Vec3>& reference_points() const { return reference_points_; }
+  const geometry::Patch& reference() const { return reference_; }
+  /// The body at t_{n+1} (after end_step: the accepted state) as a patch, for measures and output.
+  geometry::Patch current_patch() const;
+
+  /// Step 3 and its inverse, on values at the collocation points (n_points x dim): control variables (one row
+  /// per reduced control point) and back.
+  Eigen::MatrixXd control_from_points(const Eigen::MatrixXd& point_values) const;
+  Eigen::MatrixXd points_from_control(const Eigen::MatrixXd& control) const;
+
+  /// The kinematic residual at one collocation point, R = udot_{n+alpha_m} - v(x_{n+alpha_f}), as a function
+  /// of the point's displacement u at t_{n+1}; and its tangent (alpha_m / (gamma dt)) I - alpha_f grad v
+  /// (DESIGN.md section 3). Pure functions, tested against finite differences.
+  static Vec3 kinematic_residual(const Vec3& u, const Vec3& u_n, const Vec3& rate_n, const TimeParameters& t,
+                                 const Vec3& v);
+  static Mat3 kinematic_tangent(const TimeParameters& t, const Mat3& grad_v, int dim);
+
+ private:
+  Eigen::MatrixXd displacement_control_alpha() const;  // control variables at t_{n+alpha_f}
+  std::string name_;
+  geometry::Patch reference_;
+  std::shared_ptr<const Material> material_;
+  double density_;
+  int dim_;
+  TimeParameters time_;
+  std::vector<int> reduced_;  // control index -> reduced unknown
+  int n_reduced_ = 0;
+  std::vector<Vec3> reference_points_;  // collocation points in the reference configuration
+  std::vector<geometry::Param> point_xi_;
+  std::vector<int> face_points_;  // collocation points on interface faces
+  Eigen::SparseMatrix<double> collocation_;
+  Eigen::SparseLU<Eigen::SparseMatrix<double>> factor_;
+  Eigen::MatrixXd u_, u_n_, rate_n_;  // at the collocation points (n_points x dim)
+  Eigen::MatrixXd c_, c_n_;           // control variables (n_reduced x dim)
+};
+
+}  // namespace cellfsi::solid

@@ -1,0 +1,62 @@
+#pragma once
+// The SolidSolver interface: everything the coupling layer may ask of an immersed solid body, in plain data
+// (points, weights, tensors, values). A second implementation (another membrane model, a shell) plugs in
+// without touching fluid/ or coupling/.
+//
+// One time step of the paper's block-iterative scheme (Sec. 2.3), as the coupling layer drives it:
+//   begin_step(time) -> repeat { collocation_points() -> [fluid samples v, grad v there] ->
+//   kinematic_update() (steps 1-3) -> quadrature_data(), interface_points() -> [fluid assembles and solves] }
+//   -> end_step().
+#include <string>
+#include <vector>
+
+#include <Eigen/Dense>
+
+namespace cellfsi::solid {
+
+using Vec3 = Eigen::Vector3d;
+using Mat3 = Eigen::Matrix3d;
+
+/// Generalized-alpha parameters shared with the fluid (DESIGN.md section 3).
+struct TimeParameters {
+  double dt = 0, alpha_m = 0, alpha_f = 0, gamma = 0;
+  static TimeParameters from_rho_inf(double rho_inf, double dt);
+};
+
+/// The fluid velocity and its gradient at one point (grad_v(i, j) = d v_i / d x_j).
+struct VelocitySample {
+  Vec3 v = Vec3::Zero();
+  Mat3 grad_v = Mat3::Zero();
+};
+
+/// One solid quadrature point as the fluid needs it (paper Eq. (10)).
+struct QuadratureData {
+  Vec3 x = Vec3::Zero();       // current position (at t_{n+alpha_f})
+  double weight = 0;           // quadrature weight in the reference configuration
+  Mat3 stress = Mat3::Zero();  // (1/rho_1) F S F^T, symmetric
+  double beta = 0;             // 1 - rho_2 / rho_1
+};
+
+class SolidSolver {
+ public:
+  virtual ~SolidSolver() = default;
+  virtual std::string name() const = 0;
+  virtual int dim() const = 0;
+
+  /// Starts a step: the state at t_n is kept, the unknown displacement at t_{n+1} predicted (same velocity).
+  virtual void begin_step(const TimeParameters& time) = 0;
+  /// Where the fluid velocity is needed: the collocation points at t_{n+alpha_f}.
+  virtual std::vector<Vec3> collocation_points() const = 0;
+  /// Steps 1-3: one Newton update of the kinematic equation (19) from the velocity at the collocation points.
+  /// Returns the L2 norm of the kinematic residual R_K before the update.
+  virtual double kinematic_update(const std::vector<VelocitySample>& samples) = 0;
+  /// The Eq. (10) data at the solid's quadrature points (configuration at t_{n+alpha_f}).
+  virtual std::vector<QuadratureData> quadrature_data(double fluid_density) const = 0;
+  /// Points on the fluid-solid interface (both faces of a membrane, the boundary of a bulky body) at
+  /// t_{n+alpha_f}, for marking s^h.
+  virtual std::vector<Vec3> interface_points() const = 0;
+  /// Accepts the displacement at t_{n+1}.
+  virtual void end_step() = 0;
+};
+
+}  // namespace cellfsi::solid
