@@ -158,6 +158,7 @@ void ElementBasis::compute(const Index3& e, ElementValues& out) const {
   // Up to (kMaxDegree + 1)^3 functions; second derivatives stored as xx, yy, zz, xy, xz, yz.
   constexpr int kMaxN = (geometry::kMaxDegree + 1) * (geometry::kMaxDegree + 1) * (geometry::kMaxDegree + 1);
   double R[kMaxN], dR[kMaxN][3], d2R[kMaxN][6];
+  double jinv_diag[3] = {1, 1, 1};  // d xi_d / d x_d (constant on an axis-affine patch)
   int qi = 0;
   for (int q2 = 0; q2 < nq_[2]; ++q2)
     for (int q1 = 0; q1 < nq_[1]; ++q1)
@@ -246,6 +247,8 @@ void ElementBasis::compute(const Index3& e, ElementValues& out) const {
         }
         for (int c = 0; c < D && !curved; ++c)
           for (int s = 0; s < 6; ++s) curved = curved || std::abs(H[c][s]) > 1e-13 * std::abs(J[c][c]);
+        if (qi == 0)
+          for (int d = 0; d < D; ++d) jinv_diag[d] = Ji[d][d];
         out.weight[qi] = wq * std::abs(det);
         auto& G = out.G[qi];
         for (int i = 0; i < 3; ++i)
@@ -281,6 +284,23 @@ void ElementBasis::compute(const Index3& e, ElementValues& out) const {
           lo[i] = lap;
         }
       }
+
+  // Univariate factors (see ElementValues::tensor): the tables' values and derivatives, the latter scaled to
+  // physical coordinates, which on an axis-affine patch is a per-direction constant.
+  out.tensor = axis_affine_;
+  for (int d = 0; d < 3; ++d) {
+    out.np[d] = np_[d];
+    out.nq1[d] = nq_[d];
+    out.factor_value[d].assign(static_cast<size_t>(nq_[d]) * np_[d], d < D ? 0.0 : 1.0);
+    out.factor_deriv[d].assign(static_cast<size_t>(nq_[d]) * np_[d], 0.0);
+    if (d >= D || !axis_affine_) continue;
+    for (int q = 0; q < nq_[d]; ++q)
+      for (int a = 0; a < np_[d]; ++a) {
+        const double* T = &table_[d][((static_cast<size_t>(e[d]) * nq_[d] + q) * 3) * np_[d]];
+        out.factor_value[d][static_cast<size_t>(q) * np_[d] + a] = T[a];
+        out.factor_deriv[d][static_cast<size_t>(q) * np_[d] + a] = T[np_[d] + a] * jinv_diag[d];
+      }
+  }
 }
 
 }  // namespace cellfsi::fluid

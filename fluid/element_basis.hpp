@@ -20,6 +20,13 @@ struct ElementValues {
   std::vector<double> lapN;                             // lapN[q * n + k]
   std::vector<double> weight;                           // Gauss weight times |det dx/dxi| at q
   std::vector<std::array<std::array<double, 3>, 3>> G;  // tau_M's metric at q (parent coordinates)
+  // Axis-affine patches only (tensor true): the basis is a product of univariate factors in physical
+  // coordinates too. With k = a_0 + np_0 (a_1 + np_1 a_2) and q = q_0 + nq_0 (q_1 + nq_1 q_2),
+  // N[q n + k] = prod_d factor_value[d][q_d np_d + a_d], and dN[(q n + k) 3 + j] is that product with
+  // factor_deriv[j] (d / dx_j) in place of factor_value[j] (equal to round-off).
+  bool tensor = false;
+  int np[3] = {1, 1, 1}, nq1[3] = {1, 1, 1};  // functions and points per direction
+  std::vector<double> factor_value[3], factor_deriv[3];
 };
 
 class ElementBasis {

@@ -415,6 +415,201 @@ inline PetscInt local_node(const PetscInt m[3], const PetscInt gxs[3], const Pet
   return ((m[2] - gxs[2]) * gxm[1] + (m[1] - gxs[1])) * gxm[0] + (m[0] - gxs[0]);
 }
 
+/// The fields at a point from the element's nodal values (Vf, Vd interleaved by node, dof D + 1; S), for
+/// FluidSolver::assemble. D is a template parameter so that the small loops unroll and the sums stay in
+/// registers.
+template <int D>
+void point_fields(const PointBasis& b, const double* Vf, const double* Vd, const double* S,
+                  const std::array<std::array<double, 3>, 3>& G, PointFields& pf) {
+  constexpr int nd = D + 1;
+  double s = 0, v[D] = {}, vdot[D] = {}, lap_v[D] = {}, dv[D][D] = {}, p = 0, dp[D] = {};
+  for (int k = 0; k < b.n; ++k) {
+    const double N = b.N[k], lapN = b.lapN[k];
+    const double* dN = b.dN + 3 * k;
+    s += N * S[k];
+    for (int i = 0; i < D; ++i) {
+      const double vk = Vf[k * nd + i];
+      v[i] += N * vk;
+      vdot[i] += N * Vd[k * nd + i];
+      lap_v[i] += lapN * vk;
+      for (int j = 0; j < D; ++j) dv[i][j] += dN[j] * vk;
+    }
+    const double pk = Vf[k * nd + D];
+    p += N * pk;
+    for (int j = 0; j < D; ++j) dp[j] += dN[j] * pk;
+  }
+  pf = PointFields{};
+  pf.s = s;
+  pf.p = p;
+  for (int i = 0; i < D; ++i) {
+    pf.v[i] = v[i];
+    pf.vdot[i] = vdot[i];
+    pf.lap_v[i] = lap_v[i];
+    pf.dp[i] = dp[i];
+    for (int j = 0; j < D; ++j) pf.dv[i][j] = dv[i][j];
+  }
+  pf.G = G;
+}
+
+/// Adds element node blocks straight into the value array of a sequential BAIJ matrix of block size dof (the
+/// one-rank Jacobian), as MatSetValuesBlockedLocal(ADD_VALUES) would, without its per-block searches: the
+/// element's column blocks are sorted once and located in each of its block rows (sorted in ja) by one merge.
+/// Not usable (usable() false) for any other matrix: MPI, AIJ, another block size, no local-to-global map.
+class SeqBaijInserter {
+ public:
+  SeqBaijInserter(Mat J, int bs) : J_(J), bs_(bs) {
+    if (!J) return;
+    PetscBool seqbaij = PETSC_FALSE;
+    CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(J), MATSEQBAIJ, &seqbaij));
+    PetscInt mbs = 0;
+    CELLFSI_PETSC(MatGetBlockSize(J, &mbs));
+    if (!seqbaij || mbs != bs) return;
+    ISLocalToGlobalMapping rmap = nullptr, cmap = nullptr;
+    CELLFSI_PETSC(MatGetLocalToGlobalMapping(J, &rmap, &cmap));
+    if (!rmap || rmap != cmap) return;
+    PetscInt lbs = 0;
+    CELLFSI_PETSC(ISLocalToGlobalMappingGetBlockSize(rmap, &lbs));
+    if (lbs != bs) return;
+    PetscBool done = PETSC_FALSE;
+    PetscInt nrows = 0;
+    CELLFSI_PETSC(MatGetRowIJ(J, 0, PETSC_FALSE, PETSC_TRUE, &nrows, &ia_, &ja_, &done));
+    if (!done) return;
+    got_ij_ = true;
+    map_ = rmap;
+    CELLFSI_PETSC(ISLocalToGlobalMappingGetBlockIndices(map_, &global_));
+    CELLFSI_PETSC(MatSeqBAIJGetArray(J, &a_));
+  }
+  SeqBaijInserter(const SeqBaijInserter&) = delete;
+  SeqBaijInserter& operator=(const SeqBaijInserter&) = delete;
+  ~SeqBaijInserter() {
+    try {
+      finish();
+    } catch (...) {
+    }
+  }
+  bool usable() const { return a_ != nullptr; }
+
+  /// Finds the blocks of the element with local nodes lnode in the matrix and prefetches them (called before
+  /// the element matrix is formed, so that they are in cache when it is added). Returns false if one is not
+  /// in the matrix's nonzero pattern.
+  bool prepare(int n, const PetscInt* lnode) {
+    located_ = locate(n, lnode);
+    if (located_) {
+      // Each block row's blocks lie in at most n runs; one prefetch per cache line.
+      const std::size_t bytes = sizeof(double) * bs_ * bs_;
+      for (int A = 0; A < n; ++A) {
+        const PetscInt* pa = pos_.data() + static_cast<std::size_t>(A) * n;
+        const PetscInt lo = *std::min_element(pa, pa + n), hi = *std::max_element(pa, pa + n);
+        const char* first = reinterpret_cast<const char*>(a_) + lo * bytes;
+        const char* last = reinterpret_cast<const char*>(a_) + (hi + 1) * bytes;
+        for (const char* c = first; c < last; c += 64) __builtin_prefetch(c, 1, 3);
+      }
+    }
+    return located_;
+  }
+
+  /// Adds the (n bs) x (n bs) row-major element matrix K over the nodes given to prepare. Returns false, having
+  /// added nothing, if prepare failed.
+  bool add(int n, const double* K) {
+    if (!located_) return false;
+    switch (bs_) {
+      case 3:
+        add_blocks<3>(n, K);
+        break;
+      case 4:
+        add_blocks<4>(n, K);
+        break;
+      default:
+        add_blocks<0>(n, K);
+        break;
+    }
+    return true;
+  }
+
+  /// Adds the element matrix in vms_tangent_element_blocks' layout (the matrix's own block layout) over the
+  /// nodes given to prepare, which must have succeeded.
+  void add_blocks(int n, const double* Kb) {
+    if (bs_ == 3)
+      add_node_blocks<3>(n, Kb);
+    else if (bs_ == 4)
+      add_node_blocks<4>(n, Kb);
+    else
+      add_node_blocks<0>(n, Kb);
+  }
+
+  /// Gives the arrays back to the matrix (before MatAssemblyBegin or any MatSetValues).
+  void finish() {
+    if (a_) {
+      double* a = a_;
+      a_ = nullptr;
+      CELLFSI_PETSC(MatSeqBAIJRestoreArray(J_, &a));
+    }
+    if (global_) {
+      const PetscInt* g = global_;
+      global_ = nullptr;
+      CELLFSI_PETSC(ISLocalToGlobalMappingRestoreBlockIndices(map_, &g));
+    }
+    if (got_ij_) {
+      got_ij_ = false;
+      PetscBool done = PETSC_FALSE;
+      PetscInt nrows = 0;
+      CELLFSI_PETSC(MatRestoreRowIJ(J_, 0, PETSC_FALSE, PETSC_TRUE, &nrows, &ia_, &ja_, &done));
+    }
+  }
+
+ private:
+  Mat J_;
+  int bs_;
+  const PetscInt *ia_ = nullptr, *ja_ = nullptr, *global_ = nullptr;
+  ISLocalToGlobalMapping map_ = nullptr;
+  bool got_ij_ = false;
+  double* a_ = nullptr;
+  bool located_ = false;
+  std::vector<PetscInt> pos_;                       // pos_[A n + B]: block index of (A, B) in a_
+  std::vector<std::pair<PetscInt, int>> columns_;  // (global block column, B), sorted
+
+  bool locate(int n, const PetscInt* lnode) {
+    columns_.resize(n);
+    for (int B = 0; B < n; ++B) columns_[B] = {global_[lnode[B]], B};
+    std::sort(columns_.begin(), columns_.end());
+    pos_.resize(static_cast<std::size_t>(n) * n);
+    for (int A = 0; A < n; ++A) {
+      const PetscInt r = global_[lnode[A]], lo = ia_[r], hi = ia_[r + 1];
+      PetscInt k = std::lower_bound(ja_ + lo, ja_ + hi, columns_[0].first) - ja_;
+      for (const auto& [g, B] : columns_) {
+        while (k < hi && ja_[k] < g) ++k;
+        if (k == hi || ja_[k] != g) return false;
+        pos_[static_cast<std::size_t>(A) * n + B] = k;
+      }
+    }
+    return true;
+  }
+
+  template <int BS>
+  void add_node_blocks(int n, const double* Kb) {
+    const int bs2 = BS > 0 ? BS * BS : bs_ * bs_;
+    for (std::size_t k = 0; k < static_cast<std::size_t>(n) * n; ++k) {
+      double* blk = a_ + pos_[k] * bs2;
+      const double* kb = Kb + k * bs2;
+      for (int i = 0; i < bs2; ++i) blk[i] += kb[i];
+    }
+  }
+
+  // SeqBAIJ blocks are column-major: entry (c, e) of block k is a_[k bs^2 + e bs + c].
+  template <int BS>
+  void add_blocks(int n, const double* K) {
+    const int bs = BS > 0 ? BS : bs_, bs2 = bs * bs;
+    const std::size_t ld = static_cast<std::size_t>(n) * bs;
+    for (int A = 0; A < n; ++A)
+      for (int B = 0; B < n; ++B) {
+        double* blk = a_ + pos_[static_cast<std::size_t>(A) * n + B] * bs2;
+        const double* k = K + static_cast<std::size_t>(A) * bs * ld + static_cast<std::size_t>(B) * bs;
+        for (int e = 0; e < bs; ++e)
+          for (int c = 0; c < bs; ++c) blk[e * bs + c] += k[c * ld + e];
+      }
+  }
+};
+
 }  // namespace
 
 void FluidSolver::assemble(Vec U, Vec F, Mat J) {
@@ -449,6 +644,8 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
     CELLFSI_PETSC(MatSetOption(J, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
     CELLFSI_PETSC(MatZeroEntries(J));
   }
+
+  SeqBaijInserter direct(J, nd);  // usable only for a one-rank BAIJ Jacobian
 
   BasisValues bv;
   MapValues mv;
@@ -493,32 +690,24 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
   };
 
   auto fields = [&](const PointBasis& b, const std::array<std::array<double, 3>, 3>& G, PointFields& pf) {
-    pf = PointFields{};
-    pf.s = 0;
-    for (int k = 0; k < b.n; ++k) {
-      const double N = b.N[k];
-      const double* dN = b.dN + 3 * k;
-      pf.s += N * S[k];
-      for (int i = 0; i < D; ++i) {
-        const double vk = Vf[k * nd + i];
-        pf.v[i] += N * vk;
-        pf.vdot[i] += N * Vd[k * nd + i];
-        pf.lap_v[i] += b.lapN[k] * vk;
-        for (int j = 0; j < D; ++j) pf.dv[i][j] += dN[j] * vk;
-      }
-      const double pk = Vf[k * nd + D];
-      pf.p += N * pk;
-      for (int j = 0; j < D; ++j) pf.dp[j] += dN[j] * pk;
-    }
-    pf.G = G;
+    if (D == 2)
+      point_fields<2>(b, Vf.data(), Vd.data(), S.data(), G, pf);
+    else
+      point_fields<3>(b, Vf.data(), Vd.data(), S.data(), G, pf);
   };
 
-  auto scatter = [&](int n) {
+  auto scatter = [&](int n, bool matrix_done) {
     if (F)
       for (int r = 0; r < n * nd; ++r) f[lidx[r]] += Re[r];
+    if (!J || matrix_done) return;
+    // Straight into the value array of a one-rank BAIJ matrix; a block outside its pattern (never on the DMDA's
+    // box stencil) hands the matrix back and switches to PETSc's insertion for the rest of the assembly.
+    if (direct.usable()) {
+      if (direct.add(n, Ke.data())) return;
+      direct.finish();
+    }
     // Node blocks (the DMDA matrix has block size dof): one index per node instead of per unknown.
-    if (J)
-      CELLFSI_PETSC(MatSetValuesBlockedLocal(J, n, lnode.data(), n, lnode.data(), Ke.data(), ADD_VALUES));
+    CELLFSI_PETSC(MatSetValuesBlockedLocal(J, n, lnode.data(), n, lnode.data(), Ke.data(), ADD_VALUES));
   };
 
   PointFields pf;
@@ -527,8 +716,15 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
     int first[3];
     const ElementValues& ev = element_basis_.evaluate(e, scratch, first);
     const int n = gather(first);
+    // On a one-rank BAIJ matrix the tangent is formed in its block layout and added straight into it.
+    const bool blocks = J && direct.usable() && direct.prepare(n, lnode.data());
     Re.assign(n * nd, 0.0);
-    if (J) Ke.assign(static_cast<size_t>(n * nd) * n * nd, 0.0);
+    if (J) {
+      if (blocks)
+        Ke.resize(static_cast<size_t>(n * nd) * n * nd);  // overwritten
+      else
+        Ke.assign(static_cast<size_t>(n * nd) * n * nd, 0.0);
+    }
     point_fields.resize(ev.nq);
     for (int q = 0; q < ev.nq; ++q) {
       const PointBasis pb{n, &ev.N[static_cast<size_t>(q) * n], &ev.dN[static_cast<size_t>(q) * n * 3],
@@ -538,11 +734,25 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
     }
     // The element tangent at once: small matrix products over the quadrature points (same result as summing
     // vms_tangent over them, to round-off; tested).
-    if (J)
-      vms_tangent_element(
-          prm, {n, ev.nq, ev.N.data(), ev.dN.data(), ev.lapN.data(), ev.weight.data(), point_fields.data()}, ts,
-          Ke.data());
-    scatter(n);
+    if (J) {
+      const ElementPoints points{n,           ev.nq,          ev.N.data(), ev.dN.data(), ev.lapN.data(),
+                                 ev.weight.data(), point_fields.data()};
+      if (blocks) {
+        // Axis-affine patches: the products are sum-factorised over the basis' univariate factors.
+        TensorFactors tf;
+        for (int d = 0; d < 3; ++d) {
+          tf.np[d] = ev.np[d];
+          tf.nq[d] = ev.nq1[d];
+          tf.value[d] = ev.factor_value[d].data();
+          tf.deriv[d] = ev.factor_deriv[d].data();
+        }
+        vms_tangent_element_blocks(prm, points, ts, Ke.data(), ev.tensor ? &tf : nullptr);
+        direct.add_blocks(n, Ke.data());
+      } else {
+        vms_tangent_element(prm, points, ts, Ke.data());
+      }
+    }
+    scatter(n, blocks);
   }
 
   // Immersed-solid points (paper Eq. (10)) in this rank's elements.
@@ -551,13 +761,14 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
     int first[3] = {0, 0, 0};
     for (int d = 0; d < D; ++d) first[d] = bv.span[d] - patch_.degree(d);
     const int n = gather(first);
+    if (direct.usable()) direct.prepare(n, lnode.data());
     Re.assign(n * nd, 0.0);
     if (J) Ke.assign(static_cast<size_t>(n * nd) * n * nd, 0.0);
     const PointBasis pb{pp.n, pp.N.data(), pp.dN.data(), pp.lapN.data()};
     fields(pb, pp.G, pf);
     if (F) immersed_residual(prm, pb, pf, ip.data, Re.data());
     if (J) immersed_tangent(prm, pb, pf, ts, ip.data, Ke.data());
-    scatter(n);
+    scatter(n, false);
   }
 
   CELLFSI_PETSC(VecRestoreArrayRead(U_loc, &u));
@@ -591,6 +802,7 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
     CELLFSI_PETSC(VecDestroy(&UD));
   }
   if (J) {
+    direct.finish();
     CELLFSI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
     CELLFSI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
     CELLFSI_PETSC(MatZeroRows(J, static_cast<PetscInt>(rows.size()), rows.data(), 1.0, nullptr, nullptr));
@@ -672,6 +884,98 @@ StepStats FluidSolver::step() {
   }
   CELLFSI_PETSC(VecDestroy(&X));
   return st;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Newton driven from outside (coupling)
+
+void FluidSolver::begin_step(Vec X) {
+  CELLFSI_PETSC(DMGlobalToLocal(da_, U_, INSERT_VALUES, Un_loc_));
+  CELLFSI_PETSC(DMGlobalToLocal(da_, Udot_, INSERT_VALUES, Udotn_loc_));
+  CELLFSI_PETSC(VecCopy(U_, X));  // predictor: same state
+  apply_dirichlet_values(X, time_ + opt_.dt);
+}
+
+void FluidSolver::end_step(Vec X) {
+  const double gm = alpha_.gamma;
+  CELLFSI_PETSC(VecAXPBYPCZ(Udot_, 1.0 / (gm * opt_.dt), -1.0 / (gm * opt_.dt), -(1.0 - gm) / gm, X, U_));
+  CELLFSI_PETSC(VecCopy(X, U_));
+  ++steps_;
+  time_ = steps_ * opt_.dt;
+}
+
+KSP FluidSolver::ksp() const {
+  KSP k;
+  CELLFSI_PETSC(SNESGetKSP(snes_, &k));
+  return k;
+}
+
+void FluidSolver::set_immersed_points(const std::vector<Index3>& elements, const std::vector<Param>& xi,
+                                      const std::vector<ImmersedPoint>& data) {
+  if (elements.size() != xi.size() || xi.size() != data.size())
+    throw std::invalid_argument("set_immersed_points: elements, xi and data differ in size");
+  immersed_.clear();
+  for (size_t i = 0; i < data.size(); ++i)
+    if (owns_element(elements[i])) immersed_.push_back({elements[i], xi[i], data[i]});
+}
+
+std::vector<PointSample> FluidSolver::sample_alpha(Vec X, const std::vector<Index3>& elements,
+                                                   const std::vector<Param>& xi) const {
+  const int D = dim_, nd = dof_;
+  const double af = alpha_.alpha_f, am = alpha_.alpha_m, gm = alpha_.gamma, dt = opt_.dt;
+  const int stride = 1 + 3 + 9 + 3;
+  std::vector<double> buf(xi.size() * stride, 0.0);
+  Vec X_loc;
+  CELLFSI_PETSC(DMGetLocalVector(da_, &X_loc));
+  CELLFSI_PETSC(DMGlobalToLocal(da_, X, INSERT_VALUES, X_loc));
+  const PetscScalar *x, *un, *udn;
+  CELLFSI_PETSC(VecGetArrayRead(X_loc, &x));
+  CELLFSI_PETSC(VecGetArrayRead(Un_loc_, &un));
+  CELLFSI_PETSC(VecGetArrayRead(Udotn_loc_, &udn));
+  BasisValues bv;
+  MapValues mv;
+  PhysicalPoint pp;
+  for (size_t i = 0; i < xi.size(); ++i) {
+    if (!owns_element(elements[i])) continue;
+    physical_point(patch_, elements[i], xi[i], bv, mv, pp);
+    double* o = &buf[i * stride];
+    o[0] = 1.0;
+    int first[3] = {0, 0, 0}, np[3] = {1, 1, 1};
+    for (int d = 0; d < D; ++d) first[d] = bv.span[d] - patch_.degree(d), np[d] = patch_.degree(d) + 1;
+    int k = 0;
+    for (int c2 = 0; c2 < np[2]; ++c2)
+      for (int b1 = 0; b1 < np[1]; ++b1)
+        for (int a0 = 0; a0 < np[0]; ++a0, ++k) {
+          const PetscInt m[3] = {first[0] + a0, first[1] + b1, first[2] + c2};
+          const PetscInt node = local_node(m, gxs_, gxm_);
+          for (int c = 0; c < D; ++c) {
+            const PetscInt li = node * nd + c;
+            const double vf = un[li] + af * (x[li] - un[li]);
+            const double rate1 = (x[li] - un[li]) / (gm * dt) - (1.0 - gm) / gm * udn[li];
+            const double rm = udn[li] + am * (rate1 - udn[li]);
+            o[1 + c] += pp.N[k] * vf;
+            for (int j = 0; j < D; ++j) o[4 + 3 * c + j] += pp.dN[3 * k + j] * vf;
+            o[13 + c] += pp.N[k] * rm;
+          }
+        }
+  }
+  CELLFSI_PETSC(VecRestoreArrayRead(X_loc, &x));
+  CELLFSI_PETSC(VecRestoreArrayRead(Un_loc_, &un));
+  CELLFSI_PETSC(VecRestoreArrayRead(Udotn_loc_, &udn));
+  CELLFSI_PETSC(DMRestoreLocalVector(da_, &X_loc));
+  std::vector<double> all(buf.size());
+  CELLFSI_PETSC(MPI_Allreduce(buf.data(), all.data(), static_cast<int>(buf.size()), MPI_DOUBLE, MPI_SUM, comm_));
+  std::vector<PointSample> out(xi.size());
+  for (size_t i = 0; i < xi.size(); ++i) {
+    const double* o = &all[i * stride];
+    out[i].found = o[0] > 0.5;
+    for (int c = 0; c < 3; ++c) {
+      out[i].v[c] = o[1 + c];
+      out[i].vdot[c] = o[13 + c];
+      for (int j = 0; j < 3; ++j) out[i].grad_v(c, j) = o[4 + 3 * c + j];
+    }
+  }
+  return out;
 }
 
 // ---------------------------------------------------------------------------------------------------------------

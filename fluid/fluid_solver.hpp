@@ -121,6 +121,25 @@ class FluidSolver {
   /// Samples v, grad v, vdot and p at points (collective; every rank gets every value).
   std::vector<PointSample> sample(const std::vector<Vec3>& points) const;
 
+  // --- Driving the Newton iteration from outside: the coupling layer's block-iterative loop (paper Sec. 2.3) ---
+  /// Starts a time step: keeps the state at t_n; X (a vector like solution()) receives the predicted U_{n+1}.
+  void begin_step(Vec X);
+  /// Residual R_MC and approximate tangent K_MC of the iterate X (with the current immersed points and s^h).
+  void residual(Vec X, Vec F) { assemble(X, F, nullptr); }
+  void jacobian(Vec X, Mat J) { assemble(X, nullptr, J); }
+  /// v and grad v at t_{n+alpha_f} of the iterate X at points already located in the patch (element, xi)
+  /// (collective; every rank gets every value). vdot is the rate at t_{n+alpha_m}.
+  std::vector<PointSample> sample_alpha(Vec X, const std::vector<geometry::Index3>& elements,
+                                        const std::vector<geometry::Param>& xi) const;
+  /// Immersed points already located (element, xi); each rank keeps those in its elements.
+  void set_immersed_points(const std::vector<geometry::Index3>& elements, const std::vector<geometry::Param>& xi,
+                           const std::vector<ImmersedPoint>& data);
+  /// Accepts X as U_{n+1}: updates the rate and the time.
+  void end_step(Vec X);
+  /// The Jacobian matrix and the linear solver of the fluid (KSP prefix fluid_).
+  Mat jacobian_matrix() const { return J_; }
+  KSP ksp() const;
+
   /// Residual and Jacobian of the current state (for tests): F(U) with U the current unknown at t_{n+1}.
   void evaluate_residual(Vec U, Vec F);
   void evaluate_jacobian(Vec U, Mat J);

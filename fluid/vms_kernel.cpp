@@ -349,7 +349,8 @@ struct VectorOf<4> {
 inline int tile_rows(int n) { return n % 4 != 0 && n % 3 == 0 ? 3 : 4; }
 
 // One product of the element tangent: for rows A < n and columns j < ncols,
-//   Kc[A rs + col[j]] += sum_{si < nS} sum_q phi_{S[si], q}(A) beta[(si nq + q) ldb + j].
+//   Kc[A rs + col[j]] += sum_{si < nS} sum_q phi_{S[si], q}(A) beta[(si nq + q) ldb + j]
+// (= instead of += if store).
 // phi is packed by tiles of MR = tile_rows(n) rows (zero-padded), each value twice (a broadcast is one load
 // for W = 2): phi[(((A / MR) ns + s) nq + q) 2 MR + 2 (A % MR) + {0, 1}], so that a tile reads it
 // contiguously. beta rows are readable up to a multiple of W past ncols.
@@ -363,11 +364,12 @@ struct Product {
   const int* col = nullptr;
   double* Kc = nullptr;
   std::size_t rs = 0;
+  bool store = false;
 };
 
 // One register tile: rows MR tile .. MR tile + MR - 1 (those below n), columns j0 .. j0 + W NP - 1 (those
 // below ncols).
-template <int W, int MR, int NP>
+template <int W, int MR, int NP, bool kStore>
 [[gnu::always_inline]] inline void product_tile(const Product& g, int tile, int j0) {
   using V = typename VectorOf<W>::type;
   V acc[MR][NP] = {};
@@ -398,35 +400,47 @@ template <int W, int MR, int NP>
     for (int p = 0; p < NP; ++p)
 #pragma GCC unroll 4
       for (int l = 0; l < W; ++l)
-        if (row_in && j0 + W * p + l < g.ncols) row[g.col[j0 + W * p + l]] += acc[r][p][l];
+        if (row_in && j0 + W * p + l < g.ncols) {
+          if constexpr (kStore)
+            row[g.col[j0 + W * p + l]] = acc[r][p][l];
+          else
+            row[g.col[j0 + W * p + l]] += acc[r][p][l];
+        }
   }
 }
 
 // Row tiles outermost (a tile's phi stays in L1 while the beta is swept; faster than the other order here,
 // even at n = 64), then panels of NP vectors of columns, then a narrower one.
-template <int W, int MR, int NP>
+template <int W, int MR, int NP, bool kStore>
 [[gnu::always_inline]] inline void product_tiles(const Product& g) {
   static_assert(NP <= 3);
   for (int tile = 0; tile * MR < g.n; ++tile) {
     int j0 = 0;
-    for (; j0 + W * NP <= g.ncols; j0 += W * NP) product_tile<W, MR, NP>(g, tile, j0);
+    for (; j0 + W * NP <= g.ncols; j0 += W * NP) product_tile<W, MR, NP, kStore>(g, tile, j0);
     const int rest = (g.ncols - j0 + W - 1) / W;  // <= NP vectors, the last one maybe partly used
-    if (rest == NP) product_tile<W, MR, NP>(g, tile, j0);
-    if (rest == 1 && NP > 1) product_tile<W, MR, 1>(g, tile, j0);
+    if (rest == NP) product_tile<W, MR, NP, kStore>(g, tile, j0);
+    if (rest == 1 && NP > 1) product_tile<W, MR, 1, kStore>(g, tile, j0);
     if constexpr (NP > 2)
-      if (rest == 2) product_tile<W, MR, 2>(g, tile, j0);
+      if (rest == 2) product_tile<W, MR, 2, kStore>(g, tile, j0);
   }
 }
 
 // Tiles of MR rows by NP vectors of columns: at most 12 accumulators, which with the operands fit in the 16
 // vector registers (SSE2's two-operand instructions need one more for a temporary: 8 or 9 accumulators
 // there).
+template <int W, bool kStore>
+[[gnu::always_inline]] inline void product_as(const Product& g) {
+  if (tile_rows(g.n) == 3)
+    product_tiles<W, 3, 3, kStore>(g);
+  else
+    product_tiles<W, 4, W == 2 ? 2 : 3, kStore>(g);
+}
 template <int W>
 [[gnu::always_inline]] inline void product(const Product& g) {
-  if (tile_rows(g.n) == 3)
-    product_tiles<W, 3, 3>(g);
+  if (g.store)
+    product_as<W, true>(g);
   else
-    product_tiles<W, 4, W == 2 ? 2 : 3>(g);
+    product_as<W, false>(g);
 }
 
 [[gnu::noinline]] void product_baseline(const Product& g) { product<2>(g); }
@@ -468,8 +482,9 @@ template <int W, int Count>
 
 struct ElementScratch {
   int ldy = 0;  // length of the y rows: n rounded up to a multiple of 4 (the widest vector), zero-padded
-  std::vector<double> phi, y, C, beta;
+  std::vector<double> phi, y, C, beta, T;
   std::vector<int> col;
+  std::vector<const double*> ka, kr;  // operands of the sum-factorised products
 };
 
 // Per thread, kept between calls: no heap allocation once it has grown to the largest element.
@@ -551,9 +566,15 @@ void element_points(const VmsParameters& prm, const ElementPoints& ep, const Tan
   }
 }
 
+// Where the element tangent goes: added to K in vms_tangent's layout (rows), or stored in node blocks
+// (vms_tangent_element_blocks' layout). Every entry is produced by exactly one product, so storing overwrites
+// all of K.
+enum class Layout { rows, blocks };
+
 // The beta and the products, one per row component c and run of column components with the same factors.
 template <int Dim, bool kConvective, int W>
-[[gnu::always_inline]] inline void element_products(const ElementPoints& ep, ElementScratch& sc, double* K) {
+[[gnu::always_inline]] inline void element_products(const ElementPoints& ep, ElementScratch& sc, double* K,
+                                                    Layout layout) {
   static constexpr ElementPattern<Dim, kConvective> pattern{};
   constexpr int nc = Dim + 1, ns = Dim + 1, ny = Dim + 2, nC = nc * ns * nc * ny;
   const int n = ep.n, nq = ep.nq, ldy = sc.ldy;
@@ -608,8 +629,9 @@ template <int Dim, bool kConvective, int W>
         if (written < ldb)
           for (int q = 0; q < nq; ++q) std::fill(rows + q * ldb + written, rows + (q + 1) * ldb, 0.0);
       }
+      const bool blocks = layout == Layout::blocks;
       for (int e = e0; e < e1; ++e)
-        for (int B = 0; B < n; ++B) sc.col[(e - e0) * n + B] = B * nc + e;
+        for (int B = 0; B < n; ++B) sc.col[(e - e0) * n + B] = blocks ? (B * nc + e) * nc : B * nc + e;
 
       Product g;
       g.nS = nS;
@@ -622,8 +644,9 @@ template <int Dim, bool kConvective, int W>
       g.ldb = ldb;
       g.ncols = ncols;
       g.col = sc.col.data();
-      g.Kc = K + c * ld;
-      g.rs = nc * ld;
+      g.Kc = blocks ? K + c : K + c * ld;
+      g.rs = nc * ld;  // rows: A nc rows of ld; blocks: n blocks of nc^2
+      g.store = blocks;
 #ifdef CELLFSI_VMS_AVX2
       if constexpr (W == 4) product_avx2(g);
 #endif
@@ -633,15 +656,15 @@ template <int Dim, bool kConvective, int W>
 }
 
 template <int Dim, bool kConvective>
-void element_products_baseline(const ElementPoints& ep, ElementScratch& sc, double* K) {
-  element_products<Dim, kConvective, 2>(ep, sc, K);
+void element_products_baseline(const ElementPoints& ep, ElementScratch& sc, double* K, Layout layout) {
+  element_products<Dim, kConvective, 2>(ep, sc, K, layout);
 }
 
 #ifdef CELLFSI_VMS_AVX2
 template <int Dim, bool kConvective>
 [[gnu::target("avx2,fma")]] void element_products_avx2(const ElementPoints& ep, ElementScratch& sc,
-                                                       double* K) {
-  element_products<Dim, kConvective, 4>(ep, sc, K);
+                                                       double* K, Layout layout) {
+  element_products<Dim, kConvective, 4>(ep, sc, K, layout);
 }
 
 bool cpu_has_avx2_fma() {
@@ -650,16 +673,356 @@ bool cpu_has_avx2_fma() {
 }
 #endif
 
+// Sum-factorised element tangent (2D, TensorFactors given; vms_tangent_element_blocks). All row components at
+// once, in the node-block layout: the B-side rows have one column per (B, e, c), col = (B nc + e) nc + c,
+//   beta_s(q)[col] = sum_t C_q[c][s][e][t] y_t,q(B)   (s = 0, 1, 2: the A-side factor N_A, dN_A/dx, dN_A/dy),
+// so that row A of the product is row A of the element's block matrix, stored contiguously. With A = a + na b,
+// q = qx + nqx qy and the univariate factors X = value[0], Xd = deriv[0], Y = value[1], Yd = deriv[1]:
+//   Kb[A][col] = sum_qx X(qx, a) TX(qx, b)[col] + Xd(qx, a) TXd(qx, b)[col],
+//   TX(qx, b) = sum_qy Y(qy, b) beta_0(q) + Yd(qy, b) beta_2(q),   TXd(qx, b) = sum_qy Y(qy, b) beta_1(q).
+// Multiply-adds per column: nqx nb 3 nqy + na nb 2 nqx against element_products' n nq 3 (p = 3: 320 against
+// 768; p = 2: 135 against 243). Both contractions are one kind of small product,
+//   out_r[j] = sum_{k < K} a_k[r] rows_k[j],   r < R, j < ncols,
+// register-tiled by up to 4 rows and NP vectors of columns. beta costs (nc^2 rounded up to 4) ny multiply-adds
+// per point, function and factor, its coefficients for one (point, s, t) being a few contiguous vectors.
+constexpr int kLanes2d = 12;  // nc^2 = 9 coefficients of one (point, s, t), rounded up to a multiple of 4
+
+struct TensorGemm {
+  int R = 0, K = 0, ncols = 0;
+  const double* const* a = nullptr;     // a[k][r]
+  const double* const* rows = nullptr;  // rows[k][j], readable up to a multiple of W past ncols
+  double* out = nullptr;                // row r at out + r ld; stored, not added
+  std::size_t ld = 0;
+};
+
+// Unaligned vector loads and stores (a memcpy per vector was compiled as a copy through the stack here).
+template <int W>
+struct UnalignedOf {
+  typedef double type __attribute__((vector_size(8 * W), aligned(8), may_alias));
+};
+
+// kExact: columns past ncols are not written (the element matrix's rows); otherwise whole vectors are (room
+// up to a multiple of W past ncols).
+template <int W, int MR, int NP, bool kExact>
+[[gnu::always_inline]] inline void tensor_tile(const TensorGemm& g, int r0, int j0) {
+  using V = typename VectorOf<W>::type;
+  using U = typename UnalignedOf<W>::type;
+  V acc[MR][NP] = {};
+  for (int k = 0; k < g.K; ++k) {
+    const double* b = g.rows[k] + j0;
+    const double* a = g.a[k] + r0;
+    V bv[NP];
+#pragma GCC unroll 3
+    for (int p = 0; p < NP; ++p) bv[p] = *reinterpret_cast<const U*>(b + W * p);
+#pragma GCC unroll 4
+    for (int r = 0; r < MR; ++r) {
+      const double x = a[r];
+      V av;
+      if constexpr (W == 2)
+        av = V{x, x};
+      else
+        av = V{x, x, x, x};
+#pragma GCC unroll 3
+      for (int p = 0; p < NP; ++p) acc[r][p] += av * bv[p];
+    }
+  }
+#pragma GCC unroll 4
+  for (int r = 0; r < MR; ++r) {
+    double* row = g.out + static_cast<std::size_t>(r0 + r) * g.ld + j0;
+#pragma GCC unroll 3
+    for (int p = 0; p < NP; ++p) {
+      if (!kExact || j0 + W * (p + 1) <= g.ncols) {
+        *reinterpret_cast<U*>(row + W * p) = acc[r][p];
+      } else {
+#pragma GCC unroll 4
+        for (int l = 0; l < W; ++l)
+          if (j0 + W * p + l < g.ncols) row[W * p + l] = acc[r][p][l];
+      }
+    }
+  }
+}
+
+template <int W, int MR, bool kExact>
+[[gnu::always_inline]] inline void tensor_panels(const TensorGemm& g, int r0) {
+  constexpr int NP = W == 2 ? 2 : 3;  // MR NP accumulators: up to 8 (SSE2) or 12 (AVX2)
+  int j0 = 0;
+  for (; j0 + W * NP <= g.ncols; j0 += W * NP) tensor_tile<W, MR, NP, kExact>(g, r0, j0);
+  const int rest = (g.ncols - j0 + W - 1) / W;  // <= NP vectors, the last one maybe partly used
+  if (rest == NP) tensor_tile<W, MR, NP, kExact>(g, r0, j0);
+  if (rest == 1 && NP > 1) tensor_tile<W, MR, 1, kExact>(g, r0, j0);
+  if constexpr (NP > 2)
+    if (rest == 2) tensor_tile<W, MR, 2, kExact>(g, r0, j0);
+}
+
+template <int W, bool kExact>
+[[gnu::always_inline]] inline void tensor_gemm(const TensorGemm& g) {
+  for (int r0 = 0; r0 < g.R;) {
+    switch (std::min(4, g.R - r0)) {
+      case 4:
+        tensor_panels<W, 4, kExact>(g, r0);
+        r0 += 4;
+        break;
+      case 3:
+        tensor_panels<W, 3, kExact>(g, r0);
+        r0 += 3;
+        break;
+      case 2:
+        tensor_panels<W, 2, kExact>(g, r0);
+        r0 += 2;
+        break;
+      default:
+        tensor_panels<W, 1, kExact>(g, r0);
+        r0 += 1;
+        break;
+    }
+  }
+}
+
+// Which (s, t) have a coefficient for some (c, e).
+template <bool kConvective>
+struct FactorPattern {
+  bool st[3][4] = {};
+  bool s[3] = {};
+  constexpr FactorPattern() {
+    const ElementPattern<2, kConvective> pattern{};
+    for (int c = 0; c < 3; ++c)
+      for (int s_ = 0; s_ < 3; ++s_)
+        for (int e = 0; e < 3; ++e)
+          for (int i = 0; i < pattern.terms[c][s_][e].count; ++i) {
+            st[s_][pattern.terms[c][s_][e].t[i]] = true;
+            s[s_] = true;
+          }
+  }
+};
+
+// The per-point work of the sum-factorised tangent: y_t(B) as in element_points and the coefficients, here
+// C[((q ns + s) ny + t) kLanes2d + e nc + c] (zero-padded). Scalar code, baseline instruction set.
+template <bool kConvective>
+void tensor_points(const VmsParameters& prm, const ElementPoints& ep, const TangentScales& ts,
+                   ElementScratch& sc) {
+  constexpr int Dim = 2, nc = 3, ns = 3, ny = 4, nL = kLanes2d;
+  const int n = ep.n, nq = ep.nq;
+  const int ldy = sc.ldy = (n + 3) / 4 * 4;
+  sc.y.resize(static_cast<std::size_t>(nq) * ny * ldy);
+  sc.C.resize(static_cast<std::size_t>(nq) * ns * ny * nL);
+
+  PointScalars<Dim> ps;
+  ps.vel = ts.velocity;
+  ps.rate = ts.velocity_rate;
+  ps.pres = ts.pressure;
+  ps.nu = prm.nu;
+  for (int q = 0; q < nq; ++q) {
+    const double* N = ep.N + static_cast<std::size_t>(q) * n;
+    const double* dN = ep.dN + static_cast<std::size_t>(q) * n * 3;
+    const double* lapN = ep.lapN + static_cast<std::size_t>(q) * n;
+    const PointFields& f = ep.fields[q];
+    double* y = sc.y.data() + static_cast<std::size_t>(q) * ny * ldy;
+    for (int B = 0; B < n; ++B) {
+      double m = ps.rate * N[B] - ps.nu * ps.vel * lapN[B];  // m_B as in tangent_kernel
+      for (int j = 0; j < Dim; ++j) {
+        if constexpr (kConvective) m += ps.vel * f.v[j] * dN[B * 3 + j];
+        y[(2 + j) * ldy + B] = dN[B * 3 + j];
+      }
+      y[B] = N[B];
+      y[ldy + B] = m;
+    }
+    for (int t = 0; t < ny; ++t)
+      for (int B = n; B < ldy; ++B) y[t * ldy + B] = 0.0;
+
+    const Stabilization tau = vms_stabilization(prm, f);
+    const PointState st = point_state(prm, f, tau);
+    ps.w = ep.weight[q];
+    ps.tm = tau.tau_m;
+    ps.tc = tau.tau_c;
+    if constexpr (kConvective) {
+      for (int i = 0; i < Dim; ++i) {
+        ps.v_fine[i] = st.v_fine[i];
+        ps.a[i] = st.a[i];
+        for (int j = 0; j < Dim; ++j) ps.dv[i][j] = f.dv[i][j];
+      }
+      for (int i = 0; i < Dim; ++i)
+        for (int e = 0; e < Dim; ++e) {
+          double dvdv = 0;
+          for (int j = 0; j < Dim; ++j) dvdv += ps.dv[i][j] * ps.dv[j][e];
+          ps.M[i][e] = ps.vel * (ps.dv[i][e] - ps.tm * dvdv);
+        }
+    }
+    double* C = sc.C.data() + static_cast<std::size_t>(q) * ns * ny * nL;
+    for (int k = 0; k < ns * ny * nL; ++k) C[k] = 0.0;
+    coefficient_terms<Dim, kConvective>(
+        ps, [C](int c, int s, int e, int t, double v) { C[(s * ny + t) * nL + e * nc + c] += v; });
+  }
+}
+
+// beta_s at the points q = qx + nqx qy, qy < nqy, one row of ldb per point: per function B, the nc^2 values
+// sum_t C[q][s][t][.] y_t,q(B) as kLanes2d / W vectors, B increasing so that each vector's lanes past nc^2
+// are overwritten by the next function's.
+template <bool kConvective, int W, int s>
+[[gnu::always_inline]] inline void tensor_beta(const ElementScratch& sc, int n, int qx, int nqx, int nqy,
+                                               double* rows, std::size_t ldb) {
+  static constexpr FactorPattern<kConvective> fp{};
+  using V = typename VectorOf<W>::type;
+  using U = typename UnalignedOf<W>::type;
+  constexpr int nc = 3, ny = 4, nL = kLanes2d, nv = nL / W;
+  const int ldy = sc.ldy;
+  for (int qy = 0; qy < nqy; ++qy) {
+    const std::size_t q = static_cast<std::size_t>(qx) + static_cast<std::size_t>(nqx) * qy;
+    const double* C = sc.C.data() + (q * 3 + s) * ny * nL;
+    const double* y = sc.y.data() + q * ny * ldy;
+    double* dst = rows + static_cast<std::size_t>(qy) * ldb;
+    V cv[ny][nv];
+#pragma GCC unroll 4
+    for (int t = 0; t < ny; ++t)
+#pragma GCC unroll 6
+      for (int v = 0; v < nv; ++v) cv[t][v] = *reinterpret_cast<const U*>(C + t * nL + W * v);
+    for (int B = 0; B < n; ++B, dst += nc * nc) {
+      V sum[nv] = {};
+#pragma GCC unroll 4
+      for (int t = 0; t < ny; ++t) {
+        if (!fp.st[s][t]) continue;
+        const double x = y[t * ldy + B];
+        V xv;
+        if constexpr (W == 2)
+          xv = V{x, x};
+        else
+          xv = V{x, x, x, x};
+#pragma GCC unroll 6
+        for (int v = 0; v < nv; ++v) sum[v] += cv[t][v] * xv;
+      }
+#pragma GCC unroll 6
+      for (int v = 0; v < nv; ++v) *reinterpret_cast<U*>(dst + W * v) = sum[v];
+    }
+  }
+}
+
+template <bool kConvective, int W>
+[[gnu::always_inline]] inline void tensor_products(const ElementPoints& ep, const TensorFactors& tf,
+                                                   ElementScratch& sc, double* Kb) {
+  static constexpr FactorPattern<kConvective> fp{};
+  constexpr int nc = 3, ns = 3;
+  const int na = tf.np[0], nb = tf.np[1], nqx = tf.nq[0], nqy = tf.nq[1];
+  const int n = ep.n;
+  auto round_up = [](int i) { return (i + W - 1) / W * W; };
+  // Rows of beta and T: room for tensor_beta's writes past the last function (kLanes2d - nc^2).
+  const int ncols = n * nc * nc, ldb = round_up(ncols + kLanes2d - nc * nc);
+  // beta of one line of points (qx fixed), for each factor s; TX and TXd for every (qx, b).
+  sc.beta.resize(static_cast<std::size_t>(ns) * nqy * ldb);
+  sc.T.resize(static_cast<std::size_t>(2) * nqx * nb * ldb);
+  sc.ka.resize(2 * std::max(nqx, nqy));
+  sc.kr.resize(sc.ka.size());
+  const double *X = tf.value[0], *Xd = tf.deriv[0], *Y = tf.value[1], *Yd = tf.deriv[1];
+  double* const TX = sc.T.data();
+  double* const TXd = TX + static_cast<std::size_t>(nqx) * nb * ldb;
+  double* beta[ns];
+  for (int s = 0; s < ns; ++s) beta[s] = sc.beta.data() + static_cast<std::size_t>(s) * nqy * ldb;
+  constexpr bool has_x = fp.s[0] || fp.s[2];
+
+  TensorGemm g;
+  g.R = nb;
+  g.ncols = ncols;
+  g.a = sc.ka.data();
+  g.rows = sc.kr.data();
+  g.ld = ldb;
+  for (int qx = 0; qx < nqx; ++qx) {
+    if constexpr (fp.s[0]) tensor_beta<kConvective, W, 0>(sc, n, qx, nqx, nqy, beta[0], ldb);
+    if constexpr (fp.s[1]) tensor_beta<kConvective, W, 1>(sc, n, qx, nqx, nqy, beta[1], ldb);
+    if constexpr (fp.s[2]) tensor_beta<kConvective, W, 2>(sc, n, qx, nqx, nqy, beta[2], ldb);
+    if constexpr (has_x) {
+      g.K = 0;
+      for (int qy = 0; qy < nqy; ++qy) {
+        if constexpr (fp.s[0]) {
+          sc.ka[g.K] = Y + static_cast<std::size_t>(qy) * nb;
+          sc.kr[g.K++] = beta[0] + static_cast<std::size_t>(qy) * ldb;
+        }
+        if constexpr (fp.s[2]) {
+          sc.ka[g.K] = Yd + static_cast<std::size_t>(qy) * nb;
+          sc.kr[g.K++] = beta[2] + static_cast<std::size_t>(qy) * ldb;
+        }
+      }
+      g.out = TX + static_cast<std::size_t>(qx) * nb * ldb;
+      tensor_gemm<W, false>(g);
+    }
+    if constexpr (fp.s[1]) {
+      g.K = 0;
+      for (int qy = 0; qy < nqy; ++qy) {
+        sc.ka[g.K] = Y + static_cast<std::size_t>(qy) * nb;
+        sc.kr[g.K++] = beta[1] + static_cast<std::size_t>(qy) * ldb;
+      }
+      g.out = TXd + static_cast<std::size_t>(qx) * nb * ldb;
+      tensor_gemm<W, false>(g);
+    }
+  }
+
+  // The rows of Kb, one product per b (functions a + na b).
+  g.R = na;
+  g.ld = ncols;
+  for (int b = 0; b < nb; ++b) {
+    g.K = 0;
+    for (int qx = 0; qx < nqx; ++qx) {
+      const std::size_t row = (static_cast<std::size_t>(qx) * nb + b) * ldb;
+      if constexpr (has_x) {
+        sc.ka[g.K] = X + static_cast<std::size_t>(qx) * na;
+        sc.kr[g.K++] = TX + row;
+      }
+      if constexpr (fp.s[1]) {
+        sc.ka[g.K] = Xd + static_cast<std::size_t>(qx) * na;
+        sc.kr[g.K++] = TXd + row;
+      }
+    }
+    g.out = Kb + static_cast<std::size_t>(na) * b * ncols;
+    tensor_gemm<W, true>(g);
+  }
+}
+
+template <bool kConvective>
+void tensor_products_baseline(const ElementPoints& ep, const TensorFactors& tf, ElementScratch& sc, double* Kb) {
+  tensor_products<kConvective, 2>(ep, tf, sc, Kb);
+}
+
+#ifdef CELLFSI_VMS_AVX2
+template <bool kConvective>
+[[gnu::target("avx2,fma")]] void tensor_products_avx2(const ElementPoints& ep, const TensorFactors& tf,
+                                                      ElementScratch& sc, double* Kb) {
+  tensor_products<kConvective, 4>(ep, tf, sc, Kb);
+}
+#endif
+
 template <int Dim, bool kConvective>
 void tangent_element_kernel(const VmsParameters& prm, const ElementPoints& ep, const TangentScales& ts,
-                            double* K, bool baseline) {
+                            double* K, bool baseline, Layout layout, const TensorFactors* tensor) {
   ElementScratch& sc = element_scratch();
+  if constexpr (Dim == 2) {
+    if (layout == Layout::blocks && tensor != nullptr) {
+      tensor_points<kConvective>(prm, ep, ts, sc);
+#ifdef CELLFSI_VMS_AVX2
+      if (!baseline && cpu_has_avx2_fma()) return tensor_products_avx2<kConvective>(ep, *tensor, sc, K);
+#endif
+      return tensor_products_baseline<kConvective>(ep, *tensor, sc, K);
+    }
+  }
   element_points<Dim, kConvective>(prm, ep, ts, sc);
 #ifdef CELLFSI_VMS_AVX2
-  if (!baseline && cpu_has_avx2_fma()) return element_products_avx2<Dim, kConvective>(ep, sc, K);
+  if (!baseline && cpu_has_avx2_fma()) return element_products_avx2<Dim, kConvective>(ep, sc, K, layout);
 #endif
   (void)baseline;
-  element_products_baseline<Dim, kConvective>(ep, sc, K);
+  (void)tensor;
+  element_products_baseline<Dim, kConvective>(ep, sc, K, layout);
+}
+
+void tangent_element(const VmsParameters& prm, const ElementPoints& points, const TangentScales& ts, double* K,
+                     bool baseline, Layout layout, const TensorFactors* tensor) {
+  assert(prm.dim == 2 || prm.dim == 3);
+  if (prm.dim == 2) {
+    if (prm.stokes)
+      tangent_element_kernel<2, false>(prm, points, ts, K, baseline, layout, tensor);
+    else
+      tangent_element_kernel<2, true>(prm, points, ts, K, baseline, layout, tensor);
+  } else {
+    if (prm.stokes)
+      tangent_element_kernel<3, false>(prm, points, ts, K, baseline, layout, tensor);
+    else
+      tangent_element_kernel<3, true>(prm, points, ts, K, baseline, layout, tensor);
+  }
 }
 
 template <int Dim>
@@ -677,8 +1040,8 @@ void immersed_tangent_kernel(const VmsParameters& prm, const PointBasis& basis, 
   }
   for (int A = 0; A < n; ++A) {
     const double mass_A = -w * ip.beta * basis.N[A];
-    Vec3 visc_dN_A{};  // -w nu velocity dN_A
-    for (int j = 0; j < Dim; ++j) visc_dN_A[j] = -w * prm.nu * vel * basis.dN[A * 3 + j];
+    Vec3 visc_dN_A{};  // -w (nu - nu_s) velocity dN_A: the fluid's viscosity removed, the solid's stiffness added
+    for (int j = 0; j < Dim; ++j) visc_dN_A[j] = -w * (prm.nu - ip.stiffness_viscosity) * vel * basis.dN[A * 3 + j];
     for (int B = 0; B < n; ++B) {
       const double N_B = basis.N[B];
       const double* dN_B = basis.dN + B * 3;
@@ -751,20 +1114,24 @@ void vms_tangent(const VmsParameters& prm, const PointBasis& basis, const PointF
 
 void vms_tangent_element(const VmsParameters& prm, const ElementPoints& points, const TangentScales& ts,
                          double* K, ElementKernelIsa isa) {
-  const bool baseline = isa == ElementKernelIsa::baseline;
-  assert(prm.dim == 2 || prm.dim == 3);
   if (points.n <= 0 || points.nq <= 0) return;
-  if (prm.dim == 2) {
-    if (prm.stokes)
-      tangent_element_kernel<2, false>(prm, points, ts, K, baseline);
-    else
-      tangent_element_kernel<2, true>(prm, points, ts, K, baseline);
-  } else {
-    if (prm.stokes)
-      tangent_element_kernel<3, false>(prm, points, ts, K, baseline);
-    else
-      tangent_element_kernel<3, true>(prm, points, ts, K, baseline);
+  tangent_element(prm, points, ts, K, isa == ElementKernelIsa::baseline, Layout::rows, nullptr);
+}
+
+void vms_tangent_element_blocks(const VmsParameters& prm, const ElementPoints& points, const TangentScales& ts,
+                                double* Kb, const TensorFactors* tensor, ElementKernelIsa isa) {
+  if (points.n <= 0) return;
+  if (points.nq <= 0) {
+    const int nc = prm.dim + 1;
+    std::fill(Kb, Kb + static_cast<std::size_t>(points.n) * points.n * nc * nc, 0.0);
+    return;
   }
+  // The factors must describe the element; otherwise the unfactorised products.
+  if (tensor && (tensor->np[0] * tensor->np[1] * tensor->np[2] != points.n ||
+                 tensor->nq[0] * tensor->nq[1] * tensor->nq[2] != points.nq || tensor->np[2] != 1 ||
+                 tensor->nq[2] != 1))
+    tensor = nullptr;
+  tangent_element(prm, points, ts, Kb, isa == ElementKernelIsa::baseline, Layout::blocks, tensor);
 }
 
 void immersed_residual(const VmsParameters& prm, const PointBasis& basis, const PointFields& f,

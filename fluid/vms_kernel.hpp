@@ -105,11 +105,34 @@ enum class ElementKernelIsa { best, baseline };
 void vms_tangent_element(const VmsParameters& prm, const ElementPoints& points, const TangentScales& ts,
                          double* K, ElementKernelIsa isa = ElementKernelIsa::best);
 
+/// Univariate factors of a tensor-product element whose physical basis is a product too (an axis-affine
+/// patch). With A = a_0 + np_0 (a_1 + np_1 a_2) and q = q_0 + nq_0 (q_1 + nq_1 q_2) (points.n = prod np,
+/// points.nq = prod nq): N_A(q) = prod_d value[d][q_d np_d + a_d], and d N_A / d x_j (q) is that product with
+/// deriv[j] in place of value[j].
+struct TensorFactors {
+  int np[3] = {1, 1, 1}, nq[3] = {1, 1, 1};
+  const double* value[3] = {nullptr, nullptr, nullptr};
+  const double* deriv[3] = {nullptr, nullptr, nullptr};
+};
+
+/// The same element tangent in node blocks, as PETSc's BAIJ matrices store them (each (dim+1) x (dim+1)
+/// block column-major), and written, not added: Kb[(A n + B) (dim+1)^2 + e (dim+1) + c] = d R_{A,c} / d U_{B,e}.
+/// Without `tensor`, the same sums as vms_tangent_element. With it (2D; ignored in 3D), the products over the
+/// points are sum-factorised on the test-function side: fewer operations, same values to round-off.
+void vms_tangent_element_blocks(const VmsParameters& prm, const ElementPoints& points, const TangentScales& ts,
+                                double* Kb, const TensorFactors* tensor = nullptr,
+                                ElementKernelIsa isa = ElementKernelIsa::best);
+
 /// One quadrature point of an immersed solid (paper Eq. (10)), in the data the coupling layer provides.
 struct ImmersedPoint {
   double weight = 0;                              // quadrature weight in the reference configuration
   std::array<std::array<double, 3>, 3> stress{};  // (1/rho_1) F S F^T, symmetric
   double beta = 0;                                // density factor 1 - rho_2 / rho_1
+  /// Tangent only: the solid's stiffness seen by the fluid velocity over one step, as an equivalent kinematic
+  /// viscosity nu_s (the stress increment from the displacement the kinematic equation gives for a velocity
+  /// increment: for shear modulus G, nu_s = G gamma dt alpha_f / (alpha_m rho_1)). Without it the block-iterative
+  /// loop diverges for any realistic stiffness; the residual, and so the solution, does not depend on it.
+  double stiffness_viscosity = 0;
 };
 
 /// Adds the Eq. (10) terms of one immersed point to the momentum rows of R (continuity rows untouched):

@@ -17,6 +17,9 @@ class Material {
   /// result's are zero). Units: those of the material constants (dyn/cm^2 in CGS).
   virtual Mat3 second_piola(const Mat3& F, int dim) const = 0;
   virtual std::string name() const = 0;
+  /// Shear modulus of the linearised material at the reference state (for the coupling's approximate
+  /// tangent).
+  virtual double tangent_shear_modulus() const = 0;
 };
 
 /// The paper's material, Eq. (20): S = G J^{-2/d} (I - (1/d) tr(C) C^{-1}), J = det F, C = F^T F (the right
@@ -28,6 +31,7 @@ class DeviatoricNeoHookean final : public Material {
   explicit DeviatoricNeoHookean(double shear_modulus);
   Mat3 second_piola(const Mat3& F, int dim) const override;
   std::string name() const override { return "deviatoric_neo_hookean"; }
+  double tangent_shear_modulus() const override { return G_; }
   double shear_modulus() const { return G_; }
 
  private:

@@ -200,6 +200,7 @@ std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density) co
       d.weight = q.weight * std::abs(dXdxi.determinant());
       d.stress = F * S * F.transpose() / fluid_density;
       d.beta = beta;
+      d.shear_modulus = material_->tangent_shear_modulus();
       out.push_back(d);
     }
   }

@@ -37,7 +37,7 @@ class NurbsSolid final : public SolidSolver {
 
   /// Sets the displacement rate at the collocation points (e.g. the fluid velocity there at t = 0, so the
   /// first step starts consistent); the displacement stays as it is.
-  void set_rate(const std::vector<Vec3>& rate);
+  void set_rate(const std::vector<Vec3>& rate) override;
 
   int n_points() const { return static_cast<int>(reference_points_.size()); }
   const std::vector<Vec3>& reference_points() const { return reference_points_; }

@@ -35,6 +35,7 @@ struct QuadratureData {
   double weight = 0;           // quadrature weight in the reference configuration
   Mat3 stress = Mat3::Zero();  // (1/rho_1) F S F^T, symmetric
   double beta = 0;             // 1 - rho_2 / rho_1
+  double shear_modulus = 0;    // of the linearised material (for the coupling's approximate tangent)
 };
 
 class SolidSolver {
@@ -57,6 +58,9 @@ class SolidSolver {
   virtual std::vector<Vec3> interface_points() const = 0;
   /// Accepts the displacement at t_{n+1}.
   virtual void end_step() = 0;
+  /// Sets the displacement rate at the collocation points (before the first step: the fluid velocity there,
+  /// so the first step starts consistent).
+  virtual void set_rate(const std::vector<Vec3>& rate) = 0;
 };
 
 }  // namespace cellfsi::solid

@@ -80,7 +80,8 @@ TEST(InterfaceMarking, MarksTheFunctionsAroundAMembrane) {
   std::printf("  %zu functions marked\n", marked.size());
   // ... and every point has all the functions of its element marked: at least (p+1)^2 = 16, in total a band.
   EXPECT_GT(marked.size(), 100u);
-  EXPECT_LT(marked.size(), 200u);  // measured 120: the membrane crosses ~26 elements, a band ~p+1 functions wide
+  EXPECT_LT(marked.size(),
+            200u);  // measured 120: the membrane crosses ~26 elements, a band ~p+1 functions wide
   const std::vector<double> s = coupling::scaling_values(box.n_control(), marked, 1e10);
   EXPECT_EQ(std::count(s.begin(), s.end(), 1e10), static_cast<long>(marked.size()));
   EXPECT_THROW(coupling::scaling_values(box.n_control(), marked, 0.5), std::invalid_argument);

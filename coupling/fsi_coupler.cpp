@@ -1,0 +1,177 @@
+#include "coupling/fsi_coupler.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "coupling/interface_marking.hpp"
+#include "fluid/petsc_error.hpp"
+
+namespace cellfsi::coupling {
+
+FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver*> bodies,
+                       CouplerOptions options)
+    : fluid_(fluid), bodies_(std::move(bodies)), opt_(options), locator_(fluid.patch()) {
+  tp_ = solid::TimeParameters::from_rho_inf(fluid.options().rho_inf, fluid.options().dt);
+  if (!(opt_.tolerance > 0 && opt_.tolerance < 1))
+    throw std::invalid_argument("coupler tolerance must be in (0, 1)");
+  if (!(opt_.s_interface >= 1)) throw std::invalid_argument("s_interface must be >= 1");
+  for (auto* b : bodies_)
+    if (b->dim() != fluid.dim())
+      throw std::invalid_argument("body '" + b->name() + "' has another dimension");
+  collocation_loc_.resize(bodies_.size());
+  quadrature_loc_.resize(bodies_.size());
+  CELLFSI_PETSC(VecDuplicate(fluid.solution(), &X_));
+  CELLFSI_PETSC(VecDuplicate(X_, &dX_));
+  CELLFSI_PETSC(VecDuplicate(X_, &F_));
+}
+
+FsiCoupler::~FsiCoupler() {
+  VecDestroy(&X_);
+  VecDestroy(&dX_);
+  VecDestroy(&F_);
+}
+
+void FsiCoupler::update_immersed() {
+  std::vector<geometry::Index3> elements;
+  std::vector<geometry::Param> xi;
+  std::vector<fluid::ImmersedPoint> data;
+  std::vector<geometry::Vec3> interface;
+  const double rho1 = fluid_.options().density;
+  for (size_t b = 0; b < bodies_.size(); ++b) {
+    const std::vector<solid::QuadratureData> q = bodies_[b]->quadrature_data(rho1);
+    auto& warm = quadrature_loc_[b];
+    warm.resize(q.size());
+    for (size_t i = 0; i < q.size(); ++i) {
+      warm[i] = locator_.locate_or_throw(q[i].x, &warm[i]);
+      elements.push_back(warm[i].element);
+      xi.push_back(warm[i].xi);
+      fluid::ImmersedPoint ip;
+      ip.weight = q[i].weight;
+      ip.beta = q[i].beta;
+      // The solid's stiffness in the fluid tangent (see fluid::ImmersedPoint::stiffness_viscosity).
+      ip.stiffness_viscosity = q[i].shear_modulus * tp_.gamma * tp_.dt * tp_.alpha_f / (tp_.alpha_m * rho1);
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) ip.stress[r][c] = q[i].stress(r, c);
+      data.push_back(ip);
+    }
+    const std::vector<geometry::Vec3> pts = bodies_[b]->interface_points();
+    interface.insert(interface.end(), pts.begin(), pts.end());
+  }
+  fluid_.set_immersed_points(elements, xi, data);
+  std::vector<int> marked = functions_near(locator_, interface);
+  // With s_I >> 1 the marked rows dominate the Jacobian: a new marking invalidates a reused preconditioner.
+  if (marked != marked_) {
+    marked_ = std::move(marked);
+    marking_changed_ = true;
+  }
+  const std::vector<double> s = scaling_values(fluid_.patch().n_control(), marked_, opt_.s_interface);
+  fluid_.set_scaling([&](int node) { return s[node]; });
+}
+
+void FsiCoupler::initialize() {
+  for (size_t b = 0; b < bodies_.size(); ++b) {
+    const std::vector<geometry::Vec3> pts = bodies_[b]->collocation_points();
+    const std::vector<fluid::PointSample> v = fluid_.sample(pts);
+    std::vector<solid::Vec3> rate(pts.size());
+    for (size_t i = 0; i < pts.size(); ++i) {
+      if (!v[i].found)
+        throw std::runtime_error("body '" + bodies_[b]->name() + "' lies outside the fluid domain");
+      rate[i] = v[i].v;
+    }
+    bodies_[b]->set_rate(rate);
+  }
+  update_immersed();
+}
+
+CouplerStats FsiCoupler::step() {
+  CouplerStats st;
+  const fluid::FluidOptions& fo = fluid_.options();
+  const solid::TimeParameters tp = solid::TimeParameters::from_rho_inf(fo.rho_inf, fo.dt);
+  tp_ = tp;
+  fluid_.begin_step(X_);
+  for (auto* b : bodies_) b->begin_step(tp);
+  st.solid_residual0.assign(bodies_.size(), 0.0);
+  st.solid_residual.assign(bodies_.size(), 0.0);
+  KSP ksp = fluid_.ksp();
+  Mat J = fluid_.jacobian_matrix();
+  double fluid_peak = 0;
+  std::vector<double> solid_peak(bodies_.size(), 0.0);
+  for (int it = 0; it < opt_.max_iterations; ++it) {
+    // Steps 1-3 for every body, from the current fluid iterate.
+    for (size_t b = 0; b < bodies_.size(); ++b) {
+      const std::vector<geometry::Vec3> pts = bodies_[b]->collocation_points();
+      auto& warm = collocation_loc_[b];
+      warm.resize(pts.size());
+      std::vector<geometry::Index3> el(pts.size());
+      std::vector<geometry::Param> xi(pts.size());
+      for (size_t i = 0; i < pts.size(); ++i) {
+        warm[i] = locator_.locate_or_throw(pts[i], &warm[i]);
+        el[i] = warm[i].element;
+        xi[i] = warm[i].xi;
+      }
+      const std::vector<fluid::PointSample> v = fluid_.sample_alpha(X_, el, xi);
+      std::vector<solid::VelocitySample> vs(pts.size());
+      for (size_t i = 0; i < pts.size(); ++i) vs[i].v = v[i].v, vs[i].grad_v = v[i].grad_v;
+      st.solid_residual[b] = bodies_[b]->kinematic_update(vs);
+      if (it == 0) st.solid_residual0[b] = st.solid_residual[b];
+    }
+    // Step 4: immersed contributions and s^h of the updated bodies, then the fluid residual.
+    update_immersed();
+    fluid_.residual(X_, F_);
+    CELLFSI_PETSC(VecNorm(F_, NORM_2, &st.fluid_residual));
+    if (it == 0) st.fluid_residual0 = st.fluid_residual;
+    if (opt_.monitor) {
+      CELLFSI_PETSC(PetscPrintf(fluid_.comm(), "  fsi iteration %d: |R_MC| %.3e", it, st.fluid_residual));
+      for (size_t b = 0; b < bodies_.size(); ++b)
+        CELLFSI_PETSC(
+            PetscPrintf(fluid_.comm(), "  |R_K(%s)| %.3e", bodies_[b]->name().c_str(), st.solid_residual[b]));
+      CELLFSI_PETSC(PetscPrintf(fluid_.comm(), "\n"));
+    }
+    // Each residual must drop by the tolerance below the largest value it has had in this step: the kinematic
+    // residual is ~0 at the first iteration when the predictor matches the fluid, and grows once the fluid
+    // moves.
+    fluid_peak = std::max(fluid_peak, st.fluid_residual);
+    bool done = st.fluid_residual <= opt_.tolerance * fluid_peak || st.fluid_residual <= opt_.fluid_atol;
+    for (size_t b = 0; b < bodies_.size(); ++b) {
+      solid_peak[b] = std::max(solid_peak[b], st.solid_residual[b]);
+      done = done && (st.solid_residual[b] <= opt_.tolerance * solid_peak[b] || solid_peak[b] == 0.0);
+    }
+    if (done && it > 0) {
+      st.converged = true;
+      st.reason = "all residuals dropped by the tolerance";
+      break;
+    }
+    st.iterations = it + 1;
+    // Steps 5-7: K_MC, a linear solve, the update (the preconditioner is reused for preconditioner_lag
+    // solves).
+    fluid_.jacobian(X_, J);
+    CELLFSI_PETSC(KSPSetOperators(ksp, J, J));
+    const bool rebuild =
+        solves_since_pc_ >= opt_.preconditioner_lag || (marking_changed_ && opt_.s_interface > 1);
+    marking_changed_ = false;
+    CELLFSI_PETSC(KSPSetReusePreconditioner(ksp, rebuild ? PETSC_FALSE : PETSC_TRUE));
+    solves_since_pc_ = rebuild ? 1 : solves_since_pc_ + 1;
+    CELLFSI_PETSC(KSPSolve(ksp, F_, dX_));
+    KSPConvergedReason kr;
+    CELLFSI_PETSC(KSPGetConvergedReason(ksp, &kr));
+    PetscInt lits = 0;
+    CELLFSI_PETSC(KSPGetIterationNumber(ksp, &lits));
+    st.linear_iterations += static_cast<int>(lits);
+    if (kr < 0) {
+      st.reason = std::string("linear solve failed: ") + KSPConvergedReasons[kr];
+      return st;
+    }
+    CELLFSI_PETSC(VecAXPY(X_, -1.0, dX_));
+  }
+  if (!st.converged) {
+    if (st.reason.empty())
+      st.reason = "no convergence in " + std::to_string(opt_.max_iterations) + " iterations";
+    return st;
+  }
+  fluid_.end_step(X_);
+  for (auto* b : bodies_) b->end_step();
+  return st;
+}
+
+}  // namespace cellfsi::coupling
