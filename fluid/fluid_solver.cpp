@@ -423,6 +423,34 @@ void point_fields(const PointBasis& b, const double* Vf, const double* Vd, const
                   const std::array<std::array<double, 3>, 3>& G, PointFields& pf) {
   constexpr int nd = D + 1;
   double s = 0, v[D] = {}, vdot[D] = {}, lap_v[D] = {}, dv[D][D] = {}, p = 0, dp[D] = {};
+  if constexpr (D == 2) {
+    // The same sums two at a time: lanes (x, y) of v, vdot, lap_v, the columns of dv and dp, and (p, s).
+    typedef double Pair __attribute__((vector_size(16)));
+    typedef double PairU __attribute__((vector_size(16), aligned(8), may_alias));
+    Pair v2{}, vdot2{}, lap2{}, dvx{}, dvy{}, dp2{}, ps{};
+    for (int k = 0; k < b.n; ++k) {
+      const double N = b.N[k], lapN = b.lapN[k], pk = Vf[k * nd + D];
+      const Pair Nk{N, N}, vk = *reinterpret_cast<const PairU*>(Vf + k * nd);
+      const Pair dNk = *reinterpret_cast<const PairU*>(b.dN + 3 * k);
+      v2 += Nk * vk;
+      vdot2 += Nk * *reinterpret_cast<const PairU*>(Vd + k * nd);
+      lap2 += Pair{lapN, lapN} * vk;
+      dvx += Pair{dNk[0], dNk[0]} * vk;
+      dvy += Pair{dNk[1], dNk[1]} * vk;
+      dp2 += dNk * Pair{pk, pk};
+      ps += Nk * Pair{pk, S[k]};
+    }
+    for (int i = 0; i < 2; ++i) {
+      v[i] = v2[i];
+      vdot[i] = vdot2[i];
+      lap_v[i] = lap2[i];
+      dv[i][0] = dvx[i];
+      dv[i][1] = dvy[i];
+      dp[i] = dp2[i];
+    }
+    p = ps[0];
+    s = ps[1];
+  } else {
   for (int k = 0; k < b.n; ++k) {
     const double N = b.N[k], lapN = b.lapN[k];
     const double* dN = b.dN + 3 * k;
@@ -438,17 +466,32 @@ void point_fields(const PointBasis& b, const double* Vf, const double* Vd, const
     p += N * pk;
     for (int j = 0; j < D; ++j) dp[j] += dN[j] * pk;
   }
-  pf = PointFields{};
+  }
+  // Every member assigned (no zero-fill of the whole struct first).
   pf.s = s;
   pf.p = p;
-  for (int i = 0; i < D; ++i) {
-    pf.v[i] = v[i];
-    pf.vdot[i] = vdot[i];
-    pf.lap_v[i] = lap_v[i];
-    pf.dp[i] = dp[i];
-    for (int j = 0; j < D; ++j) pf.dv[i][j] = dv[i][j];
+  for (int i = 0; i < 3; ++i) {
+    pf.v[i] = i < D ? v[i] : 0.0;
+    pf.vdot[i] = i < D ? vdot[i] : 0.0;
+    pf.lap_v[i] = i < D ? lap_v[i] : 0.0;
+    pf.dp[i] = i < D ? dp[i] : 0.0;
+    for (int j = 0; j < 3; ++j) pf.dv[i][j] = i < D && j < D ? dv[i][j] : 0.0;
   }
   pf.G = G;
+}
+
+/// The element matrix of vms_tangent_element_blocks (n x n column-major blocks of bs x bs) in the row-major
+/// layout of vms_tangent_element and MatSetValuesBlocked: K[(A bs + c) n bs + B bs + e] = Kb[(A n + B) bs^2 +
+/// e bs + c].
+void rows_from_blocks(int n, int bs, const double* Kb, double* K) {
+  const std::size_t ld = static_cast<std::size_t>(n) * bs, bs2 = static_cast<std::size_t>(bs) * bs;
+  for (int A = 0; A < n; ++A)
+    for (int B = 0; B < n; ++B) {
+      const double* kb = Kb + (static_cast<std::size_t>(A) * n + B) * bs2;
+      double* k = K + static_cast<std::size_t>(A) * bs * ld + static_cast<std::size_t>(B) * bs;
+      for (int c = 0; c < bs; ++c)
+        for (int e = 0; e < bs; ++e) k[c * ld + e] = kb[e * bs + c];
+    }
 }
 
 /// Adds element node blocks straight into the value array of a sequential BAIJ matrix of block size dof (the
@@ -489,22 +532,10 @@ class SeqBaijInserter {
   }
   bool usable() const { return a_ != nullptr; }
 
-  /// Finds the blocks of the element with local nodes lnode in the matrix and prefetches them (called before
-  /// the element matrix is formed, so that they are in cache when it is added). Returns false if one is not
-  /// in the matrix's nonzero pattern.
+  /// Finds the blocks of the element with local nodes lnode in the matrix. Returns false if one is not in the
+  /// matrix's nonzero pattern. (Prefetching them here, before the element matrix is formed, measured no gain.)
   bool prepare(int n, const PetscInt* lnode) {
     located_ = locate(n, lnode);
-    if (located_) {
-      // Each block row's blocks lie in at most n runs; one prefetch per cache line.
-      const std::size_t bytes = sizeof(double) * bs_ * bs_;
-      for (int A = 0; A < n; ++A) {
-        const PetscInt* pa = pos_.data() + static_cast<std::size_t>(A) * n;
-        const PetscInt lo = *std::min_element(pa, pa + n), hi = *std::max_element(pa, pa + n);
-        const char* first = reinterpret_cast<const char*>(a_) + lo * bytes;
-        const char* last = reinterpret_cast<const char*>(a_) + (hi + 1) * bytes;
-        for (const char* c = first; c < last; c += 64) __builtin_prefetch(c, 1, 3);
-      }
-    }
     return located_;
   }
 
@@ -568,18 +599,45 @@ class SeqBaijInserter {
   std::vector<PetscInt> pos_;                       // pos_[A n + B]: block index of (A, B) in a_
   std::vector<std::pair<PetscInt, int>> columns_;  // (global block column, B), sorted
 
+  // Row by row. A row usually has the previous one's layout (the same stencil around its node): its blocks
+  // are tried at the previous row's offsets first. Otherwise, or if that misses, the element's columns are
+  // sorted (insertion sort: few, mostly in order already) and found by one pass over the row, where the next
+  // sorted column is usually the next entry (runs of consecutive nodes) or else searched for.
   bool locate(int n, const PetscInt* lnode) {
-    columns_.resize(n);
-    for (int B = 0; B < n; ++B) columns_[B] = {global_[lnode[B]], B};
-    std::sort(columns_.begin(), columns_.end());
+    columns_.clear();
     pos_.resize(static_cast<std::size_t>(n) * n);
     for (int A = 0; A < n; ++A) {
       const PetscInt r = global_[lnode[A]], lo = ia_[r], hi = ia_[r + 1];
-      PetscInt k = std::lower_bound(ja_ + lo, ja_ + hi, columns_[0].first) - ja_;
+      PetscInt* pa = pos_.data() + static_cast<std::size_t>(A) * n;
+      if (A > 0) {
+        const PetscInt* prev = pa - n;
+        const PetscInt shift = lo - ia_[global_[lnode[A - 1]]];
+        bool same = true;
+        for (int B = 0; B < n && same; ++B) {
+          const PetscInt k = prev[B] + shift;
+          same = k >= lo && k < hi && ja_[k] == global_[lnode[B]];
+          pa[B] = k;
+        }
+        if (same) continue;
+      }
+      if (columns_.empty()) {
+        columns_.resize(n);
+        for (int B = 0; B < n; ++B) {
+          const std::pair<PetscInt, int> c{global_[lnode[B]], B};
+          int i = B;
+          for (; i > 0 && columns_[i - 1] > c; --i) columns_[i] = columns_[i - 1];
+          columns_[i] = c;
+        }
+      }
+      PetscInt k = lo, found = -1, previous = -1;
       for (const auto& [g, B] : columns_) {
-        while (k < hi && ja_[k] < g) ++k;
-        if (k == hi || ja_[k] != g) return false;
-        pos_[static_cast<std::size_t>(A) * n + B] = k;
+        if (g != previous) {  // (a node twice in the element: a periodic direction shorter than it)
+          if (k == hi || ja_[k] != g) k = std::lower_bound(ja_ + k, ja_ + hi, g) - ja_;
+          if (k == hi || ja_[k] != g) return false;
+          found = k++;
+          previous = g;
+        }
+        pa[B] = found;
       }
     }
     return true;
@@ -588,10 +646,15 @@ class SeqBaijInserter {
   template <int BS>
   void add_node_blocks(int n, const double* Kb) {
     const int bs2 = BS > 0 ? BS * BS : bs_ * bs_;
+    // Two doubles at a time (the compiler kept this scalar).
+    typedef double Pair __attribute__((vector_size(16), aligned(8), may_alias));
     for (std::size_t k = 0; k < static_cast<std::size_t>(n) * n; ++k) {
       double* blk = a_ + pos_[k] * bs2;
       const double* kb = Kb + k * bs2;
-      for (int i = 0; i < bs2; ++i) blk[i] += kb[i];
+      int i = 0;
+      for (; i + 2 <= bs2; i += 2)
+        *reinterpret_cast<Pair*>(blk + i) += *reinterpret_cast<const Pair*>(kb + i);
+      if (i < bs2) blk[i] += kb[i];
     }
   }
 
@@ -651,7 +714,7 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
   MapValues mv;
   PhysicalPoint pp;
   ElementValues scratch;
-  std::vector<double> Re, Ke, Vf, Vd, S;
+  std::vector<double> Re, Ke, Kb, Vf, Vd, S;
   std::vector<PetscInt> lidx, lnode;
 
   // Gathers the element's nodal fields at the alpha levels: Vf = velocity at n+alpha_f and pressure at n+1,
@@ -718,9 +781,11 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
     const int n = gather(first);
     // On a one-rank BAIJ matrix the tangent is formed in its block layout and added straight into it.
     const bool blocks = J && direct.usable() && direct.prepare(n, lnode.data());
+    // Axis-affine patches (2D): the tangent's products are sum-factorised over the basis' univariate factors.
+    const bool tensor = ev.tensor && D == 2;
     Re.assign(n * nd, 0.0);
     if (J) {
-      if (blocks)
+      if (blocks || tensor)
         Ke.resize(static_cast<size_t>(n * nd) * n * nd);  // overwritten
       else
         Ke.assign(static_cast<size_t>(n * nd) * n * nd, 0.0);
@@ -737,8 +802,7 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
     if (J) {
       const ElementPoints points{n,           ev.nq,          ev.N.data(), ev.dN.data(), ev.lapN.data(),
                                  ev.weight.data(), point_fields.data()};
-      if (blocks) {
-        // Axis-affine patches: the products are sum-factorised over the basis' univariate factors.
+      if (blocks || tensor) {
         TensorFactors tf;
         for (int d = 0; d < 3; ++d) {
           tf.np[d] = ev.np[d];
@@ -746,8 +810,14 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
           tf.value[d] = ev.factor_value[d].data();
           tf.deriv[d] = ev.factor_deriv[d].data();
         }
-        vms_tangent_element_blocks(prm, points, ts, Ke.data(), ev.tensor ? &tf : nullptr);
-        direct.add_blocks(n, Ke.data());
+        if (blocks) {
+          vms_tangent_element_blocks(prm, points, ts, Ke.data(), tensor ? &tf : nullptr);
+          direct.add_blocks(n, Ke.data());
+        } else {  // for MatSetValuesBlockedLocal: the blocks' rows side by side
+          Kb.resize(Ke.size());
+          vms_tangent_element_blocks(prm, points, ts, Kb.data(), &tf);
+          rows_from_blocks(n, nd, Kb.data(), Ke.data());
+        }
       } else {
         vms_tangent_element(prm, points, ts, Ke.data());
       }

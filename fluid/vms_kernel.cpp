@@ -485,6 +485,9 @@ struct ElementScratch {
   std::vector<double> phi, y, C, beta, T;
   std::vector<int> col;
   std::vector<const double*> ka, kr;  // operands of the sum-factorised products
+  std::vector<Stabilization> tau;      // per point (sum-factorised tangent)
+  std::vector<double> Ct;              // its coefficients; zero off its pattern, for Ct_pattern
+  int Ct_pattern = -1;                 // kConvective of the pattern Ct is zero off, -1: none
 };
 
 // Per thread, kept between calls: no heap allocation once it has grown to the largest element.
@@ -701,6 +704,15 @@ struct UnalignedOf {
   typedef double type __attribute__((vector_size(8 * W), aligned(8), may_alias));
 };
 
+// x in every lane (an out-parameter: returning an AVX vector from a function not compiled for AVX is an ABI
+// question, even inlined).
+template <int W>
+[[gnu::always_inline]] inline void splat(double x, typename VectorOf<W>::type& v) {
+  double lanes[W];
+  for (int l = 0; l < W; ++l) lanes[l] = x;
+  std::memcpy(&v, lanes, sizeof v);
+}
+
 // kExact: columns past ncols are not written (the element matrix's rows); otherwise whole vectors are (room
 // up to a multiple of W past ncols).
 template <int W, int MR, int NP, bool kExact>
@@ -778,10 +790,11 @@ template <int W, bool kExact>
   }
 }
 
-// Which (s, t) have a coefficient for some (c, e).
+// Which coefficients of the sum-factorised tangent can be nonzero: lane[s][t][e nc + c], and whether factor s
+// has any (s[s]).
 template <bool kConvective>
 struct FactorPattern {
-  bool st[3][4] = {};
+  bool lane[3][4][kLanes2d] = {};
   bool s[3] = {};
   constexpr FactorPattern() {
     const ElementPattern<2, kConvective> pattern{};
@@ -789,11 +802,34 @@ struct FactorPattern {
       for (int s_ = 0; s_ < 3; ++s_)
         for (int e = 0; e < 3; ++e)
           for (int i = 0; i < pattern.terms[c][s_][e].count; ++i) {
-            st[s_][pattern.terms[c][s_][e].t[i]] = true;
+            lane[s_][pattern.terms[c][s_][e].t[i]][e * 3 + c] = true;
             s[s_] = true;
           }
   }
+  // Whether the vector of lanes [l0, l0 + W) of (s, t) has a nonzero.
+  constexpr bool any(int s_, int t, int l0, int W) const {
+    bool a = false;
+    for (int l = l0; l < l0 + W; ++l) a = a || lane[s_][t][l];
+    return a;
+  }
 };
+
+// For each term of coefficient_terms<2, kConvective>, in its order: whether it is the first to reach its
+// coefficient.
+template <bool kConvective>
+struct FirstTerms {
+  static constexpr int kMax = 128;
+  bool first[kMax] = {};
+  int count = 0;
+  constexpr FirstTerms() {
+    bool seen[3][3][3][4] = {};
+    coefficient_terms<2, kConvective>(PointScalars<2>{}, [&](int c, int s, int e, int t, double) {
+      first[count++] = !seen[c][s][e][t];
+      seen[c][s][e][t] = true;
+    });
+  }
+};
+static_assert(FirstTerms<true>{}.count <= FirstTerms<true>::kMax);
 
 // The per-point work of the sum-factorised tangent: y_t(B) as in element_points and the coefficients, here
 // C[((q ns + s) ny + t) kLanes2d + e nc + c] (zero-padded). Scalar code, baseline instruction set.
@@ -804,7 +840,16 @@ void tensor_points(const VmsParameters& prm, const ElementPoints& ep, const Tang
   const int n = ep.n, nq = ep.nq;
   const int ldy = sc.ldy = (n + 3) / 4 * 4;
   sc.y.resize(static_cast<std::size_t>(nq) * ny * ldy);
-  sc.C.resize(static_cast<std::size_t>(nq) * ns * ny * nL);
+  // Entries off the pattern are never written: zeroed when the array grows or the pattern changes. Entries
+  // on it are assigned by their first term (coefficient_terms' order, FirstTerms).
+  const std::size_t size = static_cast<std::size_t>(nq) * ns * ny * nL;
+  if (sc.Ct.size() < size || sc.Ct_pattern != int{kConvective}) {
+    sc.Ct.assign(std::max(size, sc.Ct.size()), 0.0);
+    sc.Ct_pattern = kConvective;
+  }
+  // tau first, for all points: its square root and divisions then overlap from point to point.
+  sc.tau.resize(nq);
+  for (int q = 0; q < nq; ++q) sc.tau[q] = vms_stabilization(prm, ep.fields[q]);
 
   PointScalars<Dim> ps;
   ps.vel = ts.velocity;
@@ -829,7 +874,7 @@ void tensor_points(const VmsParameters& prm, const ElementPoints& ep, const Tang
     for (int t = 0; t < ny; ++t)
       for (int B = n; B < ldy; ++B) y[t * ldy + B] = 0.0;
 
-    const Stabilization tau = vms_stabilization(prm, f);
+    const Stabilization tau = sc.tau[q];
     const PointState st = point_state(prm, f, tau);
     ps.w = ep.weight[q];
     ps.tm = tau.tau_m;
@@ -847,50 +892,49 @@ void tensor_points(const VmsParameters& prm, const ElementPoints& ep, const Tang
           ps.M[i][e] = ps.vel * (ps.dv[i][e] - ps.tm * dvdv);
         }
     }
-    double* C = sc.C.data() + static_cast<std::size_t>(q) * ns * ny * nL;
-    for (int k = 0; k < ns * ny * nL; ++k) C[k] = 0.0;
-    coefficient_terms<Dim, kConvective>(
-        ps, [C](int c, int s, int e, int t, double v) { C[(s * ny + t) * nL + e * nc + c] += v; });
+    static constexpr FirstTerms<kConvective> first{};
+    double* C = sc.Ct.data() + static_cast<std::size_t>(q) * ns * ny * nL;
+    int term = 0;
+    coefficient_terms<Dim, kConvective>(ps, [C, &term](int c, int s, int e, int t, double v) {
+      double& x = C[(s * ny + t) * nL + e * nc + c];
+      x = first.first[term++] ? v : x + v;
+    });
   }
 }
 
-// beta_s at the points q = qx + nqx qy, qy < nqy, one row of ldb per point: per function B, the nc^2 values
-// sum_t C[q][s][t][.] y_t,q(B) as kLanes2d / W vectors, B increasing so that each vector's lanes past nc^2
-// are overwritten by the next function's.
-template <bool kConvective, int W, int s>
+// beta_s, every s, at the points q = qx + nqx qy, qy < nqy, one row of ldb per point: per function B, the
+// nc^2 values sum_t C[q][s][t][.] y_t,q(B) as kLanes2d / W vectors (structurally zero ones skipped), B
+// increasing so that each vector's lanes past nc^2 are overwritten by the next function's.
+template <bool kConvective, int W>
 [[gnu::always_inline]] inline void tensor_beta(const ElementScratch& sc, int n, int qx, int nqx, int nqy,
-                                               double* rows, std::size_t ldb) {
+                                               double* const* beta, std::size_t ldb) {
   static constexpr FactorPattern<kConvective> fp{};
   using V = typename VectorOf<W>::type;
   using U = typename UnalignedOf<W>::type;
-  constexpr int nc = 3, ny = 4, nL = kLanes2d, nv = nL / W;
+  constexpr int nc = 3, ns = 3, ny = 4, nL = kLanes2d, nv = nL / W;
   const int ldy = sc.ldy;
   for (int qy = 0; qy < nqy; ++qy) {
     const std::size_t q = static_cast<std::size_t>(qx) + static_cast<std::size_t>(nqx) * qy;
-    const double* C = sc.C.data() + (q * 3 + s) * ny * nL;
+    const double* C = sc.Ct.data() + q * ns * ny * nL;
     const double* y = sc.y.data() + q * ny * ldy;
-    double* dst = rows + static_cast<std::size_t>(qy) * ldb;
-    V cv[ny][nv];
+    const std::size_t row = static_cast<std::size_t>(qy) * ldb;
+    for (int B = 0; B < n; ++B) {
+      V yv[ny];
 #pragma GCC unroll 4
-    for (int t = 0; t < ny; ++t)
+      for (int t = 0; t < ny; ++t) splat<W>(y[t * ldy + B], yv[t]);
+#pragma GCC unroll 3
+      for (int s = 0; s < ns; ++s) {
+        if (!fp.s[s]) continue;
+        double* dst = beta[s] + row + B * nc * nc;
 #pragma GCC unroll 6
-      for (int v = 0; v < nv; ++v) cv[t][v] = *reinterpret_cast<const U*>(C + t * nL + W * v);
-    for (int B = 0; B < n; ++B, dst += nc * nc) {
-      V sum[nv] = {};
+        for (int v = 0; v < nv; ++v) {
+          V sum{};
 #pragma GCC unroll 4
-      for (int t = 0; t < ny; ++t) {
-        if (!fp.st[s][t]) continue;
-        const double x = y[t * ldy + B];
-        V xv;
-        if constexpr (W == 2)
-          xv = V{x, x};
-        else
-          xv = V{x, x, x, x};
-#pragma GCC unroll 6
-        for (int v = 0; v < nv; ++v) sum[v] += cv[t][v] * xv;
+          for (int t = 0; t < ny; ++t)
+            if (fp.any(s, t, W * v, W)) sum += *reinterpret_cast<const U*>(C + (s * ny + t) * nL + W * v) * yv[t];
+          *reinterpret_cast<U*>(dst + W * v) = sum;
+        }
       }
-#pragma GCC unroll 6
-      for (int v = 0; v < nv; ++v) *reinterpret_cast<U*>(dst + W * v) = sum[v];
     }
   }
 }
@@ -924,9 +968,7 @@ template <bool kConvective, int W>
   g.rows = sc.kr.data();
   g.ld = ldb;
   for (int qx = 0; qx < nqx; ++qx) {
-    if constexpr (fp.s[0]) tensor_beta<kConvective, W, 0>(sc, n, qx, nqx, nqy, beta[0], ldb);
-    if constexpr (fp.s[1]) tensor_beta<kConvective, W, 1>(sc, n, qx, nqx, nqy, beta[1], ldb);
-    if constexpr (fp.s[2]) tensor_beta<kConvective, W, 2>(sc, n, qx, nqx, nqy, beta[2], ldb);
+    tensor_beta<kConvective, W>(sc, n, qx, nqx, nqy, beta, ldb);
     if constexpr (has_x) {
       g.K = 0;
       for (int qy = 0; qy < nqy; ++qy) {
