@@ -288,12 +288,13 @@ void ElementBasis::compute(const Index3& e, ElementValues& out) const {
   // Univariate factors (see ElementValues::tensor): the tables' values and derivatives, the latter scaled to
   // physical coordinates, which on an axis-affine patch is a per-direction constant.
   out.tensor = axis_affine_;
+  if (!axis_affine_) return;
   for (int d = 0; d < 3; ++d) {
     out.np[d] = np_[d];
     out.nq1[d] = nq_[d];
     out.factor_value[d].assign(static_cast<size_t>(nq_[d]) * np_[d], d < D ? 0.0 : 1.0);
     out.factor_deriv[d].assign(static_cast<size_t>(nq_[d]) * np_[d], 0.0);
-    if (d >= D || !axis_affine_) continue;
+    if (d >= D) continue;
     for (int q = 0; q < nq_[d]; ++q)
       for (int a = 0; a < np_[d]; ++a) {
         const double* T = &table_[d][((static_cast<size_t>(e[d]) * nq_[d] + q) * 3) * np_[d]];

@@ -35,9 +35,9 @@ class ElementBasis {
   explicit ElementBasis(const geometry::Patch& patch, geometry::Index3 n_gauss = {0, 0, 0});
   /// The element's values. On an axis-affine patch (x_d an affine function of xi_d alone: the builders'
   /// rectangle and box) they depend only on each direction's element class (elements whose univariate tables
-  /// agree), so they are computed once per class combination and served from a cache (at most (2p+1)^d entries).
-  /// Returns the values: a reference to the cache, or to `scratch` filled for this element. `first` is the
-  /// element's first unwrapped function index per direction.
+  /// agree), so they are computed once per class combination and served from a cache (at most (2p+1)^d
+  /// entries). Returns the values: a reference to the cache, or to `scratch` filled for this element. `first`
+  /// is the element's first unwrapped function index per direction.
   const ElementValues& evaluate(const geometry::Index3& e, ElementValues& scratch, int first[3]) const;
   bool axis_affine() const { return axis_affine_; }
   int n_points() const { return nq_[0] * nq_[1] * nq_[2]; }

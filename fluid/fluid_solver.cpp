@@ -451,21 +451,21 @@ void point_fields(const PointBasis& b, const double* Vf, const double* Vd, const
     p = ps[0];
     s = ps[1];
   } else {
-  for (int k = 0; k < b.n; ++k) {
-    const double N = b.N[k], lapN = b.lapN[k];
-    const double* dN = b.dN + 3 * k;
-    s += N * S[k];
-    for (int i = 0; i < D; ++i) {
-      const double vk = Vf[k * nd + i];
-      v[i] += N * vk;
-      vdot[i] += N * Vd[k * nd + i];
-      lap_v[i] += lapN * vk;
-      for (int j = 0; j < D; ++j) dv[i][j] += dN[j] * vk;
+    for (int k = 0; k < b.n; ++k) {
+      const double N = b.N[k], lapN = b.lapN[k];
+      const double* dN = b.dN + 3 * k;
+      s += N * S[k];
+      for (int i = 0; i < D; ++i) {
+        const double vk = Vf[k * nd + i];
+        v[i] += N * vk;
+        vdot[i] += N * Vd[k * nd + i];
+        lap_v[i] += lapN * vk;
+        for (int j = 0; j < D; ++j) dv[i][j] += dN[j] * vk;
+      }
+      const double pk = Vf[k * nd + D];
+      p += N * pk;
+      for (int j = 0; j < D; ++j) dp[j] += dN[j] * pk;
     }
-    const double pk = Vf[k * nd + D];
-    p += N * pk;
-    for (int j = 0; j < D; ++j) dp[j] += dN[j] * pk;
-  }
   }
   // Every member assigned (no zero-fill of the whole struct first).
   pf.s = s;
@@ -533,14 +533,15 @@ class SeqBaijInserter {
   bool usable() const { return a_ != nullptr; }
 
   /// Finds the blocks of the element with local nodes lnode in the matrix. Returns false if one is not in the
-  /// matrix's nonzero pattern. (Prefetching them here, before the element matrix is formed, measured no gain.)
+  /// matrix's nonzero pattern. (Prefetching them here, before the element matrix is formed, measured no
+  /// gain.)
   bool prepare(int n, const PetscInt* lnode) {
     located_ = locate(n, lnode);
     return located_;
   }
 
-  /// Adds the (n bs) x (n bs) row-major element matrix K over the nodes given to prepare. Returns false, having
-  /// added nothing, if prepare failed.
+  /// Adds the (n bs) x (n bs) row-major element matrix K over the nodes given to prepare. Returns false,
+  /// having added nothing, if prepare failed.
   bool add(int n, const double* K) {
     if (!located_) return false;
     switch (bs_) {
@@ -596,30 +597,31 @@ class SeqBaijInserter {
   bool got_ij_ = false;
   double* a_ = nullptr;
   bool located_ = false;
-  std::vector<PetscInt> pos_;                       // pos_[A n + B]: block index of (A, B) in a_
+  std::vector<PetscInt> offset_;                   // pos_ - the row's start, kept from the previous element
+  std::vector<PetscInt> pos_;                      // pos_[A n + B]: block index of (A, B) in a_
   std::vector<std::pair<PetscInt, int>> columns_;  // (global block column, B), sorted
 
-  // Row by row. A row usually has the previous one's layout (the same stencil around its node): its blocks
-  // are tried at the previous row's offsets first. Otherwise, or if that misses, the element's columns are
-  // sorted (insertion sort: few, mostly in order already) and found by one pass over the row, where the next
-  // sorted column is usually the next entry (runs of consecutive nodes) or else searched for.
+  // Row by row. A block is usually where it was in the previous element, relative to its row's start (the
+  // same stencil around the row's node, the same displacement between the nodes): tried first. Otherwise the
+  // element's columns are sorted (insertion sort: few, mostly in order already) and found by one pass over
+  // the row, where the next sorted column is usually the next entry (runs of consecutive nodes) or else
+  // searched.
   bool locate(int n, const PetscInt* lnode) {
     columns_.clear();
-    pos_.resize(static_cast<std::size_t>(n) * n);
+    const std::size_t nn = static_cast<std::size_t>(n) * n;
+    pos_.resize(nn);
+    if (offset_.size() != nn) offset_.assign(nn, -1);
     for (int A = 0; A < n; ++A) {
       const PetscInt r = global_[lnode[A]], lo = ia_[r], hi = ia_[r + 1];
       PetscInt* pa = pos_.data() + static_cast<std::size_t>(A) * n;
-      if (A > 0) {
-        const PetscInt* prev = pa - n;
-        const PetscInt shift = lo - ia_[global_[lnode[A - 1]]];
-        bool same = true;
-        for (int B = 0; B < n && same; ++B) {
-          const PetscInt k = prev[B] + shift;
-          same = k >= lo && k < hi && ja_[k] == global_[lnode[B]];
-          pa[B] = k;
-        }
-        if (same) continue;
+      PetscInt* oa = offset_.data() + static_cast<std::size_t>(A) * n;
+      bool same = true;
+      for (int B = 0; B < n && same; ++B) {
+        const PetscInt k = lo + oa[B];
+        same = oa[B] >= 0 && k < hi && ja_[k] == global_[lnode[B]];
+        pa[B] = k;
       }
+      if (same) continue;
       if (columns_.empty()) {
         columns_.resize(n);
         for (int B = 0; B < n; ++B) {
@@ -638,6 +640,7 @@ class SeqBaijInserter {
           previous = g;
         }
         pa[B] = found;
+        oa[B] = found - lo;
       }
     }
     return true;
@@ -763,8 +766,9 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
     if (F)
       for (int r = 0; r < n * nd; ++r) f[lidx[r]] += Re[r];
     if (!J || matrix_done) return;
-    // Straight into the value array of a one-rank BAIJ matrix; a block outside its pattern (never on the DMDA's
-    // box stencil) hands the matrix back and switches to PETSc's insertion for the rest of the assembly.
+    // Straight into the value array of a one-rank BAIJ matrix; a block outside its pattern (never on the
+    // DMDA's box stencil) hands the matrix back and switches to PETSc's insertion for the rest of the
+    // assembly.
     if (direct.usable()) {
       if (direct.add(n, Ke.data())) return;
       direct.finish();
@@ -800,8 +804,8 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
     // The element tangent at once: small matrix products over the quadrature points (same result as summing
     // vms_tangent over them, to round-off; tested).
     if (J) {
-      const ElementPoints points{n,           ev.nq,          ev.N.data(), ev.dN.data(), ev.lapN.data(),
-                                 ev.weight.data(), point_fields.data()};
+      const ElementPoints points{
+          n, ev.nq, ev.N.data(), ev.dN.data(), ev.lapN.data(), ev.weight.data(), point_fields.data()};
       if (blocks || tensor) {
         TensorFactors tf;
         for (int d = 0; d < 3; ++d) {

@@ -485,9 +485,9 @@ struct ElementScratch {
   std::vector<double> phi, y, C, beta, T;
   std::vector<int> col;
   std::vector<const double*> ka, kr;  // operands of the sum-factorised products
-  std::vector<Stabilization> tau;      // per point (sum-factorised tangent)
-  std::vector<double> Ct;              // its coefficients; zero off its pattern, for Ct_pattern
-  int Ct_pattern = -1;                 // kConvective of the pattern Ct is zero off, -1: none
+  std::vector<Stabilization> tau;     // per point (sum-factorised tangent)
+  std::vector<double> Ct;             // its coefficients; zero off its pattern, for Ct_pattern
+  int Ct_pattern = -1;                // kConvective of the pattern Ct is zero off, -1: none
 };
 
 // Per thread, kept between calls: no heap allocation once it has grown to the largest element.
@@ -665,8 +665,8 @@ void element_products_baseline(const ElementPoints& ep, ElementScratch& sc, doub
 
 #ifdef CELLFSI_VMS_AVX2
 template <int Dim, bool kConvective>
-[[gnu::target("avx2,fma")]] void element_products_avx2(const ElementPoints& ep, ElementScratch& sc,
-                                                       double* K, Layout layout) {
+[[gnu::target("avx2,fma")]] void element_products_avx2(const ElementPoints& ep, ElementScratch& sc, double* K,
+                                                       Layout layout) {
   element_products<Dim, kConvective, 4>(ep, sc, K, layout);
 }
 
@@ -679,15 +679,16 @@ bool cpu_has_avx2_fma() {
 // Sum-factorised element tangent (2D, TensorFactors given; vms_tangent_element_blocks). All row components at
 // once, in the node-block layout: the B-side rows have one column per (B, e, c), col = (B nc + e) nc + c,
 //   beta_s(q)[col] = sum_t C_q[c][s][e][t] y_t,q(B)   (s = 0, 1, 2: the A-side factor N_A, dN_A/dx, dN_A/dy),
-// so that row A of the product is row A of the element's block matrix, stored contiguously. With A = a + na b,
-// q = qx + nqx qy and the univariate factors X = value[0], Xd = deriv[0], Y = value[1], Yd = deriv[1]:
+// so that row A of the product is row A of the element's block matrix, stored contiguously. With A = a + na
+// b, q = qx + nqx qy and the univariate factors X = value[0], Xd = deriv[0], Y = value[1], Yd = deriv[1]:
 //   Kb[A][col] = sum_qx X(qx, a) TX(qx, b)[col] + Xd(qx, a) TXd(qx, b)[col],
 //   TX(qx, b) = sum_qy Y(qy, b) beta_0(q) + Yd(qy, b) beta_2(q),   TXd(qx, b) = sum_qy Y(qy, b) beta_1(q).
 // Multiply-adds per column: nqx nb 3 nqy + na nb 2 nqx against element_products' n nq 3 (p = 3: 320 against
 // 768; p = 2: 135 against 243). Both contractions are one kind of small product,
 //   out_r[j] = sum_{k < K} a_k[r] rows_k[j],   r < R, j < ncols,
-// register-tiled by up to 4 rows and NP vectors of columns. beta costs (nc^2 rounded up to 4) ny multiply-adds
-// per point, function and factor, its coefficients for one (point, s, t) being a few contiguous vectors.
+// register-tiled by up to 4 rows and NP vectors of columns. beta costs (nc^2 rounded up to 4) ny
+// multiply-adds per point, function and factor, its coefficients for one (point, s, t) being a few contiguous
+// vectors.
 constexpr int kLanes2d = 12;  // nc^2 = 9 coefficients of one (point, s, t), rounded up to a multiple of 4
 
 struct TensorGemm {
@@ -831,15 +832,15 @@ struct FirstTerms {
 };
 static_assert(FirstTerms<true>{}.count <= FirstTerms<true>::kMax);
 
-// The per-point work of the sum-factorised tangent: y_t(B) as in element_points and the coefficients, here
-// C[((q ns + s) ny + t) kLanes2d + e nc + c] (zero-padded). Scalar code, baseline instruction set.
+// The per-point work of the sum-factorised tangent: tau, m_B (y_1 of element_points) and the coefficients,
+// here Ct[((q ns + s) ny + t) kLanes2d + e nc + c] (zero off the pattern and in the padding). Scalar code,
+// baseline instruction set.
 template <bool kConvective>
 void tensor_points(const VmsParameters& prm, const ElementPoints& ep, const TangentScales& ts,
                    ElementScratch& sc) {
   constexpr int Dim = 2, nc = 3, ns = 3, ny = 4, nL = kLanes2d;
   const int n = ep.n, nq = ep.nq;
-  const int ldy = sc.ldy = (n + 3) / 4 * 4;
-  sc.y.resize(static_cast<std::size_t>(nq) * ny * ldy);
+  sc.y.resize(static_cast<std::size_t>(nq) * n);  // y_1 = m_B only: the others are N, dN
   // Entries off the pattern are never written: zeroed when the array grows or the pattern changes. Entries
   // on it are assigned by their first term (coefficient_terms' order, FirstTerms).
   const std::size_t size = static_cast<std::size_t>(nq) * ns * ny * nL;
@@ -861,18 +862,13 @@ void tensor_points(const VmsParameters& prm, const ElementPoints& ep, const Tang
     const double* dN = ep.dN + static_cast<std::size_t>(q) * n * 3;
     const double* lapN = ep.lapN + static_cast<std::size_t>(q) * n;
     const PointFields& f = ep.fields[q];
-    double* y = sc.y.data() + static_cast<std::size_t>(q) * ny * ldy;
+    double* m = sc.y.data() + static_cast<std::size_t>(q) * n;
     for (int B = 0; B < n; ++B) {
-      double m = ps.rate * N[B] - ps.nu * ps.vel * lapN[B];  // m_B as in tangent_kernel
-      for (int j = 0; j < Dim; ++j) {
-        if constexpr (kConvective) m += ps.vel * f.v[j] * dN[B * 3 + j];
-        y[(2 + j) * ldy + B] = dN[B * 3 + j];
-      }
-      y[B] = N[B];
-      y[ldy + B] = m;
+      double mB = ps.rate * N[B] - ps.nu * ps.vel * lapN[B];  // m_B as in tangent_kernel
+      if constexpr (kConvective)
+        for (int j = 0; j < Dim; ++j) mB += ps.vel * f.v[j] * dN[B * 3 + j];
+      m[B] = mB;
     }
-    for (int t = 0; t < ny; ++t)
-      for (int B = n; B < ldy; ++B) y[t * ldy + B] = 0.0;
 
     const Stabilization tau = sc.tau[q];
     const PointState st = point_state(prm, f, tau);
@@ -906,22 +902,24 @@ void tensor_points(const VmsParameters& prm, const ElementPoints& ep, const Tang
 // nc^2 values sum_t C[q][s][t][.] y_t,q(B) as kLanes2d / W vectors (structurally zero ones skipped), B
 // increasing so that each vector's lanes past nc^2 are overwritten by the next function's.
 template <bool kConvective, int W>
-[[gnu::always_inline]] inline void tensor_beta(const ElementScratch& sc, int n, int qx, int nqx, int nqy,
-                                               double* const* beta, std::size_t ldb) {
+[[gnu::always_inline]] inline void tensor_beta(const ElementPoints& ep, const ElementScratch& sc, int qx,
+                                               int nqx, int nqy, double* const* beta, std::size_t ldb) {
   static constexpr FactorPattern<kConvective> fp{};
   using V = typename VectorOf<W>::type;
   using U = typename UnalignedOf<W>::type;
   constexpr int nc = 3, ns = 3, ny = 4, nL = kLanes2d, nv = nL / W;
-  const int ldy = sc.ldy;
+  const int n = ep.n;
   for (int qy = 0; qy < nqy; ++qy) {
     const std::size_t q = static_cast<std::size_t>(qx) + static_cast<std::size_t>(nqx) * qy;
     const double* C = sc.Ct.data() + q * ns * ny * nL;
-    const double* y = sc.y.data() + q * ny * ldy;
+    const double *N = ep.N + q * n, *m = sc.y.data() + q * n, *dN = ep.dN + q * n * 3;
     const std::size_t row = static_cast<std::size_t>(qy) * ldb;
     for (int B = 0; B < n; ++B) {
-      V yv[ny];
-#pragma GCC unroll 4
-      for (int t = 0; t < ny; ++t) splat<W>(y[t * ldy + B], yv[t]);
+      V yv[ny];  // y_t(B): N_B, m_B, dN_B
+      splat<W>(N[B], yv[0]);
+      splat<W>(m[B], yv[1]);
+      splat<W>(dN[B * 3], yv[2]);
+      splat<W>(dN[B * 3 + 1], yv[3]);
 #pragma GCC unroll 3
       for (int s = 0; s < ns; ++s) {
         if (!fp.s[s]) continue;
@@ -931,7 +929,8 @@ template <bool kConvective, int W>
           V sum{};
 #pragma GCC unroll 4
           for (int t = 0; t < ny; ++t)
-            if (fp.any(s, t, W * v, W)) sum += *reinterpret_cast<const U*>(C + (s * ny + t) * nL + W * v) * yv[t];
+            if (fp.any(s, t, W * v, W))
+              sum += *reinterpret_cast<const U*>(C + (s * ny + t) * nL + W * v) * yv[t];
           *reinterpret_cast<U*>(dst + W * v) = sum;
         }
       }
@@ -968,7 +967,7 @@ template <bool kConvective, int W>
   g.rows = sc.kr.data();
   g.ld = ldb;
   for (int qx = 0; qx < nqx; ++qx) {
-    tensor_beta<kConvective, W>(sc, n, qx, nqx, nqy, beta, ldb);
+    tensor_beta<kConvective, W>(ep, sc, qx, nqx, nqy, beta, ldb);
     if constexpr (has_x) {
       g.K = 0;
       for (int qy = 0; qy < nqy; ++qy) {
@@ -1017,7 +1016,8 @@ template <bool kConvective, int W>
 }
 
 template <bool kConvective>
-void tensor_products_baseline(const ElementPoints& ep, const TensorFactors& tf, ElementScratch& sc, double* Kb) {
+void tensor_products_baseline(const ElementPoints& ep, const TensorFactors& tf, ElementScratch& sc,
+                              double* Kb) {
   tensor_products<kConvective, 2>(ep, tf, sc, Kb);
 }
 
@@ -1051,8 +1051,8 @@ void tangent_element_kernel(const VmsParameters& prm, const ElementPoints& ep, c
   element_products_baseline<Dim, kConvective>(ep, sc, K, layout);
 }
 
-void tangent_element(const VmsParameters& prm, const ElementPoints& points, const TangentScales& ts, double* K,
-                     bool baseline, Layout layout, const TensorFactors* tensor) {
+void tangent_element(const VmsParameters& prm, const ElementPoints& points, const TangentScales& ts,
+                     double* K, bool baseline, Layout layout, const TensorFactors* tensor) {
   assert(prm.dim == 2 || prm.dim == 3);
   if (prm.dim == 2) {
     if (prm.stokes)
@@ -1160,8 +1160,9 @@ void vms_tangent_element(const VmsParameters& prm, const ElementPoints& points, 
   tangent_element(prm, points, ts, K, isa == ElementKernelIsa::baseline, Layout::rows, nullptr);
 }
 
-void vms_tangent_element_blocks(const VmsParameters& prm, const ElementPoints& points, const TangentScales& ts,
-                                double* Kb, const TensorFactors* tensor, ElementKernelIsa isa) {
+void vms_tangent_element_blocks(const VmsParameters& prm, const ElementPoints& points,
+                                const TangentScales& ts, double* Kb, const TensorFactors* tensor,
+                                ElementKernelIsa isa) {
   if (points.n <= 0) return;
   if (points.nq <= 0) {
     const int nc = prm.dim + 1;

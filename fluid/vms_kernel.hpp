@@ -116,11 +116,11 @@ struct TensorFactors {
 };
 
 /// The same element tangent in node blocks, as PETSc's BAIJ matrices store them (each (dim+1) x (dim+1)
-/// block column-major), and written, not added: Kb[(A n + B) (dim+1)^2 + e (dim+1) + c] = d R_{A,c} / d U_{B,e}.
-/// Without `tensor`, the same sums as vms_tangent_element. With it (2D; ignored in 3D), the products over the
-/// points are sum-factorised on the test-function side: fewer operations, same values to round-off.
-void vms_tangent_element_blocks(const VmsParameters& prm, const ElementPoints& points, const TangentScales& ts,
-                                double* Kb, const TensorFactors* tensor = nullptr,
+/// block column-major), and written, not added: Kb[(A n + B) (dim+1)^2 + e (dim+1) + c] = d R_{A,c} / d
+/// U_{B,e}. Without `tensor`, the same sums as vms_tangent_element. With it (2D; ignored in 3D), the products
+/// over the points are sum-factorised on the test-function side: fewer operations, same values to round-off.
+void vms_tangent_element_blocks(const VmsParameters& prm, const ElementPoints& points,
+                                const TangentScales& ts, double* Kb, const TensorFactors* tensor = nullptr,
                                 ElementKernelIsa isa = ElementKernelIsa::best);
 
 /// One quadrature point of an immersed solid (paper Eq. (10)), in the data the coupling layer provides.
