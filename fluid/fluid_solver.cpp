@@ -260,10 +260,11 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
   CELLFSI_PETSC(KSPGetPC(ksp, &pc));
   CELLFSI_PETSC(PCSetType(pc, PCASM));
   // Defaults beyond the paper, measured in docs/performance.md (bench/run_fluid_solvers.sh): MUMPS for the
-  // subdomain LU (it pivots: PETSc's LU without pivoting hit a zero pivot with s^h = 1e10 on an AIJ matrix; on the
-  // BAIJ matrix both factor at about the same speed), and reuse of the LU preconditioner for 10 linear solves across
-  // Newton iterations and steps (at Re ~ 1e-4 the Jacobian barely changes: 2.2x faster at 128 x 64). The paper's
-  // exact setting: -fluid_sub_pc_factor_mat_solver_type petsc -fluid_snes_lag_preconditioner 1.
+  // subdomain LU (it pivots: PETSc's LU without pivoting hit a zero pivot with s^h = 1e10 on an AIJ matrix;
+  // on the BAIJ matrix both factor at about the same speed), and reuse of the LU preconditioner for 10 linear
+  // solves across Newton iterations and steps (at Re ~ 1e-4 the Jacobian barely changes: 2.2x faster at 128 x
+  // 64). The paper's exact setting: -fluid_sub_pc_factor_mat_solver_type petsc
+  // -fluid_snes_lag_preconditioner 1.
   const char* defaults[][2] = {{"-fluid_sub_pc_type", "lu"},
                                {"-fluid_sub_pc_factor_mat_solver_type", "mumps"},
                                {"-fluid_snes_lag_preconditioner", "10"},
@@ -1038,7 +1039,8 @@ std::vector<PointSample> FluidSolver::sample_alpha(Vec X, const std::vector<Inde
   CELLFSI_PETSC(VecRestoreArrayRead(Udotn_loc_, &udn));
   CELLFSI_PETSC(DMRestoreLocalVector(da_, &X_loc));
   std::vector<double> all(buf.size());
-  CELLFSI_PETSC(MPI_Allreduce(buf.data(), all.data(), static_cast<int>(buf.size()), MPI_DOUBLE, MPI_SUM, comm_));
+  CELLFSI_PETSC(
+      MPI_Allreduce(buf.data(), all.data(), static_cast<int>(buf.size()), MPI_DOUBLE, MPI_SUM, comm_));
   std::vector<PointSample> out(xi.size());
   for (size_t i = 0; i < xi.size(); ++i) {
     const double* o = &all[i * stride];

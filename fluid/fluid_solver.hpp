@@ -121,7 +121,8 @@ class FluidSolver {
   /// Samples v, grad v, vdot and p at points (collective; every rank gets every value).
   std::vector<PointSample> sample(const std::vector<Vec3>& points) const;
 
-  // --- Driving the Newton iteration from outside: the coupling layer's block-iterative loop (paper Sec. 2.3) ---
+  // --- Driving the Newton iteration from outside: the coupling layer's block-iterative loop (paper Sec. 2.3)
+  // ---
   /// Starts a time step: keeps the state at t_n; X (a vector like solution()) receives the predicted U_{n+1}.
   void begin_step(Vec X);
   /// Residual R_MC and approximate tangent K_MC of the iterate X (with the current immersed points and s^h).
@@ -132,8 +133,8 @@ class FluidSolver {
   std::vector<PointSample> sample_alpha(Vec X, const std::vector<geometry::Index3>& elements,
                                         const std::vector<geometry::Param>& xi) const;
   /// Immersed points already located (element, xi); each rank keeps those in its elements.
-  void set_immersed_points(const std::vector<geometry::Index3>& elements, const std::vector<geometry::Param>& xi,
-                           const std::vector<ImmersedPoint>& data);
+  void set_immersed_points(const std::vector<geometry::Index3>& elements,
+                           const std::vector<geometry::Param>& xi, const std::vector<ImmersedPoint>& data);
   /// Accepts X as U_{n+1}: updates the rate and the time.
   void end_step(Vec X);
   /// The Jacobian matrix and the linear solver of the fluid (KSP prefix fluid_).

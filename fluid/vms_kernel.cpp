@@ -1082,8 +1082,10 @@ void immersed_tangent_kernel(const VmsParameters& prm, const PointBasis& basis, 
   }
   for (int A = 0; A < n; ++A) {
     const double mass_A = -w * ip.beta * basis.N[A];
-    Vec3 visc_dN_A{};  // -w (nu - nu_s) velocity dN_A: the fluid's viscosity removed, the solid's stiffness added
-    for (int j = 0; j < Dim; ++j) visc_dN_A[j] = -w * (prm.nu - ip.stiffness_viscosity) * vel * basis.dN[A * 3 + j];
+    Vec3 visc_dN_A{};  // -w (nu - nu_s) velocity dN_A: the fluid's viscosity removed, the solid's stiffness
+                       // added
+    for (int j = 0; j < Dim; ++j)
+      visc_dN_A[j] = -w * (prm.nu - ip.stiffness_viscosity) * vel * basis.dN[A * 3 + j];
     for (int B = 0; B < n; ++B) {
       const double N_B = basis.N[B];
       const double* dN_B = basis.dN + B * 3;

@@ -130,8 +130,9 @@ struct ImmersedPoint {
   double beta = 0;                                // density factor 1 - rho_2 / rho_1
   /// Tangent only: the solid's stiffness seen by the fluid velocity over one step, as an equivalent kinematic
   /// viscosity nu_s (the stress increment from the displacement the kinematic equation gives for a velocity
-  /// increment: for shear modulus G, nu_s = G gamma dt alpha_f / (alpha_m rho_1)). Without it the block-iterative
-  /// loop diverges for any realistic stiffness; the residual, and so the solution, does not depend on it.
+  /// increment: for shear modulus G, nu_s = G gamma dt alpha_f / (alpha_m rho_1)). Without it the
+  /// block-iterative loop diverges for any realistic stiffness; the residual, and so the solution, does not
+  /// depend on it.
   double stiffness_viscosity = 0;
 };
 
