@@ -21,7 +21,6 @@
 
 namespace geo = cellfsi::geometry;
 
-
 namespace {
 
 struct Options {
@@ -85,14 +84,14 @@ void print_membrane(const char* name, const geo::Patch& membrane) {
   const geo::MembraneShape s = geo::membrane_shape(membrane);
   const int D = membrane.physical_dim();
   CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "  %-28s %-9s %12.5e %12.5e %8.4f %11.4e %4d\n", name,
-                                  D == 2 ? "membrane" : "shell", s.enclosed, s.boundary, s.swelling,
-                                  s.effective_radius, membrane.n_elements()));
+                            D == 2 ? "membrane" : "shell", s.enclosed, s.boundary, s.swelling,
+                            s.effective_radius, membrane.n_elements()));
 }
 
 void print_body(const char* name, const geo::Patch& body) {
   const geo::RegionMoments m = geo::patch_moments(body);
   CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "  %-28s %-9s %12.5e %12s %8s %11s %4d\n", name, "bulk",
-                                  m.measure, "-", "-", "-", body.n_elements()));
+                            m.measure, "-", "-", "-", body.n_elements()));
 }
 
 void run(const Options& o) {
@@ -106,11 +105,11 @@ void run(const Options& o) {
   const int s = static_cast<int>(o.samples), ms = static_cast<int>(o.mesh_samples);
 
   CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
-                                  "cellfsi-geometry: writing the paper's domains and cells to %s\n",
-                                  o.output_dir.c_str()));
+                            "cellfsi-geometry: writing the paper's domains and cells to %s\n",
+                            o.output_dir.c_str()));
   CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "  %-28s %-9s %12s %12s %8s %11s %4s\n",
-                                  "patch (paper section)", "kind", "area/vol", "perim/surf", "Delta",
-                                  "R0 [cm]", "elements"));
+                            "patch (paper section)", "kind", "area/vol", "perim/surf", "Delta", "R0 [cm]",
+                            "elements"));
 
   // Sec. 3.3-3.5: capsule in shear flow. 0.0024 x 0.0012 cm, periodic in x, 256 x 128 cubic; hollow ellipse
   // a = 2e-4, b = 1e-4, h = 5e-7 cm, 1 x 208 quadratic, long axis across the flow.
@@ -165,7 +164,7 @@ void run(const Options& o) {
   }
   out.write();
   CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "wrote %zu pieces; open %s in ParaView\n", out.size(),
-                                  (dir / "geometry.pvd").c_str()));
+                            (dir / "geometry.pvd").c_str()));
 }
 
 }  // namespace

@@ -2,10 +2,13 @@
 
 #include <petscsys.h>
 
+#include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <sstream>
 #include <stdexcept>
 
+#include "coupling/placement.hpp"
 #include "fluid/fluid_output.hpp"
 #include "fluid/petsc_error.hpp"
 
@@ -99,6 +102,169 @@ PetscErrorCode read_raw(Raw& r, const geometry::NarrowingChannel& ch0) {
   PetscFunctionReturn(0);
 }
 
+/// Reads -solid_bodies and each body's -solid_<name>_* options, and the coupling options.
+void read_bodies(SceneSettings& s) {
+  char* names[65] = {};
+  PetscInt n = 65;
+  PetscBool set = PETSC_FALSE;
+  PetscReal s_i = s.coupling.s_interface, tol = s.coupling.tolerance, ratio = s.max_mesh_ratio,
+            avg = s.metrics_average_from;
+  PetscInt max_it = s.coupling.max_iterations, lag = s.coupling.preconditioner_lag;
+  PetscBool monitor = PETSC_FALSE;
+  call_reporting_input_errors(
+      [&]() -> PetscErrorCode {
+        PetscFunctionBeginUser;
+        PetscOptionsBegin(PETSC_COMM_WORLD, nullptr, "cellfsi immersed bodies and coupling", nullptr);
+        PetscCall(PetscOptionsStringArray("-solid_bodies",
+                                          "Names of the immersed bodies, e.g. membrane,nucleus", nullptr,
+                                          names, &n, &set));
+        PetscCall(PetscOptionsReal("-s_interface",
+                                   "s_I: s^h on the basis functions at interfaces (paper 3.3)", nullptr, s_i,
+                                   &s_i, nullptr));
+        PetscCall(PetscOptionsReal("-coupling_tolerance", "Drop of every residual's L2 norm per step",
+                                   nullptr, tol, &tol, nullptr));
+        PetscCall(PetscOptionsInt("-coupling_max_iterations", "Block-iterative iterations per step", nullptr,
+                                  max_it, &max_it, nullptr));
+        PetscCall(PetscOptionsInt("-coupling_pc_lag", "Linear solves between preconditioner rebuilds",
+                                  nullptr, lag, &lag, nullptr));
+        PetscCall(PetscOptionsBool("-coupling_monitor", "Print every coupling iteration's residuals", nullptr,
+                                   monitor, &monitor, nullptr));
+        PetscCall(PetscOptionsReal("-coupling_max_mesh_ratio",
+                                   "Largest Lagrangian / smallest Eulerian element size (paper Remark 3)",
+                                   nullptr, ratio, &ratio, nullptr));
+        PetscCall(
+            PetscOptionsReal("-metrics_average_from",
+                             "Start of the metrics' averaging window [s] (default: half the final time)",
+                             nullptr, avg, &avg, nullptr));
+        PetscOptionsEnd();
+        PetscFunctionReturn(0);
+      },
+      {{"-s_interface", 'r'},
+       {"-coupling_tolerance", 'r'},
+       {"-coupling_max_iterations", 'i'},
+       {"-coupling_pc_lag", 'i'},
+       {"-coupling_max_mesh_ratio", 'r'},
+       {"-metrics_average_from", 'r'}});
+  if (set && n > 64) bad("solid_bodies", std::to_string(n) + " names", "at most 64 bodies");
+  if (!(s_i >= 1)) bad("s_interface", str(s_i), ">= 1");
+  if (!(tol > 0 && tol < 1)) bad("coupling_tolerance", str(tol), "0 < tolerance < 1");
+  if (max_it < 1) bad("coupling_max_iterations", std::to_string(max_it), ">= 1");
+  if (lag < 1) bad("coupling_pc_lag", std::to_string(lag), ">= 1");
+  if (!(ratio > 0)) bad("coupling_max_mesh_ratio", str(ratio), "> 0");
+  if (avg >= s.final_time)
+    bad("metrics_average_from", str(avg), "less than -final_time = " + str(s.final_time) + " s");
+  s.coupling.s_interface = s_i;
+  s.coupling.tolerance = tol;
+  s.coupling.max_iterations = static_cast<int>(max_it);
+  s.coupling.preconditioner_lag = static_cast<int>(lag);
+  s.coupling.monitor = monitor == PETSC_TRUE;
+  s.max_mesh_ratio = ratio;
+  s.metrics_average_from = avg;
+  std::vector<std::string> list;
+  for (PetscInt i = 0; set && i < std::min<PetscInt>(n, 64); ++i) {
+    list.emplace_back(names[i]);
+    PetscFree(names[i]);
+  }
+  const int D = s.dim;
+  for (const std::string& name : list) {
+    const bool ok = !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
+      return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
+    });
+    if (!ok) bad("solid_bodies", name, "names of lower-case letters, digits and _");
+    for (const BodySettings& o : s.bodies)
+      if (o.name == name) bad("solid_bodies", name, "distinct names");
+    BodySettings b;
+    b.name = name;
+    const std::string pre = "solid_" + name + "_";
+    char shape[64] = "hollow_ellipse";
+    PetscReal axes[4] = {2e-4, 1e-4, 1e-4, 0}, center[4] = {0, 0, 0, 0};
+    PetscInt n_axes = 4, n_center = 4, n_el = 4, elements[4] = {0, 0, 0, 0}, degree = 2;
+    PetscBool axes_set = PETSC_FALSE, center_set = PETSC_FALSE, el_set = PETSC_FALSE;
+    PetscReal angle = 0, h = b.thickness, G = b.shear_modulus, rho = b.density;
+    std::string o = "-" + pre;
+    call_reporting_input_errors(
+        [&]() -> PetscErrorCode {
+          PetscFunctionBeginUser;
+          PetscOptionsBegin(PETSC_COMM_WORLD, pre.c_str(), ("cellfsi body '" + name + "'").c_str(), nullptr);
+          PetscCall(PetscOptionsString("-shape",
+                                       "hollow_ellipse, ellipse, rbc (2D); hollow_ellipsoid, ellipsoid (3D)",
+                                       nullptr, shape, shape, sizeof shape, nullptr));
+          PetscCall(PetscOptionsRealArray("-semi_axes",
+                                          "Semi-axes a,b[,c] [cm] (membranes: of the mid-surface)", nullptr,
+                                          axes, &n_axes, &axes_set));
+          PetscCall(PetscOptionsRealArray("-center", "Centre x,y[,z] [cm] (default: the domain's centre)",
+                                          nullptr, center, &n_center, &center_set));
+          PetscCall(PetscOptionsReal("-angle", "2D: first semi-axis rotated from +x [degrees]", nullptr,
+                                     angle, &angle, nullptr));
+          PetscCall(PetscOptionsReal("-thickness", "Membrane thickness h [cm]", nullptr, h, &h, nullptr));
+          PetscCall(PetscOptionsIntArray("-elements",
+                                         "Lagrangian elements per direction (through/around; radial,around; "
+                                         "0: slightly smaller than the fluid's)",
+                                         nullptr, elements, &n_el, &el_set));
+          PetscCall(PetscOptionsInt("-degree", "Lagrangian degree, 2..4", nullptr, degree, &degree, nullptr));
+          PetscCall(PetscOptionsReal("-shear_modulus", "G [dyn/cm^2]", nullptr, G, &G, nullptr));
+          PetscCall(PetscOptionsReal("-density", "rho_2 [g/cm^3]", nullptr, rho, &rho, nullptr));
+          PetscOptionsEnd();
+          PetscFunctionReturn(0);
+        },
+        {{o + "semi_axes", 'R'},
+         {o + "center", 'R'},
+         {o + "angle", 'r'},
+         {o + "thickness", 'r'},
+         {o + "elements", 'I'},
+         {o + "degree", 'i'},
+         {o + "shear_modulus", 'r'},
+         {o + "density", 'r'}});
+    b.shape = shape;
+    const bool is2d = b.shape == "hollow_ellipse" || b.shape == "ellipse" || b.shape == "rbc";
+    const bool is3d = b.shape == "hollow_ellipsoid" || b.shape == "ellipsoid";
+    if (!is2d && !is3d)
+      bad(pre + "shape", b.shape, "hollow_ellipse, ellipse, rbc, hollow_ellipsoid or ellipsoid");
+    if ((D == 2) != is2d) bad(pre + "shape", b.shape, D == 2 ? "a 2D shape (-dim 2)" : "a 3D shape (-dim 3)");
+    if (b.shape != "rbc") {
+      if (!axes_set && D == 3) axes[2] = axes[1];
+      if (axes_set && n_axes != D)
+        bad(pre + "semi_axes", std::to_string(n_axes) + " values", std::to_string(D) + " values");
+      b.semi_axes.assign(axes, axes + D);
+      for (double a : b.semi_axes)
+        if (!(a > 0)) bad(pre + "semi_axes", str(a), "every semi-axis > 0 [cm]");
+    } else {
+      b.semi_axes.clear();
+    }
+    if (center_set && n_center != D)
+      bad(pre + "center", std::to_string(n_center) + " values", std::to_string(D) + " values");
+    b.center = center_set ? Vec3(center[0], center[1], D == 3 ? center[2] : 0.0) : Vec3(NAN, NAN, NAN);
+    if (!std::isfinite(angle)) bad(pre + "angle", str(angle), "a finite angle [degrees]");
+    b.angle_deg = angle;
+    if (b.membrane()) {
+      if (!(h > 0)) bad(pre + "thickness", str(h), "> 0 [cm]");
+      for (double a : b.semi_axes)
+        if (!(h < a)) bad(pre + "thickness", str(h), "smaller than every semi-axis");
+    }
+    b.thickness = h;
+    if (el_set && n_el != D)
+      bad(pre + "elements", std::to_string(n_el) + " values", std::to_string(D) + " values");
+    for (int d = 0; d < D; ++d)
+      if (elements[d] < 0) bad(pre + "elements", std::to_string(elements[d]), "counts >= 0 (0: automatic)");
+    if (b.membrane() && elements[0] > 1)
+      bad(pre + "elements", std::to_string(elements[0]), "1 element through a membrane's thickness");
+    const int mult = b.shape == "rbc" ? 1 : 4;
+    const int around = D == 2 ? 1 : 2;
+    if (elements[around] % mult)
+      bad(pre + "elements", std::to_string(elements[around]), "a multiple of 4 around the body");
+    if (D == 3 && elements[1] % 2)
+      bad(pre + "elements", std::to_string(elements[1]), "an even number of polar elements");
+    for (int d = 0; d < 3; ++d) b.elements[d] = d < D ? static_cast<int>(elements[d]) : 1;
+    if (degree < 2 || degree > 4) bad(pre + "degree", std::to_string(degree), "2, 3 or 4");
+    b.degree = static_cast<int>(degree);
+    if (!(G > 0)) bad(pre + "shear_modulus", str(G), "> 0 [dyn/cm^2]");
+    if (!(rho > 0)) bad(pre + "density", str(rho), "> 0 [g/cm^3]");
+    b.shear_modulus = G;
+    b.density = rho;
+    s.bodies.push_back(b);
+  }
+}
+
 }  // namespace
 
 SceneSettings SceneSettings::from_options(const std::string& default_name) {
@@ -172,19 +338,135 @@ SceneSettings SceneSettings::from_options(const std::string& default_name) {
   s.output_every = static_cast<int>(r.output_every);
   s.output_dir = r.output_dir[0] ? r.output_dir : "out/" + s.name;
   s.dt = r.dt;
+  read_bodies(s);
   return s;
+}
+
+geometry::Patch build_domain(const SceneSettings& s) {
+  if (s.domain == "rectangle")
+    return geometry::rectangle(s.size[0], s.size[1], s.elements[0], s.elements[1], s.degree,
+                               {s.periodic[0], s.periodic[1]}, s.origin);
+  if (s.domain == "box")
+    return geometry::box(s.size[0], s.size[1], s.size[2], s.elements[0], s.elements[1], s.elements[2],
+                         s.degree, {s.periodic[0], s.periodic[1], s.periodic[2]}, s.origin);
+  return geometry::narrowing_channel(s.channel, s.elements[0], s.elements[1], s.degree);
+}
+
+namespace {
+
+/// The smallest Eulerian element extent of the scene's (uniform or channel) mesh.
+double fluid_element_size(const SceneSettings& s) {
+  if (s.domain == "narrowing")
+    return std::min({s.channel.length / s.elements[0], s.channel.throat_height / s.elements[1]});
+  double h = 1e300;
+  for (int d = 0; d < s.dim; ++d) h = std::min(h, s.size[d] / s.elements[d]);
+  return h;
+}
+
+geometry::Patch make_body(const SceneSettings& s, const BodySettings& b, const std::array<int, 3>& n) {
+  Vec3 c = b.center;
+  if (!std::isfinite(c[0])) {
+    Vec3 lo, hi;
+    build_domain(s).bounding_box(lo, hi);
+    c = 0.5 * (lo + hi);
+  }
+  const double angle = b.angle_deg * std::numbers::pi / 180;
+  const std::vector<double>& a = b.semi_axes;
+  if (b.shape == "hollow_ellipse")
+    return geometry::hollow_ellipse(a[0], a[1], b.thickness, n[1], b.degree, c, angle);
+  if (b.shape == "ellipse") return geometry::bulky_ellipse(a[0], a[1], n[0], n[1], b.degree, c, angle);
+  if (b.shape == "rbc") return geometry::biconcave_rbc(b.thickness, n[1], b.degree, c, angle);
+  if (b.shape == "hollow_ellipsoid")
+    return geometry::hollow_ellipsoid(a[0], a[1], a[2], b.thickness, n[1], n[2], b.degree, c);
+  return geometry::solid_ellipsoid(a[0], a[1], a[2], n[0], n[1], n[2], b.degree, c);
+}
+
+}  // namespace
+
+geometry::Patch build_body_patch(const SceneSettings& s, const BodySettings& b) {
+  // Automatic counts: elements slightly smaller (0.9) than the smallest fluid element (paper Sec. 3.4),
+  // scaled from a trial mesh (element size ~ 1 / count).
+  const double target = 0.9 * std::min(1.0, s.max_mesh_ratio) * fluid_element_size(s);
+  std::array<int, 3> n = b.elements;
+  const int D = s.dim;
+  const int mult = b.shape == "rbc" ? 1 : 4;
+  if (b.membrane()) n[0] = 1;
+  std::array<int, 3> trial{b.membrane() ? 1 : 2, 16, 16};
+  if (D == 3) trial[1] = 8;
+  bool any_auto = false;
+  for (int d = 0; d < D; ++d) any_auto = any_auto || n[d] == 0;
+  if (any_auto) {
+    const geometry::Patch t = make_body(s, b, trial);
+    coupling::BodyPlacement pl{b.name, t, b.membrane()};
+    for (int d = 0; d < D; ++d) {
+      if (n[d] != 0) continue;
+      // Largest extent along direction d of the trial mesh.
+      const geometry::Patch& p = t;
+      double ext = 0;
+      for (int e = 0; e < p.n_elements(); ++e) {
+        geometry::Param lo, hi;
+        p.element_bounds(p.element_multi_index(e), lo, hi);
+        geometry::Param x0 = lo, x1 = lo;
+        x1[d] = hi[d];
+        for (int k = 0; k < D; ++k)
+          if (k != d) x0[k] = x1[k] = 0.5 * (lo[k] + hi[k]);
+        if (d == 0 && !b.membrane()) x0[1] = x1[1] = lo[1];
+        ext = std::max(ext, (p.point(x1) - p.point(x0)).norm());
+      }
+      int m = std::max(d == 0 ? 2 : 4, static_cast<int>(std::ceil(trial[d] * ext / target)));
+      const int step = d == 0 ? 1 : (D == 3 && d == 1 ? 2 : mult);
+      n[d] = (m + step - 1) / step * step;
+    }
+  }
+  return make_body(s, b, n);
+}
+
+std::vector<std::unique_ptr<solid::NurbsSolid>> build_bodies(const SceneSettings& s) {
+  std::vector<std::unique_ptr<solid::NurbsSolid>> out;
+  for (const BodySettings& b : s.bodies)
+    out.push_back(std::make_unique<solid::NurbsSolid>(
+        b.name, build_body_patch(s, b), std::make_shared<solid::DeviatoricNeoHookean>(b.shear_modulus),
+        b.density));
+  return out;
+}
+
+void check_bodies(const SceneSettings& s, const geometry::Patch& domain) {
+  if (s.bodies.empty()) return;
+  const coupling::Locator locator(domain);
+  std::vector<coupling::BodyPlacement> placed;
+  for (const BodySettings& b : s.bodies) {
+    coupling::BodyPlacement pl{b.name, build_body_patch(s, b), b.membrane()};
+    coupling::check_inside(locator, pl);
+    const coupling::Resolution r = coupling::resolution(domain, pl);
+    if (r.ratio() > s.max_mesh_ratio) {
+      std::ostringstream os;
+      os << "Lagrangian elements no larger than " << s.max_mesh_ratio
+         << " x the fluid's (paper Remark 3): body '" << b.name << "' has elements of " << r.solid_element
+         << " cm, the fluid " << r.fluid_element
+         << " cm; use more body elements (0: automatic) or -coupling_max_mesh_ratio";
+      std::ostringstream v;
+      for (int d = 0; d < s.dim; ++d) v << (d ? "," : "") << pl.patch.n_elements(d);
+      bad("solid_" + b.name + "_elements", v.str(), os.str());
+    }
+    // The cell must span the fluid mesh: its smallest semi-axis at least one fluid element.
+    if (!b.semi_axes.empty()) {
+      const double amin = *std::min_element(b.semi_axes.begin(), b.semi_axes.end());
+      if (amin < r.fluid_element) {
+        std::ostringstream v, w;
+        for (int d = 0; d < s.dim; ++d) v << (d ? "," : "") << s.elements[d];
+        w << "a fluid mesh with elements no larger than the smallest semi-axis of body '" << b.name << "' ("
+          << amin << " cm; now " << r.fluid_element << " cm)";
+        bad("fluid_elements", v.str(), w.str());
+      }
+    }
+    placed.push_back(std::move(pl));
+  }
+  coupling::check_no_overlap(placed);
 }
 
 Scene::Scene(MPI_Comm comm, const SceneSettings& settings) : s_(settings) {
   const int D = s_.dim;
-  if (s_.domain == "rectangle")
-    patch_ = geometry::rectangle(s_.size[0], s_.size[1], s_.elements[0], s_.elements[1], s_.degree,
-                                 {s_.periodic[0], s_.periodic[1]}, s_.origin);
-  else if (s_.domain == "box")
-    patch_ = geometry::box(s_.size[0], s_.size[1], s_.size[2], s_.elements[0], s_.elements[1], s_.elements[2],
-                           s_.degree, {s_.periodic[0], s_.periodic[1], s_.periodic[2]}, s_.origin);
-  else
-    patch_ = geometry::narrowing_channel(s_.channel, s_.elements[0], s_.elements[1], s_.degree);
+  patch_ = build_domain(s_);
   for (int d = D - 1; d >= 0 && wall_dir_ < 0; --d)
     if (!patch_.knots(d).periodic()) wall_dir_ = d;
 
@@ -211,7 +493,57 @@ Scene::Scene(MPI_Comm comm, const SceneSettings& settings) : s_(settings) {
       [=](const Vec3& x) { return shear ? Vec3(rate * (x[wd] - mid), 0, 0) : Vec3::Zero(); });
 }
 
+void Scene::attach_bodies(std::vector<solid::SolidSolver*> bodies) {
+  if (coupler_) throw std::logic_error("Scene::attach_bodies called twice");
+  bodies_ = std::move(bodies);
+  if (bodies_.empty()) return;
+  coupler_ = std::make_unique<coupling::FsiCoupler>(*fluid_, bodies_, s_.coupling);
+  coupler_->initialize();
+  const int plane = wall_dir_ > 0 ? wall_dir_ : 1;
+  for (solid::SolidSolver* b : bodies_) {
+    trackers_.emplace_back(b->reference_patch(), b->is_membrane(), plane);
+    trackers_.back().record(fluid_->time(), b->current_patch());
+  }
+}
+
+SceneStep Scene::step() {
+  SceneStep r;
+  if (!coupler_) {
+    const fluid::StepStats st = fluid_->step();
+    r.iterations = st.newton_iterations, r.linear_iterations = st.linear_iterations;
+    r.converged = st.converged, r.reason = st.reason;
+    return r;
+  }
+  const coupling::CouplerStats st = coupler_->step();
+  r.iterations = st.iterations, r.linear_iterations = st.linear_iterations;
+  r.converged = st.converged, r.reason = st.reason;
+  if (st.converged)
+    for (size_t b = 0; b < bodies_.size(); ++b)
+      trackers_[b].record(fluid_->time(), bodies_[b]->current_patch());
+  return r;
+}
+
+std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
+  std::vector<std::pair<std::string, double>> m;
+  for (const auto& kv : last_) {
+    bool body = false;
+    for (const solid::SolidSolver* b : bodies_) body = body || kv.first.rfind(b->name() + "_", 0) == 0;
+    if (!body) m.push_back(kv);
+  }
+  const double from = s_.metrics_average_from >= 0 ? s_.metrics_average_from : 0.5 * s_.final_time;
+  for (size_t b = 0; b < bodies_.size(); ++b)
+    for (const auto& [k, v] : trackers_[b].summary(from)) m.emplace_back(bodies_[b]->name() + "_" + k, v);
+  return m;
+}
+
 std::vector<std::pair<std::string, double>> Scene::metrics() {
+  last_ = flow_metrics();
+  for (size_t b = 0; b < bodies_.size(); ++b)
+    for (const auto& [k, v] : trackers_[b].metrics()) last_.emplace_back(bodies_[b]->name() + "_" + k, v);
+  return last_;
+}
+
+std::vector<std::pair<std::string, double>> Scene::flow_metrics() {
   std::vector<std::pair<std::string, double>> m;
   const fluid::FluidOptions& fo = fluid_->options();
   if (s_.flow == "poiseuille" || s_.flow == "rest") {

@@ -1,16 +1,36 @@
 #pragma once
-// A scene: the domain, the flow, time stepping and output settings, read from the options database (a scene
-// YAML file is read into it: nested keys become prefixes, the command line overrides). This scenes
-// are plasma only: a shear flow between moving walls and a channel flow driven by a body force.
+// A scene: the domain, the flow, the immersed bodies, time stepping and output settings, read from the
+// options database (a scene YAML file is read into it: nested keys become prefixes, the command line
+// overrides). Flows: a shear flow between moving walls, a channel flow driven by a body force, or rest.
+// Bodies (cells): membranes (capsules) and bulky bodies (nuclei) listed by -solid_bodies, each with options
+// -solid_<name>_<key>.
 #include <array>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "coupling/fsi_coupler.hpp"
 #include "fluid/fluid_solver.hpp"
 #include "geometry/builders.hpp"
+#include "solid/body_metrics.hpp"
+#include "solid/nurbs_solid.hpp"
 
 namespace cellfsi::app {
+
+/// One immersed body (a cell membrane or a nucleus).
+struct BodySettings {
+  std::string name;
+  std::string shape = "hollow_ellipse";       // hollow_ellipse | ellipse | rbc | hollow_ellipsoid | ellipsoid
+  std::vector<double> semi_axes{2e-4, 1e-4};  // mid-surface semi-axes [cm] (rbc: none)
+  geometry::Vec3 center = geometry::Vec3::Zero();
+  double angle_deg = 0;                  // 2D: first semi-axis rotated from +x [degrees]
+  double thickness = 5e-7;               // membranes [cm]
+  std::array<int, 3> elements{0, 0, 0};  // Lagrangian elements per direction; 0: from the fluid mesh
+  int degree = 2;
+  double shear_modulus = 7500;  // G [dyn/cm^2]
+  double density = 1.1;         // rho_2 [g/cm^3]
+  bool membrane() const { return shape.rfind("hollow", 0) == 0 || shape == "rbc"; }
+};
 
 struct SceneSettings {
   std::string name = "shear";
@@ -28,27 +48,61 @@ struct SceneSettings {
   int output_every = 0;        // write fluid.pvd every N steps (0: never)
   std::string output_dir;      // default out/<name>
   double dt = 5e-4;            // time step [s] (-dt)
+  std::vector<BodySettings> bodies;
+  coupling::CouplerOptions coupling;
+  double max_mesh_ratio = 1.0;       // largest Lagrangian / smallest Eulerian element size (paper Remark 3)
+  double metrics_average_from = -1;  // start of the averaging window [s]; < 0: half the final time
 
   /// Reads every scene option (see -help) and validates; throws std::invalid_argument naming option, value
   /// and range.
   static SceneSettings from_options(const std::string& default_name);
 };
 
-/// The assembled scene: the patch, the fluid solver and the flow's metrics.
+/// The Eulerian patch of a scene.
+geometry::Patch build_domain(const SceneSettings& s);
+/// The reference patch of a body (elements from the fluid mesh where not given).
+geometry::Patch build_body_patch(const SceneSettings& s, const BodySettings& b);
+/// The scene's bodies as NurbsSolid (the solid side of a run).
+std::vector<std::unique_ptr<solid::NurbsSolid>> build_bodies(const SceneSettings& s);
+/// The placement checks of DESIGN.md section 4 (inside the domain, no overlap, Lagrangian elements no larger
+/// than max_mesh_ratio times the Eulerian ones); throws std::invalid_argument naming the option to change.
+void check_bodies(const SceneSettings& s, const geometry::Patch& domain);
+
+/// What one time step cost (a fluid-only step or a coupled one).
+struct SceneStep {
+  int iterations = 0, linear_iterations = 0;
+  bool converged = false;
+  std::string reason;
+};
+
+/// The assembled scene on the fluid side: the patch, the fluid solver, the coupling loop over the bodies
+/// (wherever they live) and the metrics.
 class Scene {
  public:
   Scene(MPI_Comm comm, const SceneSettings& settings);
   fluid::FluidSolver& fluid() { return *fluid_; }
   const SceneSettings& settings() const { return s_; }
+  /// Couples the bodies (in this process or proxies of remote ones): call once, before the first step.
+  void attach_bodies(std::vector<solid::SolidSolver*> bodies);
+  const std::vector<solid::SolidSolver*>& bodies() const { return bodies_; }
+  SceneStep step();
   /// Metrics of the current state (names are the CSV/JSON keys), including errors against analytic solutions
-  /// where the scene has one.
+  /// where the scene has one and, per body, "<body>_<metric>" (solid/body_metrics.hpp).
   std::vector<std::pair<std::string, double>> metrics();
+  /// The run's results for summary.json: the last metrics with each body's averages over the oscillatory
+  /// regime (-metrics_average_from) in place of its instantaneous values.
+  std::vector<std::pair<std::string, double>> summary_metrics();
 
  private:
+  std::vector<std::pair<std::string, double>> flow_metrics();
   SceneSettings s_;
   geometry::Patch patch_;
   std::unique_ptr<fluid::FluidSolver> fluid_;
   int wall_dir_ = -1;  // the wall-normal direction (shear, poiseuille)
+  std::vector<solid::SolidSolver*> bodies_;
+  std::unique_ptr<coupling::FsiCoupler> coupler_;
+  std::vector<solid::BodyTracker> trackers_;
+  std::vector<std::pair<std::string, double>> last_;
 };
 
 }  // namespace cellfsi::app

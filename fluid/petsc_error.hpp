@@ -5,6 +5,8 @@
 
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #define CELLFSI_PETSC(...)                                                                                \
   do {                                                                                                    \
@@ -37,13 +39,14 @@ using OptionProbe = std::pair<const char*, char>;
 /// `probes`, the option whose value does not parse and throws std::invalid_argument naming it, its value and
 /// PETSc's reason (for input such as "-fluid_degree abc").
 template <class Call>
-void call_reporting_input_errors(Call&& call, std::initializer_list<OptionProbe> probes) {
+void call_reporting_input_errors(Call&& call, const std::vector<std::pair<std::string, char>>& probes) {
   std::string message;
   PetscPushErrorHandler(detail::record_first_message, &message);
   const PetscErrorCode ierr = call();
   PetscPopErrorHandler();
   if (!ierr) return;
-  for (const auto& [name, kind] : probes) {
+  for (const auto& [option, kind] : probes) {
+    const char* name = option.c_str();
     std::string why;
     PetscPushErrorHandler(detail::record_first_message, &why);
     PetscErrorCode e = 0;
@@ -85,6 +88,11 @@ void call_reporting_input_errors(Call&& call, std::initializer_list<OptionProbe>
   }
   throw std::invalid_argument("invalid option value: " +
                               (message.empty() ? std::string("(no message)") : message));
+}
+template <class Call>
+void call_reporting_input_errors(Call&& call, std::initializer_list<OptionProbe> probes) {
+  call_reporting_input_errors(std::forward<Call>(call),
+                              std::vector<std::pair<std::string, char>>(probes.begin(), probes.end()));
 }
 
 }  // namespace cellfsi

@@ -43,12 +43,26 @@ void check_samples(int s) {
 std::vector<double> sample_values(const KnotVector& kv, int s) {
   std::vector<double> u;
   for (int e = 0; e < kv.n_elements(); ++e)
-    for (int k = 0; k < s; ++k) u.push_back(kv.element_begin(e) + (kv.element_end(e) - kv.element_begin(e)) * k / s);
+    for (int k = 0; k < s; ++k)
+      u.push_back(kv.element_begin(e) + (kv.element_end(e) - kv.element_begin(e)) * k / s);
   u.push_back(kv.b());
   return u;
 }
 
-void write_patch_vts(const Patch& patch, const std::string& path, int samples_per_element) {
+std::vector<Param> sample_grid(const Patch& patch, int samples_per_element) {
+  check_samples(samples_per_element);
+  std::vector<double> u[3] = {{0.0}, {0.0}, {0.0}};
+  for (int d = 0; d < patch.param_dim(); ++d) u[d] = sample_values(patch.knots(d), samples_per_element);
+  std::vector<Param> xi;
+  xi.reserve(u[0].size() * u[1].size() * u[2].size());
+  for (double c : u[2])
+    for (double b : u[1])
+      for (double a : u[0]) xi.push_back({a, b, c});
+  return xi;
+}
+
+void write_patch_vts(const Patch& patch, const std::string& path, int samples_per_element,
+                     const std::vector<PointField>& fields) {
   check_samples(samples_per_element);
   const int P = patch.param_dim();
   std::vector<double> u[3] = {{0.0}, {0.0}, {0.0}};
@@ -84,6 +98,20 @@ void write_patch_vts(const Patch& patch, const std::string& path, int samples_pe
   grid->SetPoints(points);
   grid->GetPointData()->AddArray(xi);
   if (volume) grid->GetPointData()->AddArray(jac);
+  for (const PointField& f : fields) {
+    if (f.components < 1 ||
+        f.values.size() != static_cast<size_t>(f.components * points->GetNumberOfPoints()))
+      throw std::invalid_argument("write_patch_vts: field '" + f.name + "' has " +
+                                  std::to_string(f.values.size()) + " values for " +
+                                  std::to_string(points->GetNumberOfPoints()) + " points");
+    vtkNew<vtkDoubleArray> a;
+    a->SetName(f.name.c_str());
+    a->SetNumberOfComponents(f.components);
+    a->SetNumberOfTuples(points->GetNumberOfPoints());
+    for (vtkIdType i = 0; i < points->GetNumberOfPoints(); ++i)
+      a->SetTuple(i, f.values.data() + f.components * i);
+    grid->GetPointData()->AddArray(a);
+  }
 
   vtkNew<vtkXMLStructuredGridWriter> writer;
   writer->SetFileName(path.c_str());

@@ -8,13 +8,25 @@
 
 namespace cellfsi::geometry {
 
-/// Parametric sample values of one direction: every element split into `samples_per_element` equal intervals, the
-/// ends included (n_elements * samples_per_element + 1 values).
+/// Parametric sample values of one direction: every element split into `samples_per_element` equal intervals,
+/// the ends included (n_elements * samples_per_element + 1 values).
 std::vector<double> sample_values(const KnotVector& kv, int samples_per_element);
 
+/// The parametric points of write_patch_vts's grid, in its order (direction 0 fastest).
+std::vector<Param> sample_grid(const Patch& patch, int samples_per_element);
+
+/// Point data given as values at the points of sample_grid (components per point, interleaved).
+struct PointField {
+  std::string name;
+  int components = 1;
+  std::vector<double> values;
+};
+
 /// Writes the patch sampled with `samples_per_element` intervals per element and direction to `path` (.vts).
-/// Point data: "parametric" (xi), and for parametric dimension == physical dimension "jacobian" (det dx/dxi).
-void write_patch_vts(const Patch& patch, const std::string& path, int samples_per_element = 4);
+/// Point data: "parametric" (xi), for parametric dimension == physical dimension "jacobian" (det dx/dxi), and
+/// `fields`.
+void write_patch_vts(const Patch& patch, const std::string& path, int samples_per_element = 4,
+                     const std::vector<PointField>& fields = {});
 
 /// Writes the element boundaries (lines of constant parametric coordinate at every breakpoint), each sampled
 /// with `samples_per_element` intervals per element, to `path` (.vtp).

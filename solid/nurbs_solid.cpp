@@ -75,18 +75,21 @@ NurbsSolid::NurbsSolid(std::string name, geometry::Patch reference, std::shared_
         if (a == 0 || a == m[0] - 1) face_points_.push_back(p);
       }
   // Drop a degenerate face (all its points coincide).
+  bool degenerate = false;
   for (int side = 0; side < 2; ++side) {
     const int a = side == 0 ? 0 : m[0] - 1;
     double spread = 0;
     for (int q : face_points_)
       if (q % m[0] == a) spread = std::max(spread, (reference_points_[q] - reference_points_[a]).norm());
     if (spread == 0.0) {
+      degenerate = true;
       std::vector<int> keep;
       for (int q : face_points_)
         if (q % m[0] != a) keep.push_back(q);
       face_points_ = keep;
     }
   }
+  membrane_ = !degenerate;
   collocation_.resize(n_reduced_, n_reduced_);
   collocation_.setFromTriplets(trip.begin(), trip.end());
   factor_.compute(collocation_);
@@ -167,42 +170,62 @@ double NurbsSolid::kinematic_update(const std::vector<VelocitySample>& samples) 
 
 Eigen::MatrixXd NurbsSolid::displacement_control_alpha() const { return c_n_ + time_.alpha_f * (c_ - c_n_); }
 
+void NurbsSolid::kinematics(const Eigen::MatrixXd& c, const Param& xi, const Index3* element, Vec3& x,
+                            Mat3& F, double& ref_jacobian) const {
+  thread_local BasisValues bv;
+  thread_local MapValues mv;
+  reference_.basis(xi, 1, bv, element);
+  reference_.map(bv, mv);
+  Mat3 dudxi = Mat3::Zero();
+  Vec3 u = Vec3::Zero();
+  for (int k = 0; k < bv.n; ++k) {
+    const int r = reduced_[bv.index[k]];
+    for (int i = 0; i < dim_; ++i) {
+      u[i] += bv.value[k] * c(r, i);
+      for (int a = 0; a < dim_; ++a) dudxi(i, a) += bv.d1[3 * k + a] * c(r, i);
+    }
+  }
+  const Eigen::MatrixXd dXdxi = mv.dx.topLeftCorner(dim_, dim_);
+  F = Mat3::Identity();
+  F.topLeftCorner(dim_, dim_) += dudxi.topLeftCorner(dim_, dim_) * dXdxi.inverse();
+  x = mv.x + u;
+  ref_jacobian = dXdxi.determinant();
+}
+
 std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density) const {
   if (!(fluid_density > 0)) throw std::invalid_argument("quadrature_data: fluid density must be > 0");
   const Eigen::MatrixXd c = displacement_control_alpha();
   const double beta = 1.0 - density_ / fluid_density;
   std::vector<QuadratureData> out;
   std::vector<geometry::QuadraturePoint> qp;
-  BasisValues bv;
-  MapValues mv;
   const Index3 ng = geometry::default_gauss(reference_);
   for (int e = 0; e < reference_.n_elements(); ++e) {
     const Index3 m = reference_.element_multi_index(e);
     geometry::element_quadrature(reference_, m, ng, qp);
     for (const auto& q : qp) {
-      reference_.basis(q.xi, 1, bv, &m);
-      reference_.map(bv, mv);
-      Mat3 dudxi = Mat3::Zero();
-      Vec3 u = Vec3::Zero();
-      for (int k = 0; k < bv.n; ++k) {
-        const int r = reduced_[bv.index[k]];
-        for (int i = 0; i < dim_; ++i) {
-          u[i] += bv.value[k] * c(r, i);
-          for (int a = 0; a < dim_; ++a) dudxi(i, a) += bv.d1[3 * k + a] * c(r, i);
-        }
-      }
-      const Eigen::MatrixXd dXdxi = mv.dx.topLeftCorner(dim_, dim_);
-      Mat3 F = Mat3::Identity();
-      F.topLeftCorner(dim_, dim_) += dudxi.topLeftCorner(dim_, dim_) * dXdxi.inverse();
-      const Mat3 S = material_->second_piola(F, dim_);
+      Mat3 F;
+      double jac0 = 0;
       QuadratureData d;
-      d.x = mv.x + u;
-      d.weight = q.weight * std::abs(dXdxi.determinant());
+      kinematics(c, q.xi, &m, d.x, F, jac0);
+      const Mat3 S = material_->second_piola(F, dim_);
+      d.weight = q.weight * std::abs(jac0);
       d.stress = F * S * F.transpose() / fluid_density;
       d.beta = beta;
       d.shear_modulus = material_->tangent_shear_modulus();
       out.push_back(d);
     }
+  }
+  return out;
+}
+
+std::vector<Mat3> NurbsSolid::cauchy_stress(const std::vector<Param>& xi) const {
+  std::vector<Mat3> out(xi.size());
+  for (size_t i = 0; i < xi.size(); ++i) {
+    Vec3 x;
+    Mat3 F;
+    double jac0 = 0;
+    kinematics(c_n_, xi[i], nullptr, x, F, jac0);
+    out[i] = F * material_->second_piola(F, dim_) * F.transpose() / F.topLeftCorner(dim_, dim_).determinant();
   }
   return out;
 }
@@ -225,7 +248,7 @@ void NurbsSolid::end_step() {
 geometry::Patch NurbsSolid::current_patch() const {
   std::vector<geometry::Vec3> cps = reference_.control_points();
   for (int k = 0; k < reference_.n_control(); ++k)
-    for (int i = 0; i < dim_; ++i) cps[k][i] += c_(reduced_[k], i);
+    for (int i = 0; i < dim_; ++i) cps[k][i] += c_n_(reduced_[k], i);
   return geometry::Patch(reference_.all_knots(), dim_, std::move(cps), reference_.weights(),
                          reference_.shifts());
 }

@@ -39,11 +39,14 @@ class NurbsSolid final : public SolidSolver {
   /// first step starts consistent); the displacement stays as it is.
   void set_rate(const std::vector<Vec3>& rate) override;
 
+  bool is_membrane() const override { return membrane_; }
+  geometry::Patch reference_patch() const override { return reference_; }
+  geometry::Patch current_patch() const override;
+  std::vector<Mat3> cauchy_stress(const std::vector<geometry::Param>& xi) const override;
+
   int n_points() const { return static_cast<int>(reference_points_.size()); }
   const std::vector<Vec3>& reference_points() const { return reference_points_; }
   const geometry::Patch& reference() const { return reference_; }
-  /// The body at t_{n+1} (after end_step: the accepted state) as a patch, for measures and output.
-  geometry::Patch current_patch() const;
 
   /// Step 3 and its inverse, on values at the collocation points (n_points x dim): control variables (one row
   /// per reduced control point) and back.
@@ -59,11 +62,15 @@ class NurbsSolid final : public SolidSolver {
 
  private:
   Eigen::MatrixXd displacement_control_alpha() const;  // control variables at t_{n+alpha_f}
+  /// Position and deformation gradient at xi for displacement control variables c.
+  void kinematics(const Eigen::MatrixXd& c, const geometry::Param& xi, const geometry::Index3* element,
+                  Vec3& x, Mat3& F, double& ref_jacobian) const;
   std::string name_;
   geometry::Patch reference_;
   std::shared_ptr<const Material> material_;
   double density_;
   int dim_;
+  bool membrane_ = false;  // both faces of direction 0 are interfaces
   TimeParameters time_;
   std::vector<int> reduced_;  // control index -> reduced unknown
   int n_reduced_ = 0;

@@ -12,6 +12,8 @@
 
 #include <Eigen/Dense>
 
+#include "geometry/patch.hpp"
+
 namespace cellfsi::solid {
 
 using Vec3 = Eigen::Vector3d;
@@ -61,6 +63,17 @@ class SolidSolver {
   /// Sets the displacement rate at the collocation points (before the first step: the fluid velocity there,
   /// so the first step starts consistent).
   virtual void set_rate(const std::vector<Vec3>& rate) = 0;
+
+  // Measures and output (plain data; valid between steps).
+  /// True for a membrane (direction 0 runs through a thin wall around an enclosed fluid), false for a bulky
+  /// body.
+  virtual bool is_membrane() const = 0;
+  /// The body in its reference configuration and at t_{n+1} (after end_step: the accepted state), as patches
+  /// with the same knots.
+  virtual geometry::Patch reference_patch() const = 0;
+  virtual geometry::Patch current_patch() const = 0;
+  /// Cauchy stress sigma = J^{-1} F S F^T [dyn/cm^2] of the accepted state at parametric points.
+  virtual std::vector<Mat3> cauchy_stress(const std::vector<geometry::Param>& xi) const = 0;
 };
 
 }  // namespace cellfsi::solid

@@ -123,6 +123,12 @@ const std::vector<std::string> kTiny = {"-fluid_elements", "8,4",  "-fluid_degre
                                         "-final_time",     "1e-3", "-dt",           "5e-4",
                                         "-output_every",   "0"};
 
+/// The capsule scene kept small: 48 x 24 quadratic fluid elements (the capsule's minor semi-axis spans two),
+/// automatic membrane elements, two steps.
+const std::vector<std::string> kCapsule = {
+    "-fluid_elements", "48,24", "-fluid_degree", "2", "-solid_membrane_elements", "1,0",
+    "-final_time",     "1e-3",  "-output_every", "0"};
+
 // ---------------------------------------------------------------------------------------------------------
 // Reading the output files
 
@@ -358,7 +364,8 @@ TEST_F(CellfsiApp, PoiseuilleWritesTheRunContract) {
       EXPECT_GT(fs::file_size(out_ / p), 0u) << p;
     }
   }
-  // profile.csv: the velocity across the channel at mid-length, 65 points from wall to wall; zero at the walls.
+  // profile.csv: the velocity across the channel at mid-length, 65 points from wall to wall; zero at the
+  // walls.
   ASSERT_TRUE(fs::is_regular_file(out_ / "profile.csv"));
   const std::vector<std::string> prof = lines(read_text(out_ / "profile.csv"));
   ASSERT_EQ(prof.size(), 66u);
@@ -556,12 +563,197 @@ TEST_F(CellfsiApp, HelpListsSceneOptions) {
 }
 
 TEST_F(CellfsiApp, DefaultSceneRunsWithoutSceneFile) {
-  const RunResult r = cellfsi(kTiny);
+  // The default scene is the capsule in shear; two coarse steps.
+  const RunResult r = cellfsi(kCapsule);
   ASSERT_FALSE(r.timed_out) << r.output;
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const std::string js = summary();
-  EXPECT_EQ(json_string(js, "scene"), "shear") << js;
+  EXPECT_EQ(json_string(js, "scene"), "capsule_shear_quick") << js;
   EXPECT_EQ(json_number(js, "steps"), 2) << js;
+  EXPECT_TRUE(json_number(js, "membrane_r_A").has_value()) << js;
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// 4. Immersed bodies: the capsule scene, its launch modes and its input checks
+
+/// The last metrics.csv row as name -> value.
+std::vector<std::pair<std::string, double>> last_row(const fs::path& csv_path) {
+  const Csv csv = read_csv(csv_path);
+  std::vector<std::pair<std::string, double>> row;
+  if (csv.rows.empty()) return row;
+  for (size_t i = 0; i < csv.header.size() && i < csv.rows.back().size(); ++i)
+    row.emplace_back(csv.header[i], std::stod(csv.rows.back()[i]));
+  return row;
+}
+
+/// Every value of a agrees with b's to `rel` relative (of max(|a|, |b|, floor)).
+::testing::AssertionResult rows_agree(const std::vector<std::pair<std::string, double>>& a,
+                                      const std::vector<std::pair<std::string, double>>& b, double rel,
+                                      double floor = 1e-300) {
+  if (a.size() != b.size() || a.empty()) return ::testing::AssertionFailure() << "different or empty rows";
+  for (size_t i = 0; i < a.size(); ++i) {
+    const double scale = std::max({std::abs(a[i].second), std::abs(b[i].second), floor});
+    if (a[i].first != b[i].first || std::abs(a[i].second - b[i].second) > rel * scale)
+      return ::testing::AssertionFailure() << a[i].first << ": " << a[i].second << " vs " << b[i].first
+                                           << ": " << b[i].second << " (relative " << rel << ")";
+  }
+  return ::testing::AssertionSuccess();
+}
+
+TEST_F(CellfsiApp, CapsuleSceneWritesBodyMetricsAndSolidSeries) {
+  const RunResult r = cellfsi(
+      with({scene("capsule_shear.yaml")}, with(kCapsule, {"-final_time", "2e-3", "-output_every", "2"})));
+  ASSERT_FALSE(r.timed_out) << r.output;
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string js = summary();
+  EXPECT_TRUE(is_flat_json_object(js));
+  for (const char* key :
+       {"membrane_r_A", "membrane_r_P", "membrane_theta_deg", "membrane_omega_tt", "membrane_max_abs_r_P"})
+    EXPECT_TRUE(json_number(js, key).has_value()) << key << " missing:\n" << js;
+  // Starts across the flow (90 deg) and turns clockwise towards it.
+  const double theta = json_number(js, "membrane_theta_deg").value_or(0);
+  EXPECT_GT(theta, 60.0) << js;
+  EXPECT_LT(theta, 89.9) << js;
+  EXPECT_GT(json_number(js, "membrane_omega_tt").value_or(0), 0.0) << js;
+  const std::vector<std::string> files = pvd_files(out_ / "solid.pvd");
+  ASSERT_EQ(files.size(), 3u) << read_text(out_ / "solid.pvd");
+  for (const auto& f : files) EXPECT_TRUE(fs::exists(out_ / f)) << f;
+  EXPECT_GE(read_csv(out_ / "metrics.csv").column("membrane_theta_deg"), 0);
+}
+
+TEST_F(CellfsiApp, LaunchModesAgree) {
+  // One process; one job split into a fluid and a solid rank; two executables (MPMD). Same numbers.
+  const std::vector<std::string> args =
+      with({scene("capsule_shear.yaml")}, with(kCapsule, {"-final_time", "2e-3"}));
+  ASSERT_EQ(cellfsi(args).exit_code, 0) << last_output_;
+  const auto single = last_row(out_ / "metrics.csv");
+  ASSERT_EQ(mpi_cellfsi(2, with(args, {"-solid_ranks", "1"})).exit_code, 0) << last_output_;
+  const auto split = last_row(out_ / "metrics.csv");
+  EXPECT_EQ(json_number(summary(), "solid_ranks"), 1) << summary();
+  std::vector<std::string> mpmd = {MPIEXEC_EXECUTABLE, "--oversubscribe", "-np", "1", CELLFSI_FLUID_EXE};
+  mpmd.insert(mpmd.end(), args.begin(), args.end());
+  mpmd.insert(mpmd.end(), {"-output_dir", out_.string(), ":", "-np", "1", CELLFSI_SOLID_EXE});
+  mpmd.insert(mpmd.end(), args.begin(), args.end());
+  const RunResult r = run_process(mpmd);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto two_exes = last_row(out_ / "metrics.csv");
+  // r_A is a difference of areas (cancellation): compared against a floor of 1e-6.
+  EXPECT_TRUE(rows_agree(single, split, 1e-10, 1e-6));
+  EXPECT_TRUE(rows_agree(single, two_exes, 1e-10, 1e-6));
+}
+
+TEST_F(CellfsiApp, OneAndTwoFluidRanksAgree) {
+  const std::vector<std::string> args =
+      with({scene("capsule_shear.yaml")}, with(kCapsule, {"-final_time", "2e-3"}));
+  ASSERT_EQ(cellfsi(args).exit_code, 0) << last_output_;
+  const auto one = last_row(out_ / "metrics.csv");
+  ASSERT_EQ(mpi_cellfsi(2, args).exit_code, 0) << last_output_;
+  const auto two = last_row(out_ / "metrics.csv");
+  // Iteration counts may differ by one between partitions (the linear solves stop at rtol 1e-5); the state
+  // agrees to well below the coupling tolerance.
+  auto state = [](std::vector<std::pair<std::string, double>> row) {
+    std::erase_if(row, [](const auto& kv) { return kv.first.find("iterations") != std::string::npos; });
+    return row;
+  };
+  EXPECT_TRUE(rows_agree(state(one), state(two), 1e-6, 1e-4));
+}
+
+TEST_F(CellfsiApp, InterfaceScalingReducesTheAreaError) {
+  // Paper Fig. 1b on a coarse mesh: the spurious area change falls as s_I grows.
+  double previous = 1e300;
+  for (const char* s_i : {"1", "1e5", "1e10"}) {
+    const RunResult r = cellfsi(with({scene("capsule_shear.yaml")},
+                                     {"-fluid_elements", "48,24", "-solid_membrane_elements", "1,0",
+                                      "-final_time", "0.02", "-output_every", "0", "-s_interface", s_i}),
+                                120);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const double ra = std::abs(json_number(summary(), "membrane_r_A").value_or(1e300));
+    std::printf("  s_I = %s: |r_A| = %.3e\n", s_i, ra);
+    EXPECT_LT(ra, previous / 3) << "s_I = " << s_i;
+    previous = ra;
+  }
+}
+
+TEST_F(CellfsiApp, CapsuleOutsideTheDomainIsRejected) {
+  const RunResult r =
+      cellfsi(with({scene("capsule_shear.yaml"), "-solid_membrane_center", "0.0012,0.00005"}, kCapsule));
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("'membrane'"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("outside"), std::string::npos) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
+TEST_F(CellfsiApp, OverlappingBodiesAreRejected) {
+  const RunResult r =
+      cellfsi(with({scene("capsule_shear.yaml"), "-solid_bodies", "membrane,nucleus", "-solid_nucleus_shape",
+                    "ellipse", "-solid_nucleus_semi_axes", "5e-5,5e-5", "-solid_nucleus_center",
+                    "0.0012,0.0008", "-solid_nucleus_shear_modulus", "40"},
+                   kCapsule));
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("overlap"), std::string::npos) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
+TEST_F(CellfsiApp, CompoundCapsuleIsAccepted) {
+  const RunResult r = cellfsi(with(
+      {scene("capsule_shear.yaml"), "-solid_bodies", "membrane,nucleus", "-solid_nucleus_shape", "ellipse",
+       "-solid_nucleus_semi_axes", "5e-5,5e-5", "-solid_nucleus_shear_modulus", "40", "-final_time", "5e-4"},
+      kCapsule));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(json_number(summary(), "nucleus_r_A").has_value()) << summary();
+}
+
+TEST_F(CellfsiApp, TooCoarseBodyMeshIsRejected) {
+  const RunResult r =
+      cellfsi(with({scene("capsule_shear.yaml")}, with(kCapsule, {"-solid_membrane_elements", "1,8"})));
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("-solid_membrane_elements"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("Remark 3"), std::string::npos) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
+TEST_F(CellfsiApp, TooCoarseFluidMeshForTheCellIsRejected) {
+  const RunResult r =
+      cellfsi(with({scene("capsule_shear.yaml")}, with(kCapsule, {"-fluid_elements", "16,8"})));
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("-fluid_elements"), std::string::npos) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
+TEST_F(CellfsiApp, UnknownBodyKeyIsRejected) {
+  const RunResult r =
+      cellfsi(with({scene("capsule_shear.yaml"), "-solid_membrane_shear_modulos", "1"}, kCapsule));
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("solid_membrane_shear_modulos"), std::string::npos) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
+TEST_F(CellfsiApp, NegativeShearModulusIsRejected) {
+  const RunResult r =
+      cellfsi(with({scene("capsule_shear.yaml"), "-solid_membrane_shear_modulus", "-5"}, kCapsule));
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("-solid_membrane_shear_modulus = -5"), std::string::npos) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
+TEST_F(CellfsiApp, MpmdBadInputStopsBothSidesWithOneMessage) {
+  const std::vector<std::string> args =
+      with({scene("capsule_shear.yaml"), "-solid_membrane_center", "0.0012,0.00005"}, kCapsule);
+  std::vector<std::string> mpmd = {MPIEXEC_EXECUTABLE, "--oversubscribe", "-np", "1", CELLFSI_FLUID_EXE};
+  mpmd.insert(mpmd.end(), args.begin(), args.end());
+  mpmd.insert(mpmd.end(), {"-output_dir", out_.string(), ":", "-np", "1", CELLFSI_SOLID_EXE});
+  mpmd.insert(mpmd.end(), args.begin(), args.end());
+  const RunResult r = run_process(mpmd, 60);
+  EXPECT_FALSE(r.timed_out) << r.output;
+  EXPECT_NE(r.exit_code, 0) << r.output;
+  EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
+TEST_F(CellfsiApp, SolidExecutableAloneIsRejected) {
+  const RunResult r = run_process({CELLFSI_SOLID_EXE, scene("capsule_shear.yaml")});
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("cellfsi-fluid"), std::string::npos) << r.output;
 }
 
 }  // namespace

@@ -1,0 +1,350 @@
+#include "apps/launch.hpp"
+
+#include <petscsys.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <iomanip>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "apps/run_output.hpp"
+#include "apps/scene.hpp"
+#include "coupling/remote_solid.hpp"
+#include "fluid/fluid_output.hpp"
+#include "fluid/petsc_error.hpp"
+#include "solid/solid_output.hpp"
+
+namespace cellfsi::app {
+
+namespace {
+
+/// The scene run by `cellfsi` with no scene file: the capsule in shear (scenes/capsule_shear.yaml) at a
+/// resolution that runs in a few minutes on 2 cores. Options given on the command line still win.
+const char* const kDefaultScene = CELLFSI_SCENES_DIR "/capsule_shear.yaml";
+const std::vector<std::string> kDefaultOverrides{"-scene",
+                                                 "capsule_shear_quick",
+                                                 "-fluid_elements",
+                                                 "64,32",
+                                                 "-solid_membrane_elements",
+                                                 "1,0",
+                                                 "-final_time",
+                                                 "0.2",
+                                                 "-output_every",
+                                                 "20"};
+
+/// Mailbox per rank for shared-memory exchange [bytes] (payloads above it go as messages).
+constexpr std::size_t kMailboxBytes = 8u << 20;
+
+void print_error(const std::string& message) {
+  PetscFPrintf(PETSC_COMM_WORLD, PETSC_STDERR, "cellfsi: error: %s\n", message.c_str());
+}
+
+/// Fails on options nobody read (a misspelt key must not be silently ignored). Call after the solvers are set
+/// up: inner solvers (ASM subdomains, multigrid levels) read their options only then.
+void reject_unknown_options() {
+  PetscInt n = 0;
+  char** names = nullptr;
+  char** values = nullptr;
+  CELLFSI_PETSC(PetscOptionsLeftGet(nullptr, &n, &names, &values));
+  const std::string first = n > 0 ? names[0] : "";
+  CELLFSI_PETSC(PetscOptionsLeftRestore(nullptr, &n, &names, &values));
+  if (!first.empty())
+    throw std::invalid_argument("unknown option -" + first +
+                                " (misspelt? run with -help for the valid options)");
+}
+
+/// Start-up agreement between the fluid and the solid group: each side reports 2 (ready), 1 (stop quietly:
+/// -help) or 0 (bad input, already reported by that side); both learn the other's state. Once only.
+class Handshake {
+ public:
+  explicit Handshake(MPI_Comm inter) : inter_(inter) {}
+  /// Returns the other group's state (2 when there is no other group).
+  int agree(int state) {
+    if (inter_ == MPI_COMM_NULL || done_) return 2;
+    done_ = true;
+    int local = 0, remote = 0;
+    MPI_Comm local_comm = PETSC_COMM_WORLD;
+    MPI_Allreduce(&state, &local, 1, MPI_INT, MPI_MIN, local_comm);
+    MPI_Allreduce(&local, &remote, 1, MPI_INT, MPI_MIN, inter_);
+    return remote;
+  }
+  bool done() const { return done_ || inter_ == MPI_COMM_NULL; }
+
+ private:
+  MPI_Comm inter_;
+  bool done_ = false;
+};
+
+/// The fluid side (and, without a solid group, the bodies too).
+int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
+  const SceneSettings settings = SceneSettings::from_options(default_name);
+  PetscBool help = PETSC_FALSE;
+  CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-help", &help));
+  Scene scene(PETSC_COMM_WORLD, settings);
+  if (help) {
+    hs.agree(1);
+    return 0;
+  }
+  check_bodies(settings, scene.fluid().patch());
+  scene.fluid().setup();
+  reject_unknown_options();
+  if (hs.agree(2) != 2) throw std::invalid_argument("the solid side stopped at start-up (see its message)");
+
+  std::vector<std::unique_ptr<solid::NurbsSolid>> owned;
+  std::vector<std::unique_ptr<coupling::RemoteSolid>> remote;
+  std::unique_ptr<coupling::Exchange> exchange;
+  std::vector<solid::SolidSolver*> bodies;
+  if (inter == MPI_COMM_NULL) {
+    // The bodies live in this process (every rank holds a copy and does the same, cheap, solid work).
+    owned = build_bodies(settings);
+    for (auto& b : owned) bodies.push_back(b.get());
+  } else {
+    exchange = std::make_unique<coupling::Exchange>(inter, kMailboxBytes);
+    for (size_t i = 0; i < settings.bodies.size(); ++i) {
+      const BodySettings& b = settings.bodies[i];
+      remote.push_back(std::make_unique<coupling::RemoteSolid>(*exchange, PETSC_COMM_WORLD,
+                                                               static_cast<int>(i), b.name,
+                                                               build_body_patch(settings, b), b.membrane()));
+      remote.back()->hello();
+      bodies.push_back(remote.back().get());
+    }
+  }
+  // Whatever happens from here on, the solid side is told to stop.
+  struct Stop {
+    coupling::Exchange* ex;
+    ~Stop() {
+      if (ex) coupling::shutdown_solids(*ex, PETSC_COMM_WORLD);
+    }
+  } stop{exchange.get()};
+  scene.attach_bodies(bodies);
+
+  int size = 1, rank = 0, solid_ranks = 0;
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  if (exchange) solid_ranks = exchange->remote_size();
+  RunOutput out(PETSC_COMM_WORLD, settings.output_dir, settings.name);
+  std::unique_ptr<fluid::FluidSeriesWriter> series;
+  std::unique_ptr<solid::SolidSeriesWriter> solid_series;
+  auto write_series = [&] {
+    if (!series) return;
+    series->write(scene.fluid());
+    if (solid_series) solid_series->write(scene.fluid().time(), scene.bodies());
+  };
+  if (settings.output_every > 0) {
+    series = std::make_unique<fluid::FluidSeriesWriter>(settings.output_dir);
+    if (!bodies.empty())
+      solid_series = std::make_unique<solid::SolidSeriesWriter>(settings.output_dir, rank == 0);
+    write_series();
+  }
+  const int n_steps = static_cast<int>(std::ceil(settings.final_time / settings.dt - 1e-9));
+  CELLFSI_PETSC(PetscPrintf(
+      PETSC_COMM_WORLD,
+      "cellfsi %s: %s, %d fluid ranks%s, %zu bodies, %d steps of %g s to t = %g s, output in %s\n",
+      CELLFSI_VERSION, settings.name.c_str(), size,
+      solid_ranks ? (" + " + std::to_string(solid_ranks) + " solid ranks").c_str() : "", bodies.size(),
+      n_steps, settings.dt, n_steps * settings.dt, settings.output_dir.c_str()));
+  long newton = 0, linear = 0;
+  int done = 0;
+  std::vector<std::pair<std::string, double>> last;
+  const std::string iteration = bodies.empty() ? "Newton" : "the coupling iteration";
+  try {
+    for (int k = 1; k <= n_steps; ++k) {
+      const SceneStep st = scene.step();
+      newton += st.iterations;
+      linear += st.linear_iterations;
+      if (!st.converged) {
+        const std::string why = iteration + " diverged (" + st.reason + ") in step " + std::to_string(k) +
+                                " at t = " + std::to_string(k * settings.dt) + " s";
+        out.summary("failed: " + why, done, newton, linear, last);
+        print_error(why + "; output so far is in " + settings.output_dir);
+        return 2;
+      }
+      done = k;
+      last = scene.metrics();
+      std::vector<std::pair<std::string, double>> row{{"step", k},
+                                                      {"time", scene.fluid().time()},
+                                                      {"newton_iterations", st.iterations},
+                                                      {"linear_iterations", st.linear_iterations}};
+      row.insert(row.end(), last.begin(), last.end());
+      out.metrics_row(row);
+      out.progress(k, n_steps, scene.fluid().time(), st.iterations, st.linear_iterations);
+      if (series && k % settings.output_every == 0) write_series();
+    }
+  } catch (const std::exception& e) {
+    // Whatever stopped the run mid-way, the summary says so next to the output written so far.
+    out.summary(std::string("failed: ") + e.what(), done, newton, linear, last);
+    throw;
+  }
+  std::vector<std::pair<std::string, double>> final_metrics = scene.summary_metrics();
+  if (exchange) {
+    final_metrics.emplace_back("solid_ranks", solid_ranks);
+    final_metrics.emplace_back("exchange_shared_mb", exchange->shared_bytes() / 1e6);
+    final_metrics.emplace_back("exchange_message_mb", exchange->message_bytes() / 1e6);
+  }
+  out.summary("completed", done, newton, linear, final_metrics);
+  // The velocity profile across the domain at x = mid-length (section xi_0 = 1/2), as CSV.
+  const fluid::SectionData sec = fluid::section(scene.fluid(), 0.5, 65);
+  std::ostringstream csv;
+  csv << std::setprecision(12) << "x,y,z,vx,vy,vz\n";
+  for (size_t i = 0; i < sec.points.size(); ++i)
+    csv << sec.points[i][0] << "," << sec.points[i][1] << "," << sec.points[i][2] << "," << sec.velocity[i][0]
+        << "," << sec.velocity[i][1] << "," << sec.velocity[i][2] << "\n";
+  if (rank == 0) write_atomically(settings.output_dir + "/profile.csv", csv.str());
+  CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
+                            "cellfsi: completed %d steps in %.2f s; summary in %s/summary.json\n", n_steps,
+                            out.elapsed(), settings.output_dir.c_str()));
+  return 0;
+}
+
+/// The solid side: reads the same scene, builds and checks the bodies, serves the fluid side until it stops.
+/// Prints nothing unless its own input is bad and the fluid side's is not (the fluid side reports first).
+int run_solid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
+  std::string error;
+  std::vector<std::unique_ptr<solid::NurbsSolid>> owned;
+  std::vector<solid::SolidSolver*> mine;
+  int state = 2;
+  try {
+    const SceneSettings settings = SceneSettings::from_options(default_name);
+    PetscBool help = PETSC_FALSE;
+    CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-help", &help));
+    if (help) state = 1;
+    if (state == 2) {
+      check_bodies(settings, build_domain(settings));
+      owned = build_bodies(settings);
+      int rank = 0, size = 1;
+      MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+      MPI_Comm_size(PETSC_COMM_WORLD, &size);
+      mine.assign(owned.size(), nullptr);
+      for (size_t i = 0; i < owned.size(); ++i)
+        if (coupling::body_owner(static_cast<int>(i), size) == rank) mine[i] = owned[i].get();
+    }
+  } catch (const std::exception& e) {
+    error = e.what();
+    state = 0;
+  }
+  const int fluid_state = hs.agree(state);
+  if (state == 0) {
+    if (fluid_state == 2) print_error(error);
+    return 1;
+  }
+  if (state == 1 || fluid_state != 2) return fluid_state == 1 ? 0 : 1;
+  coupling::Exchange exchange(inter, kMailboxBytes);
+  coupling::serve_solids(exchange, mine);
+  return 0;
+}
+
+}  // namespace
+
+int launch(int argc, char** argv, Role role) {
+  // Arguments: a scene file first is read as PETSc options before the command line, which therefore wins;
+  // -solid_ranks B (launch option, command line only) splits the job.
+  std::vector<std::string> args(argv, argv + argc);
+  std::string scene_name = "capsule_shear_quick", scene_file;
+  int solid_ranks = 0;
+  bool bad_launch = false;
+  std::string launch_error;
+  for (size_t i = 1; i < args.size(); ++i)
+    if (args[i] == "-solid_ranks") {
+      char* end = nullptr;
+      const long v = i + 1 < args.size() ? std::strtol(args[i + 1].c_str(), &end, 10) : -1;
+      if (i + 1 >= args.size() || *end != '\0' || v < 0 || role != Role::combined) {
+        bad_launch = true;
+        launch_error =
+            role != Role::combined
+                ? "option -solid_ranks is for cellfsi; cellfsi-fluid/-solid take their ranks from mpirun"
+                : "option -solid_ranks = " + (i + 1 < args.size() ? args[i + 1] : std::string("(none)")) +
+                      " is invalid; valid: an integer >= 0 (ranks of the solid group)";
+      }
+      solid_ranks = static_cast<int>(std::max(0L, v));
+      args.erase(args.begin() + i, args.begin() + std::min(args.size(), i + 2));
+      break;
+    }
+  if (args.size() > 1 && args[1][0] != '-') {
+    scene_file = args[1];
+    scene_name = std::filesystem::path(scene_file).stem().string();
+    args[1] = "-options_file_yaml";
+    args.insert(args.begin() + 2, scene_file);
+  } else {
+    // No scene: the default scene, its overrides before the user's options.
+    scene_file = kDefaultScene;
+    std::vector<std::string> pre{"-options_file_yaml", scene_file};
+    pre.insert(pre.end(), kDefaultOverrides.begin(), kDefaultOverrides.end());
+    args.insert(args.begin() + 1, pre.begin(), pre.end());
+  }
+
+  MPI_Init(&argc, &argv);
+  int world_rank = 0, world_size = 1;
+  MPI_Comm_rank(MPI_COMM_WORLD, &world_rank);
+  MPI_Comm_size(MPI_COMM_WORLD, &world_size);
+  auto fail_early = [&](const std::string& msg) {
+    if (world_rank == 0) std::fprintf(stderr, "cellfsi: error: %s\n", msg.c_str());
+    MPI_Finalize();
+    return 1;
+  };
+  if (bad_launch) return fail_early(launch_error);
+  if (!std::filesystem::is_regular_file(scene_file))
+    return fail_early("scene file '" + scene_file + "' not found (expected a .yaml scene, see scenes/)");
+
+  // The split: color 0 fluid, 1 solid.
+  int color = 0;
+  if (role == Role::solid) color = 1;
+  if (role == Role::combined && solid_ranks > 0) {
+    if (solid_ranks >= world_size)
+      return fail_early("option -solid_ranks = " + std::to_string(solid_ranks) + " is invalid; valid: 0 to " +
+                        std::to_string(world_size - 1) + " (fewer than the job's " +
+                        std::to_string(world_size) + " ranks)");
+    color = world_rank >= world_size - solid_ranks ? 1 : 0;
+  }
+  MPI_Comm local = MPI_COMM_NULL, inter = MPI_COMM_NULL;
+  MPI_Comm_split(MPI_COMM_WORLD, color, world_rank, &local);
+  int n_color[2] = {0, 0}, mine[2] = {color == 0, color == 1};
+  MPI_Allreduce(mine, n_color, 2, MPI_INT, MPI_SUM, MPI_COMM_WORLD);
+  const bool split = role != Role::combined || solid_ranks > 0;
+  if (split && (n_color[0] == 0 || n_color[1] == 0)) {
+    MPI_Comm_free(&local);
+    return fail_early(
+        "cellfsi-fluid and cellfsi-solid run together: mpirun -np A cellfsi-fluid SCENE.yaml : -np B "
+        "cellfsi-solid SCENE.yaml");
+  }
+  if (split) {
+    // The other group's leader: its lowest world rank.
+    int lowest[2] = {world_size, world_size}, mine_low[2] = {world_size, world_size};
+    mine_low[color] = world_rank;
+    MPI_Allreduce(mine_low, lowest, 2, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+    MPI_Intercomm_create(local, 0, MPI_COMM_WORLD, lowest[1 - color], 4242, &inter);
+  }
+  PETSC_COMM_WORLD = local;
+  int n = static_cast<int>(args.size());
+  std::vector<char*> av;
+  for (auto& a : args) av.push_back(a.data());
+  av.push_back(nullptr);
+  char** avp = av.data();
+  int status = 0;
+  if (PetscInitialize(&n, &avp, nullptr, nullptr) != 0) {
+    status = 1;
+  } else {
+    Handshake hs(inter);
+    try {
+      status = color == 1 ? run_solid(scene_name, inter, hs) : run_fluid(scene_name, inter, hs);
+    } catch (const std::invalid_argument& e) {
+      print_error(e.what());
+      status = 1;
+    } catch (const std::exception& e) {
+      print_error(e.what());
+      status = 2;
+    }
+    if (!hs.done()) hs.agree(0);  // the fluid side failed before the solid side was told to start
+    PetscFinalize();
+  }
+  if (inter != MPI_COMM_NULL) MPI_Comm_free(&inter);
+  MPI_Comm_free(&local);
+  MPI_Finalize();
+  return status;
+}
+
+}  // namespace cellfsi::app

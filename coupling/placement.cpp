@@ -1,0 +1,128 @@
+#include "coupling/placement.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include <CGAL/Boolean_set_operations_2.h>
+#include <CGAL/Exact_predicates_exact_constructions_kernel.h>
+#include <CGAL/Polygon_2.h>
+#include <CGAL/Polygon_with_holes_2.h>
+
+#include "geometry/inversion.hpp"
+#include "geometry/patch_vtk.hpp"
+#include "geometry/refine.hpp"
+
+namespace cellfsi::coupling {
+
+using geometry::Param;
+using geometry::Patch;
+using geometry::Vec3;
+
+namespace {
+
+using Kernel = CGAL::Exact_predicates_exact_constructions_kernel;
+using Polygon = CGAL::Polygon_2<Kernel>;
+using PolygonWithHoles = CGAL::Polygon_with_holes_2<Kernel>;
+
+/// The closed curve xi_0 = u of a 2D body, sampled: a counter-clockwise polygon.
+Polygon boundary_polygon(const Patch& p, double u) {
+  const Patch curve = geometry::isoparametric(p, 0, u);
+  std::vector<double> t = geometry::sample_values(curve.knots(0), 8);
+  t.pop_back();  // closed: the last point repeats the first
+  Polygon poly;
+  for (double s : t) {
+    const Vec3 x = curve.point({s, 0, 0});
+    poly.push_back(Kernel::Point_2(x[0], x[1]));
+  }
+  if (poly.is_clockwise_oriented()) poly.reverse_orientation();
+  return poly;
+}
+
+PolygonWithHoles region_2d(const BodyPlacement& b) {
+  const geometry::KnotVector& k0 = b.patch.knots(0);
+  Polygon outer = boundary_polygon(b.patch, k0.b());
+  if (!b.membrane) return PolygonWithHoles(outer);
+  Polygon inner = boundary_polygon(b.patch, k0.a());
+  if (CGAL::abs(inner.area()) > CGAL::abs(outer.area())) std::swap(inner, outer);
+  inner.reverse_orientation();  // holes are clockwise
+  PolygonWithHoles r(outer);
+  r.add_hole(inner);
+  return r;
+}
+
+}  // namespace
+
+void check_inside(const Locator& locator, const BodyPlacement& body) {
+  for (const Param& xi : geometry::sample_grid(body.patch, 4)) {
+    const Vec3 x = body.patch.point(xi);
+    if (!locator.locate(x).found) {
+      std::ostringstream os;
+      os << "body '" << body.name << "' is not inside the fluid domain: its point ("
+         << x.head(body.patch.physical_dim()).transpose()
+         << ") cm lies outside (move its centre or shrink it)";
+      throw std::invalid_argument(os.str());
+    }
+  }
+}
+
+void check_no_overlap(const std::vector<BodyPlacement>& bodies) {
+  for (size_t i = 0; i < bodies.size(); ++i)
+    for (size_t j = i + 1; j < bodies.size(); ++j) {
+      const BodyPlacement &a = bodies[i], &b = bodies[j];
+      bool overlap = false;
+      if (a.patch.physical_dim() == 2) {
+        overlap = CGAL::do_intersect(region_2d(a), region_2d(b));
+      } else {
+        for (int pass = 0; pass < 2 && !overlap; ++pass) {
+          const BodyPlacement& p = pass == 0 ? a : b;
+          const BodyPlacement& q = pass == 0 ? b : a;
+          const geometry::PointInverter inv(q.patch);
+          for (const Param& xi : geometry::sample_grid(p.patch, 2))
+            if (inv.invert(p.patch.point(xi)).inside) {
+              overlap = true;
+              break;
+            }
+        }
+      }
+      if (overlap)
+        throw std::invalid_argument("bodies '" + a.name + "' and '" + b.name +
+                                    "' overlap (move their centres apart or make them smaller)");
+    }
+}
+
+Resolution resolution(const Patch& eulerian, const BodyPlacement& body) {
+  // Extent of an element along direction d: the largest distance between its corners that differ only in d.
+  auto extents = [](const Patch& p, int e, double out[3]) {
+    Param lo, hi;
+    p.element_bounds(p.element_multi_index(e), lo, hi);
+    const int P = p.param_dim();
+    for (int d = 0; d < P; ++d) {
+      out[d] = 0;
+      for (int c = 0; c < (1 << P); ++c) {
+        if (c & (1 << d)) continue;
+        Param x0, x1;
+        for (int k = 0; k < 3; ++k) x0[k] = x1[k] = k < P ? ((c >> k) & 1 ? hi[k] : lo[k]) : 0.0;
+        x1[d] = hi[d];
+        x0[d] = lo[d];
+        out[d] = std::max(out[d], (p.point(x1) - p.point(x0)).norm());
+      }
+    }
+  };
+  Resolution r;
+  r.fluid_element = 1e300;
+  double ext[3];
+  for (int e = 0; e < eulerian.n_elements(); ++e) {
+    extents(eulerian, e, ext);
+    for (int d = 0; d < eulerian.param_dim(); ++d) r.fluid_element = std::min(r.fluid_element, ext[d]);
+  }
+  for (int e = 0; e < body.patch.n_elements(); ++e) {
+    extents(body.patch, e, ext);
+    for (int d = body.membrane ? 1 : 0; d < body.patch.param_dim(); ++d)
+      r.solid_element = std::max(r.solid_element, ext[d]);
+  }
+  return r;
+}
+
+}  // namespace cellfsi::coupling

@@ -1,0 +1,308 @@
+#include "coupling/remote_solid.hpp"
+
+#include <cstring>
+#include <stdexcept>
+
+namespace cellfsi::coupling {
+
+namespace {
+
+constexpr int kHeaderTag = 7101, kDataTag = 7102;
+
+void check(int err, const char* what) {
+  if (err != MPI_SUCCESS) throw std::runtime_error(std::string("MPI error in ") + what);
+}
+
+std::vector<double> encode(const std::string& s) { return std::vector<double>(s.begin(), s.end()); }
+std::string decode(const std::vector<double>& d) {
+  std::string s;
+  for (double c : d) s.push_back(static_cast<char>(c));
+  return s;
+}
+
+void put(std::vector<double>& out, const solid::Vec3& v) { out.insert(out.end(), v.data(), v.data() + 3); }
+void put(std::vector<double>& out, const solid::Mat3& m) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) out.push_back(m(r, c));
+}
+solid::Vec3 vec(const double* p) { return solid::Vec3(p[0], p[1], p[2]); }
+solid::Mat3 mat(const double* p) {
+  solid::Mat3 m;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) m(r, c) = p[3 * r + c];
+  return m;
+}
+std::vector<solid::Vec3> vecs(const std::vector<double>& d) {
+  std::vector<solid::Vec3> v(d.size() / 3);
+  for (size_t i = 0; i < v.size(); ++i) v[i] = vec(&d[3 * i]);
+  return v;
+}
+std::vector<double> flat(const std::vector<solid::Vec3>& v) {
+  std::vector<double> d;
+  d.reserve(3 * v.size());
+  for (const auto& x : v) put(d, x);
+  return d;
+}
+
+}  // namespace
+
+// ----------------------------------------------------------------------------------------------------
+// Exchange
+
+Exchange::Exchange(MPI_Comm inter, std::size_t mailbox_bytes) : inter_(inter) {
+  int is_inter = 0;
+  check(MPI_Comm_test_inter(inter, &is_inter), "MPI_Comm_test_inter");
+  if (!is_inter) throw std::invalid_argument("Exchange: needs an intercommunicator");
+  MPI_Comm_size(inter, &local_size_);
+  MPI_Comm_remote_size(inter, &remote_size_);
+  // The group whose smallest world rank is lower comes first in the merged communicator.
+  int world = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &world);
+  int remote_min = 0, local_min = 0;
+  MPI_Allreduce(&world, &remote_min, 1, MPI_INT, MPI_MIN,
+                inter);  // on an intercommunicator: the remote group's
+  MPI_Allreduce(&remote_min, &local_min, 1, MPI_INT, MPI_MIN, inter);  // and back: the local group's
+  low_ = local_min < remote_min;
+  check(MPI_Intercomm_merge(inter, low_ ? 0 : 1, &merged_), "MPI_Intercomm_merge");
+  check(MPI_Comm_split_type(merged_, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node_), "MPI_Comm_split_type");
+  MPI_Group merged_group, node_group;
+  MPI_Comm_group(merged_, &merged_group);
+  MPI_Comm_group(node_, &node_group);
+  std::vector<int> in_merged(remote_size_);
+  for (int r = 0; r < remote_size_; ++r) in_merged[r] = low_ ? local_size_ + r : r;
+  remote_node_rank_.assign(remote_size_, MPI_UNDEFINED);
+  MPI_Group_translate_ranks(merged_group, remote_size_, in_merged.data(), node_group,
+                            remote_node_rank_.data());
+  MPI_Group_free(&merged_group);
+  MPI_Group_free(&node_group);
+  for (int& r : remote_node_rank_)
+    if (r == MPI_UNDEFINED) r = -1;
+  capacity_ = mailbox_bytes / sizeof(double);
+  if (capacity_ > 0) {
+    check(MPI_Win_allocate_shared(static_cast<MPI_Aint>(capacity_ * sizeof(double)), sizeof(double),
+                                  MPI_INFO_NULL, node_, &mine_, &win_),
+          "MPI_Win_allocate_shared");
+    check(MPI_Win_lock_all(MPI_MODE_NOCHECK, win_), "MPI_Win_lock_all");
+  }
+}
+
+Exchange::~Exchange() {
+  if (win_ != MPI_WIN_NULL) {
+    MPI_Win_unlock_all(win_);
+    MPI_Win_free(&win_);
+  }
+  if (node_ != MPI_COMM_NULL) MPI_Comm_free(&node_);
+  if (merged_ != MPI_COMM_NULL) MPI_Comm_free(&merged_);
+}
+
+bool Exchange::shared_with(int peer) const { return capacity_ > 0 && remote_node_rank_.at(peer) >= 0; }
+
+void Exchange::send(int peer, int op, int body, const std::vector<double>& data) {
+  const bool via_shared = shared_with(peer) && data.size() <= capacity_;
+  std::int64_t header[4] = {op, body, static_cast<std::int64_t>(data.size()), via_shared ? 1 : 0};
+  if (via_shared) {
+    MPI_Aint size = 0;
+    int unit = 0;
+    double* box = nullptr;
+    check(MPI_Win_shared_query(win_, remote_node_rank_[peer], &size, &unit, &box), "MPI_Win_shared_query");
+    if (!data.empty()) std::memcpy(box, data.data(), data.size() * sizeof(double));
+    MPI_Win_sync(win_);  // the copy is visible before the header arrives
+    shared_bytes_ += data.size() * sizeof(double);
+  }
+  check(MPI_Send(header, 4, MPI_INT64_T, peer, kHeaderTag, inter_), "MPI_Send");
+  if (!via_shared && !data.empty()) {
+    check(MPI_Send(data.data(), static_cast<int>(data.size()), MPI_DOUBLE, peer, kDataTag, inter_),
+          "MPI_Send");
+    message_bytes_ += data.size() * sizeof(double);
+  }
+}
+
+Exchange::Message Exchange::recv(int peer) {
+  std::int64_t header[4];
+  check(MPI_Recv(header, 4, MPI_INT64_T, peer, kHeaderTag, inter_, MPI_STATUS_IGNORE), "MPI_Recv");
+  Message m;
+  m.op = static_cast<int>(header[0]);
+  m.body = static_cast<int>(header[1]);
+  m.data.resize(static_cast<size_t>(header[2]));
+  if (header[3]) {
+    MPI_Win_sync(win_);
+    if (!m.data.empty()) std::memcpy(m.data.data(), mine_, m.data.size() * sizeof(double));
+  } else if (!m.data.empty()) {
+    check(MPI_Recv(m.data.data(), static_cast<int>(m.data.size()), MPI_DOUBLE, peer, kDataTag, inter_,
+                   MPI_STATUS_IGNORE),
+          "MPI_Recv");
+  }
+  return m;
+}
+
+// ------------------------------------------------------------------------------------------------
+// RemoteSolid
+
+RemoteSolid::RemoteSolid(Exchange& exchange, MPI_Comm fluid_comm, int index, std::string name,
+                         geometry::Patch reference, bool membrane)
+    : ex_(exchange),
+      comm_(fluid_comm),
+      index_(index),
+      owner_(body_owner(index, exchange.remote_size())),
+      name_(std::move(name)),
+      reference_(std::move(reference)),
+      membrane_(membrane) {}
+
+std::vector<double> RemoteSolid::call(SolidOp op, const std::vector<double>& data) const {
+  int rank = 0;
+  MPI_Comm_rank(comm_, &rank);
+  std::vector<double> reply;
+  long n = 0;
+  int failed = 0;
+  if (rank == 0) {
+    ex_.send(owner_, static_cast<int>(op), index_, data);
+    Exchange::Message m = ex_.recv(owner_);
+    failed = m.op == static_cast<int>(SolidOp::error);
+    reply = std::move(m.data);
+    n = static_cast<long>(reply.size());
+  }
+  MPI_Bcast(&failed, 1, MPI_INT, 0, comm_);
+  MPI_Bcast(&n, 1, MPI_LONG, 0, comm_);
+  reply.resize(static_cast<size_t>(n));
+  if (n > 0) MPI_Bcast(reply.data(), static_cast<int>(n), MPI_DOUBLE, 0, comm_);
+  if (failed) throw std::runtime_error("body '" + name_ + "' (solid side): " + decode(reply));
+  return reply;
+}
+
+void RemoteSolid::hello() {
+  const std::vector<double> r = call(SolidOp::hello, {});
+  if (r.size() != 3 || r[0] != reference_.n_control() || r[1] != dim() || (r[2] != 0) != membrane_)
+    throw std::runtime_error(
+        "body '" + name_ + "': the solid side built it differently (were both sides given the same scene?)");
+}
+
+void RemoteSolid::begin_step(const solid::TimeParameters& t) {
+  call(SolidOp::begin_step, {t.dt, t.alpha_m, t.alpha_f, t.gamma});
+}
+
+std::vector<solid::Vec3> RemoteSolid::collocation_points() const {
+  return vecs(call(SolidOp::collocation_points, {}));
+}
+
+double RemoteSolid::kinematic_update(const std::vector<solid::VelocitySample>& samples) {
+  std::vector<double> d;
+  d.reserve(12 * samples.size());
+  for (const auto& s : samples) put(d, s.v), put(d, s.grad_v);
+  return call(SolidOp::kinematic_update, d).at(0);
+}
+
+std::vector<solid::QuadratureData> RemoteSolid::quadrature_data(double fluid_density) const {
+  const std::vector<double> d = call(SolidOp::quadrature_data, {fluid_density});
+  std::vector<solid::QuadratureData> q(d.size() / 15);
+  for (size_t i = 0; i < q.size(); ++i) {
+    const double* p = &d[15 * i];
+    q[i].x = vec(p);
+    q[i].weight = p[3];
+    q[i].stress = mat(p + 4);
+    q[i].beta = p[13];
+    q[i].shear_modulus = p[14];
+  }
+  return q;
+}
+
+std::vector<solid::Vec3> RemoteSolid::interface_points() const {
+  return vecs(call(SolidOp::interface_points, {}));
+}
+
+void RemoteSolid::end_step() { call(SolidOp::end_step, {}); }
+
+void RemoteSolid::set_rate(const std::vector<solid::Vec3>& rate) { call(SolidOp::set_rate, flat(rate)); }
+
+geometry::Patch RemoteSolid::current_patch() const {
+  std::vector<geometry::Vec3> cps = vecs(call(SolidOp::current_patch, {}));
+  return geometry::Patch(reference_.all_knots(), dim(), std::move(cps), reference_.weights(),
+                         reference_.shifts());
+}
+
+std::vector<solid::Mat3> RemoteSolid::cauchy_stress(const std::vector<geometry::Param>& xi) const {
+  std::vector<double> d;
+  for (const auto& p : xi) d.insert(d.end(), p.begin(), p.end());
+  const std::vector<double> r = call(SolidOp::cauchy_stress, d);
+  std::vector<solid::Mat3> s(r.size() / 9);
+  for (size_t i = 0; i < s.size(); ++i) s[i] = mat(&r[9 * i]);
+  return s;
+}
+
+// ------------------------------------------------------------------------------------------------ the server
+
+void serve_solids(Exchange& ex, const std::vector<solid::SolidSolver*>& bodies) {
+  for (;;) {
+    Exchange::Message m = ex.recv(0);
+    const auto op = static_cast<SolidOp>(m.op);
+    if (op == SolidOp::shutdown) return;
+    std::vector<double> out;
+    try {
+      if (m.body < 0 || m.body >= static_cast<int>(bodies.size()) || !bodies[m.body])
+        throw std::runtime_error("no body " + std::to_string(m.body) + " on this solid rank");
+      solid::SolidSolver& b = *bodies[m.body];
+      const std::vector<double>& d = m.data;
+      switch (op) {
+        case SolidOp::hello:
+          out = {static_cast<double>(b.reference_patch().n_control()), static_cast<double>(b.dim()),
+                 b.is_membrane() ? 1.0 : 0.0};
+          break;
+        case SolidOp::begin_step: {
+          solid::TimeParameters t;
+          t.dt = d.at(0), t.alpha_m = d.at(1), t.alpha_f = d.at(2), t.gamma = d.at(3);
+          b.begin_step(t);
+          break;
+        }
+        case SolidOp::collocation_points:
+          out = flat(b.collocation_points());
+          break;
+        case SolidOp::kinematic_update: {
+          std::vector<solid::VelocitySample> s(d.size() / 12);
+          for (size_t i = 0; i < s.size(); ++i) s[i].v = vec(&d[12 * i]), s[i].grad_v = mat(&d[12 * i + 3]);
+          out = {b.kinematic_update(s)};
+          break;
+        }
+        case SolidOp::quadrature_data:
+          for (const auto& q : b.quadrature_data(d.at(0))) {
+            put(out, q.x);
+            out.push_back(q.weight);
+            put(out, q.stress);
+            out.push_back(q.beta);
+            out.push_back(q.shear_modulus);
+          }
+          break;
+        case SolidOp::interface_points:
+          out = flat(b.interface_points());
+          break;
+        case SolidOp::end_step:
+          b.end_step();
+          break;
+        case SolidOp::set_rate:
+          b.set_rate(vecs(d));
+          break;
+        case SolidOp::current_patch:
+          out = flat(b.current_patch().control_points());
+          break;
+        case SolidOp::cauchy_stress: {
+          std::vector<geometry::Param> xi(d.size() / 3);
+          for (size_t i = 0; i < xi.size(); ++i) xi[i] = {d[3 * i], d[3 * i + 1], d[3 * i + 2]};
+          for (const auto& s : b.cauchy_stress(xi)) put(out, s);
+          break;
+        }
+        default:
+          throw std::runtime_error("unknown request " + std::to_string(m.op));
+      }
+      ex.send(0, m.op, m.body, out);
+    } catch (const std::exception& e) {
+      ex.send(0, static_cast<int>(SolidOp::error), m.body, encode(e.what()));
+    }
+  }
+}
+
+void shutdown_solids(Exchange& ex, MPI_Comm fluid_comm) {
+  int rank = 0;
+  MPI_Comm_rank(fluid_comm, &rank);
+  if (rank != 0) return;
+  for (int r = 0; r < ex.remote_size(); ++r) ex.send(r, static_cast<int>(SolidOp::shutdown), -1, {});
+}
+
+}  // namespace cellfsi::coupling

@@ -1,0 +1,176 @@
+#include "solid/body_metrics.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+#include "geometry/refine.hpp"
+
+namespace cellfsi::solid {
+
+using geometry::Param;
+using geometry::Patch;
+using geometry::Vec3;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+/// a wrapped into (-period/2, period/2].
+double wrap(double a, double period) {
+  a = std::fmod(a, period);
+  if (a > period / 2) a -= period;
+  if (a <= -period / 2) a += period;
+  return a;
+}
+
+}  // namespace
+
+BodyTracker::BodyTracker(const Patch& reference, bool membrane, int plane_dir, int n_material_points)
+    : membrane_(membrane), dim_(reference.physical_dim()), plane_dir_(plane_dir) {
+  if (reference.param_dim() != dim_)
+    throw std::invalid_argument("BodyTracker: the patch must fill its space");
+  if (plane_dir < 1 || plane_dir >= dim_)
+    throw std::invalid_argument("BodyTracker: plane_dir must be 1.." + std::to_string(dim_ - 1));
+  if (n_material_points < 4) throw std::invalid_argument("BodyTracker: at least 4 material points");
+  geometry::RegionMoments region;
+  measure(reference, area0_, boundary0_, region);
+  const geometry::PrincipalAxes ax = geometry::principal_axes(region, dim_);
+  elongated_ = ax.values[0] > 1.01 * ax.values[dim_ - 1];
+  // Material points: mid-thickness of a membrane, the outer face of a bulky body.
+  const geometry::KnotVector& k0 = reference.knots(0);
+  const double xi0 = membrane ? 0.5 * (k0.a() + k0.b()) : k0.b();
+  const geometry::KnotVector& k1 = reference.knots(1);
+  if (dim_ == 2) {
+    for (int i = 0; i < n_material_points; ++i)
+      material_xi_.push_back({xi0, k1.a() + (k1.b() - k1.a()) * i / n_material_points, 0});
+  } else {
+    const geometry::KnotVector& k2 = reference.knots(2);
+    const int n1 = std::max(2, n_material_points / 2);
+    for (int j = 0; j < n1; ++j)
+      for (int i = 0; i < n_material_points; ++i)
+        material_xi_.push_back({xi0, k1.a() + (k1.b() - k1.a()) * (j + 0.5) / n1,
+                                k2.a() + (k2.b() - k2.a()) * i / n_material_points});
+  }
+  for (const Param& xi : material_xi_) {
+    const Vec3 y = reference.point(xi) - region.centroid;
+    weights_.push_back(dim_ == 2 ? 1.0 : y[0] * y[0] + y[plane_dir_] * y[plane_dir_]);
+  }
+}
+
+void BodyTracker::measure(const Patch& p, double& area, double& boundary,
+                          geometry::RegionMoments& region) const {
+  area = geometry::patch_measure(p);
+  if (membrane_) {
+    const geometry::MembraneShape s = geometry::membrane_shape(p, 0);
+    boundary = s.boundary;
+    region = s.moments;
+  } else {
+    boundary = geometry::patch_measure(geometry::isoparametric(p, 0, p.knots(0).b()));
+    region = geometry::patch_moments(p);
+  }
+}
+
+std::vector<double> BodyTracker::material_angles(const Patch& p, const Vec3& centroid) const {
+  std::vector<double> a;
+  a.reserve(material_xi_.size());
+  for (const Param& xi : material_xi_) {
+    const Vec3 y = p.point(xi) - centroid;
+    a.push_back(std::atan2(y[plane_dir_], y[0]));
+  }
+  return a;
+}
+
+void BodyTracker::record(double time, const Patch& current) {
+  if (!history_.empty() && !(time > history_.back().time))
+    throw std::invalid_argument("BodyTracker::record: times must increase");
+  double area = 0, boundary = 0;
+  geometry::RegionMoments region;
+  measure(current, area, boundary, region);
+  Sample s;
+  s.time = time;
+  s.r_a = (area - area0_) / area0_;
+  s.r_p = (boundary - boundary0_) / boundary0_;
+  s.centroid = region.centroid;
+  const geometry::PrincipalAxes ax = geometry::principal_axes(region, dim_);
+  const double axis = std::atan2(ax.axes(plane_dir_, 0), ax.axes(0, 0));
+  std::vector<double> angles = material_angles(current, region.centroid);
+  if (history_.empty()) {
+    s.axis = wrap(axis, kPi);
+  } else {
+    const Sample& prev = history_.back();
+    s.axis = prev.axis + wrap(axis - prev.axis, kPi);  // the axis has no sign: unwrap modulo pi
+    for (size_t i = 0; i < angles.size(); ++i)
+      angles[i] = last_angles_[i] + wrap(angles[i] - last_angles_[i], 2 * kPi);
+  }
+  double wsum = 0, msum = 0;
+  for (size_t i = 0; i < angles.size(); ++i) wsum += weights_[i], msum += weights_[i] * angles[i];
+  s.material = msum / wsum;
+  last_angles_ = std::move(angles);
+  history_.push_back(s);
+}
+
+std::vector<Metric> BodyTracker::metrics() const {
+  if (history_.empty()) throw std::logic_error("BodyTracker::metrics before the first record");
+  const Sample& s = history_.back();
+  double w_mat = 0, w_axis = 0;
+  if (history_.size() > 1) {
+    const Sample& p = history_[history_.size() - 2];
+    const double dt = s.time - p.time;
+    w_mat = -(s.material - p.material) / (2 * kPi * dt);
+    w_axis = -(s.axis - p.axis) / (2 * kPi * dt);
+  }
+  std::vector<Metric> m{{"r_A", s.r_a}, {"r_P", s.r_p}};
+  for (int d = 0; d < dim_; ++d) m.emplace_back(std::string("centroid_") + "xyz"[d], s.centroid[d]);
+  if (elongated_) m.emplace_back("theta_deg", wrap(s.axis, kPi) * 180 / kPi);
+  if (membrane_) {
+    m.emplace_back("omega_tt", w_mat);
+    if (elongated_) m.emplace_back("omega_tu", w_axis);
+  } else {
+    m.emplace_back("omega_tu", w_mat);
+  }
+  return m;
+}
+
+std::vector<Metric> BodyTracker::summary(double average_from) const {
+  std::vector<const Sample*> win;
+  for (const Sample& s : history_)
+    if (s.time >= average_from) win.push_back(&s);
+  if (history_.empty()) throw std::logic_error("BodyTracker::summary before the first record");
+  double max_ra = 0, max_rp = 0;
+  for (const Sample& s : history_)
+    max_ra = std::max(max_ra, std::abs(s.r_a)), max_rp = std::max(max_rp, std::abs(s.r_p));
+  std::vector<Metric> m{{"r_A", history_.back().r_a},
+                        {"r_P", history_.back().r_p},
+                        {"max_abs_r_A", max_ra},
+                        {"max_abs_r_P", max_rp}};
+  if (win.size() < 2) return m;  // no window to average over (a run of one step)
+  const Sample& a = *win.front();
+  const Sample& b = *win.back();
+  const double T = b.time - a.time;
+  if (elongated_) {
+    double mean = 0, lo = win.front()->axis, hi = lo;
+    // Trapezoidal time average (steps may differ in length).
+    for (size_t i = 1; i < win.size(); ++i)
+      mean += 0.5 * (win[i]->axis + win[i - 1]->axis) * (win[i]->time - win[i - 1]->time);
+    for (const Sample* s : win) lo = std::min(lo, s->axis), hi = std::max(hi, s->axis);
+    mean /= T;
+    // The mean is shifted by the same multiple of pi as the unwrapped axis; report it in (-90, 90].
+    m.emplace_back("theta_deg", wrap(mean, kPi) * 180 / kPi);
+    m.emplace_back("theta_oscillation_deg", 0.5 * (hi - lo) * 180 / kPi);
+  }
+  const double w_mat = -(b.material - a.material) / (2 * kPi * T);
+  const double w_axis = -(b.axis - a.axis) / (2 * kPi * T);
+  if (membrane_) {
+    m.emplace_back("omega_tt", w_mat);
+    if (elongated_) m.emplace_back("omega_tu", w_axis);
+  } else {
+    m.emplace_back("omega_tu", w_mat);
+  }
+  m.emplace_back("average_from", a.time);
+  m.emplace_back("average_to", b.time);
+  return m;
+}
+
+}  // namespace cellfsi::solid

@@ -1,0 +1,73 @@
+#pragma once
+// Shape and motion measures of one immersed body over time, from its patches (paper Sec. 3.3-3.4, DESIGN.md
+// section 3). Plain functions of the geometry: they never touch a solver, so they serve every SolidSolver and
+// both launch modes.
+//
+//   r_A        relative change of the solid's own area/volume (paper Eq. (21): for a membrane the area of
+//              the thin band, the quantity that spurious mass-conservation errors change)
+//   r_P        relative change of the perimeter/surface area (Eq. (22)): of the mid-surface for a membrane,
+//   of
+//              the outer boundary for a bulky body
+//   theta_deg  inclination: angle from the flow direction (+x) to the long axis (least second moment) of the
+//              region a membrane encloses (of the body itself when bulky), counter-clockwise positive,
+//              unwrapped in time and reported in (-90, 90]
+//   omega_tt   tank-treading frequency of a membrane: mean angular velocity of its material points about the
+//              centroid, in turns per second, positive clockwise (the sense of a shear flow with
+//              gammadot > 0)
+//   omega_tu   tumbling frequency: turns per second of the long axis (membranes); of the material points
+//              for a bulky body (a round nucleus has no axis, but turns as a whole)
+// Angles are taken in the shear plane spanned by x and `plane_dir` (the wall-normal direction).
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "geometry/measures.hpp"
+#include "geometry/patch.hpp"
+
+namespace cellfsi::solid {
+
+using Metric = std::pair<std::string, double>;
+
+class BodyTracker {
+ public:
+  /// `reference`: the body in its reference configuration (direction 0 through the thickness or from the
+  /// centre, as the builders make it). `n_material_points` points along direction 1 (and 2 in 3D) are
+  /// followed for omega.
+  BodyTracker(const geometry::Patch& reference, bool membrane, int plane_dir = 1, int n_material_points = 64);
+
+  /// Records the body's configuration at `time` (call once per step, in order).
+  void record(double time, const geometry::Patch& current);
+
+  /// Values at the last record (omega: over the last interval; 0 before the second record).
+  std::vector<Metric> metrics() const;
+  /// The run's results: final r_A and r_P, the largest |r_A| and |r_P|, and over the records with time >=
+  /// average_from (the oscillatory regime) the mean inclination, its half peak-to-peak oscillation and the
+  /// mean frequencies (left out when fewer than two records fall into the window).
+  std::vector<Metric> summary(double average_from) const;
+
+  bool membrane() const { return membrane_; }
+  /// True when the body has a long axis (second moments differ by more than 1 %): theta is defined.
+  bool elongated() const { return elongated_; }
+
+ private:
+  struct Sample {
+    double time = 0, r_a = 0, r_p = 0;
+    double axis = 0;      // long-axis angle, unwrapped [rad]
+    double material = 0;  // mean unwrapped angle of the material points [rad]
+    geometry::Vec3 centroid = geometry::Vec3::Zero();
+  };
+  void measure(const geometry::Patch& p, double& area, double& boundary,
+               geometry::RegionMoments& region) const;
+  std::vector<double> material_angles(const geometry::Patch& p, const geometry::Vec3& centroid) const;
+
+  bool membrane_;
+  int dim_, plane_dir_;
+  bool elongated_ = false;
+  double area0_ = 0, boundary0_ = 0;
+  std::vector<geometry::Param> material_xi_;
+  std::vector<double> last_angles_;  // unwrapped, per material point
+  std::vector<double> weights_;      // per material point (1 in 2D; squared in-plane radius in 3D)
+  std::vector<Sample> history_;
+};
+
+}  // namespace cellfsi::solid

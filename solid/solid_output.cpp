@@ -1,0 +1,41 @@
+#include "solid/solid_output.hpp"
+
+#include <algorithm>
+#include <cstdio>
+
+namespace cellfsi::solid {
+
+SolidSeriesWriter::SolidSeriesWriter(std::string dir, bool writes, int samples_per_element)
+    : dir_(std::move(dir)), writes_(writes), samples_(samples_per_element) {}
+
+void SolidSeriesWriter::write(double time, const std::vector<SolidSolver*>& bodies) {
+  for (size_t b = 0; b < bodies.size(); ++b) {
+    const geometry::Patch ref = bodies[b]->reference_patch();
+    const geometry::Patch cur = bodies[b]->current_patch();
+    std::vector<geometry::Param> xi = geometry::sample_grid(ref, samples_);
+    // A bulky body's centre is a degenerate face (F undefined there): sample just off it.
+    const geometry::KnotVector& k0 = ref.knots(0);
+    if (!bodies[b]->is_membrane())
+      for (geometry::Param& p : xi) p[0] = std::max(p[0], k0.a() + 1e-9 * (k0.b() - k0.a()));
+    const std::vector<Mat3> sigma = bodies[b]->cauchy_stress(xi);
+    if (!writes_) continue;
+    const int D = ref.physical_dim();
+    geometry::PointField disp{"displacement", 3, {}}, jac{"J", 1, {}}, stress{"stress", 9, {}};
+    for (size_t i = 0; i < xi.size(); ++i) {
+      const geometry::MapValues X = ref.evaluate(xi[i], 1), x = cur.evaluate(xi[i], 1);
+      const geometry::Vec3 u = x.x - X.x;
+      disp.values.insert(disp.values.end(), u.data(), u.data() + 3);
+      jac.values.push_back(x.dx.topLeftCorner(D, D).determinant() / X.dx.topLeftCorner(D, D).determinant());
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) stress.values.push_back(sigma[i](r, c));
+    }
+    char name[512];
+    std::snprintf(name, sizeof name, "solid_%s_%06d.vts", bodies[b]->name().c_str(), count_);
+    geometry::write_patch_vts(cur, dir_ + "/" + name, samples_, {disp, jac, stress});
+    entries_.push_back({name, time, static_cast<int>(b), bodies[b]->name()});
+  }
+  ++count_;
+  if (writes_) geometry::write_pvd(dir_ + "/solid.pvd", entries_);
+}
+
+}  // namespace cellfsi::solid
