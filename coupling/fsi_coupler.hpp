@@ -4,8 +4,8 @@
 //   steps 1-3, per body: the fluid velocity at the body's collocation points (at t_{n+alpha_f} of the current
 //   fluid iterate) -> the body's kinematic update; step 4: the bodies' quadrature data located in the
 //   Eulerian mesh and handed to the fluid as immersed points, and s^h marked (s_I on the basis functions
-//   around the interface points) -> the fluid residual R_MC; steps 5-7: K_MC, a linear solve, the update of
-//   the fluid unknowns.
+//   around the interface points; once per step, at the first iteration) -> the fluid residual R_MC; steps
+//   5-7: K_MC, a linear solve, the update of the fluid unknowns.
 // It stops when the fluid residual and every body's kinematic residual have dropped by `tolerance` (paper:
 // 1e-4) below the largest value each has had in the step.
 #include <string>
@@ -48,7 +48,7 @@ class FsiCoupler {
   CouplerStats step();
 
  private:
-  void update_immersed();
+  void update_immersed(bool mark);  // mark: also rebuild s^h from the interface points
   fluid::FluidSolver& fluid_;
   std::vector<solid::SolidSolver*> bodies_;
   CouplerOptions opt_;
