@@ -802,3 +802,70 @@ TEST(VmsKernel, ElementTangentHandlesOddSizesAndAccumulates) {
   std::printf("  element vs summed point tangents, odd sizes, into a filled K: worst %.2e (tol %.0e)\n",
               worst, kRefTol);
 }
+
+// vms_tangent_element_blocks: the BAIJ block layout of the same sums, without and with the sum-factorised
+// (tensor-product) path. The tensor case builds N and dN from univariate factors, so both paths see the same
+// element.
+namespace {
+
+/// K (vms_tangent_element layout) from Kb (node blocks, each column-major).
+std::vector<double> unblock(const ElementCase& el, const std::vector<double>& Kb) {
+  const int nc = el.nc(), m = el.size();
+  std::vector<double> K(static_cast<size_t>(m) * m);
+  for (int A = 0; A < el.n; ++A)
+    for (int B = 0; B < el.n; ++B)
+      for (int c = 0; c < nc; ++c)
+        for (int e = 0; e < nc; ++e)
+          K[static_cast<size_t>(A * nc + c) * m + B * nc + e] =
+              Kb[static_cast<size_t>(A * el.n + B) * nc * nc + e * nc + c];
+  return K;
+}
+
+}  // namespace
+
+TEST(VmsKernel, BlockElementTangentMatchesThePointSumsWithAndWithoutSumFactorisation) {
+  double worst_plain = 0, worst_tensor = 0;
+  unsigned seed = 1200;
+  for (const Scales* sc : {&kPhysical, &kBalanced})
+    for (bool stokes : {false, true})
+      for (int p : {2, 3}) {
+        const int n1 = p + 1, nq1 = p + 1;
+        ElementCase el = make_element(2, n1 * n1, nq1 * nq1, stokes, *sc, seed++);
+        // Univariate factors (values and x-derivatives in each direction) and the tensor-product basis.
+        std::mt19937 rng(seed++);
+        std::uniform_real_distribution<double> u(-1.0, 1.0);
+        std::vector<double> val[2], der[2];
+        for (int d = 0; d < 2; ++d)
+          for (int k = 0; k < nq1 * n1; ++k)
+            val[d].push_back(0.5 + 0.5 * u(rng)), der[d].push_back(u(rng) / sc->length);
+        for (int q1 = 0; q1 < nq1; ++q1)
+          for (int q0 = 0; q0 < nq1; ++q0)
+            for (int a1 = 0; a1 < n1; ++a1)
+              for (int a0 = 0; a0 < n1; ++a0) {
+                const int q = q0 + nq1 * q1, A = a0 + n1 * a1;
+                const double v0 = val[0][q0 * n1 + a0], v1 = val[1][q1 * n1 + a1];
+                el.N[q * el.n + A] = v0 * v1;
+                el.dN[(q * el.n + A) * 3 + 0] = der[0][q0 * n1 + a0] * v1;
+                el.dN[(q * el.n + A) * 3 + 1] = v0 * der[1][q1 * n1 + a1];
+                el.dN[(q * el.n + A) * 3 + 2] = 0.0;
+              }
+        const std::vector<double> ref = summed_point_tangents(el);
+        TensorFactors tf;
+        for (int d = 0; d < 2; ++d)
+          tf.np[d] = n1, tf.nq[d] = nq1, tf.value[d] = val[d].data(), tf.deriv[d] = der[d].data();
+        std::vector<double> Kb(static_cast<size_t>(el.n) * el.n * el.nc() * el.nc(),
+                               1e300);  // written, not added
+        vms_tangent_element_blocks(el.prm, el.points(), el.ts, Kb.data());
+        const double w_plain = worst_block_error(el, unblock(el, Kb), ref);
+        std::fill(Kb.begin(), Kb.end(), 1e300);
+        vms_tangent_element_blocks(el.prm, el.points(), el.ts, Kb.data(), &tf);
+        const double w_tensor = worst_block_error(el, unblock(el, Kb), ref);
+        EXPECT_LT(w_plain, kRefTol) << sc->name << " p=" << p << (stokes ? " Stokes" : " NS");
+        EXPECT_LT(w_tensor, kRefTol) << sc->name << " p=" << p << (stokes ? " Stokes" : " NS") << " (tensor)";
+        worst_plain = std::max(worst_plain, w_plain);
+        worst_tensor = std::max(worst_tensor, w_tensor);
+      }
+  std::printf(
+      "  block element tangent vs summed point tangents: plain %.2e, sum-factorised %.2e (tol %.0e)\n",
+      worst_plain, worst_tensor, kRefTol);
+}
