@@ -92,24 +92,25 @@ void check_no_overlap(const std::vector<BodyPlacement>& bodies) {
     }
 }
 
-Resolution resolution(const Patch& eulerian, const BodyPlacement& body) {
-  // Extent of an element along direction d: the largest distance between its corners that differ only in d.
-  auto extents = [](const Patch& p, int e, double out[3]) {
-    Param lo, hi;
-    p.element_bounds(p.element_multi_index(e), lo, hi);
-    const int P = p.param_dim();
-    for (int d = 0; d < P; ++d) {
-      out[d] = 0;
-      for (int c = 0; c < (1 << P); ++c) {
-        if (c & (1 << d)) continue;
-        Param x0, x1;
-        for (int k = 0; k < 3; ++k) x0[k] = x1[k] = k < P ? ((c >> k) & 1 ? hi[k] : lo[k]) : 0.0;
-        x1[d] = hi[d];
-        x0[d] = lo[d];
-        out[d] = std::max(out[d], (p.point(x1) - p.point(x0)).norm());
-      }
+void element_extents(const Patch& p, int e, double out[3]) {
+  Param lo, hi;
+  p.element_bounds(p.element_multi_index(e), lo, hi);
+  const int P = p.param_dim();
+  for (int d = 0; d < P; ++d) {
+    out[d] = 0;
+    for (int c = 0; c < (1 << P); ++c) {
+      if (c & (1 << d)) continue;
+      Param x0, x1;
+      for (int k = 0; k < 3; ++k) x0[k] = x1[k] = k < P ? ((c >> k) & 1 ? hi[k] : lo[k]) : 0.0;
+      x1[d] = hi[d];
+      x0[d] = lo[d];
+      out[d] = std::max(out[d], (p.point(x1) - p.point(x0)).norm());
     }
-  };
+  }
+}
+
+Resolution resolution(const Patch& eulerian, const BodyPlacement& body) {
+  const auto extents = element_extents;
   Resolution r;
   r.fluid_element = 1e300;
   double ext[3];

@@ -76,12 +76,16 @@ NurbsSolid::NurbsSolid(std::string name, geometry::Patch reference, std::shared_
       }
   // Drop a degenerate face (all its points coincide).
   bool degenerate = false;
+  geometry::Vec3 lo, hi;
+  reference_.bounding_box(lo, hi);
+  const double size = (hi - lo).norm();
   for (int side = 0; side < 2; ++side) {
     const int a = side == 0 ? 0 : m[0] - 1;
     double spread = 0;
     for (int q : face_points_)
       if (q % m[0] == a) spread = std::max(spread, (reference_points_[q] - reference_points_[a]).norm());
-    if (spread == 0.0) {
+    // Zero up to round-off of the evaluation (relative to the body's size).
+    if (spread <= 1e-12 * size) {
       degenerate = true;
       std::vector<int> keep;
       for (int q : face_points_)

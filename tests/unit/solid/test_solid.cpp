@@ -187,3 +187,17 @@ TEST(NurbsSolid, QuadratureDataOfUndeformedAndRotatedBodies) {
   EXPECT_EQ(static_cast<int>(disk.interface_points().size()),
             geometry::bulky_ellipse(5e-5, 5e-5, 4, 16, 2).n_control(1) - 1);
 }
+
+TEST(NurbsSolid, MembranesAndBulkyBodiesAreTold) {
+  // A bulky body's centre face is degenerate (no interface there); a membrane has two interface faces. The
+  // builders place bodies far from the origin, where the centre's Greville points agree only to round-off.
+  const Vec3 c(1.2e-3, 6e-4, 0);
+  const auto m = std::make_shared<solid::DeviatoricNeoHookean>(40.0);
+  EXPECT_FALSE(
+      solid::NurbsSolid("disk", geometry::bulky_ellipse(2e-4, 2e-4, 9, 44, 2, c), m, 1.1).is_membrane());
+  EXPECT_FALSE(
+      solid::NurbsSolid("ell", geometry::bulky_ellipse(2e-4, 1e-4, 4, 32, 2, c, 0.3), m, 1.1).is_membrane());
+  EXPECT_TRUE(
+      solid::NurbsSolid("cap", geometry::hollow_ellipse(2e-4, 1e-4, 5e-7, 32, 2, c, 1.5707963), m, 1.1)
+          .is_membrane());
+}
