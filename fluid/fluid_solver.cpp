@@ -416,6 +416,27 @@ inline PetscInt local_node(const PetscInt m[3], const PetscInt gxs[3], const Pet
   return ((m[2] - gxs[2]) * gxm[1] + (m[1] - gxs[1])) * gxm[0] + (m[0] - gxs[0]);
 }
 
+/// The first basis function per direction of the element that basis values bv were evaluated in.
+inline void first_functions(const geometry::Patch& patch, const BasisValues& bv, int first[3]) {
+  for (int d = 0; d < 3; ++d) first[d] = d < patch.param_dim() ? bv.span[d] - patch.degree(d) : 0;
+}
+
+/// Calls f(k, node) for each of the (p+1)^d functions of the element whose first functions are `first`: k in
+/// basis order (direction 0 fastest), node its local (ghosted) offset.
+template <class F>
+void for_each_element_node(const geometry::Patch& patch, const int first[3], const PetscInt gxs[3],
+                           const PetscInt gxm[3], F&& f) {
+  int np[3] = {1, 1, 1};
+  for (int d = 0; d < patch.param_dim(); ++d) np[d] = patch.degree(d) + 1;
+  int k = 0;
+  for (int c2 = 0; c2 < np[2]; ++c2)
+    for (int b1 = 0; b1 < np[1]; ++b1)
+      for (int a0 = 0; a0 < np[0]; ++a0, ++k) {
+        const PetscInt m[3] = {first[0] + a0, first[1] + b1, first[2] + c2};
+        f(k, local_node(m, gxs, gxm));
+      }
+}
+
 /// The fields at a point from the element's nodal values (Vf, Vd interleaved by node, dof D + 1; S), for
 /// FluidSolver::assemble. D is a template parameter so that the small loops unroll and the sums stay in
 /// registers.
@@ -732,27 +753,22 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
     S.assign(n, 1.0);
     lidx.resize(n * nd);
     lnode.resize(n);
-    int k = 0;
-    for (int c2 = 0; c2 < np[2]; ++c2)
-      for (int b1 = 0; b1 < np[1]; ++b1)
-        for (int a0 = 0; a0 < np[0]; ++a0, ++k) {
-          const PetscInt m[3] = {first[0] + a0, first[1] + b1, first[2] + c2};
-          const PetscInt node = local_node(m, gxs_, gxm_);
-          lnode[k] = node;
-          S[k] = sh[node];
-          for (int c = 0; c < nd; ++c) {
-            const PetscInt li = node * nd + c;
-            lidx[k * nd + c] = li;
-            const double x1 = u[li], x0 = un[li], xd0 = udn[li];
-            const double xd1 = (x1 - x0) / (gm * dt) - (1.0 - gm) / gm * xd0;
-            if (c < D) {
-              Vf[k * nd + c] = x0 + af * (x1 - x0);
-              Vd[k * nd + c] = xd0 + am * (xd1 - xd0);
-            } else {
-              Vf[k * nd + c] = x1;
-            }
-          }
+    for_each_element_node(patch_, first, gxs_, gxm_, [&](int k, PetscInt node) {
+      lnode[k] = node;
+      S[k] = sh[node];
+      for (int c = 0; c < nd; ++c) {
+        const PetscInt li = node * nd + c;
+        lidx[k * nd + c] = li;
+        const double x1 = u[li], x0 = un[li], xd0 = udn[li];
+        const double xd1 = (x1 - x0) / (gm * dt) - (1.0 - gm) / gm * xd0;
+        if (c < D) {
+          Vf[k * nd + c] = x0 + af * (x1 - x0);
+          Vd[k * nd + c] = xd0 + am * (xd1 - xd0);
+        } else {
+          Vf[k * nd + c] = x1;
         }
+      }
+    });
     return n;
   };
 
@@ -833,8 +849,8 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
   // Immersed-solid points (paper Eq. (10)) in this rank's elements.
   for (const LocatedPoint& ip : immersed_) {
     physical_point(patch_, ip.element, ip.xi, bv, mv, pp);
-    int first[3] = {0, 0, 0};
-    for (int d = 0; d < D; ++d) first[d] = bv.span[d] - patch_.degree(d);
+    int first[3];
+    first_functions(patch_, bv, first);
     const int n = gather(first);
     if (direct.usable()) direct.prepare(n, lnode.data());
     Re.assign(n * nd, 0.0);
@@ -1015,24 +1031,19 @@ std::vector<PointSample> FluidSolver::sample_alpha(Vec X, const std::vector<Inde
     physical_point(patch_, elements[i], xi[i], bv, mv, pp);
     double* o = &buf[i * stride];
     o[0] = 1.0;
-    int first[3] = {0, 0, 0}, np[3] = {1, 1, 1};
-    for (int d = 0; d < D; ++d) first[d] = bv.span[d] - patch_.degree(d), np[d] = patch_.degree(d) + 1;
-    int k = 0;
-    for (int c2 = 0; c2 < np[2]; ++c2)
-      for (int b1 = 0; b1 < np[1]; ++b1)
-        for (int a0 = 0; a0 < np[0]; ++a0, ++k) {
-          const PetscInt m[3] = {first[0] + a0, first[1] + b1, first[2] + c2};
-          const PetscInt node = local_node(m, gxs_, gxm_);
-          for (int c = 0; c < D; ++c) {
-            const PetscInt li = node * nd + c;
-            const double vf = un[li] + af * (x[li] - un[li]);
-            const double rate1 = (x[li] - un[li]) / (gm * dt) - (1.0 - gm) / gm * udn[li];
-            const double rm = udn[li] + am * (rate1 - udn[li]);
-            o[1 + c] += pp.N[k] * vf;
-            for (int j = 0; j < D; ++j) o[4 + 3 * c + j] += pp.dN[3 * k + j] * vf;
-            o[13 + c] += pp.N[k] * rm;
-          }
-        }
+    int first[3];
+    first_functions(patch_, bv, first);
+    for_each_element_node(patch_, first, gxs_, gxm_, [&](int k, PetscInt node) {
+      for (int c = 0; c < D; ++c) {
+        const PetscInt li = node * nd + c;
+        const double vf = un[li] + af * (x[li] - un[li]);
+        const double rate1 = (x[li] - un[li]) / (gm * dt) - (1.0 - gm) / gm * udn[li];
+        const double rm = udn[li] + am * (rate1 - udn[li]);
+        o[1 + c] += pp.N[k] * vf;
+        for (int j = 0; j < D; ++j) o[4 + 3 * c + j] += pp.dN[3 * k + j] * vf;
+        o[13 + c] += pp.N[k] * rm;
+      }
+    });
   }
   CELLFSI_PETSC(VecRestoreArrayRead(X_loc, &x));
   CELLFSI_PETSC(VecRestoreArrayRead(Un_loc_, &un));
@@ -1087,15 +1098,9 @@ void FluidSolver::project_initial_state(const std::function<Vec3(const Vec3&)>& 
       const int n = bv.n;
       if (first_point) {
         lidx.resize(n);
-        int first[3] = {0, 0, 0}, np[3] = {1, 1, 1};
-        for (int d = 0; d < D; ++d) first[d] = bv.span[d] - patch_.degree(d), np[d] = patch_.degree(d) + 1;
-        int k = 0;
-        for (int c2 = 0; c2 < np[2]; ++c2)
-          for (int b1 = 0; b1 < np[1]; ++b1)
-            for (int a0 = 0; a0 < np[0]; ++a0, ++k) {
-              const PetscInt m[3] = {first[0] + a0, first[1] + b1, first[2] + c2};
-              lidx[k] = local_node(m, gxs_, gxm_);
-            }
+        int first[3];
+        first_functions(patch_, bv, first);
+        for_each_element_node(patch_, first, gxs_, gxm_, [&](int k, PetscInt node) { lidx[k] = node; });
         Me.assign(n * n, 0.0);
         first_point = false;
       }
@@ -1167,17 +1172,12 @@ FluidSolver::L2Error FluidSolver::velocity_l2_error(const std::function<Vec3(con
       patch_.basis(q.xi, 1, bv, &e);
       patch_.map(bv, mv);
       const double w = q.weight * std::abs(mv.dx.topLeftCorner(D, D).determinant());
-      int first[3] = {0, 0, 0}, np[3] = {1, 1, 1};
-      for (int d = 0; d < D; ++d) first[d] = bv.span[d] - patch_.degree(d), np[d] = patch_.degree(d) + 1;
+      int first[3];
+      first_functions(patch_, bv, first);
       Vec3 vh = Vec3::Zero();
-      int k = 0;
-      for (int c2 = 0; c2 < np[2]; ++c2)
-        for (int b1 = 0; b1 < np[1]; ++b1)
-          for (int a0 = 0; a0 < np[0]; ++a0, ++k) {
-            const PetscInt m[3] = {first[0] + a0, first[1] + b1, first[2] + c2};
-            const PetscInt node = local_node(m, gxs_, gxm_);
-            for (int c = 0; c < D; ++c) vh[c] += bv.value[k] * u[node * nd + c];
-          }
+      for_each_element_node(patch_, first, gxs_, gxm_, [&](int k, PetscInt node) {
+        for (int c = 0; c < D; ++c) vh[c] += bv.value[k] * u[node * nd + c];
+      });
       const Vec3 ve = v_exact(mv.x);
       sums[0] += w * (vh - ve).squaredNorm();
       sums[1] += w * ve.squaredNorm();
@@ -1214,22 +1214,17 @@ std::vector<PointSample> FluidSolver::sample(const std::vector<Vec3>& points) co
     physical_point(patch_, r.element, r.xi, bv, mv, pp);
     double* o = &buf[i * stride];
     o[0] = 1.0;
-    int first[3] = {0, 0, 0}, np[3] = {1, 1, 1};
-    for (int d = 0; d < D; ++d) first[d] = bv.span[d] - patch_.degree(d), np[d] = patch_.degree(d) + 1;
-    int k = 0;
-    for (int c2 = 0; c2 < np[2]; ++c2)
-      for (int b1 = 0; b1 < np[1]; ++b1)
-        for (int a0 = 0; a0 < np[0]; ++a0, ++k) {
-          const PetscInt m[3] = {first[0] + a0, first[1] + b1, first[2] + c2};
-          const PetscInt node = local_node(m, gxs_, gxm_);
-          for (int c = 0; c < D; ++c) {
-            const double val = u[node * nd + c];
-            o[1 + c] += pp.N[k] * val;
-            for (int j = 0; j < D; ++j) o[4 + 3 * c + j] += pp.dN[3 * k + j] * val;
-            o[13 + c] += pp.N[k] * ud[node * nd + c];
-          }
-          o[16] += pp.N[k] * u[node * nd + D];
-        }
+    int first[3];
+    first_functions(patch_, bv, first);
+    for_each_element_node(patch_, first, gxs_, gxm_, [&](int k, PetscInt node) {
+      for (int c = 0; c < D; ++c) {
+        const double val = u[node * nd + c];
+        o[1 + c] += pp.N[k] * val;
+        for (int j = 0; j < D; ++j) o[4 + 3 * c + j] += pp.dN[3 * k + j] * val;
+        o[13 + c] += pp.N[k] * ud[node * nd + c];
+      }
+      o[16] += pp.N[k] * u[node * nd + D];
+    });
   }
   CELLFSI_PETSC(VecRestoreArrayRead(U_loc, &u));
   CELLFSI_PETSC(VecRestoreArrayRead(Ud_loc, &ud));
