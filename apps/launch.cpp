@@ -99,12 +99,21 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   std::vector<std::unique_ptr<coupling::RemoteSolid>> remote;
   std::unique_ptr<coupling::Exchange> exchange;
   std::vector<solid::SolidSolver*> bodies;
+  // Once the exchange exists, the solid side is told to stop whatever happens (declared after `exchange`, so
+  // destroyed before it).
+  struct Stop {
+    coupling::Exchange* ex = nullptr;
+    ~Stop() {
+      if (ex) coupling::shutdown_solids(*ex, PETSC_COMM_WORLD);
+    }
+  } stop;
   if (inter == MPI_COMM_NULL) {
     // The bodies live in this process (every rank holds a copy and does the same, cheap, solid work).
     owned = build_bodies(settings);
     for (auto& b : owned) bodies.push_back(b.get());
   } else {
     exchange = std::make_unique<coupling::Exchange>(inter, kMailboxBytes);
+    stop.ex = exchange.get();
     for (size_t i = 0; i < settings.bodies.size(); ++i) {
       const BodySettings& b = settings.bodies[i];
       remote.push_back(std::make_unique<coupling::RemoteSolid>(*exchange, PETSC_COMM_WORLD,
@@ -114,13 +123,6 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       bodies.push_back(remote.back().get());
     }
   }
-  // Whatever happens from here on, the solid side is told to stop.
-  struct Stop {
-    coupling::Exchange* ex;
-    ~Stop() {
-      if (ex) coupling::shutdown_solids(*ex, PETSC_COMM_WORLD);
-    }
-  } stop{exchange.get()};
   scene.attach_bodies(bodies);
 
   int size = 1, rank = 0, solid_ranks = 0;

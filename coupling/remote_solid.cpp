@@ -58,10 +58,11 @@ Exchange::Exchange(MPI_Comm inter, std::size_t mailbox_bytes) : inter_(inter) {
   // The group whose smallest world rank is lower comes first in the merged communicator.
   int world = 0;
   MPI_Comm_rank(MPI_COMM_WORLD, &world);
+  // On an intercommunicator an allreduce returns the other group's reduction: first the remote group's
+  // minimum, then, reducing those, our own group's.
   int remote_min = 0, local_min = 0;
-  MPI_Allreduce(&world, &remote_min, 1, MPI_INT, MPI_MIN,
-                inter);  // on an intercommunicator: the remote group's
-  MPI_Allreduce(&remote_min, &local_min, 1, MPI_INT, MPI_MIN, inter);  // and back: the local group's
+  MPI_Allreduce(&world, &remote_min, 1, MPI_INT, MPI_MIN, inter);
+  MPI_Allreduce(&remote_min, &local_min, 1, MPI_INT, MPI_MIN, inter);
   low_ = local_min < remote_min;
   check(MPI_Intercomm_merge(inter, low_ ? 0 : 1, &merged_), "MPI_Intercomm_merge");
   check(MPI_Comm_split_type(merged_, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node_), "MPI_Comm_split_type");
