@@ -265,8 +265,8 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
   // solves across Newton iterations and steps (at Re ~ 1e-4 the Jacobian barely changes: 2.2x faster at 128 x
   // 64). The paper's exact setting: -fluid_sub_pc_factor_mat_solver_type petsc
   // -fluid_snes_lag_preconditioner 1. On several ranks, an ASM overlap of 4 (PETSc's default: 1): with
-  // s^h = 1e10 on a capsule's band, overlap 1 took 1324 GMRES iterations for 4 steps of the 96 x 48 cubic capsule
-  // on 2 ranks, overlap 4 took 138 (1 rank: 24).
+  // s^h = 1e10 on a capsule's band, overlap 1 took 1324 GMRES iterations for 4 steps of the 96 x 48 cubic
+  // capsule on 2 ranks, overlap 4 took 138 (1 rank: 24).
   const char* defaults[][2] = {{"-fluid_pc_asm_overlap", "4"},
                                {"-fluid_sub_pc_type", "lu"},
                                {"-fluid_sub_pc_factor_mat_solver_type", "mumps"},
@@ -438,6 +438,27 @@ void for_each_element_node(const geometry::Patch& patch, const int first[3], con
         const PetscInt m[3] = {first[0] + a0, first[1] + b1, first[2] + c2};
         f(k, local_node(m, gxs, gxm));
       }
+}
+
+/// Point samples from per-rank buffers (per point: found, v[3], grad v[9], vdot[3], and p when stride is 17).
+/// Every point is found by exactly one rank (the owner of its element): a sum gathers them on every rank.
+std::vector<PointSample> gather_samples(MPI_Comm comm, const std::vector<double>& buf, int stride) {
+  std::vector<double> all(buf.size());
+  CELLFSI_PETSC(
+      MPI_Allreduce(buf.data(), all.data(), static_cast<int>(buf.size()), MPI_DOUBLE, MPI_SUM, comm));
+  std::vector<PointSample> out(buf.size() / stride);
+  for (size_t i = 0; i < out.size(); ++i) {
+    const double* o = &all[i * stride];
+    PointSample& s = out[i];
+    s.found = o[0] > 0.5;
+    for (int c = 0; c < 3; ++c) {
+      s.v[c] = o[1 + c];
+      s.vdot[c] = o[13 + c];
+      for (int j = 0; j < 3; ++j) s.grad_v(c, j) = o[4 + 3 * c + j];
+    }
+    if (stride > 16) s.p = o[16];
+  }
+  return out;
 }
 
 /// The fields at a point from the element's nodal values (Vf, Vd interleaved by node, dof D + 1; S), for
@@ -1052,20 +1073,7 @@ std::vector<PointSample> FluidSolver::sample_alpha(Vec X, const std::vector<Inde
   CELLFSI_PETSC(VecRestoreArrayRead(Un_loc_, &un));
   CELLFSI_PETSC(VecRestoreArrayRead(Udotn_loc_, &udn));
   CELLFSI_PETSC(DMRestoreLocalVector(da_, &X_loc));
-  std::vector<double> all(buf.size());
-  CELLFSI_PETSC(
-      MPI_Allreduce(buf.data(), all.data(), static_cast<int>(buf.size()), MPI_DOUBLE, MPI_SUM, comm_));
-  std::vector<PointSample> out(xi.size());
-  for (size_t i = 0; i < xi.size(); ++i) {
-    const double* o = &all[i * stride];
-    out[i].found = o[0] > 0.5;
-    for (int c = 0; c < 3; ++c) {
-      out[i].v[c] = o[1 + c];
-      out[i].vdot[c] = o[13 + c];
-      for (int j = 0; j < 3; ++j) out[i].grad_v(c, j) = o[4 + 3 * c + j];
-    }
-  }
-  return out;
+  return gather_samples(comm_, buf, stride);
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -1233,23 +1241,7 @@ std::vector<PointSample> FluidSolver::sample(const std::vector<Vec3>& points) co
   CELLFSI_PETSC(VecRestoreArrayRead(Ud_loc, &ud));
   CELLFSI_PETSC(DMRestoreLocalVector(da_, &U_loc));
   CELLFSI_PETSC(DMRestoreLocalVector(da_, &Ud_loc));
-  // Every point is found by exactly one rank (the owner of its element): a sum gathers them.
-  std::vector<double> all(buf.size());
-  CELLFSI_PETSC(
-      MPI_Allreduce(buf.data(), all.data(), static_cast<int>(buf.size()), MPI_DOUBLE, MPI_SUM, comm_));
-  std::vector<PointSample> out(points.size());
-  for (size_t i = 0; i < points.size(); ++i) {
-    const double* o = &all[i * stride];
-    PointSample& s = out[i];
-    s.found = o[0] > 0.5;
-    for (int c = 0; c < 3; ++c) {
-      s.v[c] = o[1 + c];
-      s.vdot[c] = o[13 + c];
-      for (int j = 0; j < 3; ++j) s.grad_v(c, j) = o[4 + 3 * c + j];
-    }
-    s.p = o[16];
-  }
-  return out;
+  return gather_samples(comm_, buf, stride);
 }
 
 std::vector<double> FluidSolver::gather_to_zero(Vec global) const {

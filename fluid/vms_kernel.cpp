@@ -248,6 +248,29 @@ struct PointScalars {
   double v_fine[Dim] = {}, a[Dim] = {}, dv[Dim][Dim] = {}, M[Dim][Dim] = {};
 };
 
+// The per-point part of PointScalars (ps.vel, rate, pres, nu are per element and set by the caller).
+template <int Dim, bool kConvective>
+void point_scalars(const VmsParameters& prm, const PointFields& f, const Stabilization& tau, double weight,
+                   PointScalars<Dim>& ps) {
+  ps.w = weight;
+  ps.tm = tau.tau_m;
+  ps.tc = tau.tau_c;
+  if constexpr (kConvective) {
+    const PointState st = point_state(prm, f, tau);
+    for (int i = 0; i < Dim; ++i) {
+      ps.v_fine[i] = st.v_fine[i];
+      ps.a[i] = st.a[i];
+      for (int j = 0; j < Dim; ++j) ps.dv[i][j] = f.dv[i][j];
+    }
+    for (int i = 0; i < Dim; ++i)
+      for (int e = 0; e < Dim; ++e) {
+        double dvdv = 0;
+        for (int j = 0; j < Dim; ++j) dvdv += ps.dv[i][j] * ps.dv[j][e];
+        ps.M[i][e] = ps.vel * (ps.dv[i][e] - ps.tm * dvdv);
+      }
+  }
+}
+
 // Calls add(c, s, e, t, value) for each term of C (several calls may hit one coefficient): tangent_kernel's
 // X[c][t][e] with wN -> w [s == 0] and wdN_j -> w [s == 1 + j], term by term and in the same order. constexpr
 // so that the pattern of nonzero coefficients (ElementPattern) is read off the same code.
@@ -546,23 +569,7 @@ void element_points(const VmsParameters& prm, const ElementPoints& ep, const Tan
     }
 
     const Stabilization tau = vms_stabilization(prm, f);
-    const PointState st = point_state(prm, f, tau);
-    ps.w = ep.weight[q];
-    ps.tm = tau.tau_m;
-    ps.tc = tau.tau_c;
-    if constexpr (kConvective) {
-      for (int i = 0; i < Dim; ++i) {
-        ps.v_fine[i] = st.v_fine[i];
-        ps.a[i] = st.a[i];
-        for (int j = 0; j < Dim; ++j) ps.dv[i][j] = f.dv[i][j];
-      }
-      for (int i = 0; i < Dim; ++i)
-        for (int e = 0; e < Dim; ++e) {
-          double dvdv = 0;
-          for (int j = 0; j < Dim; ++j) dvdv += ps.dv[i][j] * ps.dv[j][e];
-          ps.M[i][e] = ps.vel * (ps.dv[i][e] - ps.tm * dvdv);
-        }
-    }
+    point_scalars<Dim, kConvective>(prm, f, tau, ep.weight[q], ps);
     double* C = sc.C.data() + static_cast<std::size_t>(q) * nC;
     coefficient_terms<Dim, kConvective>(
         ps, [C](int c, int s, int e, int t, double v) { C[((c * ns + s) * nc + e) * ny + t] += v; });
@@ -871,23 +878,7 @@ void tensor_points(const VmsParameters& prm, const ElementPoints& ep, const Tang
     }
 
     const Stabilization tau = sc.tau[q];
-    const PointState st = point_state(prm, f, tau);
-    ps.w = ep.weight[q];
-    ps.tm = tau.tau_m;
-    ps.tc = tau.tau_c;
-    if constexpr (kConvective) {
-      for (int i = 0; i < Dim; ++i) {
-        ps.v_fine[i] = st.v_fine[i];
-        ps.a[i] = st.a[i];
-        for (int j = 0; j < Dim; ++j) ps.dv[i][j] = f.dv[i][j];
-      }
-      for (int i = 0; i < Dim; ++i)
-        for (int e = 0; e < Dim; ++e) {
-          double dvdv = 0;
-          for (int j = 0; j < Dim; ++j) dvdv += ps.dv[i][j] * ps.dv[j][e];
-          ps.M[i][e] = ps.vel * (ps.dv[i][e] - ps.tm * dvdv);
-        }
-    }
+    point_scalars<Dim, kConvective>(prm, f, tau, ep.weight[q], ps);
     static constexpr FirstTerms<kConvective> first{};
     double* C = sc.Ct.data() + static_cast<std::size_t>(q) * ns * ny * nL;
     int term = 0;
