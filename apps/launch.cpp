@@ -2,6 +2,7 @@
 
 #include <petscsys.h>
 
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -44,18 +45,68 @@ void print_error(const std::string& message) {
   PetscFPrintf(PETSC_COMM_WORLD, PETSC_STDERR, "cellfsi: error: %s\n", message.c_str());
 }
 
-/// Fails on options nobody read (a misspelt key must not be silently ignored). Call after the solvers are set
-/// up: inner solvers (ASM subdomains, multigrid levels) read their options only then.
-void reject_unknown_options() {
+/// When the unknown-option check runs: before the coupling loop exists, once it is set up, after the first
+/// step.
+enum class OptionCheck { before_coupling, before_first_step, after_first_step };
+
+/// Whether PETSc may not have read `name` yet at `when`: the coupling loop's solver options are read when it
+/// is created; factorisation packages' options (MUMPS, SuperLU_DIST, ...) and convergence reports only at
+/// the first solve.
+bool maybe_unread(const std::string& name, OptionCheck when) {
+  if (when == OptionCheck::after_first_step) return false;
+  if (when == OptionCheck::before_coupling && name.rfind("coupling_band_", 0) == 0) return true;
+  for (const char* late : {"mat_mumps_", "mat_superlu", "mat_strumpack", "converged_reason", "ksp_view"})
+    if (name.find(late) != std::string::npos) return true;
+  return false;
+}
+
+/// Fails on options nobody read (a misspelt key must not be silently ignored), skipping those PETSc may read
+/// later than `when`.
+void reject_unknown_options(OptionCheck when) {
   PetscInt n = 0;
   char** names = nullptr;
   char** values = nullptr;
   CELLFSI_PETSC(PetscOptionsLeftGet(nullptr, &n, &names, &values));
-  const std::string first = n > 0 ? names[0] : "";
+  std::string first;
+  for (PetscInt i = 0; i < n && first.empty(); ++i)
+    if (!maybe_unread(names[i], when)) first = names[i];
   CELLFSI_PETSC(PetscOptionsLeftRestore(nullptr, &n, &names, &values));
   if (!first.empty())
     throw std::invalid_argument("unknown option -" + first +
-                                " (misspelt? run with -help for the valid options)");
+                                " (misspelt? run with -help for the valid options)" +
+                                (when == OptionCheck::after_first_step
+                                     ? " (found after the first time step, when every solver had read "
+                                       "its options)"
+                                     : ""));
+}
+
+/// Names (without the dash) of the options in the database now: the user's command line and scene file.
+std::vector<std::string> option_names() {
+  char* all = nullptr;
+  CELLFSI_PETSC(PetscOptionsGetAll(nullptr, &all));
+  std::vector<std::string> names;
+  std::istringstream is(all ? all : "");
+  for (std::string w; is >> w;)
+    if (w.size() > 1 && w[0] == '-' && std::isalpha(static_cast<unsigned char>(w[1])))
+      names.push_back(w.substr(1));
+  CELLFSI_PETSC(PetscFree(all));
+  return names;
+}
+
+/// With the band solver the coupling loop does not use the fluid's KSP: its options would be silently
+/// ignored.
+void reject_fluid_solver_options(const std::vector<std::string>& user_options) {
+  for (const std::string& name : user_options)
+    for (const char* p : {"fluid_ksp_", "fluid_pc_", "fluid_sub_", "fluid_mat_", "fluid_snes_"})
+      if (name.rfind(p, 0) == 0)
+        throw std::invalid_argument(
+            "option -" + name +
+            " does not apply: this coupled run solves with -coupling_solver band (the default on one fluid "
+            "rank), "
+            "which has its own options under -coupling_band_ (e.g. -coupling_band_ksp_monitor, "
+            "-coupling_band_mat_mumps_icntl_14 40, -coupling_band_schur_mat_mumps_icntl_35 1); for the "
+            "fluid's "
+            "KSP and PC options use -coupling_solver fluid");
 }
 
 /// Start-up agreement between the fluid and the solid group: each side reports 2 (ready), 1 (stop quietly:
@@ -82,6 +133,7 @@ class Handshake {
 
 /// The fluid side (and, without a solid group, the bodies too).
 int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
+  const std::vector<std::string> user_options = option_names();
   const SceneSettings settings = SceneSettings::from_options(default_name);
   PetscBool help = PETSC_FALSE;
   CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-help", &help));
@@ -92,7 +144,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   }
   check_bodies(settings, scene.fluid().patch());
   scene.fluid().setup();
-  reject_unknown_options();
+  reject_unknown_options(OptionCheck::before_coupling);
   if (hs.agree(2) != 2) throw std::invalid_argument("the solid side stopped at start-up (see its message)");
 
   std::vector<std::unique_ptr<solid::NurbsSolid>> owned;
@@ -124,6 +176,9 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     }
   }
   scene.attach_bodies(bodies);
+  const bool band_solver = scene.coupler() && scene.coupler()->solver() == coupling::CouplingSolver::band;
+  if (band_solver) reject_fluid_solver_options(user_options);
+  reject_unknown_options(OptionCheck::before_first_step);
 
   int size = 1, rank = 0, solid_ranks = 0;
   MPI_Comm_size(PETSC_COMM_WORLD, &size);
@@ -150,7 +205,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       CELLFSI_VERSION, settings.name.c_str(), size,
       solid_ranks ? (" + " + std::to_string(solid_ranks) + " solid ranks").c_str() : "", bodies.size(),
       n_steps, settings.dt, n_steps * settings.dt, settings.output_dir.c_str()));
-  long newton = 0, linear = 0;
+  long newton = 0, linear = 0, factorizations = 0;
   int done = 0;
   std::vector<std::pair<std::string, double>> last;
   const std::string iteration = bodies.empty() ? "Newton" : "the coupling iteration";
@@ -159,6 +214,8 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       const SceneStep st = scene.step();
       newton += st.iterations;
       linear += st.linear_iterations;
+      factorizations += st.factorizations;
+      if (k == 1) reject_unknown_options(OptionCheck::after_first_step);
       if (!st.converged) {
         const std::string why = iteration + " diverged (" + st.reason + ") in step " + std::to_string(k) +
                                 " at t = " + std::to_string(k * settings.dt) + " s";
@@ -172,6 +229,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
                                                       {"time", scene.fluid().time()},
                                                       {"newton_iterations", st.iterations},
                                                       {"linear_iterations", st.linear_iterations}};
+      if (scene.coupler()) row.emplace_back("factorizations", st.factorizations);
       row.insert(row.end(), last.begin(), last.end());
       out.metrics_row(row);
       out.progress(k, n_steps, scene.fluid().time(), st.iterations, st.linear_iterations);
@@ -183,6 +241,12 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     throw;
   }
   std::vector<std::pair<std::string, double>> final_metrics = scene.summary_metrics();
+  if (scene.coupler()) {
+    // What the linear algebra cost: factorisations of the whole fluid Jacobian (band solver: of its fixed
+    // part; the band's own small factorisations are not counted) and the band's size.
+    final_metrics.emplace_back("factorizations", static_cast<double>(factorizations));
+    final_metrics.emplace_back("band_unknowns", static_cast<double>(scene.coupler()->band_unknowns()));
+  }
   if (exchange) {
     final_metrics.emplace_back("solid_ranks", solid_ranks);
     final_metrics.emplace_back("exchange_shared_mb", exchange->shared_bytes() / 1e6);

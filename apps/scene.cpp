@@ -110,7 +110,11 @@ void read_bodies(SceneSettings& s) {
   PetscReal s_i = s.coupling.s_interface, tol = s.coupling.tolerance, ratio = s.max_mesh_ratio,
             avg = s.metrics_average_from;
   PetscInt max_it = s.coupling.max_iterations, lag = s.coupling.preconditioner_lag;
+  PetscInt margin = s.coupling.band_margin, refactor = s.coupling.band_refactor_every,
+           schur_lag = s.coupling.band_schur_lag;
   PetscBool monitor = PETSC_FALSE;
+  const char* solvers[] = {"band", "fluid", "CouplingSolver", "", nullptr};
+  PetscEnum solver = static_cast<PetscEnum>(s.coupling.solver);
   call_reporting_input_errors(
       [&]() -> PetscErrorCode {
         PetscFunctionBeginUser;
@@ -129,6 +133,24 @@ void read_bodies(SceneSettings& s) {
                                   nullptr, lag, &lag, nullptr));
         PetscCall(PetscOptionsBool("-coupling_monitor", "Print every coupling iteration's residuals", nullptr,
                                    monitor, &monitor, nullptr));
+        PetscCall(PetscOptionsEnum(
+            "-coupling_solver",
+            "Linear solver of the coupling loop: band (the Jacobian away from the cells factorised once, the "
+            "band "
+            "around them re-solved exactly; one fluid rank) or fluid (the fluid's KSP, -fluid_ options)",
+            nullptr, solvers, solver, &solver, nullptr));
+        PetscCall(
+            PetscOptionsInt("-coupling_band_margin",
+                            "Elements around the s^h band and immersed points in the band solver's region",
+                            nullptr, margin, &margin, nullptr));
+        PetscCall(PetscOptionsInt("-coupling_band_refactor_every",
+                                  "Steps between factorisations of the band solver's fixed part (0: when the "
+                                  "cells leave its region)",
+                                  nullptr, refactor, &refactor, nullptr));
+        PetscCall(PetscOptionsInt("-coupling_band_schur_lag",
+                                  "Coupling iterations between re-assemblies of the band Jacobian and "
+                                  "factorisations of its Schur complement (0: once per step)",
+                                  nullptr, schur_lag, &schur_lag, nullptr));
         PetscCall(PetscOptionsReal("-coupling_max_mesh_ratio",
                                    "Largest Lagrangian / smallest Eulerian element size (paper Remark 3)",
                                    nullptr, ratio, &ratio, nullptr));
@@ -143,6 +165,9 @@ void read_bodies(SceneSettings& s) {
        {"-coupling_tolerance", 'r'},
        {"-coupling_max_iterations", 'i'},
        {"-coupling_pc_lag", 'i'},
+       {"-coupling_band_margin", 'i'},
+       {"-coupling_band_refactor_every", 'i'},
+       {"-coupling_band_schur_lag", 'i'},
        {"-coupling_max_mesh_ratio", 'r'},
        {"-metrics_average_from", 'r'}});
   if (set && n > 64) bad("solid_bodies", std::to_string(n) + " names", "at most 64 bodies");
@@ -150,6 +175,10 @@ void read_bodies(SceneSettings& s) {
   if (!(tol > 0 && tol < 1)) bad("coupling_tolerance", str(tol), "0 < tolerance < 1");
   if (max_it < 1) bad("coupling_max_iterations", std::to_string(max_it), ">= 1");
   if (lag < 1) bad("coupling_pc_lag", std::to_string(lag), ">= 1");
+  if (margin < 0) bad("coupling_band_margin", std::to_string(margin), ">= 0");
+  if (refactor < 0)
+    bad("coupling_band_refactor_every", std::to_string(refactor), ">= 0 (0: only when needed)");
+  if (schur_lag < 0) bad("coupling_band_schur_lag", std::to_string(schur_lag), ">= 0 (0: once per step)");
   if (!(ratio > 0)) bad("coupling_max_mesh_ratio", str(ratio), "> 0");
   if (avg >= s.final_time)
     bad("metrics_average_from", str(avg), "less than -final_time = " + str(s.final_time) + " s");
@@ -157,6 +186,10 @@ void read_bodies(SceneSettings& s) {
   s.coupling.tolerance = tol;
   s.coupling.max_iterations = static_cast<int>(max_it);
   s.coupling.preconditioner_lag = static_cast<int>(lag);
+  s.coupling.solver = static_cast<coupling::CouplingSolver>(solver);
+  s.coupling.band_margin = static_cast<int>(margin);
+  s.coupling.band_refactor_every = static_cast<int>(refactor);
+  s.coupling.band_schur_lag = static_cast<int>(schur_lag);
   s.coupling.monitor = monitor == PETSC_TRUE;
   s.max_mesh_ratio = ratio;
   s.metrics_average_from = avg;
@@ -508,6 +541,7 @@ SceneStep Scene::step() {
   }
   const coupling::CouplerStats st = coupler_->step();
   r.iterations = st.iterations, r.linear_iterations = st.linear_iterations;
+  r.factorizations = st.factorizations;
   r.converged = st.converged, r.reason = st.reason;
   if (st.converged)
     for (size_t b = 0; b < bodies_.size(); ++b)

@@ -71,6 +71,7 @@ void check_bodies(const SceneSettings& s, const geometry::Patch& domain);
 /// What one time step cost (a fluid-only step or a coupled one).
 struct SceneStep {
   int iterations = 0, linear_iterations = 0;
+  int factorizations = 0;  // LU factorisations of the whole fluid Jacobian (or of its fixed part)
   bool converged = false;
   std::string reason;
 };
@@ -85,6 +86,8 @@ class Scene {
   /// Couples the bodies (in this process or proxies of remote ones): call once, before the first step.
   void attach_bodies(std::vector<solid::SolidSolver*> bodies);
   const std::vector<solid::SolidSolver*>& bodies() const { return bodies_; }
+  /// The coupling loop (null before attach_bodies or without bodies).
+  const coupling::FsiCoupler* coupler() const { return coupler_.get(); }
   SceneStep step();
   /// Metrics of the current state (names are the CSV/JSON keys), including errors against analytic solutions
   /// where the scene has one and, per body, "<body>_<metric>" (solid/body_metrics.hpp).

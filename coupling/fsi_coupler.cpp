@@ -4,10 +4,71 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "coupling/band_region.hpp"
 #include "coupling/interface_marking.hpp"
 #include "fluid/petsc_error.hpp"
 
 namespace cellfsi::coupling {
+
+namespace {
+
+/// PETSc log events of the phases of a coupled step (-log_view shows where a step goes).
+struct CouplingEvents {
+  PetscLogEvent solid = 0, locate = 0, residual = 0, jacobian = 0, band_factor = 0, band_update = 0,
+                solve = 0;
+  CouplingEvents() {
+    PetscClassId id = 0;
+    CELLFSI_PETSC(PetscClassIdRegister("cellfsi coupling", &id));
+    CELLFSI_PETSC(PetscLogEventRegister("FsiSolidUpdate", id, &solid));
+    CELLFSI_PETSC(PetscLogEventRegister("FsiLocate", id, &locate));
+    CELLFSI_PETSC(PetscLogEventRegister("FsiResidual", id, &residual));
+    CELLFSI_PETSC(PetscLogEventRegister("FsiJacobian", id, &jacobian));
+    CELLFSI_PETSC(PetscLogEventRegister("FsiBandFactor", id, &band_factor));
+    CELLFSI_PETSC(PetscLogEventRegister("FsiBandUpdate", id, &band_update));
+    CELLFSI_PETSC(PetscLogEventRegister("FsiLinearSolve", id, &solve));
+  }
+};
+
+const CouplingEvents& events() {
+  static const CouplingEvents e;
+  return e;
+}
+
+/// RAII begin/end of a log event.
+class EventScope {
+ public:
+  explicit EventScope(PetscLogEvent e) : e_(e) { PetscLogEventBegin(e_, 0, 0, 0, 0); }
+  ~EventScope() { PetscLogEventEnd(e_, 0, 0, 0, 0); }
+  EventScope(const EventScope&) = delete;
+  EventScope& operator=(const EventScope&) = delete;
+
+ private:
+  PetscLogEvent e_;
+};
+
+/// The iterations of the KSP's last solve; throws if it failed.
+int iterations_or_throw(KSP ksp) {
+  KSPConvergedReason kr;
+  CELLFSI_PETSC(KSPGetConvergedReason(ksp, &kr));
+  PetscInt lits = 0;
+  CELLFSI_PETSC(KSPGetIterationNumber(ksp, &lits));
+  if (kr < 0) throw std::runtime_error(std::string("linear solve failed: ") + KSPConvergedReasons[kr]);
+  return static_cast<int>(lits);
+}
+
+PetscErrorCode apply_band_solver(PC pc, Vec r, Vec x) {
+  PetscFunctionBeginUser;
+  void* ctx = nullptr;
+  PetscCall(PCShellGetContext(pc, &ctx));
+  try {
+    static_cast<fluid::BandSchurSolver*>(ctx)->solve(r, x);
+  } catch (const std::exception& e) {
+    SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "%s", e.what());
+  }
+  PetscFunctionReturn(0);
+}
+
+}  // namespace
 
 FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver*> bodies,
                        CouplerOptions options)
@@ -24,12 +85,127 @@ FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver
   CELLFSI_PETSC(VecDuplicate(fluid.solution(), &X_));
   CELLFSI_PETSC(VecDuplicate(X_, &dX_));
   CELLFSI_PETSC(VecDuplicate(X_, &F_));
+  events();
+  solver_ = opt_.solver;
+  int fluid_ranks = 1;
+  MPI_Comm_size(fluid.comm(), &fluid_ranks);
+  if (solver_ == CouplingSolver::band && fluid_ranks > 1) solver_ = CouplingSolver::fluid;  // see the header
+  if (solver_ == CouplingSolver::band) {
+    if (opt_.band_margin < 0) throw std::invalid_argument("band margin must be >= 0");
+    CELLFSI_PETSC(MatDuplicate(fluid.jacobian_matrix(), MAT_DO_NOT_COPY_VALUES, &J_fixed_));
+    CELLFSI_PETSC(MatDuplicate(fluid.jacobian_matrix(), MAT_DO_NOT_COPY_VALUES, &J_band_));
+    CELLFSI_PETSC(KSPCreate(fluid.comm(), &band_ksp_));
+    CELLFSI_PETSC(KSPSetOptionsPrefix(band_ksp_, "coupling_band_"));
+    // The preconditioner is the exact inverse of the operator (both are K_fixed + K_band): one FGMRES
+    // iteration, which costs one application and one product (GMRES would apply the preconditioner twice).
+    // The fluid's linear tolerance, so that the two solvers' answers agree to it.
+    CELLFSI_PETSC(KSPSetType(band_ksp_, KSPFGMRES));
+    CELLFSI_PETSC(KSPSetTolerances(band_ksp_, 1e-5, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
+    PC pc;
+    CELLFSI_PETSC(KSPGetPC(band_ksp_, &pc));
+    CELLFSI_PETSC(PCSetType(pc, PCSHELL));
+    CELLFSI_PETSC(PCShellSetContext(pc, &band_));
+    CELLFSI_PETSC(PCShellSetApply(pc, apply_band_solver));
+    CELLFSI_PETSC(PCShellSetName(pc, "cellfsi band Schur complement (fluid/band_schur.hpp)"));
+    CELLFSI_PETSC(KSPSetFromOptions(band_ksp_));
+  }
 }
 
 FsiCoupler::~FsiCoupler() {
   VecDestroy(&X_);
   VecDestroy(&dX_);
   VecDestroy(&F_);
+  MatDestroy(&J_fixed_);
+  MatDestroy(&J_band_);
+  KSPDestroy(&band_ksp_);
+}
+
+std::vector<char> FsiCoupler::active_elements() const {
+  std::vector<char> active = elements_supporting(fluid_.patch(), marked_);
+  const geometry::Patch& patch = fluid_.patch();
+  const int n0 = patch.n_elements(0), n1 = patch.n_elements(1);
+  for (const auto& body : quadrature_loc_)
+    for (const Location& l : body) active[l.element[0] + n0 * (l.element[1] + n1 * l.element[2])] = 1;
+  return active;
+}
+
+bool FsiCoupler::ensure_band_factorization(bool force) {
+  const std::vector<char> active = active_elements();
+  const bool stale = opt_.band_refactor_every > 0 && steps_since_factor_ >= opt_.band_refactor_every;
+  if (!force && !stale && band_.factored() && contains(region_, active)) return false;
+  EventScope ev(events().band_factor);
+  region_ = grow_elements(fluid_.patch(), active, opt_.band_margin);
+  const std::vector<int> nodes = functions_on_elements(fluid_.patch(), region_);
+  // One fluid rank: the DMDA's global numbering is the natural one, node-major and unknown-minor.
+  const int dof = fluid_.dim() + 1;
+  std::vector<PetscInt> unknowns;
+  unknowns.reserve(nodes.size() * dof);
+  for (int n : nodes)
+    for (int c = 0; c < dof; ++c) unknowns.push_back(static_cast<PetscInt>(n) * dof + c);
+  IS band;
+  CELLFSI_PETSC(ISCreateGeneral(PETSC_COMM_SELF, static_cast<PetscInt>(unknowns.size()), unknowns.data(),
+                                PETSC_COPY_VALUES, &band));
+  fluid_.jacobian_part(X_, J_fixed_, region_, false);
+  band_.factor(J_fixed_, band, "coupling_band_");
+  CELLFSI_PETSC(ISDestroy(&band));
+  if (opt_.monitor)
+    CELLFSI_PETSC(PetscPrintf(fluid_.comm(),
+                              "  band factorisation: %d of %d elements, %" PetscInt_FMT " of %" PetscInt_FMT
+                              " unknowns, Schur complement %" PetscInt_FMT " nonzeros\n",
+                              static_cast<int>(std::count(region_.begin(), region_.end(), 1)),
+                              fluid_.patch().n_elements(), band_.n_band(), band_.n_total(),
+                              band_.schur_nonzeros()));
+  steps_since_factor_ = 0;
+  return true;
+}
+
+int FsiCoupler::solve_band(CouplerStats& st, bool first_iteration) {
+  // The region is checked every iteration: the immersed points move with the solids.
+  ++solves_since_schur_;
+  bool refresh = first_iteration || (opt_.band_schur_lag > 0 && solves_since_schur_ >= opt_.band_schur_lag);
+  if (ensure_band_factorization(false)) {
+    ++st.factorizations;
+    refresh = true;
+  }
+  // Between refreshes the Newton matrix stays that of the last refresh (a chord iteration inside the step):
+  // the operator and the preconditioner are the same matrix, so one FGMRES iteration solves exactly.
+  Mat J = fluid_.jacobian_matrix();
+  if (refresh) {
+    {
+      EventScope ev(events().jacobian);
+      fluid_.jacobian_part(X_, J_band_, region_, true);
+      CELLFSI_PETSC(MatCopy(J_fixed_, J, SAME_NONZERO_PATTERN));
+      CELLFSI_PETSC(MatAXPY(J, 1.0, J_band_, SAME_NONZERO_PATTERN));
+    }
+    EventScope ev(events().band_update);
+    band_.set_band(J_band_);
+    solves_since_schur_ = 0;
+  }
+  EventScope ev(events().solve);
+  CELLFSI_PETSC(KSPSetOperators(band_ksp_, J, J));
+  CELLFSI_PETSC(KSPSolve(band_ksp_, F_, dX_));
+  return iterations_or_throw(band_ksp_);
+}
+
+int FsiCoupler::solve_fluid(CouplerStats& st) {
+  KSP ksp = fluid_.ksp();
+  Mat J = fluid_.jacobian_matrix();
+  {
+    EventScope ev(events().jacobian);
+    fluid_.jacobian(X_, J);
+  }
+  EventScope ev(events().solve);
+  CELLFSI_PETSC(KSPSetOperators(ksp, J, J));
+  // The preconditioner is reused for preconditioner_lag solves, and rebuilt when the marking changed: with
+  // s_I >> 1 the marked rows dominate the Jacobian.
+  const bool rebuild =
+      solves_since_pc_ >= opt_.preconditioner_lag || (marking_changed_ && opt_.s_interface > 1);
+  marking_changed_ = false;
+  CELLFSI_PETSC(KSPSetReusePreconditioner(ksp, rebuild ? PETSC_FALSE : PETSC_TRUE));
+  solves_since_pc_ = rebuild ? 1 : solves_since_pc_ + 1;
+  if (rebuild) ++st.factorizations;
+  CELLFSI_PETSC(KSPSolve(ksp, F_, dX_));
+  return iterations_or_throw(ksp);
 }
 
 void FsiCoupler::update_immersed(bool mark) {
@@ -94,8 +270,6 @@ CouplerStats FsiCoupler::step() {
   for (auto* b : bodies_) b->begin_step(tp);
   st.solid_residual0.assign(bodies_.size(), 0.0);
   st.solid_residual.assign(bodies_.size(), 0.0);
-  KSP ksp = fluid_.ksp();
-  Mat J = fluid_.jacobian_matrix();
   double fluid_peak = 0;
   std::vector<double> solid_peak(bodies_.size(), 0.0);
   for (int it = 0; it < opt_.max_iterations; ++it) {
@@ -106,11 +280,15 @@ CouplerStats FsiCoupler::step() {
       warm.resize(pts.size());
       std::vector<geometry::Index3> el(pts.size());
       std::vector<geometry::Param> xi(pts.size());
-      for (size_t i = 0; i < pts.size(); ++i) {
-        warm[i] = locator_.locate_or_throw(pts[i], &warm[i]);
-        el[i] = warm[i].element;
-        xi[i] = warm[i].xi;
+      {
+        EventScope ev(events().locate);
+        for (size_t i = 0; i < pts.size(); ++i) {
+          warm[i] = locator_.locate_or_throw(pts[i], &warm[i]);
+          el[i] = warm[i].element;
+          xi[i] = warm[i].xi;
+        }
       }
+      EventScope ev(events().solid);
       const std::vector<fluid::PointSample> v = fluid_.sample_alpha(X_, el, xi);
       std::vector<solid::VelocitySample> vs(pts.size());
       for (size_t i = 0; i < pts.size(); ++i) vs[i].v = v[i].v, vs[i].grad_v = v[i].grad_v;
@@ -121,8 +299,14 @@ CouplerStats FsiCoupler::step() {
     // step, at the first iteration: re-marking inside the iteration makes the residual jump whenever an
     // interface point crosses a support boundary, and the iteration can cycle between two markings (seen with
     // the capsule at 64 x 32: |R_MC| alternating 9.1e-4 / 1.4e-4 for 30 iterations).
-    update_immersed(it == 0);
-    fluid_.residual(X_, F_);
+    {
+      EventScope ev(events().locate);
+      update_immersed(it == 0);
+    }
+    {
+      EventScope ev(events().residual);
+      fluid_.residual(X_, F_);
+    }
     CELLFSI_PETSC(VecNorm(F_, NORM_2, &st.fluid_residual));
     if (it == 0) st.fluid_residual0 = st.fluid_residual;
     if (opt_.monitor) {
@@ -147,23 +331,11 @@ CouplerStats FsiCoupler::step() {
       break;
     }
     st.iterations = it + 1;
-    // Steps 5-7: K_MC, a linear solve, the update (the preconditioner is reused for preconditioner_lag
-    // solves).
-    fluid_.jacobian(X_, J);
-    CELLFSI_PETSC(KSPSetOperators(ksp, J, J));
-    const bool rebuild =
-        solves_since_pc_ >= opt_.preconditioner_lag || (marking_changed_ && opt_.s_interface > 1);
-    marking_changed_ = false;
-    CELLFSI_PETSC(KSPSetReusePreconditioner(ksp, rebuild ? PETSC_FALSE : PETSC_TRUE));
-    solves_since_pc_ = rebuild ? 1 : solves_since_pc_ + 1;
-    CELLFSI_PETSC(KSPSolve(ksp, F_, dX_));
-    KSPConvergedReason kr;
-    CELLFSI_PETSC(KSPGetConvergedReason(ksp, &kr));
-    PetscInt lits = 0;
-    CELLFSI_PETSC(KSPGetIterationNumber(ksp, &lits));
-    st.linear_iterations += static_cast<int>(lits);
-    if (kr < 0) {
-      st.reason = std::string("linear solve failed: ") + KSPConvergedReasons[kr];
+    // Steps 5-7: K_MC, a linear solve, the update.
+    try {
+      st.linear_iterations += solver_ == CouplingSolver::band ? solve_band(st, it == 0) : solve_fluid(st);
+    } catch (const std::runtime_error& e) {
+      st.reason = e.what();
       return st;
     }
     CELLFSI_PETSC(VecAXPY(X_, -1.0, dX_));
@@ -175,6 +347,7 @@ CouplerStats FsiCoupler::step() {
   }
   fluid_.end_step(X_);
   for (auto* b : bodies_) b->end_step();
+  ++steps_since_factor_;
   return st;
 }
 

@@ -12,10 +12,22 @@
 #include <vector>
 
 #include "coupling/locator.hpp"
+#include "fluid/band_schur.hpp"
 #include "fluid/fluid_solver.hpp"
 #include "solid/solid_solver.hpp"
 
 namespace cellfsi::coupling {
+
+/// How the fluid's linear systems of the coupling loop are solved.
+enum class CouplingSolver {
+  /// fluid::BandSchurSolver (one fluid rank): the Jacobian away from the cells is factorised once and kept
+  /// while the s^h band and the immersed points stay inside the region it was built for; each iteration
+  /// re-assembles only that region and factorises its Schur complement. Default on one fluid rank.
+  band,
+  /// The fluid's own KSP and PC (prefix fluid_, every PETSc option): the preconditioner is rebuilt every
+  /// `preconditioner_lag` solves and whenever the s^h marking changes (every step while a cell moves).
+  fluid,
+};
 
 struct CouplerOptions {
   double s_interface = 1e10;  // s_I (paper Sec. 3.3)
@@ -24,10 +36,19 @@ struct CouplerOptions {
   int max_iterations = 30;
   int preconditioner_lag = 10;  // linear solves between rebuilds of the preconditioner (1: every iteration)
   bool monitor = false;         // print every iteration's residual norms (rank 0)
+  CouplingSolver solver = CouplingSolver::band;  // falls back to `fluid` on several fluid ranks
+  int band_margin = 2;  // elements added around the active elements when the band region is built
+  int band_refactor_every =
+      0;  // also rebuild the kept factorisation after this many steps (0: only when needed)
+  int band_schur_lag =
+      0;  // coupling iterations between re-assemblies of the band's Jacobian and factorisations
+          // of its Schur complement (0: only at a step's first iteration, where the marking
+          // moved); in between, the Newton matrix is kept (a chord iteration)
 };
 
 struct CouplerStats {
   int iterations = 0, linear_iterations = 0;
+  int factorizations = 0;  // factorisations of the whole fluid Jacobian (band: of its fixed part) in the step
   bool converged = false;
   double fluid_residual0 = 0, fluid_residual = 0;
   std::vector<double> solid_residual0, solid_residual;
@@ -46,9 +67,21 @@ class FsiCoupler {
   void initialize();
   /// One time step of the coupled problem.
   CouplerStats step();
+  /// The solver in use (CouplingSolver::fluid when `band` was asked for on several fluid ranks).
+  CouplingSolver solver() const { return solver_; }
+  /// Unknowns of the current band (0 before the first step or with CouplingSolver::fluid).
+  PetscInt band_unknowns() const { return band_.n_band(); }
 
  private:
   void update_immersed(bool mark);  // mark: also rebuild s^h from the interface points
+  /// Band solver: elements with s^h != 1 or an immersed point.
+  std::vector<char> active_elements() const;
+  /// Band solver: (re)builds the region and the factorisation of the fixed part if the active elements left
+  /// the region (or on request); returns whether it did.
+  bool ensure_band_factorization(bool force);
+  /// One linear solve dX = K^{-1} F of the coupling loop; returns the KSP's iterations, or throws.
+  int solve_band(CouplerStats& st, bool first_iteration);
+  int solve_fluid(CouplerStats& st);
   fluid::FluidSolver& fluid_;
   std::vector<solid::SolidSolver*> bodies_;
   CouplerOptions opt_;
@@ -59,6 +92,13 @@ class FsiCoupler {
   solid::TimeParameters tp_;
   std::vector<int> marked_;  // basis functions carrying s_I
   bool marking_changed_ = true;
+  // Band solver (see CouplingSolver::band).
+  CouplingSolver solver_ = CouplingSolver::band;
+  fluid::BandSchurSolver band_;
+  Mat J_fixed_ = nullptr, J_band_ = nullptr;  // the two parts of K_MC; their sum goes into the fluid's matrix
+  KSP band_ksp_ = nullptr;                    // FGMRES (prefix coupling_band_) preconditioned by band_
+  std::vector<char> region_;                  // elements whose Jacobian is re-assembled every iteration
+  int steps_since_factor_ = 0, solves_since_schur_ = 0;
 };
 
 }  // namespace cellfsi::coupling

@@ -724,7 +724,7 @@ class SeqBaijInserter {
 
 }  // namespace
 
-void FluidSolver::assemble(Vec U, Vec F, Mat J) {
+void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band, bool band_side) {
   const int D = dim_, nd = dof_;
   const double af = alpha_.alpha_f, am = alpha_.alpha_m, gm = alpha_.gamma, dt = opt_.dt;
   VmsParameters prm;
@@ -820,7 +820,12 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
 
   PointFields pf;
   std::vector<PointFields> point_fields;
+  if (in_band && static_cast<int>(in_band->size()) != patch_.n_elements())
+    throw std::invalid_argument("FluidSolver: the element mask has " + std::to_string(in_band->size()) +
+                                " entries for " + std::to_string(patch_.n_elements()) + " elements");
+  const int ne0 = patch_.n_elements(0), ne1 = patch_.n_elements(1);
   for (const Index3& e : owned_elements()) {
+    if (in_band && ((*in_band)[e[0] + ne0 * (e[1] + ne1 * e[2])] != 0) != band_side) continue;
     int first[3];
     const ElementValues& ev = element_basis_.evaluate(e, scratch, first);
     const int n = gather(first);
@@ -872,6 +877,7 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
 
   // Immersed-solid points (paper Eq. (10)) in this rank's elements.
   for (const LocatedPoint& ip : immersed_) {
+    if (in_band && !band_side) break;
     physical_point(patch_, ip.element, ip.xi, bv, mv, pp);
     int first[3];
     first_functions(patch_, bv, first);
@@ -920,7 +926,9 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J) {
     direct.finish();
     CELLFSI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
     CELLFSI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
-    CELLFSI_PETSC(MatZeroRows(J, static_cast<PetscInt>(rows.size()), rows.data(), 1.0, nullptr, nullptr));
+    const double diagonal = in_band && band_side ? 0.0 : 1.0;
+    CELLFSI_PETSC(
+        MatZeroRows(J, static_cast<PetscInt>(rows.size()), rows.data(), diagonal, nullptr, nullptr));
   }
 }
 

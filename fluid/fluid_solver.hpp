@@ -128,6 +128,15 @@ class FluidSolver {
   /// Residual R_MC and approximate tangent K_MC of the iterate X (with the current immersed points and s^h).
   void residual(Vec X, Vec F) { assemble(X, F, nullptr); }
   void jacobian(Vec X, Mat J) { assemble(X, nullptr, J); }
+  /// One of two parts of K_MC that add up to jacobian(X, J) (for a solver that keeps one part for many steps,
+  /// see fluid/band_schur.hpp). `in_band[e]` (e: the patch's element index, Patch::element_multi_index) marks
+  /// the elements of the band part. band_side: the band's elements and every immersed point, Dirichlet rows
+  /// zeroed with a zero diagonal; otherwise the other elements, Dirichlet rows zeroed with a unit diagonal.
+  void jacobian_part(Vec X, Mat J, const std::vector<char>& in_band, bool band_side) {
+    assemble(X, nullptr, J, &in_band, band_side);
+  }
+  /// The Dirichlet (wall and pressure pin) rows owned by this rank, as global indices of the unknowns.
+  std::vector<PetscInt> constrained_rows() const { return dirichlet_rows(); }
   /// v and grad v at t_{n+alpha_f} of the iterate X at points already located in the patch (element, xi)
   /// (collective; every rank gets every value). vdot is the rate at t_{n+alpha_m}.
   std::vector<PointSample> sample_alpha(Vec X, const std::vector<geometry::Index3>& elements,
@@ -166,7 +175,8 @@ class FluidSolver {
   struct Alpha {
     double alpha_m = 0, alpha_f = 0, gamma = 0;
   };
-  void assemble(Vec U, Vec F, Mat J);  // either of F, J may be null
+  // Either of F, J may be null. With an element mask, J receives the part of K_MC described in jacobian_part.
+  void assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band = nullptr, bool band_side = true);
   void apply_dirichlet_values(Vec U, double t) const;
   std::vector<PetscInt> dirichlet_rows() const;  // global PETSc indices of owned Dirichlet rows
   bool owns_element(const geometry::Index3& e) const;

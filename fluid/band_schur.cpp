@@ -1,0 +1,289 @@
+#include "fluid/band_schur.hpp"
+
+#include <petsc/private/matimpl.h>  // the fused solve: the Schur matrix's matsolve operation
+
+#include <algorithm>
+#include <cstring>
+#include <stdexcept>
+
+#include "fluid/petsc_error.hpp"
+
+namespace cellfsi::fluid {
+
+namespace {
+
+/// Block CSR structure of a SeqBAIJ matrix (copied: PETSc's arrays are only lent).
+struct BlockStructure {
+  std::vector<PetscInt> ia, ja;
+};
+
+BlockStructure block_structure(Mat A) {
+  PetscInt n = 0;
+  const PetscInt *ia = nullptr, *ja = nullptr;
+  PetscBool done = PETSC_FALSE;
+  CELLFSI_PETSC(MatGetRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
+  if (!done) throw std::runtime_error("BandSchurSolver: the matrix gives no row structure");
+  BlockStructure s;
+  s.ia.assign(ia, ia + n + 1);
+  s.ja.assign(ja, ja + ia[n]);
+  CELLFSI_PETSC(MatRestoreRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
+  return s;
+}
+
+void require_seqbaij(Mat A, const char* what) {
+  PetscBool is = PETSC_FALSE;
+  CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(A), MATSEQBAIJ, &is));
+  if (!is) throw std::invalid_argument(std::string("BandSchurSolver: ") + what + " must be a SeqBAIJ matrix");
+}
+
+void check_factor(Mat F, const char* what) {
+  MatFactorError err = MAT_FACTOR_NOERROR;
+  CELLFSI_PETSC(MatFactorGetError(F, &err));
+  if (err != MAT_FACTOR_NOERROR)
+    throw std::runtime_error(std::string("BandSchurSolver: the LU factorisation of ") + what +
+                             " failed (PETSc MatFactorError " + std::to_string(static_cast<int>(err)) + ")");
+}
+
+}  // namespace
+
+/// MUMPS' Schur step of a fused solve: X = S^{-1} B for the one right-hand side MUMPS condensed (B and X
+/// share their array).
+PetscErrorCode band_schur_matsolve(Mat S, Mat B, Mat X) {
+  PetscFunctionBeginUser;
+  PetscContainer c = nullptr;
+  PetscCall(PetscObjectQuery(reinterpret_cast<PetscObject>(S), "cellfsi_band_schur",
+                             reinterpret_cast<PetscObject*>(&c)));
+  PetscCheck(c, PETSC_COMM_SELF, PETSC_ERR_PLIB, "band Schur solver not attached");
+  void* ctx = nullptr;
+  PetscCall(PetscContainerGetPointer(c, &ctx));
+  auto* self = static_cast<BandSchurSolver*>(ctx);
+  PetscInt n = 0, ncol = 0;
+  PetscCall(MatGetSize(B, &n, &ncol));
+  PetscCheck(ncol == 1 && n == self->n_band_, PETSC_COMM_SELF, PETSC_ERR_SUP, "one right-hand side expected");
+  const PetscScalar* b = nullptr;
+  PetscScalar* v = nullptr;
+  PetscCall(MatDenseGetArrayRead(B, &b));
+  PetscCall(VecGetArrayWrite(self->rB_, &v));
+  std::memcpy(v, b, sizeof(PetscScalar) * n);
+  PetscCall(VecRestoreArrayWrite(self->rB_, &v));
+  PetscCall(MatDenseRestoreArrayRead(B, &b));
+  try {
+    self->solve_schur(self->rB_, self->yB_);
+  } catch (const std::exception& e) {
+    SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "%s", e.what());
+  }
+  PetscScalar* x = nullptr;
+  const PetscScalar* y = nullptr;
+  PetscCall(MatDenseGetArrayWrite(X, &x));
+  PetscCall(VecGetArrayRead(self->yB_, &y));
+  std::memcpy(x, y, sizeof(PetscScalar) * n);
+  PetscCall(VecRestoreArrayRead(self->yB_, &y));
+  PetscCall(MatDenseRestoreArrayWrite(X, &x));
+  PetscFunctionReturn(0);
+}
+
+BandSchurSolver::~BandSchurSolver() { release(); }
+
+void BandSchurSolver::solve_schur(Vec g, Vec y) { CELLFSI_PETSC(MatSolve(SF_, g, y)); }
+
+void BandSchurSolver::release() {
+  MatDestroy(&F_);
+  MatDestroy(&K_BI_);
+  MatDestroy(&K_IB_);
+  MatDestroy(&S_);
+  MatDestroy(&SF_);
+  MatDestroy(&band_sub_);
+  ISDestroy(&band_);
+  ISDestroy(&interior_);
+  for (Vec* v : {&w1_, &w2_, &rB_, &yB_, &tB_, &zI_, &tI_}) VecDestroy(v);
+  VecScatterDestroy(&to_band_);
+  VecScatterDestroy(&to_interior_);
+  s_fixed_.clear();
+  band_pos_.clear();
+  n_band_ = n_total_ = schur_nonzeros_ = 0;
+}
+
+void BandSchurSolver::factor(Mat fixed, IS band, const std::string& prefix) {
+  release();
+  require_seqbaij(fixed, "K_fixed");
+  CELLFSI_PETSC(MatGetBlockSize(fixed, &bs_));
+  CELLFSI_PETSC(MatGetSize(fixed, &n_total_, nullptr));
+  CELLFSI_PETSC(ISDuplicate(band, &band_));
+  CELLFSI_PETSC(ISCopy(band, band_));
+  CELLFSI_PETSC(ISSort(band_));
+  CELLFSI_PETSC(ISGetLocalSize(band_, &n_band_));
+  if (n_band_ == 0 || n_band_ % bs_ != 0)
+    throw std::invalid_argument("BandSchurSolver: the band must hold whole blocks (" +
+                                std::to_string(n_band_) + " unknowns, block size " + std::to_string(bs_) +
+                                ")");
+  CELLFSI_PETSC(ISComplement(band_, 0, n_total_, &interior_));
+
+  // K_fixed's LU with B kept for the Schur complement; the interior solves of solve() use ICNTL(26) = 0.
+  MatFactorInfo info;
+  CELLFSI_PETSC(MatFactorInfoInitialize(&info));
+  CELLFSI_PETSC(MatGetFactor(fixed, MATSOLVERMUMPS, MAT_FACTOR_LU, &F_));
+  if (!prefix.empty()) CELLFSI_PETSC(MatSetOptionsPrefix(F_, prefix.c_str()));
+  CELLFSI_PETSC(MatFactorSetSchurIS(F_, band_));
+  CELLFSI_PETSC(MatLUFactorSymbolic(F_, fixed, nullptr, nullptr, &info));
+  CELLFSI_PETSC(MatLUFactorNumeric(F_, fixed, &info));
+  check_factor(F_, "the fixed part");
+  Mat Sd = nullptr;
+  CELLFSI_PETSC(MatFactorCreateSchurComplement(F_, &Sd, nullptr));
+  if (fused_) {
+    // MUMPS' own Schur matrix is declared factored, and its solve is ours (see the header).
+    Mat S = nullptr;
+    CELLFSI_PETSC(MatFactorGetSchurComplement(F_, &S, nullptr));
+    PetscContainer c = nullptr;
+    CELLFSI_PETSC(PetscContainerCreate(PETSC_COMM_SELF, &c));
+    CELLFSI_PETSC(PetscContainerSetPointer(c, this));
+    CELLFSI_PETSC(PetscObjectCompose(reinterpret_cast<PetscObject>(S), "cellfsi_band_schur",
+                                     reinterpret_cast<PetscObject>(c)));
+    CELLFSI_PETSC(PetscContainerDestroy(&c));
+    S->ops->matsolve = band_schur_matsolve;
+    S->factortype = MAT_FACTOR_LU;
+    CELLFSI_PETSC(MatFactorRestoreSchurComplement(F_, &S, MAT_FACTOR_SCHUR_FACTORED));
+  } else {
+    CELLFSI_PETSC(MatMumpsSetIcntl(F_, 26, 0));  // MatSolve: the interior problem only
+  }
+
+  CELLFSI_PETSC(MatCreateSubMatrix(fixed, band_, interior_, MAT_INITIAL_MATRIX, &K_BI_));
+  CELLFSI_PETSC(MatCreateSubMatrix(fixed, interior_, band_, MAT_INITIAL_MATRIX, &K_IB_));
+
+  // The Schur complement's block pattern: K_fixed,BB's structure (where K_band will add) and every block of
+  // S_fixed that is not zero (the dense coupling of the band's unknowns that border I).
+  Mat K_BB = nullptr;
+  CELLFSI_PETSC(MatCreateSubMatrix(fixed, band_, band_, MAT_INITIAL_MATRIX, &K_BB));
+  const BlockStructure kbb = block_structure(K_BB);
+  CELLFSI_PETSC(MatDestroy(&K_BB));
+  const PetscInt nb = n_band_ / bs_, bs = bs_, bs2 = bs * bs;
+  const PetscScalar* sd = nullptr;
+  PetscInt lda = 0;
+  CELLFSI_PETSC(MatDenseGetLDA(Sd, &lda));
+  CELLFSI_PETSC(MatDenseGetArrayRead(Sd, &sd));
+  std::vector<std::vector<PetscInt>> cols(nb);
+  for (PetscInt I = 0; I < nb; ++I)
+    cols[I].assign(kbb.ja.begin() + kbb.ia[I], kbb.ja.begin() + kbb.ia[I + 1]);
+  for (PetscInt J = 0; J < nb; ++J)
+    for (PetscInt I = 0; I < nb; ++I) {
+      bool nonzero = false;
+      for (PetscInt e = 0; e < bs && !nonzero; ++e)
+        for (PetscInt c = 0; c < bs && !nonzero; ++c) nonzero = sd[(I * bs + c) + (J * bs + e) * lda] != 0.0;
+      if (nonzero) cols[I].push_back(J);
+    }
+  std::vector<PetscInt> nnz(nb);
+  for (PetscInt I = 0; I < nb; ++I) {
+    std::sort(cols[I].begin(), cols[I].end());
+    cols[I].erase(std::unique(cols[I].begin(), cols[I].end()), cols[I].end());
+    nnz[I] = static_cast<PetscInt>(cols[I].size());
+  }
+  CELLFSI_PETSC(MatCreateSeqBAIJ(PETSC_COMM_SELF, bs, n_band_, n_band_, 0, nnz.data(), &S_));
+  CELLFSI_PETSC(MatSetOption(S_, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
+  std::vector<PetscScalar> zeros;
+  for (PetscInt I = 0; I < nb; ++I) {
+    zeros.assign(cols[I].size() * bs2, 0.0);
+    CELLFSI_PETSC(MatSetValuesBlocked(S_, 1, &I, nnz[I], cols[I].data(), zeros.data(), INSERT_VALUES));
+  }
+  CELLFSI_PETSC(MatAssemblyBegin(S_, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(S_, MAT_FINAL_ASSEMBLY));
+  const BlockStructure s = block_structure(S_);
+  s_fixed_.assign(s.ja.size() * bs2, 0.0);
+  for (PetscInt I = 0; I < nb; ++I)
+    for (PetscInt k = s.ia[I]; k < s.ia[I + 1]; ++k) {
+      const PetscInt J = s.ja[k];
+      for (PetscInt e = 0; e < bs; ++e)  // SeqBAIJ blocks are column-major
+        for (PetscInt c = 0; c < bs; ++c)
+          s_fixed_[k * bs2 + e * bs + c] = sd[(I * bs + c) + (J * bs + e) * lda];
+    }
+  schur_nonzeros_ = static_cast<PetscInt>(s.ja.size()) * bs2;
+  CELLFSI_PETSC(MatDenseRestoreArrayRead(Sd, &sd));
+  CELLFSI_PETSC(MatDestroy(&Sd));
+  s_ia_ = s.ia;
+  s_ja_ = s.ja;
+  if (!prefix.empty()) prefix_ = prefix;
+
+  CELLFSI_PETSC(MatCreateVecs(fixed, &w1_, &w2_));
+  CELLFSI_PETSC(VecCreateSeq(PETSC_COMM_SELF, n_band_, &rB_));
+  CELLFSI_PETSC(VecDuplicate(rB_, &yB_));
+  CELLFSI_PETSC(VecDuplicate(rB_, &tB_));
+  CELLFSI_PETSC(VecCreateSeq(PETSC_COMM_SELF, n_total_ - n_band_, &zI_));
+  CELLFSI_PETSC(VecDuplicate(zI_, &tI_));
+  CELLFSI_PETSC(VecScatterCreate(w1_, band_, rB_, nullptr, &to_band_));
+  CELLFSI_PETSC(VecScatterCreate(w1_, interior_, zI_, nullptr, &to_interior_));
+}
+
+void BandSchurSolver::set_band(Mat band) {
+  if (!F_) throw std::logic_error("BandSchurSolver::set_band before factor");
+  require_seqbaij(band, "K_band");
+  CELLFSI_PETSC(
+      MatCreateSubMatrix(band, band_, band_, band_sub_ ? MAT_REUSE_MATRIX : MAT_INITIAL_MATRIX, &band_sub_));
+  const PetscInt bs2 = bs_ * bs_;
+  if (band_pos_.empty()) {
+    const BlockStructure b = block_structure(band_sub_);
+    band_pos_.resize(b.ja.size());
+    for (std::size_t I = 0; I + 1 < b.ia.size(); ++I) {
+      const PetscInt* lo = s_ja_.data() + s_ia_[I];
+      const PetscInt* hi = s_ja_.data() + s_ia_[I + 1];
+      for (PetscInt k = b.ia[I]; k < b.ia[I + 1]; ++k) {
+        const PetscInt* p = std::lower_bound(lo, hi, b.ja[k]);
+        if (p == hi || *p != b.ja[k])
+          throw std::invalid_argument("BandSchurSolver: K_band has a block outside K_fixed's structure");
+        band_pos_[k] = static_cast<PetscInt>(p - s_ja_.data());
+      }
+    }
+  }
+  PetscScalar* a = nullptr;
+  PetscScalar* b = nullptr;
+  CELLFSI_PETSC(MatSeqBAIJGetArray(S_, &a));
+  CELLFSI_PETSC(MatSeqBAIJGetArray(band_sub_, &b));
+  std::copy(s_fixed_.begin(), s_fixed_.end(), a);
+  for (std::size_t k = 0; k < band_pos_.size(); ++k) {
+    PetscScalar* dst = a + band_pos_[k] * bs2;
+    const PetscScalar* src = b + k * bs2;
+    for (PetscInt i = 0; i < bs2; ++i) dst[i] += src[i];
+  }
+  CELLFSI_PETSC(MatSeqBAIJRestoreArray(band_sub_, &b));
+  CELLFSI_PETSC(MatSeqBAIJRestoreArray(S_, &a));
+
+  MatFactorInfo info;
+  CELLFSI_PETSC(MatFactorInfoInitialize(&info));
+  if (!SF_) {
+    CELLFSI_PETSC(MatGetFactor(S_, MATSOLVERMUMPS, MAT_FACTOR_LU, &SF_));
+    if (!prefix_.empty()) CELLFSI_PETSC(MatSetOptionsPrefix(SF_, (prefix_ + "schur_").c_str()));
+    CELLFSI_PETSC(MatLUFactorSymbolic(SF_, S_, nullptr, nullptr, &info));
+  }
+  CELLFSI_PETSC(MatLUFactorNumeric(SF_, S_, &info));
+  check_factor(SF_, "the band's Schur complement");
+}
+
+void BandSchurSolver::solve(Vec r, Vec x) {
+  if (!SF_) throw std::logic_error("BandSchurSolver::solve before set_band");
+  if (fused_) {
+    CELLFSI_PETSC(MatSolve(F_, r, x));
+    return;
+  }
+  auto scatter = [](VecScatter sc, Vec from, Vec to, ScatterMode mode) {
+    CELLFSI_PETSC(VecScatterBegin(sc, from, to, INSERT_VALUES, mode));
+    CELLFSI_PETSC(VecScatterEnd(sc, from, to, INSERT_VALUES, mode));
+  };
+  // z = K_II^{-1} r_I (w1: r_I and zero on B; MUMPS solves the interior problem only)
+  scatter(to_band_, r, rB_, SCATTER_FORWARD);
+  scatter(to_interior_, r, zI_, SCATTER_FORWARD);
+  CELLFSI_PETSC(VecSet(w1_, 0.0));
+  scatter(to_interior_, zI_, w1_, SCATTER_REVERSE);
+  CELLFSI_PETSC(MatSolve(F_, w1_, w2_));
+  // y = S^{-1} (r_B - K_BI z)
+  scatter(to_interior_, w2_, zI_, SCATTER_FORWARD);
+  CELLFSI_PETSC(MatMult(K_BI_, zI_, tB_));
+  CELLFSI_PETSC(VecAXPY(rB_, -1.0, tB_));
+  solve_schur(rB_, yB_);
+  // x_I = K_II^{-1} (r_I - K_IB y), x_B = y
+  CELLFSI_PETSC(MatMult(K_IB_, yB_, tI_));
+  scatter(to_interior_, r, zI_, SCATTER_FORWARD);
+  CELLFSI_PETSC(VecAXPY(zI_, -1.0, tI_));
+  CELLFSI_PETSC(VecSet(w1_, 0.0));
+  scatter(to_interior_, zI_, w1_, SCATTER_REVERSE);
+  CELLFSI_PETSC(MatSolve(F_, w1_, x));
+  scatter(to_band_, yB_, x, SCATTER_REVERSE);
+}
+
+}  // namespace cellfsi::fluid

@@ -1,0 +1,79 @@
+#pragma once
+// A direct solver for a matrix K = K_fixed + K_band whose second part changes often but only inside a fixed
+// set of unknowns B (the "band"), while K_fixed stays for many solves.
+//
+// Why: in the coupled FSI Jacobian the s^h band of the interfaces (s_I up to 1e10) and the immersed points
+// move every time step, so the LU factors of the whole Jacobian went stale every step, while everything away
+// from the cells (most of the matrix) barely changes at Re ~ 1e-4. Split the unknowns into B, every unknown
+// that K_band touches, and the rest I. K_band lives in the B x B block only, so
+//   K = [ K_II  K_IB ; K_BI  K_fixed,BB + K_band,BB ],
+// and the Schur complement of K on B is
+//   S = S_fixed + K_band,BB,   S_fixed = K_fixed,BB - K_BI K_II^{-1} K_IB.
+// factor(K_fixed, B): one sparse LU of K_fixed by MUMPS, which eliminates I and returns S_fixed (ICNTL(19)).
+//   S_fixed is dense only between the B unknowns that border I (K_BI K_II^{-1} K_IB); elsewhere it is
+//   K_fixed,BB's pattern. It is stored sparse, in the block layout of the band.
+// set_band(K_band): S = S_fixed + K_band,BB and a sparse LU of S (the band's size, not the domain's).
+// solve(r): block elimination: z = K_II^{-1} r_I, y = S^{-1} (r_B - K_BI z), x_I = K_II^{-1} (r_I - K_IB y),
+//   x_B = y. Fused (the default): one MUMPS solve with K_fixed's factors, whose forward sweep condenses the
+//   right-hand side onto B (ICNTL(26) = 1) and backward sweep expands y (ICNTL(26) = 2), with S's factors
+//   solving in between: the cost of one triangular solve pair plus one with S. PETSc 3.18 lets the user
+//   solve the Schur system only through the factor's dense Schur matrix, so its matsolve operation is pointed
+//   at S's sparse factors (petsc/private/matimpl.h; checked by the unit test). Not fused: two interior solves
+//   (ICNTL(26) = 0) and products with K_BI and K_IB, public API only.
+// The result is the exact inverse of K_fixed + K_band (to round-off) whatever K_band,BB is.
+//
+// One rank only (PETSc 3.18 computes MUMPS Schur complements on one rank). Matrices are PETSc SeqBAIJ or
+// SeqAIJ with one block size; B must consist of whole blocks.
+#include <petscmat.h>
+
+#include <string>
+#include <vector>
+
+namespace cellfsi::fluid {
+
+class BandSchurSolver {
+ public:
+  BandSchurSolver() = default;
+  ~BandSchurSolver();
+  BandSchurSolver(const BandSchurSolver&) = delete;
+  BandSchurSolver& operator=(const BandSchurSolver&) = delete;
+
+  /// Factorises K_fixed with the band unknowns `band` (sorted global indices, whole blocks) kept for the
+  /// Schur complement. `prefix` is the options prefix of the MUMPS factor (its -<prefix>mat_mumps_* options
+  /// apply). Replaces any previous factorisation.
+  void factor(Mat fixed, IS band, const std::string& prefix = "");
+  /// Fused solve (see above; default true). Takes effect at the next factor().
+  void set_fused_solve(bool fused) { fused_ = fused; }
+  /// Sets K_band (a matrix of K_fixed's size and layout whose entries lie in band x band; entries outside are
+  /// ignored) and factorises the band's Schur complement.
+  void set_band(Mat band);
+  /// x = (K_fixed + K_band)^{-1} r.
+  void solve(Vec r, Vec x);
+
+  bool factored() const { return F_ != nullptr; }
+  bool has_band() const { return SF_ != nullptr; }
+  PetscInt n_band() const { return n_band_; }    // unknowns in B
+  PetscInt n_total() const { return n_total_; }  // all unknowns
+  /// Nonzero entries of the sparse Schur complement (its blocks times the block size squared).
+  PetscInt schur_nonzeros() const { return schur_nonzeros_; }
+
+ private:
+  void release();
+  friend PetscErrorCode band_schur_matsolve(Mat, Mat, Mat);
+  void solve_schur(Vec g, Vec y);  // y = S^{-1} g
+  bool fused_ = true;
+  PetscInt bs_ = 1, n_band_ = 0, n_total_ = 0, schur_nonzeros_ = 0;
+  Mat F_ = nullptr;  // MUMPS factors of K_fixed with the Schur unknowns B
+  Mat K_BI_ = nullptr, K_IB_ = nullptr;
+  Mat S_ = nullptr, SF_ = nullptr;  // Schur complement (SeqBAIJ) and its factors
+  Mat band_sub_ = nullptr;          // K_band,BB, reused
+  IS band_ = nullptr, interior_ = nullptr;
+  std::vector<PetscInt> s_ia_, s_ja_;  // S_'s block structure
+  std::string prefix_;
+  std::vector<double> s_fixed_;     // S_fixed in S_'s value array layout
+  std::vector<PetscInt> band_pos_;  // block k of band_sub_ -> block of S_
+  Vec w1_ = nullptr, w2_ = nullptr, rB_ = nullptr, yB_ = nullptr, tB_ = nullptr, zI_ = nullptr, tI_ = nullptr;
+  VecScatter to_band_ = nullptr, to_interior_ = nullptr;  // full vector -> its B or I part
+};
+
+}  // namespace cellfsi::fluid
