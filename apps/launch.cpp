@@ -205,6 +205,12 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       CELLFSI_VERSION, settings.name.c_str(), size,
       solid_ranks ? (" + " + std::to_string(solid_ranks) + " solid ranks").c_str() : "", bodies.size(),
       n_steps, settings.dt, n_steps * settings.dt, settings.output_dir.c_str()));
+  if (scene.coupler() && !band_solver && settings.coupling.solver == coupling::CouplingSolver::band)
+    CELLFSI_PETSC(
+        PetscPrintf(PETSC_COMM_WORLD,
+                    "cellfsi: note: the band solver runs on one fluid rank; on %d the coupling loop "
+                    "uses -coupling_solver fluid\n",
+                    size));
   long newton = 0, linear = 0, factorizations = 0;
   int done = 0;
   std::vector<std::pair<std::string, double>> last;

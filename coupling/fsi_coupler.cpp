@@ -149,12 +149,12 @@ bool FsiCoupler::ensure_band_factorization(bool force) {
   band_.factor(J_fixed_, band, "coupling_band_");
   CELLFSI_PETSC(ISDestroy(&band));
   if (opt_.monitor)
-    CELLFSI_PETSC(PetscPrintf(fluid_.comm(),
-                              "  band factorisation: %d of %d elements, %" PetscInt_FMT " of %" PetscInt_FMT
-                              " unknowns, Schur complement %" PetscInt_FMT " nonzeros\n",
-                              static_cast<int>(std::count(region_.begin(), region_.end(), 1)),
-                              fluid_.patch().n_elements(), band_.n_band(), band_.n_total(),
-                              band_.schur_nonzeros()));
+    CELLFSI_PETSC(PetscPrintf(
+        fluid_.comm(),
+        "  band factorisation: %d of %d elements, %" PetscInt_FMT " of %" PetscInt_FMT
+        " unknowns (edge %" PetscInt_FMT "), Schur complement %" PetscInt_FMT " nonzeros\n",
+        static_cast<int>(std::count(region_.begin(), region_.end(), 1)), fluid_.patch().n_elements(),
+        band_.n_band(), band_.n_total(), band_.n_edge(), band_.schur_nonzeros()));
   steps_since_factor_ = 0;
   return true;
 }

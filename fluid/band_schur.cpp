@@ -59,13 +59,16 @@ PetscErrorCode band_schur_matsolve(Mat S, Mat B, Mat X) {
   auto* self = static_cast<BandSchurSolver*>(ctx);
   PetscInt n = 0, ncol = 0;
   PetscCall(MatGetSize(B, &n, &ncol));
-  PetscCheck(ncol == 1 && n == self->n_band_, PETSC_COMM_SELF, PETSC_ERR_SUP, "one right-hand side expected");
+  PetscCheck(ncol == 1 && n == self->n_edge_, PETSC_COMM_SELF, PETSC_ERR_SUP, "one right-hand side expected");
+  // The condensed right-hand side on the band: MUMPS' on the edge; the inner nodes', which do not couple to
+  // I, are those of the right-hand side (already in rB_, see solve()).
+  const std::vector<PetscInt>& edge = self->edge_pos_;
   const PetscScalar* b = nullptr;
   PetscScalar* v = nullptr;
   PetscCall(MatDenseGetArrayRead(B, &b));
-  PetscCall(VecGetArrayWrite(self->rB_, &v));
-  std::memcpy(v, b, sizeof(PetscScalar) * n);
-  PetscCall(VecRestoreArrayWrite(self->rB_, &v));
+  PetscCall(VecGetArray(self->rB_, &v));
+  for (PetscInt k = 0; k < n; ++k) v[edge[k]] = b[k];
+  PetscCall(VecRestoreArray(self->rB_, &v));
   PetscCall(MatDenseRestoreArrayRead(B, &b));
   try {
     self->solve_schur(self->rB_, self->yB_);
@@ -76,7 +79,7 @@ PetscErrorCode band_schur_matsolve(Mat S, Mat B, Mat X) {
   const PetscScalar* y = nullptr;
   PetscCall(MatDenseGetArrayWrite(X, &x));
   PetscCall(VecGetArrayRead(self->yB_, &y));
-  std::memcpy(x, y, sizeof(PetscScalar) * n);
+  for (PetscInt k = 0; k < n; ++k) x[k] = y[edge[k]];
   PetscCall(VecRestoreArrayRead(self->yB_, &y));
   PetscCall(MatDenseRestoreArrayWrite(X, &x));
   PetscFunctionReturn(0);
@@ -100,7 +103,9 @@ void BandSchurSolver::release() {
   VecScatterDestroy(&to_interior_);
   s_fixed_.clear();
   band_pos_.clear();
-  n_band_ = n_total_ = schur_nonzeros_ = 0;
+  edge_pos_.clear();
+  inner_nodes_.clear();
+  n_band_ = n_total_ = n_edge_ = schur_nonzeros_ = 0;
 }
 
 void BandSchurSolver::factor(Mat fixed, IS band, const std::string& prefix) {
@@ -117,15 +122,65 @@ void BandSchurSolver::factor(Mat fixed, IS band, const std::string& prefix) {
                                 std::to_string(n_band_) + " unknowns, block size " + std::to_string(bs_) +
                                 ")");
   CELLFSI_PETSC(ISComplement(band_, 0, n_total_, &interior_));
+  const PetscInt nb = n_band_ / bs_, bs = bs_, bs2 = bs * bs;
 
-  // K_fixed's LU with B kept for the Schur complement; the interior solves of solve() use ICNTL(26) = 0.
+  // The band's edge: its nodes whose rows of K_fixed are not zero (they border I). Only they enter
+  // K_BI K_II^{-1} K_IB; the band's inner nodes have zero rows and columns in K_fixed.
+  const PetscInt* band_idx = nullptr;
+  CELLFSI_PETSC(ISGetIndices(band_, &band_idx));
+  std::vector<PetscInt> band_nodes(nb);
+  for (PetscInt I = 0; I < nb; ++I) band_nodes[I] = band_idx[I * bs] / bs;
+  CELLFSI_PETSC(ISRestoreIndices(band_, &band_idx));
+  edge_pos_.clear();
+  inner_nodes_.clear();
+  {
+    const BlockStructure k = block_structure(fixed);
+    PetscScalar* a = nullptr;
+    CELLFSI_PETSC(MatSeqBAIJGetArray(fixed, &a));
+    for (PetscInt I = 0; I < nb; ++I) {
+      const PetscInt row = band_nodes[I];
+      const bool nonzero =
+          std::any_of(a + k.ia[row] * bs2, a + k.ia[row + 1] * bs2, [](PetscScalar v) { return v != 0.0; });
+      if (nonzero)
+        for (PetscInt c = 0; c < bs; ++c) edge_pos_.push_back(I * bs + c);
+      else
+        inner_nodes_.push_back(row);
+    }
+    CELLFSI_PETSC(MatSeqBAIJRestoreArray(fixed, &a));
+  }
+  n_edge_ = static_cast<PetscInt>(edge_pos_.size());
+  if (n_edge_ == 0) throw std::invalid_argument("BandSchurSolver: the band does not border the rest");
+
+  // K_fixed with an identity on the band's inner nodes (which then decouple) is factorised by MUMPS with the
+  // edge kept for the Schur complement: MUMPS returns S_edge = K_fixed,EE - K_EI K_II^{-1} K_IE.
+  Mat K = nullptr;
+  CELLFSI_PETSC(MatDuplicate(fixed, MAT_COPY_VALUES, &K));
+  {
+    std::vector<PetscScalar> identity(bs2, 0.0);
+    for (PetscInt c = 0; c < bs; ++c) identity[c * bs + c] = 1.0;
+    for (PetscInt n : inner_nodes_)
+      CELLFSI_PETSC(MatSetValuesBlocked(K, 1, &n, 1, &n, identity.data(), INSERT_VALUES));
+    CELLFSI_PETSC(MatAssemblyBegin(K, MAT_FINAL_ASSEMBLY));
+    CELLFSI_PETSC(MatAssemblyEnd(K, MAT_FINAL_ASSEMBLY));
+  }
+  IS edge = nullptr;
+  {
+    std::vector<PetscInt> idx(n_edge_);
+    const PetscInt* b = nullptr;
+    CELLFSI_PETSC(ISGetIndices(band_, &b));
+    for (PetscInt k = 0; k < n_edge_; ++k) idx[k] = b[edge_pos_[k]];
+    CELLFSI_PETSC(ISRestoreIndices(band_, &b));
+    CELLFSI_PETSC(ISCreateGeneral(PETSC_COMM_SELF, n_edge_, idx.data(), PETSC_COPY_VALUES, &edge));
+  }
   MatFactorInfo info;
   CELLFSI_PETSC(MatFactorInfoInitialize(&info));
-  CELLFSI_PETSC(MatGetFactor(fixed, MATSOLVERMUMPS, MAT_FACTOR_LU, &F_));
+  CELLFSI_PETSC(MatGetFactor(K, MATSOLVERMUMPS, MAT_FACTOR_LU, &F_));
   if (!prefix.empty()) CELLFSI_PETSC(MatSetOptionsPrefix(F_, prefix.c_str()));
-  CELLFSI_PETSC(MatFactorSetSchurIS(F_, band_));
-  CELLFSI_PETSC(MatLUFactorSymbolic(F_, fixed, nullptr, nullptr, &info));
-  CELLFSI_PETSC(MatLUFactorNumeric(F_, fixed, &info));
+  CELLFSI_PETSC(MatFactorSetSchurIS(F_, edge));
+  CELLFSI_PETSC(MatLUFactorSymbolic(F_, K, nullptr, nullptr, &info));
+  CELLFSI_PETSC(MatLUFactorNumeric(F_, K, &info));
+  CELLFSI_PETSC(ISDestroy(&edge));
+  CELLFSI_PETSC(MatDestroy(&K));  // MUMPS keeps its own copy of the entries
   check_factor(F_, "the fixed part");
   Mat Sd = nullptr;
   CELLFSI_PETSC(MatFactorCreateSchurComplement(F_, &Sd, nullptr));
@@ -150,26 +205,32 @@ void BandSchurSolver::factor(Mat fixed, IS band, const std::string& prefix) {
   CELLFSI_PETSC(MatCreateSubMatrix(fixed, interior_, band_, MAT_INITIAL_MATRIX, &K_IB_));
 
   // The Schur complement's block pattern: K_fixed,BB's structure (where K_band will add) and every block of
-  // S_fixed that is not zero (the dense coupling of the band's unknowns that border I).
+  // S_edge that is not zero (the dense coupling of the edge through I). S_fixed is S_edge on the edge and
+  // zero elsewhere (the inner nodes' rows and columns of K_fixed are zero).
   Mat K_BB = nullptr;
   CELLFSI_PETSC(MatCreateSubMatrix(fixed, band_, band_, MAT_INITIAL_MATRIX, &K_BB));
   const BlockStructure kbb = block_structure(K_BB);
   CELLFSI_PETSC(MatDestroy(&K_BB));
-  const PetscInt nb = n_band_ / bs_, bs = bs_, bs2 = bs * bs;
   const PetscScalar* sd = nullptr;
   PetscInt lda = 0;
   CELLFSI_PETSC(MatDenseGetLDA(Sd, &lda));
   CELLFSI_PETSC(MatDenseGetArrayRead(Sd, &sd));
+  const PetscInt ne = n_edge_ / bs;
+  std::vector<PetscInt> edge_of(nb, -1);  // band node -> edge node, or -1
+  for (PetscInt k = 0; k < ne; ++k) edge_of[edge_pos_[k * bs] / bs] = k;
   std::vector<std::vector<PetscInt>> cols(nb);
   for (PetscInt I = 0; I < nb; ++I)
     cols[I].assign(kbb.ja.begin() + kbb.ia[I], kbb.ja.begin() + kbb.ia[I + 1]);
+  auto edge_block_nonzero = [&](PetscInt ei, PetscInt ej) {
+    for (PetscInt e = 0; e < bs; ++e)
+      for (PetscInt c = 0; c < bs; ++c)
+        if (sd[(ei * bs + c) + (ej * bs + e) * lda] != 0.0) return true;
+    return false;
+  };
   for (PetscInt J = 0; J < nb; ++J)
-    for (PetscInt I = 0; I < nb; ++I) {
-      bool nonzero = false;
-      for (PetscInt e = 0; e < bs && !nonzero; ++e)
-        for (PetscInt c = 0; c < bs && !nonzero; ++c) nonzero = sd[(I * bs + c) + (J * bs + e) * lda] != 0.0;
-      if (nonzero) cols[I].push_back(J);
-    }
+    for (PetscInt I = 0; I < nb; ++I)
+      if (edge_of[I] >= 0 && edge_of[J] >= 0 && edge_block_nonzero(edge_of[I], edge_of[J]))
+        cols[I].push_back(J);
   std::vector<PetscInt> nnz(nb);
   for (PetscInt I = 0; I < nb; ++I) {
     std::sort(cols[I].begin(), cols[I].end());
@@ -189,10 +250,11 @@ void BandSchurSolver::factor(Mat fixed, IS band, const std::string& prefix) {
   s_fixed_.assign(s.ja.size() * bs2, 0.0);
   for (PetscInt I = 0; I < nb; ++I)
     for (PetscInt k = s.ia[I]; k < s.ia[I + 1]; ++k) {
-      const PetscInt J = s.ja[k];
+      const PetscInt ei = edge_of[I], ej = edge_of[s.ja[k]];
+      if (ei < 0 || ej < 0) continue;
       for (PetscInt e = 0; e < bs; ++e)  // SeqBAIJ blocks are column-major
         for (PetscInt c = 0; c < bs; ++c)
-          s_fixed_[k * bs2 + e * bs + c] = sd[(I * bs + c) + (J * bs + e) * lda];
+          s_fixed_[k * bs2 + e * bs + c] = sd[(ei * bs + c) + (ej * bs + e) * lda];
     }
   schur_nonzeros_ = static_cast<PetscInt>(s.ja.size()) * bs2;
   CELLFSI_PETSC(MatDenseRestoreArrayRead(Sd, &sd));
@@ -257,14 +319,18 @@ void BandSchurSolver::set_band(Mat band) {
 
 void BandSchurSolver::solve(Vec r, Vec x) {
   if (!SF_) throw std::logic_error("BandSchurSolver::solve before set_band");
-  if (fused_) {
-    CELLFSI_PETSC(MatSolve(F_, r, x));
-    return;
-  }
   auto scatter = [](VecScatter sc, Vec from, Vec to, ScatterMode mode) {
     CELLFSI_PETSC(VecScatterBegin(sc, from, to, INSERT_VALUES, mode));
     CELLFSI_PETSC(VecScatterEnd(sc, from, to, INSERT_VALUES, mode));
   };
+  if (fused_) {
+    // MUMPS condenses onto the edge and calls band_schur_matsolve, which completes rB_ and leaves y in yB_;
+    // MUMPS' values on the inner nodes (its identity) are replaced by y.
+    scatter(to_band_, r, rB_, SCATTER_FORWARD);
+    CELLFSI_PETSC(MatSolve(F_, r, x));
+    scatter(to_band_, yB_, x, SCATTER_REVERSE);
+    return;
+  }
   // z = K_II^{-1} r_I (w1: r_I and zero on B; MUMPS solves the interior problem only)
   scatter(to_band_, r, rB_, SCATTER_FORWARD);
   scatter(to_interior_, r, zI_, SCATTER_FORWARD);

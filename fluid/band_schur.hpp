@@ -9,9 +9,11 @@
 //   K = [ K_II  K_IB ; K_BI  K_fixed,BB + K_band,BB ],
 // and the Schur complement of K on B is
 //   S = S_fixed + K_band,BB,   S_fixed = K_fixed,BB - K_BI K_II^{-1} K_IB.
-// factor(K_fixed, B): one sparse LU of K_fixed by MUMPS, which eliminates I and returns S_fixed (ICNTL(19)).
-//   S_fixed is dense only between the B unknowns that border I (K_BI K_II^{-1} K_IB); elsewhere it is
-//   K_fixed,BB's pattern. It is stored sparse, in the block layout of the band.
+// factor(K_fixed, B): one sparse LU of K_fixed by MUMPS. K_BI K_II^{-1} K_IB is non-zero only on the band's
+//   edge E (its unknowns whose rows of K_fixed are not zero, i.e. that border I); the band's inner unknowns
+//   have zero rows and columns in K_fixed and get an identity, and MUMPS eliminates everything but E and
+//   returns the dense S_E = K_fixed,EE - K_EI K_II^{-1} K_IE (ICNTL(19)). S_fixed is S_E on E and zero
+//   elsewhere; it is stored sparse, in the block layout of the band.
 // set_band(K_band): S = S_fixed + K_band,BB and a sparse LU of S (the band's size, not the domain's).
 // solve(r): block elimination: z = K_II^{-1} r_I, y = S^{-1} (r_B - K_BI z), x_I = K_II^{-1} (r_I - K_IB y),
 //   x_B = y. Fused (the default): one MUMPS solve with K_fixed's factors, whose forward sweep condenses the
@@ -54,6 +56,8 @@ class BandSchurSolver {
   bool has_band() const { return SF_ != nullptr; }
   PetscInt n_band() const { return n_band_; }    // unknowns in B
   PetscInt n_total() const { return n_total_; }  // all unknowns
+  /// Unknowns of the band's edge (those bordering the rest): the size of MUMPS' dense Schur complement.
+  PetscInt n_edge() const { return n_edge_; }
   /// Nonzero entries of the sparse Schur complement (its blocks times the block size squared).
   PetscInt schur_nonzeros() const { return schur_nonzeros_; }
 
@@ -69,6 +73,9 @@ class BandSchurSolver {
   Mat band_sub_ = nullptr;          // K_band,BB, reused
   IS band_ = nullptr, interior_ = nullptr;
   std::vector<PetscInt> s_ia_, s_ja_;  // S_'s block structure
+  PetscInt n_edge_ = 0;                // unknowns of the band's edge (the MUMPS Schur complement's size)
+  std::vector<PetscInt> edge_pos_;     // positions in B of the edge's unknowns
+  std::vector<PetscInt> inner_nodes_;  // block rows of the band's inner nodes
   std::string prefix_;
   std::vector<double> s_fixed_;     // S_fixed in S_'s value array layout
   std::vector<PetscInt> band_pos_;  // block k of band_sub_ -> block of S_

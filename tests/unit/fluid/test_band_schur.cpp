@@ -95,6 +95,8 @@ TEST_P(BandSchurSolverModes, InvertsFixedPlusAnyBandAfterOneFactorisation) {
   solver.factor(fixed, is);
   EXPECT_EQ(solver.n_band(), static_cast<PetscInt>(band.size()));
   EXPECT_EQ(solver.n_total(), g.n());
+  // The band's edge (its nodes 5 and 9, which border the rest) is what MUMPS keeps; nodes 6-8 are inner.
+  EXPECT_EQ(solver.n_edge(), 2 * g.ny * kBs);
 
   Vec r;
   CELLFSI_PETSC(MatCreateVecs(fixed, &r, nullptr));
