@@ -2,6 +2,8 @@
 
 #include <petsc/private/matimpl.h>  // the fused solve: the Schur matrix's matsolve operation
 
+#include <malloc.h>
+
 #include <algorithm>
 #include <cstring>
 #include <stdexcept>
@@ -110,6 +112,11 @@ void BandSchurSolver::release() {
 
 void BandSchurSolver::factor(Mat fixed, IS band, const std::string& prefix) {
   release();
+#ifdef __GLIBC__
+  // MUMPS' many allocations stay in glibc's heap after its factors are freed: without this the resident size
+  // grew by the size of a factorisation every few refactorisations (256 x 128: 2.7 -> 4.3 GB in 4).
+  malloc_trim(0);
+#endif
   require_seqbaij(fixed, "K_fixed");
   CELLFSI_PETSC(MatGetBlockSize(fixed, &bs_));
   CELLFSI_PETSC(MatGetSize(fixed, &n_total_, nullptr));
