@@ -187,10 +187,19 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   RunOutput out(PETSC_COMM_WORLD, settings.output_dir, settings.name);
   std::unique_ptr<fluid::FluidSeriesWriter> series;
   std::unique_ptr<solid::SolidSeriesWriter> solid_series;
+  static const PetscLogEvent output_event = [] {
+    PetscClassId id = 0;
+    PetscLogEvent e = 0;
+    CELLFSI_PETSC(PetscClassIdRegister("cellfsi app", &id));
+    CELLFSI_PETSC(PetscLogEventRegister("CellfsiOutput", id, &e));
+    return e;
+  }();
   auto write_series = [&] {
     if (!series) return;
+    CELLFSI_PETSC(PetscLogEventBegin(output_event, 0, 0, 0, 0));
     series->write(scene.fluid());
     if (solid_series) solid_series->write(scene.fluid().time(), scene.bodies());
+    CELLFSI_PETSC(PetscLogEventEnd(output_event, 0, 0, 0, 0));
   };
   if (settings.output_every > 0) {
     series = std::make_unique<fluid::FluidSeriesWriter>(settings.output_dir);

@@ -125,7 +125,7 @@ steps = s["steps"]
 wall = s["wall_time_s"]
 ms_n, ms_t = ev.get("MatSolve", (0, 0.0))
 fact = s.get("factorizations", 0)
-if solver == "band":
+if solver == "band" and s.get("band_unknowns", 0) > 0:
     f_n, f_t = ev.get("FsiBandFactor", (0, 0.0))
 else:
     f_n, f_t = ev.get("MatLUFactorNum", (0, 0.0))

@@ -876,6 +876,14 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
   }
 
   // Immersed-solid points (paper Eq. (10)) in this rank's elements.
+  static const PetscLogEvent immersed_event = [] {
+    PetscClassId id = 0;
+    PetscLogEvent e = 0;
+    CELLFSI_PETSC(PetscClassIdRegister("cellfsi fluid", &id));
+    CELLFSI_PETSC(PetscLogEventRegister("FluidImmersed", id, &e));
+    return e;
+  }();
+  CELLFSI_PETSC(PetscLogEventBegin(immersed_event, 0, 0, 0, 0));
   for (const LocatedPoint& ip : immersed_) {
     if (in_band && !band_side) break;
     physical_point(patch_, ip.element, ip.xi, bv, mv, pp);
@@ -891,6 +899,7 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
     if (J) immersed_tangent(prm, pb, pf, ts, ip.data, Ke.data());
     scatter(n, false);
   }
+  CELLFSI_PETSC(PetscLogEventEnd(immersed_event, 0, 0, 0, 0));
 
   CELLFSI_PETSC(VecRestoreArrayRead(U_loc, &u));
   CELLFSI_PETSC(VecRestoreArrayRead(Un_loc_, &un));

@@ -14,6 +14,7 @@ packages=(
   libvtk9-dev
   libgtest-dev
   libbenchmark-dev
+  time python3               # bench/ scripts: /usr/bin/time -v for peak memory, python3 to read -log_view
 )
 
 missing=()
