@@ -183,6 +183,14 @@ void BandSchurSolver::factor(Mat fixed, IS band, const std::string& prefix) {
   CELLFSI_PETSC(MatFactorInfoInitialize(&info));
   CELLFSI_PETSC(MatGetFactor(K, MATSOLVERMUMPS, MAT_FACTOR_LU, &F_));
   if (!prefix.empty()) CELLFSI_PETSC(MatSetOptionsPrefix(F_, prefix.c_str()));
+  if (blr_tolerance_ > 0) {
+    // Block low-rank factors (MUMPS ICNTL(35) = 2: compressed in the factorisation and the solves) dropping
+    // below blr_tolerance_: measured at 256 x 128, the factorisation 32 % and each solve 26 % faster, 13 %
+    // less memory, and still one FGMRES iteration per solve with 1e-10 (1e-7: 1.5 iterations). Options under
+    // the prefix (-<prefix>mat_mumps_icntl_35 0) override this default.
+    CELLFSI_PETSC(MatMumpsSetIcntl(F_, 35, 2));
+    CELLFSI_PETSC(MatMumpsSetCntl(F_, 7, blr_tolerance_));
+  }
   CELLFSI_PETSC(MatFactorSetSchurIS(F_, edge));
   CELLFSI_PETSC(MatLUFactorSymbolic(F_, K, nullptr, nullptr, &info));
   CELLFSI_PETSC(MatLUFactorNumeric(F_, K, &info));

@@ -46,6 +46,10 @@ class BandSchurSolver {
   void factor(Mat fixed, IS band, const std::string& prefix = "");
   /// Fused solve (see above; default true). Takes effect at the next factor().
   void set_fused_solve(bool fused) { fused_ = fused; }
+  /// Block low-rank compression of K_fixed's factors (MUMPS BLR, CNTL(7)): entries dropped below this
+  /// relative size; 0: full-rank LU. Default 1e-10, which keeps the solve exact far below any linear
+  /// tolerance. Takes effect at the next factor().
+  void set_blr_tolerance(double tol) { blr_tolerance_ = tol; }
   /// Sets K_band (a matrix of K_fixed's size and layout whose entries lie in band x band; entries outside are
   /// ignored) and factorises the band's Schur complement.
   void set_band(Mat band);
@@ -66,6 +70,7 @@ class BandSchurSolver {
   friend PetscErrorCode band_schur_matsolve(Mat, Mat, Mat);
   void solve_schur(Vec g, Vec y);  // y = S^{-1} g
   bool fused_ = true;
+  double blr_tolerance_ = 1e-10;
   PetscInt bs_ = 1, n_band_ = 0, n_total_ = 0, schur_nonzeros_ = 0;
   Mat F_ = nullptr;  // MUMPS factors of K_fixed with the Schur unknowns B
   Mat K_BI_ = nullptr, K_IB_ = nullptr;
