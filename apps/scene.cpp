@@ -111,7 +111,7 @@ void read_bodies(SceneSettings& s) {
             avg = s.metrics_average_from;
   PetscInt max_it = s.coupling.max_iterations, lag = s.coupling.preconditioner_lag;
   PetscInt margin = s.coupling.band_margin, refactor = s.coupling.band_refactor_every,
-           schur_lag = s.coupling.band_schur_lag;
+           schur_lag = s.coupling.band_schur_lag, refresh = s.coupling.band_refresh_steps;
   PetscBool monitor = PETSC_FALSE;
   const char* solvers[] = {"band", "fluid", "CouplingSolver", "", nullptr};
   PetscEnum solver = static_cast<PetscEnum>(s.coupling.solver);
@@ -147,9 +147,14 @@ void read_bodies(SceneSettings& s) {
                                   "Steps between factorisations of the band solver's fixed part (0: when the "
                                   "cells leave its region)",
                                   nullptr, refactor, &refactor, nullptr));
+        PetscCall(
+            PetscOptionsInt("-coupling_band_refresh_steps",
+                            "Steps between refreshes of the band Jacobian while the s^h marking stays (it "
+                            "is refreshed whenever the marking moves)",
+                            nullptr, refresh, &refresh, nullptr));
         PetscCall(PetscOptionsInt("-coupling_band_schur_lag",
                                   "Coupling iterations between re-assemblies of the band Jacobian and "
-                                  "factorisations of its Schur complement (0: once per step)",
+                                  "factorisations of its Schur complement inside a step (0: none)",
                                   nullptr, schur_lag, &schur_lag, nullptr));
         PetscCall(PetscOptionsReal("-coupling_max_mesh_ratio",
                                    "Largest Lagrangian / smallest Eulerian element size (paper Remark 3)",
@@ -168,6 +173,7 @@ void read_bodies(SceneSettings& s) {
        {"-coupling_band_margin", 'i'},
        {"-coupling_band_refactor_every", 'i'},
        {"-coupling_band_schur_lag", 'i'},
+       {"-coupling_band_refresh_steps", 'i'},
        {"-coupling_max_mesh_ratio", 'r'},
        {"-metrics_average_from", 'r'}});
   if (set && n > 64) bad("solid_bodies", std::to_string(n) + " names", "at most 64 bodies");
@@ -178,7 +184,9 @@ void read_bodies(SceneSettings& s) {
   if (margin < 0) bad("coupling_band_margin", std::to_string(margin), ">= 0");
   if (refactor < 0)
     bad("coupling_band_refactor_every", std::to_string(refactor), ">= 0 (0: only when needed)");
-  if (schur_lag < 0) bad("coupling_band_schur_lag", std::to_string(schur_lag), ">= 0 (0: once per step)");
+  if (schur_lag < 0)
+    bad("coupling_band_schur_lag", std::to_string(schur_lag), ">= 0 (0: none inside a step)");
+  if (refresh < 1) bad("coupling_band_refresh_steps", std::to_string(refresh), ">= 1 (1: every step)");
   if (!(ratio > 0)) bad("coupling_max_mesh_ratio", str(ratio), "> 0");
   if (avg >= s.final_time)
     bad("metrics_average_from", str(avg), "less than -final_time = " + str(s.final_time) + " s");
@@ -190,6 +198,7 @@ void read_bodies(SceneSettings& s) {
   s.coupling.band_margin = static_cast<int>(margin);
   s.coupling.band_refactor_every = static_cast<int>(refactor);
   s.coupling.band_schur_lag = static_cast<int>(schur_lag);
+  s.coupling.band_refresh_steps = static_cast<int>(refresh);
   s.coupling.monitor = monitor == PETSC_TRUE;
   s.max_mesh_ratio = ratio;
   s.metrics_average_from = avg;

@@ -176,7 +176,15 @@ bool FsiCoupler::ensure_band_factorization(bool force) {
 int FsiCoupler::solve_band(CouplerStats& st, bool first_iteration) {
   // The region is checked every iteration: the immersed points move with the solids.
   ++solves_since_schur_;
-  bool refresh = first_iteration || (opt_.band_schur_lag > 0 && solves_since_schur_ >= opt_.band_schur_lag);
+  // At a step's first iteration the band is refreshed if the s^h marking moved (its s_I rows changed) or
+  // band_refresh_steps steps have passed; otherwise the previous Newton matrix is kept (only the immersed
+  // points moved, a little). Measured on the default scene (64 x 32, 400 steps): 201 refreshes instead of
+  // 400, 33 s instead of 48, 1559 coupling iterations instead of 1555, the same metrics to 1e-7.
+  ++steps_since_refresh_;
+  const bool step_refresh =
+      first_iteration && (band_marking_changed_ || steps_since_refresh_ >= opt_.band_refresh_steps);
+  if (first_iteration) band_marking_changed_ = false;
+  bool refresh = step_refresh || (opt_.band_schur_lag > 0 && solves_since_schur_ >= opt_.band_schur_lag);
   if (ensure_band_factorization(false)) {
     ++st.factorizations;
     refresh = true;
@@ -195,6 +203,7 @@ int FsiCoupler::solve_band(CouplerStats& st, bool first_iteration) {
     EventScope ev(events().band_update);
     band_.set_band(J_band_);
     solves_since_schur_ = 0;
+    steps_since_refresh_ = 0;
   }
   EventScope ev(events().solve);
   CELLFSI_PETSC(KSPSetOperators(band_ksp_, J, J));
@@ -256,6 +265,7 @@ void FsiCoupler::update_immersed(bool mark) {
   if (marked != marked_) {
     marked_ = std::move(marked);
     marking_changed_ = true;
+    band_marking_changed_ = true;
   }
   const std::vector<double> s = scaling_values(fluid_.patch().n_control(), marked_, opt_.s_interface);
   fluid_.set_scaling([&](int node) { return s[node]; });

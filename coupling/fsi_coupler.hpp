@@ -37,13 +37,17 @@ struct CouplerOptions {
   int preconditioner_lag = 10;  // linear solves between rebuilds of the preconditioner (1: every iteration)
   bool monitor = false;         // print every iteration's residual norms (rank 0)
   CouplingSolver solver = CouplingSolver::band;  // falls back to `fluid` on several fluid ranks
-  int band_margin = 4;  // elements around the active ones in the band region (measured: 2 and 6 were slower)
-  int band_refactor_every =
-      0;  // also rebuild the kept factorisation after this many steps (0: only when needed)
-  int band_schur_lag =
-      0;  // coupling iterations between re-assemblies of the band's Jacobian and factorisations
-          // of its Schur complement (0: only at a step's first iteration, where the marking
-          // moved); in between, the Newton matrix is kept (a chord iteration)
+  // Band solver. Elements around the active ones in the band region (measured: margins 2 and 6 were slower).
+  int band_margin = 4;
+  // Steps between factorisations of the kept (fixed) part besides those the band's motion needs (0: only
+  // those).
+  int band_refactor_every = 0;
+  // Steps between refreshes of the band's Jacobian and Schur complement while the s^h marking stays (it is
+  // refreshed at the first iteration of every step in which the marking moved).
+  int band_refresh_steps = 10;
+  // Coupling iterations between refreshes inside a step (0: none); in between, the Newton matrix is kept (a
+  // chord iteration; the residual is exact, so the answer is the same to the coupling tolerance).
+  int band_schur_lag = 0;
 };
 
 struct CouplerStats {
@@ -98,7 +102,8 @@ class FsiCoupler {
   Mat J_fixed_ = nullptr, J_band_ = nullptr;  // the two parts of K_MC; their sum goes into the fluid's matrix
   KSP band_ksp_ = nullptr;                    // FGMRES (prefix coupling_band_) preconditioned by band_
   std::vector<char> region_;                  // elements whose Jacobian is re-assembled every iteration
-  int steps_since_factor_ = 0, solves_since_schur_ = 0;
+  int steps_since_factor_ = 0, solves_since_schur_ = 0, steps_since_refresh_ = 0;
+  bool band_marking_changed_ = true;  // the marking moved since the band was last refreshed
 };
 
 }  // namespace cellfsi::coupling

@@ -128,10 +128,12 @@ double relative_difference(const std::vector<double>& a, const std::vector<doubl
 
 }  // namespace
 
-// The band solver (the Jacobian away from the capsule factorised once, the s^h band re-solved exactly each
-// step) against the fluid's own solver (a full LU whenever the marking moves): the same steps to the coupling
-// tolerance. Both stop at a 1e-4 residual drop per step, so their iterates differ by what the last iteration
-// leaves; measured 1.5e-8 (fluid unknowns) and 8e-11 (membrane control points), bounded here at 1e-6.
+// The band solver (the Jacobian away from the capsule factorised once, the s^h band re-solved exactly when
+// the marking moves) against the fluid's own solver (a full LU whenever the marking moves): the same steps to
+// the coupling tolerance. Both stop when every residual has dropped by 1e-4 in the step; their iterates then
+// differ by what the last iterations leave, a small fraction of a step's change. Measured 3.6e-7 (fluid
+// unknowns) and 8e-10 (membrane control points); bounds 1e-5 and 1e-6 (a wrong operator or preconditioner
+// shows as a difference of order of a step's change, or as divergence).
 TEST(FsiCoupler, BandSolverGivesTheFluidSolversSteps) {
   const int steps = 4;
   const CapsuleRun band = run_capsule(coupling::CouplingSolver::band, steps);
@@ -143,7 +145,7 @@ TEST(FsiCoupler, BandSolverGivesTheFluidSolversSteps) {
       "iterations %d (band, %d coupling iterations) vs %d\n",
       dv, dx, band.factorizations, full.factorizations, band.linear_iterations, band.iterations,
       full.linear_iterations);
-  EXPECT_LT(dv, 1e-6);
+  EXPECT_LT(dv, 1e-5);
   EXPECT_LT(dx, 1e-6);
   // The band preconditioner is the exact inverse of its operator: one FGMRES iteration per linear solve. Its
   // fixed part is factorised once for these few steps (twice at most if the start moves the band out of its
