@@ -47,13 +47,16 @@ void print_error(const std::string& message) {
 
 /// When the unknown-option check runs: before the coupling loop exists, once it is set up, after the first
 /// step.
-enum class OptionCheck { before_coupling, before_first_step, after_first_step };
+enum class OptionCheck { before_coupling, before_first_step, after_first_step, after_first_step_fluid };
 
 /// Whether PETSc may not have read `name` yet at `when`: the coupling loop's solver options are read when it
 /// is created; factorisation packages' options (MUMPS, SuperLU_DIST, ...) and convergence reports only at
 /// the first solve.
 bool maybe_unread(const std::string& name, OptionCheck when) {
   if (when == OptionCheck::after_first_step) return false;
+  // The band solver fell back to the fluid's in the first step (its region held most of the domain, which
+  // the run reported): its factorisation options were never read.
+  if (when == OptionCheck::after_first_step_fluid) return name.rfind("coupling_band_", 0) == 0;
   if (when == OptionCheck::before_coupling && name.rfind("coupling_band_", 0) == 0) return true;
   for (const char* late : {"mat_mumps_", "mat_superlu", "mat_strumpack", "converged_reason", "ksp_view"})
     if (name.find(late) != std::string::npos) return true;
@@ -74,7 +77,7 @@ void reject_unknown_options(OptionCheck when) {
   if (!first.empty())
     throw std::invalid_argument("unknown option -" + first +
                                 " (misspelt? run with -help for the valid options)" +
-                                (when == OptionCheck::after_first_step
+                                (when >= OptionCheck::after_first_step
                                      ? " (found after the first time step, when every solver had read "
                                        "its options)"
                                      : ""));
@@ -93,20 +96,26 @@ std::vector<std::string> option_names() {
   return names;
 }
 
-/// With the band solver the coupling loop does not use the fluid's KSP: its options would be silently
-/// ignored.
-void reject_fluid_solver_options(const std::vector<std::string>& user_options) {
-  for (const std::string& name : user_options)
-    for (const char* p : {"fluid_ksp_", "fluid_pc_", "fluid_sub_", "fluid_mat_", "fluid_snes_"})
-      if (name.rfind(p, 0) == 0)
-        throw std::invalid_argument(
-            "option -" + name +
-            " does not apply: this coupled run solves with -coupling_solver band (the default on one fluid "
-            "rank), "
-            "which has its own options under -coupling_band_ (e.g. -coupling_band_ksp_monitor, "
-            "-coupling_band_mat_mumps_icntl_14 40, -coupling_band_schur_mat_mumps_icntl_35 1); for the "
-            "fluid's "
-            "KSP and PC options use -coupling_solver fluid");
+/// Solver options that would be silently ignored: with the band solver the coupling loop does not use the
+/// fluid's KSP; without it, the band solver's options have nothing to act on.
+void reject_inapplicable_solver_options(const std::vector<std::string>& user_options, bool band_solver) {
+  for (const std::string& name : user_options) {
+    if (band_solver) {
+      if (name == "fluid_mat_type_jacobian") continue;  // the matrix type applies to both solvers
+      for (const char* p : {"fluid_ksp_", "fluid_pc_", "fluid_sub_", "fluid_mat_", "fluid_snes_"})
+        if (name.rfind(p, 0) == 0)
+          throw std::invalid_argument(
+              "option -" + name +
+              " does not apply: this coupled run solves with -coupling_solver band (the default on one fluid "
+              "rank), which has its own options under -coupling_band_ (e.g. -coupling_band_ksp_monitor, "
+              "-coupling_band_mat_mumps_icntl_14 40, -coupling_band_schur_mat_mumps_icntl_35 1); for the "
+              "fluid's KSP and PC options use -coupling_solver fluid");
+    } else if (name.rfind("coupling_band_", 0) == 0) {
+      throw std::invalid_argument("option -" + name +
+                                  " does not apply: this coupled run solves with -coupling_solver fluid (the "
+                                  "band solver needs one fluid rank and a BAIJ Jacobian)");
+    }
+  }
 }
 
 /// Start-up agreement between the fluid and the solid group: each side reports 2 (ready), 1 (stop quietly:
@@ -177,7 +186,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   }
   scene.attach_bodies(bodies);
   const bool band_solver = scene.coupler() && scene.coupler()->solver() == coupling::CouplingSolver::band;
-  if (band_solver) reject_fluid_solver_options(user_options);
+  if (scene.coupler()) reject_inapplicable_solver_options(user_options, band_solver);
   reject_unknown_options(OptionCheck::before_first_step);
 
   int size = 1, rank = 0, solid_ranks = 0;
@@ -187,13 +196,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   RunOutput out(PETSC_COMM_WORLD, settings.output_dir, settings.name);
   std::unique_ptr<fluid::FluidSeriesWriter> series;
   std::unique_ptr<solid::SolidSeriesWriter> solid_series;
-  static const PetscLogEvent output_event = [] {
-    PetscClassId id = 0;
-    PetscLogEvent e = 0;
-    CELLFSI_PETSC(PetscClassIdRegister("cellfsi app", &id));
-    CELLFSI_PETSC(PetscLogEventRegister("CellfsiOutput", id, &e));
-    return e;
-  }();
+  static const PetscLogEvent output_event = register_log_event("cellfsi app", "CellfsiOutput");
   auto write_series = [&] {
     if (!series) return;
     CELLFSI_PETSC(PetscLogEventBegin(output_event, 0, 0, 0, 0));
@@ -217,8 +220,8 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   if (scene.coupler() && !band_solver && settings.coupling.solver == coupling::CouplingSolver::band)
     CELLFSI_PETSC(
         PetscPrintf(PETSC_COMM_WORLD,
-                    "cellfsi: note: the band solver runs on one fluid rank; on %d the coupling loop "
-                    "uses -coupling_solver fluid\n",
+                    "cellfsi: note: the band solver needs one fluid rank and a BAIJ Jacobian; on %d "
+                    "rank(s) the coupling loop uses -coupling_solver fluid\n",
                     size));
   long newton = 0, linear = 0, factorizations = 0;
   int done = 0;
@@ -230,7 +233,10 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       newton += st.iterations;
       linear += st.linear_iterations;
       factorizations += st.factorizations;
-      if (k == 1) reject_unknown_options(OptionCheck::after_first_step);
+      if (k == 1)
+        reject_unknown_options(scene.coupler() && scene.coupler()->solver() != coupling::CouplingSolver::band
+                                   ? OptionCheck::after_first_step_fluid
+                                   : OptionCheck::after_first_step);
       if (!st.converged) {
         const std::string why = iteration + " diverged (" + st.reason + ") in step " + std::to_string(k) +
                                 " at t = " + std::to_string(k * settings.dt) + " s";

@@ -20,9 +20,12 @@ namespace cellfsi::coupling {
 
 /// How the fluid's linear systems of the coupling loop are solved.
 enum class CouplingSolver {
-  /// fluid::BandSchurSolver (one fluid rank): the Jacobian away from the cells is factorised once and kept
-  /// while the s^h band and the immersed points stay inside the region it was built for; each iteration
-  /// re-assembles only that region and factorises its Schur complement. Default on one fluid rank.
+  /// fluid::BandSchurSolver (one fluid rank, SeqBAIJ Jacobian): the Jacobian away from the cells is
+  /// factorised
+  /// once and kept while the s^h band and the immersed points stay inside the region it was built for; when
+  /// the
+  /// s^h marking moves only that region is re-assembled and its Schur complement factorised. Default on one
+  /// fluid rank.
   band,
   /// The fluid's own KSP and PC (prefix fluid_, every PETSc option): the preconditioner is rebuilt every
   /// `preconditioner_lag` solves and whenever the s^h marking changes (every step while a cell moves).
@@ -78,6 +81,8 @@ class FsiCoupler {
 
  private:
   void update_immersed(bool mark);  // mark: also rebuild s^h from the interface points
+  /// Band solver: the fallback to the fluid's solver, freeing the band solver's matrices.
+  void use_fluid_solver();
   /// Band solver: elements with s^h != 1 or an immersed point.
   std::vector<char> active_elements() const;
   /// Band solver: (re)builds the region and the factorisation of the fixed part if the active elements left

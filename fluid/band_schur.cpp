@@ -2,7 +2,9 @@
 
 #include <petsc/private/matimpl.h>  // the fused solve: the Schur matrix's matsolve operation
 
+#ifdef __GLIBC__
 #include <malloc.h>
+#endif
 
 #include <algorithm>
 #include <cstring>
@@ -93,6 +95,7 @@ void BandSchurSolver::solve_schur(Vec g, Vec y) { CELLFSI_PETSC(MatSolve(SF_, g,
 
 void BandSchurSolver::release() {
   MatDestroy(&F_);
+  MatDestroy(&K_);
   MatDestroy(&K_BI_);
   MatDestroy(&K_IB_);
   MatDestroy(&S_);
@@ -107,10 +110,22 @@ void BandSchurSolver::release() {
   band_pos_.clear();
   edge_pos_.clear();
   inner_nodes_.clear();
+  s_ia_.clear();
+  s_ja_.clear();
+  prefix_.clear();
   n_band_ = n_total_ = n_edge_ = schur_nonzeros_ = 0;
 }
 
 void BandSchurSolver::factor(Mat fixed, IS band, const std::string& prefix) {
+  try {
+    factor_impl(fixed, band, prefix);
+  } catch (...) {
+    release();  // nothing half-built stays: factored() is false again
+    throw;
+  }
+}
+
+void BandSchurSolver::factor_impl(Mat fixed, IS band, const std::string& prefix) {
   release();
 #ifdef __GLIBC__
   // MUMPS' many allocations stay in glibc's heap after its factors are freed: without this the resident size
@@ -136,8 +151,15 @@ void BandSchurSolver::factor(Mat fixed, IS band, const std::string& prefix) {
   const PetscInt* band_idx = nullptr;
   CELLFSI_PETSC(ISGetIndices(band_, &band_idx));
   std::vector<PetscInt> band_nodes(nb);
-  for (PetscInt I = 0; I < nb; ++I) band_nodes[I] = band_idx[I * bs] / bs;
+  bool whole = true;
+  for (PetscInt I = 0; I < nb; ++I) {
+    band_nodes[I] = band_idx[I * bs] / bs;
+    for (PetscInt c = 0; c < bs; ++c) whole = whole && band_idx[I * bs + c] == band_nodes[I] * bs + c;
+  }
   CELLFSI_PETSC(ISRestoreIndices(band_, &band_idx));
+  if (!whole)
+    throw std::invalid_argument("BandSchurSolver: the band must hold whole blocks of " + std::to_string(bs) +
+                                " unknowns");
   edge_pos_.clear();
   inner_nodes_.clear();
   {
@@ -195,11 +217,13 @@ void BandSchurSolver::factor(Mat fixed, IS band, const std::string& prefix) {
   CELLFSI_PETSC(MatLUFactorSymbolic(F_, K, nullptr, nullptr, &info));
   CELLFSI_PETSC(MatLUFactorNumeric(F_, K, &info));
   CELLFSI_PETSC(ISDestroy(&edge));
-  CELLFSI_PETSC(MatDestroy(&K));  // MUMPS keeps its own copy of the entries
+  K_ = K;  // MUMPS points into its entries (PETSc passes a SeqBAIJ matrix's value array as the triples'
+           // values)
   check_factor(F_, "the fixed part");
   Mat Sd = nullptr;
   CELLFSI_PETSC(MatFactorCreateSchurComplement(F_, &Sd, nullptr));
-  if (fused_) {
+  fused_active_ = fused_;
+  if (fused_active_) {
     // MUMPS' own Schur matrix is declared factored, and its solve is ours (see the header).
     Mat S = nullptr;
     CELLFSI_PETSC(MatFactorGetSchurComplement(F_, &S, nullptr));
@@ -296,7 +320,7 @@ void BandSchurSolver::set_band(Mat band) {
   const PetscInt bs2 = bs_ * bs_;
   if (band_pos_.empty()) {
     const BlockStructure b = block_structure(band_sub_);
-    band_pos_.resize(b.ja.size());
+    std::vector<PetscInt> pos(b.ja.size());
     for (std::size_t I = 0; I + 1 < b.ia.size(); ++I) {
       const PetscInt* lo = s_ja_.data() + s_ia_[I];
       const PetscInt* hi = s_ja_.data() + s_ia_[I + 1];
@@ -304,9 +328,10 @@ void BandSchurSolver::set_band(Mat band) {
         const PetscInt* p = std::lower_bound(lo, hi, b.ja[k]);
         if (p == hi || *p != b.ja[k])
           throw std::invalid_argument("BandSchurSolver: K_band has a block outside K_fixed's structure");
-        band_pos_[k] = static_cast<PetscInt>(p - s_ja_.data());
+        pos[k] = static_cast<PetscInt>(p - s_ja_.data());
       }
     }
+    band_pos_ = std::move(pos);
   }
   PetscScalar* a = nullptr;
   PetscScalar* b = nullptr;
@@ -338,7 +363,7 @@ void BandSchurSolver::solve(Vec r, Vec x) {
     CELLFSI_PETSC(VecScatterBegin(sc, from, to, INSERT_VALUES, mode));
     CELLFSI_PETSC(VecScatterEnd(sc, from, to, INSERT_VALUES, mode));
   };
-  if (fused_) {
+  if (fused_active_) {
     // MUMPS condenses onto the edge and calls band_schur_matsolve, which completes rB_ and leaves y in yB_;
     // MUMPS' values on the inner nodes (its identity) are replaced by y.
     scatter(to_band_, r, rB_, SCATTER_FORWARD);

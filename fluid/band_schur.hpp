@@ -22,10 +22,12 @@
 //   solve the Schur system only through the factor's dense Schur matrix, so its matsolve operation is pointed
 //   at S's sparse factors (petsc/private/matimpl.h; checked by the unit test). Not fused: two interior solves
 //   (ICNTL(26) = 0) and products with K_BI and K_IB, public API only.
-// The result is the exact inverse of K_fixed + K_band (to round-off) whatever K_band,BB is.
+// The result is the inverse of K_fixed + K_band whatever K_band,BB is: exact to round-off with full-rank
+// factors (set_blr_tolerance(0)); by default K_fixed's factors are block low-rank with a 1e-10 threshold, so
+// it is exact to about that.
 //
-// One rank only (PETSc 3.18 computes MUMPS Schur complements on one rank). Matrices are PETSc SeqBAIJ or
-// SeqAIJ with one block size; B must consist of whole blocks.
+// One rank only (PETSc 3.18 computes MUMPS Schur complements on one rank). Matrices are PETSc SeqBAIJ; B must
+// consist of whole blocks.
 #include <petscmat.h>
 
 #include <string>
@@ -56,6 +58,8 @@ class BandSchurSolver {
   /// x = (K_fixed + K_band)^{-1} r.
   void solve(Vec r, Vec x);
 
+  /// Frees the factorisations and everything built for them (factored() is false afterwards).
+  void release();
   bool factored() const { return F_ != nullptr; }
   bool has_band() const { return SF_ != nullptr; }
   PetscInt n_band() const { return n_band_; }    // unknowns in B
@@ -66,13 +70,14 @@ class BandSchurSolver {
   PetscInt schur_nonzeros() const { return schur_nonzeros_; }
 
  private:
-  void release();
+  void factor_impl(Mat fixed, IS band, const std::string& prefix);
   friend PetscErrorCode band_schur_matsolve(Mat, Mat, Mat);
-  void solve_schur(Vec g, Vec y);  // y = S^{-1} g
-  bool fused_ = true;
+  void solve_schur(Vec g, Vec y);            // y = S^{-1} g
+  bool fused_ = true, fused_active_ = true;  // asked for; in use since factor()
   double blr_tolerance_ = 1e-10;
   PetscInt bs_ = 1, n_band_ = 0, n_total_ = 0, schur_nonzeros_ = 0;
-  Mat F_ = nullptr;  // MUMPS factors of K_fixed with the Schur unknowns B
+  Mat F_ = nullptr;  // MUMPS factors of K_fixed (inner band nodes: identity) keeping the edge for the Schur
+  Mat K_ = nullptr;  // that matrix: MUMPS reads its entries in place
   Mat K_BI_ = nullptr, K_IB_ = nullptr;
   Mat S_ = nullptr, SF_ = nullptr;  // Schur complement (SeqBAIJ) and its factors
   Mat band_sub_ = nullptr;          // K_band,BB, reused

@@ -876,13 +876,7 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
   }
 
   // Immersed-solid points (paper Eq. (10)) in this rank's elements.
-  static const PetscLogEvent immersed_event = [] {
-    PetscClassId id = 0;
-    PetscLogEvent e = 0;
-    CELLFSI_PETSC(PetscClassIdRegister("cellfsi fluid", &id));
-    CELLFSI_PETSC(PetscLogEventRegister("FluidImmersed", id, &e));
-    return e;
-  }();
+  static const PetscLogEvent immersed_event = register_log_event("cellfsi fluid", "FluidImmersed");
   CELLFSI_PETSC(PetscLogEventBegin(immersed_event, 0, 0, 0, 0));
   for (const LocatedPoint& ip : immersed_) {
     if (in_band && !band_side) break;

@@ -135,8 +135,6 @@ class FluidSolver {
   void jacobian_part(Vec X, Mat J, const std::vector<char>& in_band, bool band_side) {
     assemble(X, nullptr, J, &in_band, band_side);
   }
-  /// The Dirichlet (wall and pressure pin) rows owned by this rank, as global indices of the unknowns.
-  std::vector<PetscInt> constrained_rows() const { return dirichlet_rows(); }
   /// v and grad v at t_{n+alpha_f} of the iterate X at points already located in the patch (element, xi)
   /// (collective; every rank gets every value). vdot is the rate at t_{n+alpha_m}.
   std::vector<PointSample> sample_alpha(Vec X, const std::vector<geometry::Index3>& elements,

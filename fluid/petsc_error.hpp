@@ -21,6 +21,16 @@
 
 namespace cellfsi {
 
+/// Registers a PETSc log event (shown by -log_view) under a class of that name; call once per event, e.g. to
+/// initialise a function-local static.
+inline PetscLogEvent register_log_event(const char* class_name, const char* event_name) {
+  PetscClassId id = 0;
+  PetscLogEvent e = 0;
+  CELLFSI_PETSC(PetscClassIdRegister(class_name, &id));
+  CELLFSI_PETSC(PetscLogEventRegister(event_name, id, &e));
+  return e;
+}
+
 namespace detail {
 inline PetscErrorCode record_first_message(MPI_Comm, int, const char*, const char*, PetscErrorCode n,
                                            PetscErrorType, const char* mess, void* ctx) {

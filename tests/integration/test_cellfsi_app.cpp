@@ -670,6 +670,15 @@ TEST_F(CellfsiApp, MisspeltFactorisationOptionIsRejectedAfterTheFirstStep) {
   EXPECT_NE(r.output.find("coupling_band_mat_mumps_icntll_14"), std::string::npos) << r.output;
 }
 
+TEST_F(CellfsiApp, BandSolverOptionsOnTwoFluidRanksAreRejectedWithTheReason) {
+  const RunResult r = mpi_cellfsi(2, with(kCapsule, {"-coupling_band_refresh_steps", "3"}));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
+  EXPECT_NE(r.output.find("-coupling_band_refresh_steps"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("one fluid rank"), std::string::npos) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
 TEST_F(CellfsiApp, OneAndTwoFluidRanksAgree) {
   const std::vector<std::string> args =
       with({scene("capsule_shear.yaml")}, with(kCapsule, {"-final_time", "2e-3"}));

@@ -48,6 +48,14 @@ std::vector<Vec3> sample_points(double lx, double ly, double y0 = 0.0) {
   return pts;
 }
 
+/// Plasma between walls y = a and y = b moving at -speed and +speed along x.
+FluidOptions moving_walls(double speed) {
+  FluidOptions opt;
+  opt.wall_velocity[1][0] = Vec3(-speed, 0, 0);
+  opt.wall_velocity[1][1] = Vec3(speed, 0, 0);
+  return opt;
+}
+
 }  // namespace
 
 TEST(FluidSolver, PlaneCouetteFromRestIsExact) {
@@ -224,15 +232,64 @@ TEST(FluidSolver, AssembledTangentMatchesFiniteDifferences) {
   EXPECT_LT(dev, 1e-3);
 }
 
+TEST(FluidSolver, JacobianPartsAddUpToTheJacobian) {
+  // The band solver's split (jacobian_part): the elements of a mask with every immersed point, and the other
+  // elements, add up to the whole tangent, including the wall (Dirichlet) rows, the pinned pressure and the
+  // periodic seam, which the mask below all touches.
+  const double lx = 0.0024, ly = 0.0012, shear = 70.0;
+  const geometry::Patch box = geometry::rectangle(lx, ly, 12, 6, 3, {true, false}, Vec3(0, -ly / 2, 0));
+  const FluidOptions opt = moving_walls(shear * ly / 2);
+  FluidSolver fs(PETSC_COMM_WORLD, box, opt);
+  fs.set_initial_velocity(
+      [&](const Vec3& x) { return Vec3(shear * x[1], 1e-3 * std::sin(9 * x[0] / lx), 0); });
+  std::vector<fluid::ImmersedPointData> pts;
+  for (int i = 0; i < 5; ++i) {
+    fluid::ImmersedPointData d;
+    d.x = Vec3(lx * (0.05 + 0.2 * i), ly * (0.1 * i - 0.25), 0);
+    d.data.weight = 1e-9;
+    d.data.beta = -0.07;
+    d.data.stress[0][1] = d.data.stress[1][0] = 3.0;
+    d.data.stiffness_viscosity = 0.5;
+    pts.push_back(d);
+  }
+  fs.set_immersed_points(pts);
+  std::vector<char> mask(box.n_elements(), 0);
+  for (int e = 0; e < box.n_elements(); ++e) {
+    const geometry::Index3 m = box.element_multi_index(e);
+    mask[e] = m[0] <= 1 || m[0] == 11 || m[1] == 0;
+  }
+  Mat J, Jf, Jb;
+  CELLFSI_PETSC(MatDuplicate(fs.jacobian_matrix(), MAT_DO_NOT_COPY_VALUES, &J));
+  CELLFSI_PETSC(MatDuplicate(J, MAT_DO_NOT_COPY_VALUES, &Jf));
+  CELLFSI_PETSC(MatDuplicate(J, MAT_DO_NOT_COPY_VALUES, &Jb));
+  fs.evaluate_jacobian(fs.solution(), J);
+  fs.jacobian_part(fs.solution(), Jf, mask, false);
+  fs.jacobian_part(fs.solution(), Jb, mask, true);
+  PetscReal nj = 0, nb = 0, nf = 0, nd = 0;
+  CELLFSI_PETSC(MatNorm(J, NORM_FROBENIUS, &nj));
+  CELLFSI_PETSC(MatNorm(Jb, NORM_FROBENIUS, &nb));
+  CELLFSI_PETSC(MatNorm(Jf, NORM_FROBENIUS, &nf));
+  CELLFSI_PETSC(MatAXPY(Jf, 1.0, Jb, SAME_NONZERO_PATTERN));
+  CELLFSI_PETSC(MatAXPY(Jf, -1.0, J, SAME_NONZERO_PATTERN));
+  CELLFSI_PETSC(MatNorm(Jf, NORM_FROBENIUS, &nd));
+  // (The wall rows' unit diagonal dominates |J|: the difference is measured against the band part, the smaller.)
+  EXPECT_GT(nb, 0.0);
+  EXPECT_GT(nf, nb);
+  EXPECT_LT(nd, 1e-13 * nb) << "|J_fixed + J_band - J| / |J_band| = " << nd / nb;
+  // A mask of the wrong size is refused.
+  EXPECT_THROW(fs.jacobian_part(fs.solution(), Jb, std::vector<char>(3, 0), true), std::invalid_argument);
+  CELLFSI_PETSC(MatDestroy(&J));
+  CELLFSI_PETSC(MatDestroy(&Jf));
+  CELLFSI_PETSC(MatDestroy(&Jb));
+}
+
 TEST(FluidSolver, ImmersedPointsWithTheFluidStressLeaveTheResidualUnchanged) {
   // Immersed points at every Eulerian quadrature point with beta = 0 and stress (1/rho) F S F^T = 2 nu sym
   // grad v (here constant: a Couette state) cancel exactly: Eq. (10) replaces the fluid stress by the
   // solid's.
   const double lx = 0.0024, ly = 0.0012, shear = 70.0;
   const geometry::Patch box = geometry::rectangle(lx, ly, 6, 4, 2, {true, false}, Vec3(0, -ly / 2, 0));
-  FluidOptions opt;
-  opt.wall_velocity[1][0] = Vec3(-shear * ly / 2, 0, 0);
-  opt.wall_velocity[1][1] = Vec3(shear * ly / 2, 0, 0);
+  const FluidOptions opt = moving_walls(shear * ly / 2);
   FluidSolver fs(PETSC_COMM_WORLD, box, opt);
   fs.set_initial_velocity([&](const Vec3& x) { return Vec3(shear * x[1], 0, 0); });
   Vec F0, F1;
