@@ -217,6 +217,7 @@ int FsiCoupler::solve_band(CouplerStats& st, bool first_iteration) {
     }
     EventScope ev(events().band_update);
     band_.set_band(J_band_);
+    ++st.band_refreshes;
     solves_since_schur_ = 0;
     steps_since_refresh_ = 0;
   }

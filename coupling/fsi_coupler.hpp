@@ -56,6 +56,8 @@ struct CouplerOptions {
 struct CouplerStats {
   int iterations = 0, linear_iterations = 0;
   int factorizations = 0;  // factorisations of the whole fluid Jacobian (band: of its fixed part) in the step
+  int band_refreshes =
+      0;  // band solver: re-assemblies of the band and factorisations of its Schur complement
   bool converged = false;
   double fluid_residual0 = 0, fluid_residual = 0;
   std::vector<double> solid_residual0, solid_residual;
