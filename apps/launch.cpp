@@ -112,8 +112,9 @@ void reject_inapplicable_solver_options(const std::vector<std::string>& user_opt
               "fluid's KSP and PC options use -coupling_solver fluid");
     } else if (name.rfind("coupling_band_", 0) == 0) {
       throw std::invalid_argument("option -" + name +
-                                  " does not apply: this coupled run solves with -coupling_solver fluid (the "
-                                  "band solver needs one fluid rank and a BAIJ Jacobian)");
+                                  " does not apply: this coupled run solves with -coupling_solver fluid "
+                                  "(asked for, or because the band solver needs one fluid rank and a BAIJ "
+                                  "Jacobian)");
     }
   }
 }

@@ -138,10 +138,10 @@ std::vector<char> FsiCoupler::active_elements() const {
   return active;
 }
 
-bool FsiCoupler::ensure_band_factorization(bool force) {
+bool FsiCoupler::ensure_band_factorization() {
   const std::vector<char> active = active_elements();
   const bool stale = opt_.band_refactor_every > 0 && steps_since_factor_ >= opt_.band_refactor_every;
-  if (!force && !stale && band_.factored() && contains(region_, active)) return false;
+  if (!stale && band_.factored() && contains(region_, active)) return false;
   EventScope ev(events().band_factor);
   region_ = grow_elements(fluid_.patch(), active, opt_.band_margin);
   // A region that holds most of the domain (a coarse 3D mesh around a compound capsule) leaves nothing to
@@ -175,15 +175,16 @@ bool FsiCoupler::ensure_band_factorization(bool force) {
     throw;
   }
   CELLFSI_PETSC(ISDestroy(&band));
-  PetscLogDouble resident = 0;
-  CELLFSI_PETSC(PetscMemoryGetCurrentUsage(&resident));
-  if (opt_.monitor)
+  if (opt_.monitor) {
+    PetscLogDouble resident = 0;
+    CELLFSI_PETSC(PetscMemoryGetCurrentUsage(&resident));
     CELLFSI_PETSC(PetscPrintf(
         fluid_.comm(),
         "  band factorisation: %d of %d elements, %" PetscInt_FMT " of %" PetscInt_FMT
         " unknowns (edge %" PetscInt_FMT "), Schur complement %" PetscInt_FMT " nonzeros; resident %.0f MB\n",
         static_cast<int>(std::count(region_.begin(), region_.end(), 1)), fluid_.patch().n_elements(),
         band_.n_band(), band_.n_total(), band_.n_edge(), band_.schur_nonzeros(), resident / 1048576.0));
+  }
   steps_since_factor_ = 0;
   return true;
 }
@@ -200,13 +201,13 @@ int FsiCoupler::solve_band(CouplerStats& st, bool first_iteration) {
       first_iteration && (band_marking_changed_ || steps_since_refresh_ >= opt_.band_refresh_steps);
   if (first_iteration) band_marking_changed_ = false;
   bool refresh = step_refresh || (opt_.band_schur_lag > 0 && solves_since_schur_ >= opt_.band_schur_lag);
-  if (ensure_band_factorization(false)) {
+  if (ensure_band_factorization()) {
     ++st.factorizations;
     refresh = true;
   }
   if (solver_ != CouplingSolver::band) return solve_fluid(st);  // the region was too large
-  // Between refreshes the Newton matrix stays that of the last refresh (a chord iteration inside the step):
-  // the operator and the preconditioner are the same matrix, so one FGMRES iteration solves exactly.
+  // Between refreshes the Newton matrix stays that of the last refresh (a chord iteration): the operator and
+  // the preconditioner are the same matrix, so one FGMRES iteration solves exactly.
   Mat J = fluid_.jacobian_matrix();
   if (refresh) {
     {

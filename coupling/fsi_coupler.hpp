@@ -21,11 +21,9 @@ namespace cellfsi::coupling {
 /// How the fluid's linear systems of the coupling loop are solved.
 enum class CouplingSolver {
   /// fluid::BandSchurSolver (one fluid rank, SeqBAIJ Jacobian): the Jacobian away from the cells is
-  /// factorised
-  /// once and kept while the s^h band and the immersed points stay inside the region it was built for; when
-  /// the
-  /// s^h marking moves only that region is re-assembled and its Schur complement factorised. Default on one
-  /// fluid rank.
+  /// factorised once and kept while the s^h band and the immersed points stay inside the region it was built
+  /// for; when the s^h marking moves only that region is re-assembled and its Schur complement factorised.
+  /// Default on one fluid rank.
   band,
   /// The fluid's own KSP and PC (prefix fluid_, every PETSc option): the preconditioner is rebuilt every
   /// `preconditioner_lag` solves and whenever the s^h marking changes (every step while a cell moves).
@@ -56,8 +54,8 @@ struct CouplerOptions {
 struct CouplerStats {
   int iterations = 0, linear_iterations = 0;
   int factorizations = 0;  // factorisations of the whole fluid Jacobian (band: of its fixed part) in the step
-  int band_refreshes =
-      0;  // band solver: re-assemblies of the band and factorisations of its Schur complement
+  // Band solver: re-assemblies of the band and factorisations of its Schur complement in the step.
+  int band_refreshes = 0;
   bool converged = false;
   double fluid_residual0 = 0, fluid_residual = 0;
   std::vector<double> solid_residual0, solid_residual;
@@ -76,7 +74,8 @@ class FsiCoupler {
   void initialize();
   /// One time step of the coupled problem.
   CouplerStats step();
-  /// The solver in use (CouplingSolver::fluid when `band` was asked for on several fluid ranks).
+  /// The solver in use (CouplingSolver::fluid when `band` was asked for but cannot run: several fluid ranks,
+  /// a non-BAIJ Jacobian, or a band region holding most of the domain).
   CouplingSolver solver() const { return solver_; }
   /// Unknowns of the current band (0 before the first step or with CouplingSolver::fluid).
   PetscInt band_unknowns() const { return band_.n_band(); }
@@ -87,9 +86,9 @@ class FsiCoupler {
   void use_fluid_solver();
   /// Band solver: elements with s^h != 1 or an immersed point.
   std::vector<char> active_elements() const;
-  /// Band solver: (re)builds the region and the factorisation of the fixed part if the active elements left
-  /// the region (or on request); returns whether it did.
-  bool ensure_band_factorization(bool force);
+  /// Band solver: (re)builds the region and the factorisation of the fixed part if there is none yet, the
+  /// active elements left the region, or band_refactor_every steps passed; returns whether it did.
+  bool ensure_band_factorization();
   /// One linear solve dX = K^{-1} F of the coupling loop; returns the KSP's iterations, or throws.
   int solve_band(CouplerStats& st, bool first_iteration);
   int solve_fluid(CouplerStats& st);
@@ -108,7 +107,7 @@ class FsiCoupler {
   fluid::BandSchurSolver band_;
   Mat J_fixed_ = nullptr, J_band_ = nullptr;  // the two parts of K_MC; their sum goes into the fluid's matrix
   KSP band_ksp_ = nullptr;                    // FGMRES (prefix coupling_band_) preconditioned by band_
-  std::vector<char> region_;                  // elements whose Jacobian is re-assembled every iteration
+  std::vector<char> region_;                  // elements whose Jacobian is re-assembled at every refresh
   int steps_since_factor_ = 0, solves_since_schur_ = 0, steps_since_refresh_ = 0;
   bool band_marking_changed_ = true;  // the marking moved since the band was last refreshed
 };

@@ -109,7 +109,6 @@ void BandSchurSolver::release() {
   s_fixed_.clear();
   band_pos_.clear();
   edge_pos_.clear();
-  inner_nodes_.clear();
   s_ia_.clear();
   s_ja_.clear();
   prefix_.clear();
@@ -136,7 +135,6 @@ void BandSchurSolver::factor_impl(Mat fixed, IS band, const std::string& prefix)
   CELLFSI_PETSC(MatGetBlockSize(fixed, &bs_));
   CELLFSI_PETSC(MatGetSize(fixed, &n_total_, nullptr));
   CELLFSI_PETSC(ISDuplicate(band, &band_));
-  CELLFSI_PETSC(ISCopy(band, band_));
   CELLFSI_PETSC(ISSort(band_));
   CELLFSI_PETSC(ISGetLocalSize(band_, &n_band_));
   if (n_band_ == 0 || n_band_ % bs_ != 0)
@@ -160,8 +158,7 @@ void BandSchurSolver::factor_impl(Mat fixed, IS band, const std::string& prefix)
   if (!whole)
     throw std::invalid_argument("BandSchurSolver: the band must hold whole blocks of " + std::to_string(bs) +
                                 " unknowns");
-  edge_pos_.clear();
-  inner_nodes_.clear();
+  std::vector<PetscInt> inner_nodes;  // block rows of the band's inner nodes
   {
     const BlockStructure k = block_structure(fixed);
     PetscScalar* a = nullptr;
@@ -173,7 +170,7 @@ void BandSchurSolver::factor_impl(Mat fixed, IS band, const std::string& prefix)
       if (nonzero)
         for (PetscInt c = 0; c < bs; ++c) edge_pos_.push_back(I * bs + c);
       else
-        inner_nodes_.push_back(row);
+        inner_nodes.push_back(row);
     }
     CELLFSI_PETSC(MatSeqBAIJRestoreArray(fixed, &a));
   }
@@ -187,7 +184,7 @@ void BandSchurSolver::factor_impl(Mat fixed, IS band, const std::string& prefix)
   {
     std::vector<PetscScalar> identity(bs2, 0.0);
     for (PetscInt c = 0; c < bs; ++c) identity[c * bs + c] = 1.0;
-    for (PetscInt n : inner_nodes_)
+    for (PetscInt n : inner_nodes)
       CELLFSI_PETSC(MatSetValuesBlocked(K, 1, &n, 1, &n, identity.data(), INSERT_VALUES));
     CELLFSI_PETSC(MatAssemblyBegin(K, MAT_FINAL_ASSEMBLY));
     CELLFSI_PETSC(MatAssemblyEnd(K, MAT_FINAL_ASSEMBLY));
@@ -217,8 +214,8 @@ void BandSchurSolver::factor_impl(Mat fixed, IS band, const std::string& prefix)
   CELLFSI_PETSC(MatLUFactorSymbolic(F_, K, nullptr, nullptr, &info));
   CELLFSI_PETSC(MatLUFactorNumeric(F_, K, &info));
   CELLFSI_PETSC(ISDestroy(&edge));
-  K_ = K;  // MUMPS points into its entries (PETSc passes a SeqBAIJ matrix's value array as the triples'
-           // values)
+  // MUMPS points into K's entries (PETSc passes a SeqBAIJ matrix's value array as the triples' values).
+  K_ = K;
   check_factor(F_, "the fixed part");
   Mat Sd = nullptr;
   CELLFSI_PETSC(MatFactorCreateSchurComplement(F_, &Sd, nullptr));
@@ -266,10 +263,9 @@ void BandSchurSolver::factor_impl(Mat fixed, IS band, const std::string& prefix)
         if (sd[(ei * bs + c) + (ej * bs + e) * lda] != 0.0) return true;
     return false;
   };
-  for (PetscInt J = 0; J < nb; ++J)
-    for (PetscInt I = 0; I < nb; ++I)
-      if (edge_of[I] >= 0 && edge_of[J] >= 0 && edge_block_nonzero(edge_of[I], edge_of[J]))
-        cols[I].push_back(J);
+  for (PetscInt ej = 0; ej < ne; ++ej)
+    for (PetscInt ei = 0; ei < ne; ++ei)
+      if (edge_block_nonzero(ei, ej)) cols[edge_pos_[ei * bs] / bs].push_back(edge_pos_[ej * bs] / bs);
   std::vector<PetscInt> nnz(nb);
   for (PetscInt I = 0; I < nb; ++I) {
     std::sort(cols[I].begin(), cols[I].end());

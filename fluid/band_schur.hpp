@@ -61,7 +61,6 @@ class BandSchurSolver {
   /// Frees the factorisations and everything built for them (factored() is false afterwards).
   void release();
   bool factored() const { return F_ != nullptr; }
-  bool has_band() const { return SF_ != nullptr; }
   PetscInt n_band() const { return n_band_; }    // unknowns in B
   PetscInt n_total() const { return n_total_; }  // all unknowns
   /// Unknowns of the band's edge (those bordering the rest): the size of MUMPS' dense Schur complement.
@@ -85,7 +84,6 @@ class BandSchurSolver {
   std::vector<PetscInt> s_ia_, s_ja_;  // S_'s block structure
   PetscInt n_edge_ = 0;                // unknowns of the band's edge (the MUMPS Schur complement's size)
   std::vector<PetscInt> edge_pos_;     // positions in B of the edge's unknowns
-  std::vector<PetscInt> inner_nodes_;  // block rows of the band's inner nodes
   std::string prefix_;
   std::vector<double> s_fixed_;     // S_fixed in S_'s value array layout
   std::vector<PetscInt> band_pos_;  // block k of band_sub_ -> block of S_
