@@ -115,6 +115,8 @@ void read_bodies(SceneSettings& s) {
   PetscBool monitor = PETSC_FALSE;
   const char* solvers[] = {"band", "fluid", "CouplingSolver", "", nullptr};
   PetscEnum solver = static_cast<PetscEnum>(s.coupling.solver);
+  const char* markings[] = {"support", "central", "Marking", "", nullptr};
+  PetscEnum marking = static_cast<PetscEnum>(s.coupling.marking);
   call_reporting_input_errors(
       [&]() -> PetscErrorCode {
         PetscFunctionBeginUser;
@@ -125,6 +127,11 @@ void read_bodies(SceneSettings& s) {
         PetscCall(PetscOptionsReal("-s_interface",
                                    "s_I: s^h on the basis functions at interfaces (paper 3.3)", nullptr, s_i,
                                    &s_i, nullptr));
+        PetscCall(PetscOptionsEnum("-s_interface_marking",
+                                   "Functions given s_I: support (every function nonzero on an element the "
+                                   "interface crosses) or central (only those whose support it crosses in an "
+                                   "inner element)",
+                                   nullptr, markings, marking, &marking, nullptr));
         PetscCall(PetscOptionsReal("-coupling_tolerance", "Drop of every residual's L2 norm per step",
                                    nullptr, tol, &tol, nullptr));
         PetscCall(PetscOptionsInt("-coupling_max_iterations", "Block-iterative iterations per step", nullptr,
@@ -192,6 +199,7 @@ void read_bodies(SceneSettings& s) {
     bad("metrics_average_from", str(avg), "less than -final_time = " + str(s.final_time) + " s");
   s.coupling.s_interface = s_i;
   s.coupling.tolerance = tol;
+  s.coupling.marking = static_cast<coupling::Marking>(marking);
   s.coupling.max_iterations = static_cast<int>(max_it);
   s.coupling.preconditioner_lag = static_cast<int>(lag);
   s.coupling.solver = static_cast<coupling::CouplingSolver>(solver);

@@ -277,7 +277,7 @@ void FsiCoupler::update_immersed(bool mark) {
   }
   fluid_.set_immersed_points(elements, xi, data);
   if (!mark) return;
-  std::vector<int> marked = functions_near(locator_, interface);
+  std::vector<int> marked = functions_near(locator_, interface, opt_.marking);
   // With s_I >> 1 the marked rows dominate the Jacobian: a new marking invalidates a reused preconditioner.
   if (marked != marked_) {
     marked_ = std::move(marked);

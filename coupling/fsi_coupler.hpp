@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "coupling/interface_marking.hpp"
 #include "coupling/locator.hpp"
 #include "fluid/band_schur.hpp"
 #include "fluid/fluid_solver.hpp"
@@ -31,9 +32,10 @@ enum class CouplingSolver {
 };
 
 struct CouplerOptions {
-  double s_interface = 1e10;  // s_I (paper Sec. 3.3)
-  double tolerance = 1e-4;    // drop of every residual's L2 norm (paper: four orders of magnitude)
-  double fluid_atol = 1e-16;  // or an absolute fluid residual below this
+  double s_interface = 1e10;           // s_I (paper Sec. 3.3)
+  Marking marking = Marking::central;  // which functions get s_I (coupling/interface_marking.hpp)
+  double tolerance = 1e-4;             // drop of every residual's L2 norm (paper: four orders of magnitude)
+  double fluid_atol = 1e-16;           // or an absolute fluid residual below this
   int max_iterations = 30;
   int preconditioner_lag = 10;  // linear solves between rebuilds of the preconditioner (1: every iteration)
   bool monitor = false;         // print every iteration's residual norms (rank 0)

@@ -5,16 +5,24 @@
 
 namespace cellfsi::coupling {
 
-std::vector<int> functions_near(const Locator& locator, const std::vector<geometry::Vec3>& points) {
+std::vector<int> functions_near(const Locator& locator, const std::vector<geometry::Vec3>& points,
+                                Marking marking) {
   const geometry::Patch& patch = locator.patch();
   const int P = patch.param_dim();
   std::vector<int> out;
   for (const geometry::Vec3& x : points) {
     const Location l = locator.locate_or_throw(x);
+    // Local indices [first, first + np) of the element's p + 1 functions per direction; function a has the
+    // element as the (p - a)-th of its p + 1 support elements, an inner one for 1 <= a <= p - 1.
     int first[3] = {0, 0, 0}, np[3] = {1, 1, 1};
     for (int d = 0; d < P; ++d) {
-      first[d] = patch.knots(d).element_span(l.element[d]) - patch.degree(d);
-      np[d] = patch.degree(d) + 1;
+      const int p = patch.degree(d);
+      first[d] = patch.knots(d).element_span(l.element[d]) - p;
+      np[d] = p + 1;
+      if (marking == Marking::central && p >= 2) {
+        first[d] += 1;
+        np[d] = p - 1;
+      }
     }
     for (int c = 0; c < np[2]; ++c)
       for (int b = 0; b < np[1]; ++b)

@@ -7,9 +7,19 @@
 
 namespace cellfsi::coupling {
 
-/// Natural (folded) indices of the Eulerian basis functions that are nonzero on the elements containing the
-/// points, sorted and unique. Points outside the domain are an error (Locator::locate_or_throw).
-std::vector<int> functions_near(const Locator& locator, const std::vector<geometry::Vec3>& points);
+/// Which Eulerian basis functions "intersect the interface" (paper Sec. 2.2; the paper does not say more).
+enum class Marking {
+  /// Every function nonzero on an element holding an interface point: s^h > 1 on a band of 2p + 1 elements.
+  support,
+  /// Only the functions for which that element is an inner element of their support in every direction (for
+  /// p >= 2; all of them for p = 1): s^h > 1 on 2p - 1 elements, and still >= s_I / 4^d at the interface.
+  central,
+};
+
+/// Natural (folded) indices of the Eulerian basis functions marked for the points (see Marking), sorted and
+/// unique. Points outside the domain are an error (Locator::locate_or_throw).
+std::vector<int> functions_near(const Locator& locator, const std::vector<geometry::Vec3>& points,
+                                Marking marking = Marking::support);
 
 /// The scaling field's control values: s_interface on `marked`, 1 elsewhere (size: the patch's control
 /// points).

@@ -15,6 +15,7 @@ packages=(
   libgtest-dev
   libbenchmark-dev
   time python3               # bench/ scripts: /usr/bin/time -v for peak memory, python3 to read -log_view
+  python3-matplotlib         # bench/ scripts: the figures in docs/figures/
 )
 
 missing=()

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds, and runs the default scene: the elliptic capsule in shear flow of paper
-# Sec. 3.3 at 64 x 32 cubic elements to t = 0.2 s (under a minute on 2 cores), output in out/capsule_shear_quick/.
+# Sec. 3.3 at 160 x 80 cubic elements to t = 0.25 s (about 1.5 minutes on 2 cores), output in
+# out/capsule_shear_quick/.
 # Exits with the program's status.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."

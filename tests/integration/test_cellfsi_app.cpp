@@ -563,8 +563,8 @@ TEST_F(CellfsiApp, HelpListsSceneOptions) {
 }
 
 TEST_F(CellfsiApp, DefaultSceneRunsWithoutSceneFile) {
-  // The default scene is the capsule in shear; two coarse steps.
-  const RunResult r = cellfsi(kCapsule);
+  // The default scene is the capsule in shear; two coarse steps of its dt (2e-3 s).
+  const RunResult r = cellfsi(with(kCapsule, {"-final_time", "4e-3"}));
   ASSERT_FALSE(r.timed_out) << r.output;
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const std::string js = summary();
@@ -619,6 +619,32 @@ TEST_F(CellfsiApp, CapsuleSceneWritesBodyMetricsAndSolidSeries) {
   ASSERT_EQ(files.size(), 3u) << read_text(out_ / "solid.pvd");
   for (const auto& f : files) EXPECT_TRUE(fs::exists(out_ / f)) << f;
   EXPECT_GE(read_csv(out_ / "metrics.csv").column("membrane_theta_deg"), 0);
+}
+
+TEST_F(CellfsiApp, CoarseCapsuleInclinationWithCentralAndSupportMarking) {
+  // Issue 8: at 96 x 48 quadratic elements the capsule's inclination with the default (central) s^h marking
+  // is closer to the converged 26.09 deg (paper, 512 x 256 cubic) than the paper's own 17.81 at this mesh;
+  // the wider support marking gives 14.1 (docs/validation.md, "Coarse meshes: the s^h marking"). Measured
+  // over 0.08-0.12 s with dt 2e-3 (theta is steady from about 0.08 s and does not depend on dt): 18.942 and
+  // 14.142 deg. Pinned to 0.05 deg: a change of the discretisation shows here first.
+  // clang-format off
+  const std::vector<std::string> run = {
+      scene("capsule_shear.yaml"), "-fluid_elements", "96,48", "-fluid_degree", "2",
+      "-solid_membrane_elements", "1,0", "-dt", "2e-3", "-final_time", "0.12",
+      "-metrics_average_from", "0.08", "-output_every", "0"};
+  // clang-format on
+  double theta[2] = {0, 0};
+  const char* markings[2] = {"central", "support"};
+  for (int k = 0; k < 2; ++k) {
+    const RunResult r = cellfsi(with(run, {"-s_interface_marking", markings[k]}), 120);
+    ASSERT_FALSE(r.timed_out) << r.output;
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    theta[k] = json_number(summary(), "membrane_theta_deg").value_or(0);
+  }
+  std::printf("  theta %.3f deg (central), %.3f deg (support)\n", theta[0], theta[1]);
+  EXPECT_NEAR(theta[0], 18.942, 0.05);
+  EXPECT_NEAR(theta[1], 14.142, 0.05);
+  EXPECT_LT(std::abs(theta[0] - 26.09), std::abs(17.81 - 26.09));
 }
 
 TEST_F(CellfsiApp, LaunchModesAgree) {

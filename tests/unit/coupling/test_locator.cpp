@@ -58,16 +58,27 @@ TEST(Locator, WarmStartAndOutsidePoints) {
   }
 }
 
-TEST(InterfaceMarking, MarksTheFunctionsAroundAMembrane) {
-  // The paper's capsule in the paper's box at 64 x 32 cubic: the marked functions are those of the elements
-  // the membrane crosses; a band a few functions wide, never the walls' far side.
-  const geometry::Patch box = geometry::rectangle(0.0024, 0.0012, 64, 32, 3, {true, false});
-  const coupling::Locator loc(box);
+namespace {
+
+/// 512 points on both faces of the paper's capsule (Sec. 3.3) at the centre of its box, long axis across the
+/// flow.
+std::vector<Vec3> capsule_interface_points() {
   const geometry::Patch membrane =
       geometry::hollow_ellipse(2e-4, 1e-4, 5e-7, 64, 2, Vec3(0.0012, 0.0006, 0), std::numbers::pi / 2);
   std::vector<Vec3> pts;
   for (int k = 0; k < 256; ++k)
     for (double r : {0.0, 1.0}) pts.push_back(membrane.point({r, (k + 0.5) / 256, 0}));
+  return pts;
+}
+
+}  // namespace
+
+TEST(InterfaceMarking, MarksTheFunctionsAroundAMembrane) {
+  // The paper's capsule in the paper's box at 64 x 32 cubic: the marked functions are those of the elements
+  // the membrane crosses; a band a few functions wide, never the walls' far side.
+  const geometry::Patch box = geometry::rectangle(0.0024, 0.0012, 64, 32, 3, {true, false});
+  const coupling::Locator loc(box);
+  const std::vector<Vec3> pts = capsule_interface_points();
   const std::vector<int> marked = coupling::functions_near(loc, pts);
   // Every marked function's control point lies within (p + 1) elements of the membrane: h = 3.75e-5 cm.
   const double h = 0.0024 / 64;
@@ -85,4 +96,38 @@ TEST(InterfaceMarking, MarksTheFunctionsAroundAMembrane) {
   const std::vector<double> s = coupling::scaling_values(box.n_control(), marked, 1e10);
   EXPECT_EQ(std::count(s.begin(), s.end(), 1e10), static_cast<long>(marked.size()));
   EXPECT_THROW(coupling::scaling_values(box.n_control(), marked, 0.5), std::invalid_argument);
+}
+
+TEST(InterfaceMarking, CentralMarkingKeepsTheFunctionsCentredOnTheMembrane) {
+  // Marking::central keeps, of the 4 x 4 cubic functions of an element the membrane crosses, the 2 x 2 for
+  // which that element is an inner element of their support: their control points (the Greville points, the
+  // centres of their supports) are corners of the element, within h sqrt(2) of the membrane, where the
+  // support marking reaches 2 h sqrt(2). A subset of the support marking, about half as many.
+  const geometry::Patch box = geometry::rectangle(0.0024, 0.0012, 64, 32, 3, {true, false});
+  const coupling::Locator loc(box);
+  const std::vector<Vec3> pts = capsule_interface_points();
+  const std::vector<int> support = coupling::functions_near(loc, pts, coupling::Marking::support);
+  const std::vector<int> central = coupling::functions_near(loc, pts, coupling::Marking::central);
+  const double h = 0.0024 / 64;
+  double reach_support = 0, reach_central = 0;
+  for (const auto& [marked, reach] :
+       {std::pair{&support, &reach_support}, std::pair{&central, &reach_central}})
+    for (int k : *marked) {
+      const Vec3 X = box.control_points()[k];
+      double dmin = 1e300;
+      for (const Vec3& p : pts) dmin = std::min(dmin, (X - p).norm());
+      *reach = std::max(*reach, dmin);
+    }
+  std::printf("  support: %zu functions, reach %.2f h; central: %zu functions, reach %.2f h\n",
+              support.size(), reach_support / h, central.size(), reach_central / h);
+  EXPECT_TRUE(std::includes(support.begin(), support.end(), central.begin(), central.end()));
+  EXPECT_LE(reach_central, h * std::sqrt(2.0) * (1 + 1e-12));
+  EXPECT_GT(reach_support, 1.5 * h * std::sqrt(2.0));
+  EXPECT_LT(central.size(), support.size() * 2 / 3);
+  // Every point keeps marked functions around it: its element's 4 corners.
+  for (const Vec3& p : pts) {
+    const std::vector<int> own = coupling::functions_near(loc, {p}, coupling::Marking::central);
+    EXPECT_EQ(own.size(), 4u);
+    EXPECT_TRUE(std::includes(central.begin(), central.end(), own.begin(), own.end()));
+  }
 }
