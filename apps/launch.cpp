@@ -271,7 +271,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     final_metrics.emplace_back("exchange_shared_mb", exchange->shared_bytes() / 1e6);
     final_metrics.emplace_back("exchange_message_mb", exchange->message_bytes() / 1e6);
   }
-  out.summary("completed", done, newton, linear, final_metrics);
+  out.summary("completed", done, newton, linear, final_metrics, scene.summary_text());
   // The velocity profile across the domain at x = mid-length (section xi_0 = 1/2), as CSV.
   const fluid::SectionData sec = fluid::section(scene.fluid(), 0.5, 65);
   std::ostringstream csv;

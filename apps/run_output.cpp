@@ -98,6 +98,9 @@ void RunOutput::metrics_row(const std::vector<std::pair<std::string, double>>& r
     }
     csv_ << "\n";
   }
+  if (row.size() != columns_.size())
+    throw std::logic_error("metrics.csv: a row of " + std::to_string(row.size()) + " values for " +
+                           std::to_string(columns_.size()) + " columns");
   for (size_t i = 0; i < row.size(); ++i) csv_ << (i ? "," : "") << std::setprecision(12) << row[i].second;
   csv_ << "\n";
   csv_.flush();
@@ -116,7 +119,8 @@ void RunOutput::progress(int step, int n_steps, double t, int newton, int linear
 }
 
 void RunOutput::summary(const std::string& status, int steps, long newton, long linear,
-                        const std::vector<std::pair<std::string, double>>& metrics) {
+                        const std::vector<std::pair<std::string, double>>& metrics,
+                        const std::vector<std::pair<std::string, std::string>>& text) {
   if (rank_ != 0) return;
   std::ostringstream os;
   os << "{\n  \"scene\": \"" << scene_ << "\",\n  \"status\": \"" << status
@@ -124,6 +128,7 @@ void RunOutput::summary(const std::string& status, int steps, long newton, long 
      << ",\n  \"newton_iterations\": " << newton << ",\n  \"linear_iterations\": " << linear
      << ",\n  \"ranks\": " << size_;
   for (auto& [k, v] : metrics) os << ",\n  \"" << k << "\": " << json_number(v);
+  for (auto& [k, v] : text) os << ",\n  \"" << k << "\": \"" << v << "\"";  // plain words (regimes)
   os << "\n}\n";
   write_atomically(dir_ + "/summary.json", os.str());
 }

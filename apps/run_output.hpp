@@ -24,9 +24,11 @@ class RunOutput {
   /// Prints "step k/n  t=...  newton ..  linear ..  elapsed ..  left ~.." at most every `every_seconds`.
   void progress(int step, int n_steps, double t, int newton, int linear, bool force = false);
 
-  /// Writes summary.json: the fixed scalars plus `metrics` (status: "completed" or why it stopped).
+  /// Writes summary.json: the fixed scalars plus `metrics` and the words in `text` (status: "completed" or
+  /// why it stopped).
   void summary(const std::string& status, int steps, long newton, long linear,
-               const std::vector<std::pair<std::string, double>>& metrics);
+               const std::vector<std::pair<std::string, double>>& metrics,
+               const std::vector<std::pair<std::string, std::string>>& text = {});
   double elapsed() const { return MPI_Wtime() - start_; }
 
  private:

@@ -573,9 +573,35 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     for (const solid::SolidSolver* b : bodies_) body = body || kv.first.rfind(b->name() + "_", 0) == 0;
     if (!body) m.push_back(kv);
   }
-  const double from = s_.metrics_average_from >= 0 ? s_.metrics_average_from : 0.5 * s_.final_time;
+  const double from = average_from();
+  // The paper's dimensionless numbers (Sec. 3.1-3.2) from the scene: the shear rate of a shear flow, the
+  // half-width across the walls.
+  solid::FlowScales flow;
+  flow.viscosity = fluid_->options().viscosity;
+  flow.density = fluid_->options().density;
+  if (s_.flow == "shear") flow.shear_rate = s_.shear_rate;
+  if (wall_dir_ >= 0) flow.half_width = 0.5 * s_.size[wall_dir_];
   for (size_t b = 0; b < bodies_.size(); ++b) {
-    for (const auto& [k, v] : trackers_[b].summary(from)) m.emplace_back(bodies_[b]->name() + "_" + k, v);
+    const std::string& name = bodies_[b]->name();
+    for (const auto& [k, v] : trackers_[b].summary(from)) m.emplace_back(name + "_" + k, v);
+    const geometry::Patch reference = bodies_[b]->reference_patch();
+    const BodySettings& bs = body_settings(name);
+    for (const auto& [k, v] : solid::dimensionless_numbers(reference, bodies_[b]->is_membrane(), bs.thickness,
+                                                           bs.shear_modulus, flow))
+      m.emplace_back(name + "_" + k, v);
+    if (!bodies_[b]->is_membrane()) {
+      // phi: against the membrane whose enclosed region holds this body's centroid (the nearest such).
+      const geometry::Vec3 c = geometry::patch_moments(reference).centroid;
+      for (const solid::SolidSolver* o : bodies_) {
+        if (!o->is_membrane()) continue;
+        const geometry::Patch mem = o->reference_patch();
+        const geometry::MembraneShape ms = geometry::membrane_shape(mem, 0);
+        if ((ms.moments.centroid - c).norm() < ms.effective_radius) {
+          m.emplace_back(name + "_phi", solid::filling_fraction(reference, mem));
+          break;
+        }
+      }
+    }
     // The Lagrangian mesh actually used (automatic counts are chosen from the fluid mesh).
     const geometry::Patch ref = bodies_[b]->reference_patch();
     for (int d = 0; d < ref.param_dim(); ++d)
@@ -585,6 +611,23 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     m.emplace_back(bodies_[b]->name() + "_mesh_ratio", r.ratio());
   }
   return m;
+}
+
+double Scene::average_from() const {
+  return s_.metrics_average_from >= 0 ? s_.metrics_average_from : 0.5 * s_.final_time;
+}
+
+const BodySettings& Scene::body_settings(const std::string& name) const {
+  for (const BodySettings& b : s_.bodies)
+    if (b.name == name) return b;
+  throw std::logic_error("no settings for body '" + name + "'");
+}
+
+std::vector<std::pair<std::string, std::string>> Scene::summary_text() const {
+  std::vector<std::pair<std::string, std::string>> t;
+  for (size_t b = 0; b < bodies_.size(); ++b)
+    t.emplace_back(bodies_[b]->name() + "_regime", trackers_[b].regime(average_from()));
+  return t;
 }
 
 std::vector<std::pair<std::string, double>> Scene::metrics() {

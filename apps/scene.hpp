@@ -95,9 +95,13 @@ class Scene {
   /// The run's results for summary.json: the last metrics with each body's averages over the oscillatory
   /// regime (-metrics_average_from) in place of its instantaneous values.
   std::vector<std::pair<std::string, double>> summary_metrics();
+  /// Words for summary.json: each body's motion regime over the same window ("<body>_regime").
+  std::vector<std::pair<std::string, std::string>> summary_text() const;
 
  private:
   std::vector<std::pair<std::string, double>> flow_metrics();
+  double average_from() const;  // start of the metrics' averaging window [s]
+  const BodySettings& body_settings(const std::string& name) const;
   SceneSettings s_;
   geometry::Patch patch_;
   std::unique_ptr<fluid::FluidSolver> fluid_;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 
@@ -16,6 +17,8 @@ using geometry::Vec3;
 namespace {
 
 constexpr double kPi = std::numbers::pi;
+// A shape whose second moments differ by less than this relative amount has no long axis.
+constexpr double kRoundShape = 1e-6;
 
 /// a wrapped into (-period/2, period/2].
 double wrap(double a, double period) {
@@ -95,6 +98,7 @@ void BodyTracker::record(double time, const Patch& current) {
   s.centroid = region.centroid;
   const geometry::PrincipalAxes ax = geometry::principal_axes(region, dim_);
   const double axis = std::atan2(ax.axes(plane_dir_, 0), ax.axes(0, 0));
+  s.anisotropy = ax.values[dim_ - 1] > 0 ? ax.values[0] / ax.values[dim_ - 1] - 1 : 0.0;
   std::vector<double> angles = material_angles(current, region.centroid);
   if (history_.empty()) {
     s.axis = wrap(axis, kPi);
@@ -123,21 +127,38 @@ std::vector<Metric> BodyTracker::metrics() const {
   }
   std::vector<Metric> m{{"r_A", s.r_a}, {"r_P", s.r_p}};
   for (int d = 0; d < dim_; ++d) m.emplace_back(std::string("centroid_") + "xyz"[d], s.centroid[d]);
-  if (elongated_) m.emplace_back("theta_deg", wrap(s.axis, kPi) * 180 / kPi);
+  // Every record has the same names (metrics.csv columns): NaN while a round body's shape has no axis yet.
+  m.emplace_back("theta_deg", elongated_ || s.anisotropy > kRoundShape
+                                  ? wrap(s.axis, kPi) * 180 / kPi
+                                  : std::numeric_limits<double>::quiet_NaN());
   if (membrane_) {
     m.emplace_back("omega_tt", w_mat);
     if (elongated_) m.emplace_back("omega_tu", w_axis);
   } else {
-    m.emplace_back("omega_tu", w_mat);
+    m.emplace_back("omega_tu", elongated_ ? w_axis : w_mat);
+    if (elongated_) m.emplace_back("omega_material", w_mat);
   }
   return m;
 }
 
-std::vector<Metric> BodyTracker::summary(double average_from) const {
+std::vector<const BodyTracker::Sample*> BodyTracker::window(double average_from) const {
   std::vector<const Sample*> win;
   for (const Sample& s : history_)
     if (s.time >= average_from) win.push_back(&s);
+  return win;
+}
+
+std::string BodyTracker::regime(double average_from) const {
+  const std::vector<const Sample*> win = window(average_from);
+  if (win.size() < 2) return "undetermined";
+  std::vector<double> axis, material;
+  for (const Sample* s : win) axis.push_back(s->axis), material.push_back(s->material);
+  return motion_regime(!elongated_, membrane_, axis, material);
+}
+
+std::vector<Metric> BodyTracker::summary(double average_from) const {
   if (history_.empty()) throw std::logic_error("BodyTracker::summary before the first record");
+  const std::vector<const Sample*> win = window(average_from);
   double max_ra = 0, max_rp = 0;
   for (const Sample& s : history_)
     max_ra = std::max(max_ra, std::abs(s.r_a)), max_rp = std::max(max_rp, std::abs(s.r_p));
@@ -149,7 +170,10 @@ std::vector<Metric> BodyTracker::summary(double average_from) const {
   const Sample& a = *win.front();
   const Sample& b = *win.back();
   const double T = b.time - a.time;
-  if (elongated_) {
+  const bool has_axis = elongated_ || std::all_of(win.begin(), win.end(), [](const Sample* s) {
+                          return s->anisotropy > kRoundShape;
+                        });
+  if (has_axis) {
     double mean = 0, lo = win.front()->axis, hi = lo;
     // Trapezoidal time average (steps may differ in length).
     for (size_t i = 1; i < win.size(); ++i)
@@ -161,16 +185,83 @@ std::vector<Metric> BodyTracker::summary(double average_from) const {
     m.emplace_back("theta_oscillation_deg", 0.5 * (hi - lo) * 180 / kPi);
   }
   const double w_mat = -(b.material - a.material) / (2 * kPi * T);
-  const double w_axis = -(b.axis - a.axis) / (2 * kPi * T);
-  if (membrane_) {
+  std::vector<double> times, axis;
+  for (const Sample* s : win) times.push_back(s->time), axis.push_back(s->axis);
+  int half_turns = 0;
+  const double w_axis = tumbling_frequency(times, axis, &half_turns);
+  if (membrane_)
     m.emplace_back("omega_tt", w_mat);
-    if (elongated_) m.emplace_back("omega_tu", w_axis);
-  } else {
+  else if (!elongated_)
     m.emplace_back("omega_tu", w_mat);
+  if (elongated_) {
+    m.emplace_back("omega_tu", w_axis);
+    m.emplace_back("omega_tu_half_turns", half_turns);
+    if (!membrane_) m.emplace_back("omega_material", w_mat);
   }
   m.emplace_back("average_from", a.time);
   m.emplace_back("average_to", b.time);
   return m;
+}
+
+std::string motion_regime(bool round, bool membrane, const std::vector<double>& axis,
+                          const std::vector<double>& material, double swing_deg) {
+  if (axis.size() < 2 || axis.size() != material.size())
+    throw std::invalid_argument("motion_regime: at least two records of axis and material angles");
+  if (round) return membrane ? "tank-treading" : "tumbling";
+  if (std::abs(axis.back() - axis.front()) >= kPi * (1 - 1e-12)) return "tumbling";
+  if (std::abs(material.back() - material.front()) < kPi / 2) return "steady";
+  const auto [lo, hi] = std::minmax_element(axis.begin(), axis.end());
+  return 0.5 * (*hi - *lo) * 180 / kPi >= swing_deg ? "swinging" : "tank-treading";
+}
+
+double tumbling_frequency(const std::vector<double>& times, const std::vector<double>& axis,
+                          int* half_turns) {
+  if (times.size() < 2 || times.size() != axis.size())
+    throw std::invalid_argument("tumbling_frequency: at least two records of times and angles");
+  const double a0 = axis.front();
+  const double total = axis.back() - a0;
+  const int n = static_cast<int>(std::floor(std::abs(total) / kPi + 1e-12));
+  if (half_turns) *half_turns = n;
+  if (n == 0) return -total / (2 * kPi * (times.back() - times.front()));
+  // The first time the axis has turned by n pi (linear between records).
+  const double target = (total > 0 ? 1 : -1) * n * kPi;
+  for (size_t i = 1; i < axis.size(); ++i) {
+    const double d0 = axis[i - 1] - a0, d1 = axis[i] - a0;
+    if ((d1 - target) * (target > 0 ? 1 : -1) >= 0) {
+      const double f = d1 != d0 ? (target - d0) / (d1 - d0) : 1.0;
+      const double t = times[i - 1] + f * (times[i] - times[i - 1]);
+      return -target / (2 * kPi * (t - times.front()));
+    }
+  }
+  return -total / (2 * kPi * (times.back() - times.front()));  // not reached: the last record has turned n pi
+}
+
+std::vector<Metric> dimensionless_numbers(const Patch& reference, bool membrane, double thickness,
+                                          double shear_modulus, const FlowScales& flow) {
+  const int dim = reference.physical_dim();
+  double delta = 0, r0 = 0;
+  if (membrane) {
+    const geometry::MembraneShape s = geometry::membrane_shape(reference, 0);
+    delta = s.swelling, r0 = s.effective_radius;
+  } else {
+    const double boundary =
+        geometry::patch_measure(geometry::isoparametric(reference, 0, reference.knots(0).b()));
+    delta = geometry::swelling_degree(geometry::patch_measure(reference), boundary, dim);
+    r0 = geometry::effective_radius(boundary, dim);
+  }
+  std::vector<Metric> m{{"Delta", delta}, {"R0", r0}};
+  if (flow.half_width > 0) m.emplace_back("chi", r0 / flow.half_width);
+  if (flow.shear_rate > 0 && flow.viscosity > 0) {
+    m.emplace_back("Re", flow.density * flow.shear_rate * r0 * r0 / flow.viscosity);
+    if (shear_modulus > 0)
+      m.emplace_back("Ca", membrane ? flow.viscosity * flow.shear_rate * r0 / (thickness * shear_modulus)
+                                    : flow.viscosity * flow.shear_rate / shear_modulus);
+  }
+  return m;
+}
+
+double filling_fraction(const Patch& inclusion, const Patch& membrane) {
+  return geometry::patch_measure(inclusion) / geometry::membrane_shape(membrane, 0).enclosed;
 }
 
 }  // namespace cellfsi::solid

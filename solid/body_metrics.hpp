@@ -14,8 +14,13 @@
 //   omega_tt   tank-treading frequency of a membrane: mean angular velocity of its material points about the
 //              centroid, in turns per second, positive clockwise (the sense of a shear flow with
 //              gammadot > 0)
-//   omega_tu   tumbling frequency: turns per second of the long axis (membranes); of the material points
-//              for a bulky body (a round nucleus has no axis, but turns as a whole)
+//   omega_tu   tumbling frequency: turns per second of the long axis (elongated bodies; in the summary over
+//              the whole half-turns of the axis in the window when it made one); of the material points for
+//              a body that is round in its reference shape (a round nucleus has no axis of its own, but turns
+//              as a whole)
+//   regime     (summary) the motion, decided from the data in the window: see motion_regime()
+// theta is reported for every body whose current shape has a long axis (a round body's is that of its
+// deformation).
 // Angles are taken in the shear plane spanned by x and `plane_dir` (the wall-normal direction).
 #include <string>
 #include <utility>
@@ -45,6 +50,10 @@ class BodyTracker {
   /// mean frequencies (left out when fewer than two records fall into the window).
   std::vector<Metric> summary(double average_from) const;
 
+  /// The motion in the window from average_from (see motion_regime); "undetermined" with fewer than two
+  /// records.
+  std::string regime(double average_from) const;
+
   bool membrane() const { return membrane_; }
   /// True when the body has a long axis (second moments differ by more than 1 %): theta is defined.
   bool elongated() const { return elongated_; }
@@ -52,13 +61,15 @@ class BodyTracker {
  private:
   struct Sample {
     double time = 0, r_a = 0, r_p = 0;
-    double axis = 0;      // long-axis angle, unwrapped [rad]
-    double material = 0;  // mean unwrapped angle of the material points [rad]
+    double axis = 0;        // long-axis angle, unwrapped [rad]
+    double anisotropy = 0;  // largest / smallest second moment - 1 of the current shape
+    double material = 0;    // mean unwrapped angle of the material points [rad]
     geometry::Vec3 centroid = geometry::Vec3::Zero();
   };
   void measure(const geometry::Patch& p, double& area, double& boundary,
                geometry::RegionMoments& region) const;
   std::vector<double> material_angles(const geometry::Patch& p, const geometry::Vec3& centroid) const;
+  std::vector<const Sample*> window(double average_from) const;
 
   bool membrane_;
   int dim_, plane_dir_;
@@ -69,5 +80,38 @@ class BodyTracker {
   std::vector<double> weights_;      // per material point (1 in 2D; squared in-plane radius in 3D)
   std::vector<Sample> history_;
 };
+
+/// How a body moves over a window of time (paper Sec. 3.2), from its long axis and its material:
+///   round      -> a body without a long axis of its own (reference shape round): "tumbling" when bulky (it
+///                 turns as a whole, as the paper's inclusions), "tank-treading" when a membrane;
+///   tumbling   -> the long axis turned through at least half a turn (pi: the axis has no sign);
+///   steady     -> the material turned by less than a quarter turn (no rotation to speak of);
+///   swinging   -> the axis oscillates by at least `swing_deg` (half peak-to-peak) while the material turns;
+///   tank-treading -> otherwise: the axis stays (oscillating by less), the material turns.
+/// `axis` and `material` are unwrapped angles [rad] at the window's records (at least two).
+std::string motion_regime(bool round, bool membrane, const std::vector<double>& axis,
+                          const std::vector<double>& material, double swing_deg = 2.0);
+
+/// Turns per second of an unwrapped axis angle (negative angles: clockwise, positive frequency), averaged
+/// over the whole half-turns it made from times[0]; `half_turns` returns how many (0: fewer than one, then
+/// the average is over the whole window).
+double tumbling_frequency(const std::vector<double>& times, const std::vector<double>& axis, int* half_turns);
+
+/// Flow scales for the paper's dimensionless numbers (Sec. 3.1-3.2).
+struct FlowScales {
+  double viscosity = 0;   // mu [g / (cm s)]
+  double density = 0;     // rho_1 [g / cm^3]
+  double shear_rate = 0;  // gammadot [1/s] (0: no Ca, Re)
+  double half_width = 0;  // half the channel width [cm] (0: no chi)
+};
+
+/// The dimensionless numbers of a body in its reference configuration: Delta (swelling degree), R0 (effective
+/// radius, cm), chi (R0 / half width), Re (rho gammadot R0^2 / mu), and Ca (membranes: mu gammadot R0 / (h
+/// G), the surface capillary number; bulky bodies: mu gammadot / G, the bulk one).
+std::vector<Metric> dimensionless_numbers(const geometry::Patch& reference, bool membrane, double thickness,
+                                          double shear_modulus, const FlowScales& flow);
+
+/// Filling fraction phi: the inclusion's area (volume) over the area (volume) its membrane encloses.
+double filling_fraction(const geometry::Patch& inclusion, const geometry::Patch& membrane);
 
 }  // namespace cellfsi::solid

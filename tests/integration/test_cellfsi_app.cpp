@@ -615,6 +615,13 @@ TEST_F(CellfsiApp, CapsuleSceneWritesBodyMetricsAndSolidSeries) {
   EXPECT_GT(theta, 60.0) << js;
   EXPECT_LT(theta, 89.9) << js;
   EXPECT_GT(json_number(js, "membrane_omega_tt").value_or(0), 0.0) << js;
+  // The paper's dimensionless numbers of this scene (Sec. 3.3) and the motion regime (two steps: too short
+  // for the material to turn a quarter, "steady").
+  EXPECT_NEAR(json_number(js, "membrane_Delta").value_or(0), 0.841, 5e-4) << js;
+  EXPECT_NEAR(json_number(js, "membrane_chi").value_or(0), 0.257, 5e-4) << js;
+  EXPECT_NEAR(json_number(js, "membrane_Ca").value_or(0), 0.0345, 5e-5) << js;
+  EXPECT_NEAR(json_number(js, "membrane_Re").value_or(0), 1.42e-4, 5e-7) << js;
+  EXPECT_EQ(json_string(js, "membrane_regime"), "steady") << js;
   const std::vector<std::string> files = pvd_files(out_ / "solid.pvd");
   ASSERT_EQ(files.size(), 3u) << read_text(out_ / "solid.pvd");
   for (const auto& f : files) EXPECT_TRUE(fs::exists(out_ / f)) << f;

@@ -87,7 +87,7 @@ TEST(BodyTracker, UniformDilationChangesAreaAndPerimeterExactly) {
     EXPECT_NEAR(m.at("r_A"), s * s - 1, 1e-10);
     EXPECT_NEAR(m.at("r_P"), s - 1, 1e-10);
   }
-  EXPECT_EQ(as_map(td.metrics()).count("theta_deg"), 0u);
+  EXPECT_TRUE(std::isnan(as_map(td.metrics()).at("theta_deg"))) << "a uniformly dilated disk has no axis";
 }
 
 TEST(BodyTracker, RoundBodyTurnsAsAWhole) {
@@ -103,4 +103,85 @@ TEST(BodyTracker, RejectsTimeGoingBackwards) {
   solid::BodyTracker t(disk, false);
   t.record(1.0, disk);
   EXPECT_THROW(t.record(1.0, disk), std::invalid_argument);
+}
+
+TEST(MotionRegime, DecidedFromTheAxisAndTheMaterial) {
+  // Prescribed angle histories over 0.3 s (clockwise: negative angles), the rule of solid::motion_regime.
+  std::vector<double> fixed, wobble, swing, turn, material, still;
+  for (int k = 0; k <= 300; ++k) {
+    const double t = k * 1e-3;
+    fixed.push_back(0.4);
+    wobble.push_back(0.4 + 0.5 * kPi / 180 * std::sin(2 * kPi * 7 * t));  // +-0.5 deg: tank-treading
+    swing.push_back(0.4 + 6 * kPi / 180 * std::sin(2 * kPi * 7 * t));     // +-6 deg: swinging
+    turn.push_back(-2 * kPi * 3.5 * t);                                   // 1.05 turns of the axis
+    material.push_back(-2 * kPi * 3.8 * t);
+    still.push_back(0.01 * t);
+  }
+  EXPECT_EQ(solid::motion_regime(false, true, fixed, material), "tank-treading");
+  EXPECT_EQ(solid::motion_regime(false, true, wobble, material), "tank-treading");
+  EXPECT_EQ(solid::motion_regime(false, true, swing, material), "swinging");
+  EXPECT_EQ(solid::motion_regime(false, true, turn, material), "tumbling");
+  EXPECT_EQ(solid::motion_regime(false, false, turn, turn), "tumbling");
+  EXPECT_EQ(solid::motion_regime(false, true, fixed, still), "steady");
+  // A body round in its reference shape has no axis of its own: a bulky one turns as a whole.
+  EXPECT_EQ(solid::motion_regime(true, false, still, material), "tumbling");
+  EXPECT_EQ(solid::motion_regime(true, true, still, material), "tank-treading");
+  EXPECT_THROW(solid::motion_regime(false, true, {0.0}, {0.0}), std::invalid_argument);
+}
+
+TEST(MotionRegime, TumblingFrequencyOverWholeHalfTurns) {
+  // An axis turning at 2 turns/s with a non-uniform speed (faster across the flow, as a tumbling ellipse):
+  // over a window of 0.6 half-periods more, the plain window average is off; over whole half-turns it is
+  // exact.
+  const double f = 2.0;
+  std::vector<double> t, a;
+  for (int k = 0; k <= 700; ++k) {
+    t.push_back(k * 1e-3);
+    const double phase = 2 * kPi * f * t.back();
+    a.push_back(-(phase + 0.3 * std::sin(2 * phase)) / 1.0);
+  }
+  int n = 0;
+  const double w = solid::tumbling_frequency(t, a, &n);
+  EXPECT_EQ(n, 2);  // 1.4 turns of the axis: two whole half-turns
+  EXPECT_NEAR(w, f, 1e-3);
+  const double plain = -(a.back() - a.front()) / (2 * kPi * (t.back() - t.front()));
+  EXPECT_GT(std::abs(plain - f), 0.05) << "the window average is biased by the non-uniform speed";
+  // A bulky ellipse turned rigidly: BodyTracker's summary gives the rate and the regime.
+  const Patch ellipse = geometry::bulky_ellipse(2e-4, 1e-4, 4, 32, 2, kCentre);
+  solid::BodyTracker tr(ellipse, false);
+  for (int k = 0; k <= 200; ++k) tr.record(k * 1e-3, moved(ellipse, -2 * kPi * 4.68 * k * 1e-3));
+  const auto m = as_map(tr.summary(0.0));
+  EXPECT_NEAR(m.at("omega_tu"), 4.68, 1e-6);
+  EXPECT_EQ(m.at("omega_tu_half_turns"), 1.0);
+  EXPECT_EQ(tr.regime(0.0), "tumbling");
+}
+
+TEST(DimensionlessNumbers, ThePapersCapsulesAndCompoundCapsule) {
+  // Paper Sec. 3.3: a = 2e-4, b = 1e-4, h = 5e-7 cm, G_m = 7500, mu = 0.012, rho_1 = 1.025, gammadot = 70,
+  // H = 0.0012 cm: Delta_m = 0.841, chi = 0.257, Ca_m = 0.0345, Re = 0.000142 (R0 = 0.0001542 cm).
+  const solid::FlowScales flow{0.012, 1.025, 70.0, 6e-4};
+  const Patch capsule = geometry::hollow_ellipse(2e-4, 1e-4, 5e-7, 64, 2, kCentre, kPi / 2);
+  auto m = as_map(solid::dimensionless_numbers(capsule, true, 5e-7, 7500, flow));
+  EXPECT_NEAR(m.at("Delta"), 0.841, 5e-4);
+  EXPECT_NEAR(m.at("R0"), 1.542e-4, 5e-8);
+  EXPECT_NEAR(m.at("chi"), 0.257, 5e-4);
+  EXPECT_NEAR(m.at("Ca"), 0.0345, 5e-5);
+  EXPECT_NEAR(m.at("Re"), 0.000142, 5e-7);
+  // Sec. 3.6: the inclusion's bulk capillary number mu gammadot / G_i = 0.021; a disk has Delta = 1.
+  const Patch nucleus = geometry::bulky_ellipse(5e-5, 5e-5, 4, 32, 2, kCentre);
+  m = as_map(solid::dimensionless_numbers(nucleus, false, 0, 40, flow));
+  EXPECT_NEAR(m.at("Ca"), 0.021, 1e-12);
+  EXPECT_NEAR(m.at("Delta"), 1.0, 1e-9);
+  EXPECT_NEAR(solid::filling_fraction(nucleus, capsule), 0.125, 1e-4);  // r^2 / (a b)
+  // Sec. 3.6, 3D: ellipsoid 3e-4 x 2e-4 x 2e-4, sphere r = 1e-4 in a cube of side 0.0012: Delta_m = 0.960,
+  // chi = 0.387, Ca_m = 0.0520, Re = 0.000322, phi = 0.083 (R0 = 0.000232 cm).
+  const Patch shell = geometry::hollow_ellipsoid(3e-4, 2e-4, 2e-4, 5e-7, 8, 16, 2, kCentre);
+  const Patch sphere = geometry::solid_ellipsoid(1e-4, 1e-4, 1e-4, 2, 8, 16, 2, kCentre);
+  m = as_map(solid::dimensionless_numbers(shell, true, 5e-7, 7500, flow));
+  EXPECT_NEAR(m.at("Delta"), 0.960, 5e-4);
+  EXPECT_NEAR(m.at("R0"), 2.32e-4, 5e-7);
+  EXPECT_NEAR(m.at("chi"), 0.387, 1e-3);
+  EXPECT_NEAR(m.at("Ca"), 0.0520, 1e-4);
+  EXPECT_NEAR(m.at("Re"), 0.000322, 1e-6);
+  EXPECT_NEAR(solid::filling_fraction(sphere, shell), 0.083, 5e-4);
 }
