@@ -204,6 +204,8 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   };
   if (settings.output_every > 0) {
     series = std::make_unique<fluid::FluidSeriesWriter>(settings.output_dir);
+    if (!bodies.empty() && scene.undisturbed_velocity())
+      series->set_undisturbed_velocity(scene.undisturbed_velocity());
     if (!bodies.empty())
       solid_series = std::make_unique<solid::SolidSeriesWriter>(settings.output_dir, rank == 0);
     write_series();

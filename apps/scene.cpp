@@ -230,7 +230,10 @@ void read_bodies(SceneSettings& s) {
     PetscReal axes[4] = {2e-4, 1e-4, 1e-4, 0}, center[4] = {0, 0, 0, 0};
     PetscInt n_axes = 4, n_center = 4, n_el = 4, elements[4] = {0, 0, 0, 0}, degree = 2;
     PetscBool axes_set = PETSC_FALSE, center_set = PETSC_FALSE, el_set = PETSC_FALSE;
-    PetscReal angle = 0, h = b.thickness, G = b.shear_modulus, rho = b.density;
+    PetscReal angle = 0, h = b.thickness, G = b.shear_modulus, rho = b.density, area = 0;
+    PetscReal axis[4] = {0, 0, 1, 0};
+    PetscInt n_axis = 4;
+    PetscBool axis_set = PETSC_FALSE;
     std::string o = "-" + pre;
     call_reporting_input_errors(
         [&]() -> PetscErrorCode {
@@ -244,8 +247,16 @@ void read_bodies(SceneSettings& s) {
                                           axes, &n_axes, &axes_set));
           PetscCall(PetscOptionsRealArray("-center", "Centre x,y[,z] [cm] (default: the domain's centre)",
                                           nullptr, center, &n_center, &center_set));
-          PetscCall(PetscOptionsReal("-angle", "2D: first semi-axis rotated from +x [degrees]", nullptr,
-                                     angle, &angle, nullptr));
+          PetscCall(
+              PetscOptionsReal("-angle",
+                               "Rotation [degrees]: 2D, of the first semi-axis from +x; 3D, of the body "
+                               "about -axis (right-handed)",
+                               nullptr, angle, &angle, nullptr));
+          PetscCall(PetscOptionsRealArray("-axis", "3D: rotation axis x,y,z of -angle (default 0,0,1)",
+                                          nullptr, axis, &n_axis, &axis_set));
+          PetscCall(PetscOptionsReal(
+              "-area", "rbc: area enclosed by the mid-line [cm^2] (default 1.2868e-7, DESIGN.md)", nullptr,
+              area, &area, nullptr));
           PetscCall(PetscOptionsReal("-thickness", "Membrane thickness h [cm]", nullptr, h, &h, nullptr));
           PetscCall(PetscOptionsIntArray("-elements",
                                          "Lagrangian elements per direction (through/around; radial,around; "
@@ -260,6 +271,8 @@ void read_bodies(SceneSettings& s) {
         {{o + "semi_axes", 'R'},
          {o + "center", 'R'},
          {o + "angle", 'r'},
+         {o + "axis", 'R'},
+         {o + "area", 'r'},
          {o + "thickness", 'r'},
          {o + "elements", 'I'},
          {o + "degree", 'i'},
@@ -286,6 +299,14 @@ void read_bodies(SceneSettings& s) {
     b.center = center_set ? Vec3(center[0], center[1], D == 3 ? center[2] : 0.0) : Vec3(NAN, NAN, NAN);
     if (!std::isfinite(angle)) bad(pre + "angle", str(angle), "a finite angle [degrees]");
     b.angle_deg = angle;
+    if (axis_set && D != 3) bad(pre + "axis", std::to_string(n_axis) + " values", "only in 3D (-dim 3)");
+    if (axis_set && n_axis != 3) bad(pre + "axis", std::to_string(n_axis) + " values", "3 values x,y,z");
+    const Vec3 ax(axis[0], axis[1], axis[2]);
+    if (!(ax.norm() > 0) || !std::isfinite(ax.norm())) bad(pre + "axis", "0,0,0", "a nonzero direction");
+    b.axis = ax.normalized();
+    if (b.shape != "rbc" && area != 0) bad(pre + "area", str(area), "only for shape rbc");
+    if (b.shape == "rbc" && !(area >= 0)) bad(pre + "area", str(area), "> 0 [cm^2] (0: the default RBC)");
+    b.area = area;
     if (b.membrane()) {
       if (!(h > 0)) bad(pre + "thickness", str(h), "> 0 [cm]");
       for (double a : b.semi_axes)
@@ -298,7 +319,7 @@ void read_bodies(SceneSettings& s) {
       if (elements[d] < 0) bad(pre + "elements", std::to_string(elements[d]), "counts >= 0 (0: automatic)");
     if (b.membrane() && elements[0] > 1)
       bad(pre + "elements", std::to_string(elements[0]), "1 element through a membrane's thickness");
-    const int mult = b.shape == "rbc" ? 1 : 4;
+    const int mult = 4;  // every builder needs a multiple of 4 elements around
     const int around = D == 2 ? 1 : 2;
     if (elements[around] % mult)
       bad(pre + "elements", std::to_string(elements[around]), "a multiple of 4 around the body");
@@ -425,10 +446,16 @@ geometry::Patch make_body(const SceneSettings& s, const BodySettings& b, const s
   if (b.shape == "hollow_ellipse")
     return geometry::hollow_ellipse(a[0], a[1], b.thickness, n[1], b.degree, c, angle);
   if (b.shape == "ellipse") return geometry::bulky_ellipse(a[0], a[1], n[0], n[1], b.degree, c, angle);
-  if (b.shape == "rbc") return geometry::biconcave_rbc(b.thickness, n[1], b.degree, c, angle);
+  if (b.shape == "rbc")
+    return geometry::biconcave_rbc(b.thickness, n[1], b.degree, c, angle,
+                                   b.area > 0 ? b.area : geometry::kRbcArea2d);
+  // 3D: built axis-aligned at c, then turned about c.
+  const geometry::Mat3 A = Eigen::AngleAxisd(angle, b.axis).toRotationMatrix();
   if (b.shape == "hollow_ellipsoid")
-    return geometry::hollow_ellipsoid(a[0], a[1], a[2], b.thickness, n[1], n[2], b.degree, c);
-  return geometry::solid_ellipsoid(a[0], a[1], a[2], n[0], n[1], n[2], b.degree, c);
+    return geometry::transformed(
+        geometry::hollow_ellipsoid(a[0], a[1], a[2], b.thickness, n[1], n[2], b.degree, c), A, c - A * c);
+  return geometry::transformed(geometry::solid_ellipsoid(a[0], a[1], a[2], n[0], n[1], n[2], b.degree, c), A,
+                               c - A * c);
 }
 
 }  // namespace
@@ -439,7 +466,7 @@ geometry::Patch build_body_patch(const SceneSettings& s, const BodySettings& b) 
   const double target = 0.9 * std::min(1.0, s.max_mesh_ratio) * fluid_element_size(s);
   std::array<int, 3> n = b.elements;
   const int D = s.dim;
-  const int mult = b.shape == "rbc" ? 1 : 4;
+  const int mult = 4;  // elements around: every builder needs a multiple of 4
   if (b.membrane()) n[0] = 1;
   std::array<int, 3> trial{b.membrane() ? 1 : 2, 16, 16};
   if (D == 3) trial[1] = 8;
@@ -531,8 +558,8 @@ Scene::Scene(MPI_Comm comm, const SceneSettings& settings) : s_(settings) {
   const double rate = s_.shear_rate;
   const bool shear = s_.flow == "shear";
   // Initial state: the undisturbed flow for shear, rest otherwise.
-  fluid_->set_initial_velocity(
-      [=](const Vec3& x) { return shear ? Vec3(rate * (x[wd] - mid), 0, 0) : Vec3::Zero(); });
+  if (shear) undisturbed_ = [=](const Vec3& x) { return Vec3(rate * (x[wd] - mid), 0, 0); };
+  fluid_->set_initial_velocity(shear ? undisturbed_ : [](const Vec3&) { return Vec3(Vec3::Zero()); });
 }
 
 void Scene::attach_bodies(std::vector<solid::SolidSolver*> bodies) {

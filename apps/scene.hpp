@@ -5,6 +5,7 @@
 // Bodies (cells): membranes (capsules) and bulky bodies (nuclei) listed by -solid_bodies, each with options
 // -solid_<name>_<key>.
 #include <array>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -23,7 +24,9 @@ struct BodySettings {
   std::string shape = "hollow_ellipse";       // hollow_ellipse | ellipse | rbc | hollow_ellipsoid | ellipsoid
   std::vector<double> semi_axes{2e-4, 1e-4};  // mid-surface semi-axes [cm] (rbc: none)
   geometry::Vec3 center = geometry::Vec3::Zero();
-  double angle_deg = 0;                  // 2D: first semi-axis rotated from +x [degrees]
+  double angle_deg = 0;                           // rotation [degrees]: 2D from +x, 3D about `axis`
+  geometry::Vec3 axis = geometry::Vec3::UnitZ();  // 3D: rotation axis (unit)
+  double area = 0;                       // rbc: enclosed area of the mid-line [cm^2] (0: the default RBC)
   double thickness = 5e-7;               // membranes [cm]
   std::array<int, 3> elements{0, 0, 0};  // Lagrangian elements per direction; 0: from the fluid mesh
   int degree = 2;
@@ -89,6 +92,10 @@ class Scene {
   /// The coupling loop (null before attach_bodies or without bodies).
   const coupling::FsiCoupler* coupler() const { return coupler_.get(); }
   SceneStep step();
+  /// The flow without cells where it is known (shear: gammadot (y - H/2) along x), else empty.
+  const std::function<geometry::Vec3(const geometry::Vec3&)>& undisturbed_velocity() const {
+    return undisturbed_;
+  }
   /// Metrics of the current state (names are the CSV/JSON keys), including errors against analytic solutions
   /// where the scene has one and, per body, "<body>_<metric>" (solid/body_metrics.hpp).
   std::vector<std::pair<std::string, double>> metrics();
@@ -110,6 +117,7 @@ class Scene {
   std::unique_ptr<coupling::FsiCoupler> coupler_;
   std::vector<solid::BodyTracker> trackers_;
   std::vector<std::pair<std::string, double>> last_;
+  std::function<geometry::Vec3(const geometry::Vec3&)> undisturbed_;
 };
 
 }  // namespace cellfsi::app

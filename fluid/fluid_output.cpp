@@ -94,6 +94,7 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
   vtkDoubleArray* pre = array("pressure", 1);
   vtkDoubleArray* vor = array("vorticity", D == 2 ? 1 : 3);
   vtkDoubleArray* sh = array("s_h", 1);
+  vtkDoubleArray* dis = undisturbed_ ? array("velocity_disturbance", 3) : nullptr;
   BasisValues bv;
   MapValues mv;
   vtkIdType id = 0;
@@ -105,6 +106,10 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
         vel->SetTuple3(id, l.v[0], l.v[1], l.v[2]);
         pre->SetValue(id, rho * l.p);
         sh->SetValue(id, l.s);
+        if (dis) {
+          const geometry::Vec3 d = l.v - undisturbed_(l.x);
+          dis->SetTuple3(id, d[0], d[1], d[2]);
+        }
         if (D == 2) {
           vor->SetValue(id, l.grad(1, 0) - l.grad(0, 1));
         } else {

@@ -1,7 +1,9 @@
 #pragma once
 // Output of the fluid state: a ParaView time series (fluid.pvd + one .vts per output step) with velocity,
-// pressure (dyn/cm^2), s^h and vorticity sampled on the patch; and section data: the flow rate through, and
-// the velocity profile across, the section xi_0 = const (a plane x = const for the builders' channels).
+// pressure (dyn/cm^2), s^h and vorticity sampled on the patch (and the velocity's disturbance of a known
+// flow); and section data: the flow rate through, and the velocity profile across, the section xi_0 = const
+// (a plane x = const for the builders' channels).
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -15,11 +17,17 @@ namespace cellfsi::fluid {
 class FluidSeriesWriter {
  public:
   FluidSeriesWriter(std::string dir, int samples_per_element = 2);
+  /// Also write "velocity_disturbance" = velocity - `undisturbed`(x) (the flow without cells, e.g. the shear;
+  /// paper Figs. 3d and 4f plot its magnitude).
+  void set_undisturbed_velocity(std::function<geometry::Vec3(const geometry::Vec3&)> undisturbed) {
+    undisturbed_ = std::move(undisturbed);
+  }
   void write(const FluidSolver& fluid);
 
  private:
   std::string dir_;
   int samples_;
+  std::function<geometry::Vec3(const geometry::Vec3&)> undisturbed_;
   std::vector<geometry::PvdEntry> entries_;
 };
 

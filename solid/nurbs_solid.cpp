@@ -1,6 +1,7 @@
 #include "solid/nurbs_solid.hpp"
 
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "geometry/quadrature.hpp"
@@ -229,7 +230,10 @@ std::vector<Mat3> NurbsSolid::cauchy_stress(const std::vector<Param>& xi) const 
     Mat3 F;
     double jac0 = 0;
     kinematics(c_n_, xi[i], nullptr, x, F, jac0);
-    out[i] = F * material_->second_piola(F, dim_) * F.transpose() / F.topLeftCorner(dim_, dim_).determinant();
+    const double J = F.topLeftCorner(dim_, dim_).determinant();
+    // Output only: NaN where F is undefined (a degenerate point) or inverted, instead of stopping the run.
+    out[i] = J > 0 && std::isfinite(J) ? Mat3(F * material_->second_piola(F, dim_) * F.transpose() / J)
+                                       : Mat3::Constant(std::numeric_limits<double>::quiet_NaN());
   }
   return out;
 }

@@ -13,10 +13,14 @@ void SolidSeriesWriter::write(double time, const std::vector<SolidSolver*>& bodi
     const geometry::Patch ref = bodies[b]->reference_patch();
     const geometry::Patch cur = bodies[b]->current_patch();
     std::vector<geometry::Param> xi = geometry::sample_grid(ref, samples_);
-    // A bulky body's centre is a degenerate face (F undefined there): sample just off it.
-    const geometry::KnotVector& k0 = ref.knots(0);
-    if (!bodies[b]->is_membrane())
-      for (geometry::Param& p : xi) p[0] = std::max(p[0], k0.a() + 1e-9 * (k0.b() - k0.a()));
+    // Degenerate faces (a bulky body's centre; in 3D the poles, the ends of the polar direction) have F
+    // undefined: the fields are sampled just off every open end of the parameter domain.
+    for (int d = 0; d < ref.param_dim(); ++d) {
+      const geometry::KnotVector& k = ref.knots(d);
+      if (k.periodic() || ref.closed(d)) continue;
+      const double eps = 1e-9 * (k.b() - k.a());
+      for (geometry::Param& p : xi) p[d] = std::clamp(p[d], k.a() + eps, k.b() - eps);
+    }
     const std::vector<Mat3> sigma = bodies[b]->cauchy_stress(xi);
     if (!writes_) continue;
     const int D = ref.physical_dim();

@@ -72,7 +72,8 @@ class SolidSolver {
   /// with the same knots.
   virtual geometry::Patch reference_patch() const = 0;
   virtual geometry::Patch current_patch() const = 0;
-  /// Cauchy stress sigma = J^{-1} F S F^T [dyn/cm^2] of the accepted state at parametric points.
+  /// Cauchy stress sigma = J^{-1} F S F^T [dyn/cm^2] of the accepted state at parametric points (for output:
+  /// NaN where F is undefined or inverted).
   virtual std::vector<Mat3> cauchy_stress(const std::vector<geometry::Param>& xi) const = 0;
 };
 
