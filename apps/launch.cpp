@@ -227,6 +227,13 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   int done = 0;
   std::vector<std::pair<std::string, double>> last;
   const std::string iteration = bodies.empty() ? "Newton" : "the coupling iteration";
+  {
+    // metrics.csv's columns from the start: those of every step's row (the metrics' names at t = 0).
+    std::vector<std::string> columns{"step", "time", "newton_iterations", "linear_iterations"};
+    if (scene.coupler()) columns.emplace_back("factorizations");
+    for (const auto& kv : scene.metrics()) columns.push_back(kv.first);
+    out.metrics_columns(columns);
+  }
   try {
     for (int k = 1; k <= n_steps; ++k) {
       const SceneStep st = scene.step();
@@ -256,10 +263,16 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       out.progress(k, n_steps, scene.fluid().time(), st.iterations, st.linear_iterations);
       if (series && k % settings.output_every == 0) write_series();
     }
-  } catch (const std::exception& e) {
-    // Whatever stopped the run mid-way, the summary says so next to the output written so far.
+  } catch (const std::invalid_argument& e) {
+    // Bad input found once the solvers read their options (after the first step): exit 1, as before a run.
     out.summary(std::string("failed: ") + e.what(), done, newton, linear, last);
     throw;
+  } catch (const std::exception& e) {
+    // Whatever stopped the run mid-way, the summary says so next to the output written so far, and where.
+    char where[96];
+    std::snprintf(where, sizeof where, " in step %d at t = %g s", done + 1, (done + 1) * settings.dt);
+    out.summary(std::string("failed: ") + e.what() + where, done, newton, linear, last);
+    throw std::runtime_error(e.what() + std::string(where) + "; output so far is in " + settings.output_dir);
   }
   std::vector<std::pair<std::string, double>> final_metrics = scene.summary_metrics();
   if (scene.coupler()) {

@@ -89,15 +89,26 @@ RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& s
   }
 }
 
+void RunOutput::metrics_columns(const std::vector<std::string>& names) {
+  if (rank_ != 0) return;
+  if (!columns_.empty()) throw std::logic_error("metrics.csv: the columns are already written");
+  columns_ = names;
+  for (size_t i = 0; i < names.size(); ++i) csv_ << (i ? "," : "") << names[i];
+  csv_ << "\n";
+  csv_.flush();
+}
+
 void RunOutput::metrics_row(const std::vector<std::pair<std::string, double>>& row) {
   if (rank_ != 0) return;
   if (columns_.empty()) {
-    for (size_t i = 0; i < row.size(); ++i) {
-      columns_.push_back(row[i].first);
-      csv_ << (i ? "," : "") << row[i].first;
-    }
-    csv_ << "\n";
+    std::vector<std::string> names;
+    for (const auto& kv : row) names.push_back(kv.first);
+    metrics_columns(names);
   }
+  for (size_t i = 0; i < row.size() && i < columns_.size(); ++i)
+    if (row[i].first != columns_[i])
+      throw std::logic_error("metrics.csv: column " + std::to_string(i + 1) + " is '" + columns_[i] +
+                             "', the row has '" + row[i].first + "'");
   if (row.size() != columns_.size())
     throw std::logic_error("metrics.csv: a row of " + std::to_string(row.size()) + " values for " +
                            std::to_string(columns_.size()) + " columns");

@@ -19,7 +19,11 @@ class RunOutput {
   RunOutput(MPI_Comm comm, const std::string& dir, const std::string& scene);
   const std::string& dir() const { return dir_; }
 
-  /// Appends one row to metrics.csv; the first call fixes the columns (in the given order).
+  /// Writes metrics.csv's header now (a run that fails in its first step leaves the columns, not an empty
+  /// file); the rows must then have these columns.
+  void metrics_columns(const std::vector<std::string>& names);
+  /// Appends one row to metrics.csv; the first call fixes the columns (in the given order) unless
+  /// metrics_columns did.
   void metrics_row(const std::vector<std::pair<std::string, double>>& row);
   /// Prints "step k/n  t=...  newton ..  linear ..  elapsed ..  left ~.." at most every `every_seconds`.
   void progress(int step, int n_steps, double t, int newton, int linear, bool force = false);

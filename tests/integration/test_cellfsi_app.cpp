@@ -673,6 +673,24 @@ TEST_F(CellfsiApp, ThreeDimensionalCompoundCapsuleWritesItsSeries) {
   for (const auto& f : files) EXPECT_TRUE(fs::exists(out_ / f)) << f;
 }
 
+TEST_F(CellfsiApp, RunFailingInItsFirstStepSaysWhereAndKeepsTheColumns) {
+  // Issue 10: a step too long for the membrane at 192 x 96 (dt 4e-3 inverts an element in step 1). The run
+  // exits with 2, the message and summary.json name the step and the time, and metrics.csv has its header
+  // (before: a 0-byte file and no step or time).
+  const RunResult r =
+      cellfsi({scene("capsule_shear.yaml"), "-fluid_elements", "192,96", "-dt", "4e-3", "-final_time", "8e-3",
+               "-solid_membrane_elements", "1,0", "-output_every", "0"},
+              120);
+  ASSERT_FALSE(r.timed_out) << r.output;
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("in step 1 at t = 0.004 s"), std::string::npos) << r.output;
+  EXPECT_NE(json_string(summary(), "status").value_or("").find("in step 1 at t = 0.004 s"), std::string::npos)
+      << summary();
+  const std::string csv = read_text(out_ / "metrics.csv");
+  EXPECT_EQ(csv.rfind("step,time,newton_iterations,linear_iterations,factorizations,", 0), 0u) << csv;
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1) << csv;
+}
+
 TEST_F(CellfsiApp, LaunchModesAgree) {
   // One process; one job split into a fluid and a solid rank; two executables (MPMD). Same numbers.
   const std::vector<std::string> args =
