@@ -84,7 +84,8 @@ class BodyTracker {
 /// How a body moves over a window of time (paper Sec. 3.2), from its long axis and its material:
 ///   round      -> a body without a long axis of its own (reference shape round): "tumbling" when bulky (it
 ///                 turns as a whole, as the paper's inclusions), "tank-treading" when a membrane;
-///   tumbling   -> the long axis turned through at least half a turn (pi: the axis has no sign);
+///   tumbling   -> the long axis turned through at least half a turn (pi: the axis has no sign), or, in a
+///                 window shorter than that, by at least 45 deg and at least half as far as the material;
 ///   steady     -> the material turned by less than a quarter turn (no rotation to speak of);
 ///   swinging   -> the axis oscillates by at least `swing_deg` (half peak-to-peak) while the material turns;
 ///   tank-treading -> otherwise: the axis stays (oscillating by less), the material turns.

@@ -122,6 +122,9 @@ TEST(MotionRegime, DecidedFromTheAxisAndTheMaterial) {
   EXPECT_EQ(solid::motion_regime(false, true, swing, material), "swinging");
   EXPECT_EQ(solid::motion_regime(false, true, turn, material), "tumbling");
   EXPECT_EQ(solid::motion_regime(false, false, turn, turn), "tumbling");
+  // A window shorter than a half-turn: 0.45 turns of the axis with the material, as a tumbling capsule.
+  const std::vector<double> part(turn.begin(), turn.begin() + 130);
+  EXPECT_EQ(solid::motion_regime(false, true, part, part), "tumbling");
   EXPECT_EQ(solid::motion_regime(false, true, fixed, still), "steady");
   // A body round in its reference shape has no axis of its own: a bulky one turns as a whole.
   EXPECT_EQ(solid::motion_regime(true, false, still, material), "tumbling");
