@@ -64,13 +64,13 @@ PetscErrorCode read_raw(Raw& r, const geometry::NarrowingChannel& ch0) {
                                r.domain, sizeof r.domain, nullptr));
   r.n_size = 3;
   PetscCall(PetscOptionsRealArray("-domain_size", "Domain extent Lx,Ly[,Lz] [cm] (rectangle, box)", nullptr,
-                                  r.size, &r.n_size, nullptr));
+                                  r.size, &r.n_size, &r.size_set));
   r.n_origin = 3;
   PetscCall(PetscOptionsRealArray("-domain_origin", "Domain corner x,y[,z] [cm]", nullptr, r.origin,
-                                  &r.n_origin, nullptr));
+                                  &r.n_origin, &r.origin_set));
   r.n_periodic = 3;
   PetscCall(PetscOptionsBoolArray("-domain_periodic", "Periodic flag per direction, e.g. 1,0", nullptr,
-                                  r.periodic, &r.n_periodic, nullptr));
+                                  r.periodic, &r.n_periodic, &r.periodic_set));
   PetscCall(PetscOptionsReal("-channel_length", "Narrowing channel: period in x [cm]", nullptr, r.ch[0],
                              &r.ch[0], nullptr));
   PetscCall(PetscOptionsReal("-channel_height", "Narrowing channel: height [cm]", nullptr, r.ch[1], &r.ch[1],

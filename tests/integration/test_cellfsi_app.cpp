@@ -655,12 +655,12 @@ TEST_F(CellfsiApp, CoarseCapsuleInclinationWithCentralAndSupportMarking) {
 }
 
 TEST_F(CellfsiApp, ThreeDimensionalCompoundCapsuleWritesItsSeries) {
-  // The 3D compound capsule of paper Sec. 3.6 (scenes/compound_capsule_shear_3d.yaml) at 12^3, one step with
+  // The 3D compound capsule of paper Sec. 3.6 (scenes/compound_capsule_shear_3d.yaml) at 12^3, two steps with
   // output: the polar points of the ellipsoid and the sphere, where F is undefined, no longer stop the
   // writer; the summary carries the paper's numbers (Delta_m = 0.960, chi = 0.387, phi = 0.083).
   const RunResult r = cellfsi(
       {scene("compound_capsule_shear_3d.yaml"), "-fluid_elements", "12,12,12", "-solid_membrane_elements",
-       "1,0,0", "-solid_nucleus_elements", "0,0,0", "-final_time", "5e-4", "-output_every", "1"},
+       "1,0,0", "-solid_nucleus_elements", "0,0,0", "-final_time", "1e-3", "-output_every", "1"},
       120);
   ASSERT_FALSE(r.timed_out) << r.output;
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -668,8 +668,12 @@ TEST_F(CellfsiApp, ThreeDimensionalCompoundCapsuleWritesItsSeries) {
   EXPECT_NEAR(json_number(js, "membrane_Delta").value_or(0), 0.960, 5e-4) << js;
   EXPECT_NEAR(json_number(js, "membrane_chi").value_or(0), 0.387, 1e-3) << js;
   EXPECT_NEAR(json_number(js, "nucleus_phi").value_or(0), 0.083, 5e-4) << js;
+  // The scene's walls are normal to y (-domain_periodic 1,0,1, once ignored: the walls were normal to z and
+  // theta, measured in the x-z plane where this ellipsoid is round, was noise): the long axis starts across
+  // the flow and has barely turned after two steps.
+  EXPECT_GT(std::abs(json_number(js, "membrane_theta_deg").value_or(0)), 85.0) << js;
   const std::vector<std::string> files = pvd_files(out_ / "solid.pvd");
-  EXPECT_EQ(files.size(), 4u) << read_text(out_ / "solid.pvd");  // two bodies, steps 0 and 1
+  EXPECT_EQ(files.size(), 6u) << read_text(out_ / "solid.pvd");  // two bodies, steps 0, 1, 2
   for (const auto& f : files) EXPECT_TRUE(fs::exists(out_ / f)) << f;
 }
 
@@ -689,6 +693,18 @@ TEST_F(CellfsiApp, RunFailingInItsFirstStepSaysWhereAndKeepsTheColumns) {
   const std::string csv = read_text(out_ / "metrics.csv");
   EXPECT_EQ(csv.rfind("step,time,newton_iterations,linear_iterations,factorizations,", 0), 0u) << csv;
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1) << csv;
+}
+
+TEST_F(CellfsiApp, DomainArraysOfTheWrongLengthAreRejected) {
+  // -domain_periodic, -domain_size and -domain_origin were read without their "set" flag: a wrong length
+  // passed and -domain_periodic was ignored altogether (issue 10).
+  for (const char* opt : {"-domain_periodic", "-domain_size", "-domain_origin"}) {
+    const std::string value = std::string(opt) == "-domain_periodic" ? "1,0,1" : "0.001,0.001,0.001";
+    const RunResult r = cellfsi(with({scene("shear.yaml"), opt, value}, kTiny));
+    expect_one_clear_error(r);
+    EXPECT_NE(r.output.find(opt), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("2 comma-separated values"), std::string::npos) << r.output;
+  }
 }
 
 TEST_F(CellfsiApp, LaunchModesAgree) {
