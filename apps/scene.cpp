@@ -405,6 +405,12 @@ SceneSettings SceneSettings::from_options(const std::string& default_name) {
   if (!(r.final_time > 0)) bad("final_time", str(r.final_time), "> 0 [s]");
   s.final_time = r.final_time;
   if (!(r.dt > 0)) bad("dt", str(r.dt), "> 0 [s]");
+  // The step count must be at least 1 and fit its int (-final_time 10 -dt 1e-12 wrapped to a negative count).
+  if (!(r.dt <= r.final_time))
+    bad("dt", str(r.dt), "at most -final_time = " + str(r.final_time) + " s (at least one step)");
+  if (!(r.final_time / r.dt <= 1e9))
+    bad("dt", str(r.dt),
+        "at least -final_time / 1e9 = " + str(r.final_time / 1e9) + " s (at most 1e9 steps)");
   if (r.output_every < 0) bad("output_every", std::to_string(r.output_every), ">= 0");
   s.output_every = static_cast<int>(r.output_every);
   s.output_dir = r.output_dir[0] ? r.output_dir : "out/" + s.name;

@@ -3,6 +3,9 @@
 // PETSc's own PetscCallThrow is not available.
 #include <petscsys.h>
 
+#include <cerrno>
+#include <cstdlib>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -54,7 +57,38 @@ void call_reporting_input_errors(Call&& call, const std::vector<std::pair<std::s
   PetscPushErrorHandler(detail::record_first_message, &message);
   const PetscErrorCode ierr = call();
   PetscPopErrorHandler();
-  if (!ierr) return;
+  auto what_of = [](char kind) {
+    return kind == 'i'   ? "an integer"
+           : kind == 'r' ? "a number"
+           : kind == 'b' ? "true or false"
+           : kind == 'B' ? "comma-separated true/false (or 1/0)"
+                         : "comma-separated numbers";
+  };
+  if (!ierr) {
+    // PETSc keeps the default for a value option given without a value ("-dt" at the end of the line, or
+    // followed by another option): refuse it (booleans may stand alone).
+    for (const auto& [option, kind] : probes) {
+      if (kind == 'b') continue;
+      PetscBool has = PETSC_FALSE, set = PETSC_FALSE;
+      char value[64] = "";
+      PetscOptionsHasName(nullptr, nullptr, option.c_str(), &has);
+      if (has) PetscOptionsGetString(nullptr, nullptr, option.c_str(), value, sizeof value, &set);
+      if (has && value[0] == '\0')
+        throw std::invalid_argument("option " + option + " has no value; valid: " + what_of(kind));
+      if (has && kind == 'i') {
+        // An integer beyond PetscInt wraps silently (-output_every 10000000000).
+        PetscInt v = 0;
+        PetscOptionsGetInt(nullptr, nullptr, option.c_str(), &v, nullptr);
+        errno = 0;
+        const long long exact = std::strtoll(value, nullptr, 10);
+        if (errno == ERANGE || exact != static_cast<long long>(v))
+          throw std::invalid_argument("option " + option + " = " + value +
+                                      " is invalid; valid: an integer up to " +
+                                      std::to_string(std::numeric_limits<PetscInt>::max()));
+      }
+    }
+    return;
+  }
   for (const auto& [option, kind] : probes) {
     const char* name = option.c_str();
     std::string why;
@@ -87,11 +121,7 @@ void call_reporting_input_errors(Call&& call, const std::vector<std::pair<std::s
     if (e) {
       char value[256] = "";
       PetscOptionsGetString(nullptr, nullptr, name, value, sizeof value, nullptr);
-      const char* what = kind == 'i'   ? "an integer"
-                         : kind == 'r' ? "a number"
-                         : kind == 'b' ? "true or false"
-                         : kind == 'B' ? "comma-separated true/false (or 1/0)"
-                                       : "comma-separated numbers";
+      const char* what = what_of(kind);
       throw std::invalid_argument("option " + std::string(name) + " = " + value +
                                   " is invalid; valid: " + what + " (" + why + ")");
     }

@@ -128,6 +128,12 @@ const std::vector<std::string> kTiny = {"-fluid_elements", "8,4",  "-fluid_degre
 const std::vector<std::string> kCapsule = {
     "-fluid_elements", "48,24", "-fluid_degree", "2", "-solid_membrane_elements", "1,0",
     "-final_time",     "1e-3",  "-output_every", "0"};
+/// kCapsule for the default scene (no scene file; dt 2e-3): one step.
+const std::vector<std::string> kDefaultCapsule = [] {
+  std::vector<std::string> a = kCapsule;
+  a.insert(a.end(), {"-final_time", "2e-3"});
+  return a;
+}();
 
 // ---------------------------------------------------------------------------------------------------------
 // Reading the output files
@@ -453,6 +459,23 @@ TEST_F(CellfsiApp, ZeroTimeStepIsRejected) {
   EXPECT_TRUE(nothing_written());
 }
 
+TEST_F(CellfsiApp, StepCountsThatDoNotFitAndMissingValuesAreRejected) {
+  // Issue 10: each of these ran and said "completed" (-2147483648 steps; 0 steps; output_every wrapped; the
+  // built-in dt with "dt: true" in options.yaml).
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"-final_time", "10", "-dt", "1e-12"}, "at most 1e9 steps"},
+      {{"-dt", "1e300"}, "at least one step"},
+      {{"-output_every", "10000000000"}, "an integer up to"},
+      {{"-dt"}, "-dt has no value"},
+      {{"-dt", "-final_time", "0.01"}, "-dt has no value"}};
+  for (const auto& [opts, why] : cases) {
+    const RunResult r = cellfsi(with(with({scene("shear.yaml")}, kTiny), opts));
+    expect_one_clear_error(r);
+    EXPECT_NE(r.output.find(why), std::string::npos) << r.output;
+    EXPECT_TRUE(nothing_written());
+  }
+}
+
 // Bad input the app does not reject cleanly yet (see the integration-test report): a non-number for an
 // integer option, more element counts than dimensions, a misspelt option of an inner solver.
 
@@ -732,7 +755,7 @@ TEST_F(CellfsiApp, LaunchModesAgree) {
 // and say so; options PETSc reads at the first solve (factorisation packages, convergence reports) are
 // accepted in both solvers, and a misspelt one is reported once every solver has read its options.
 TEST_F(CellfsiApp, FluidSolverOptionsOfABandRunAreRejectedWithTheReason) {
-  const RunResult r = cellfsi(with(kCapsule, {"-fluid_pc_type", "lu"}));
+  const RunResult r = cellfsi(with(kDefaultCapsule, {"-fluid_pc_type", "lu"}));
   expect_one_clear_error(r);
   EXPECT_NE(r.output.find("-fluid_pc_type"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("-coupling_solver fluid"), std::string::npos) << r.output;
@@ -740,24 +763,24 @@ TEST_F(CellfsiApp, FluidSolverOptionsOfABandRunAreRejectedWithTheReason) {
 }
 
 TEST_F(CellfsiApp, OptionsReadAtTheFirstSolveAreAcceptedInBothSolvers) {
-  RunResult r = cellfsi(
-      with(kCapsule, {"-coupling_band_mat_mumps_icntl_14", "40", "-coupling_band_schur_mat_mumps_icntl_14",
-                      "40", "-coupling_band_ksp_converged_reason"}));
+  RunResult r = cellfsi(with(
+      kDefaultCapsule, {"-coupling_band_mat_mumps_icntl_14", "40", "-coupling_band_schur_mat_mumps_icntl_14",
+                        "40", "-coupling_band_ksp_converged_reason"}));
   EXPECT_EQ(r.exit_code, 0) << r.output;
-  r = cellfsi(with(kCapsule, {"-coupling_solver", "fluid", "-fluid_sub_mat_mumps_icntl_14", "40",
-                              "-fluid_ksp_converged_reason"}));
+  r = cellfsi(with(kDefaultCapsule, {"-coupling_solver", "fluid", "-fluid_sub_mat_mumps_icntl_14", "40",
+                                     "-fluid_ksp_converged_reason"}));
   EXPECT_EQ(r.exit_code, 0) << r.output;
 }
 
 TEST_F(CellfsiApp, MisspeltFactorisationOptionIsRejectedAfterTheFirstStep) {
-  const RunResult r = cellfsi(with(kCapsule, {"-coupling_band_mat_mumps_icntll_14", "40"}));
+  const RunResult r = cellfsi(with(kDefaultCapsule, {"-coupling_band_mat_mumps_icntll_14", "40"}));
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
   EXPECT_NE(r.output.find("coupling_band_mat_mumps_icntll_14"), std::string::npos) << r.output;
 }
 
 TEST_F(CellfsiApp, BandSolverOptionsOnTwoFluidRanksAreRejectedWithTheReason) {
-  const RunResult r = mpi_cellfsi(2, with(kCapsule, {"-coupling_band_refresh_steps", "3"}));
+  const RunResult r = mpi_cellfsi(2, with(kDefaultCapsule, {"-coupling_band_refresh_steps", "3"}));
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
   EXPECT_NE(r.output.find("-coupling_band_refresh_steps"), std::string::npos) << r.output;
