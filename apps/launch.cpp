@@ -364,6 +364,19 @@ int launch(int argc, char** argv, Role role) {
       args.erase(args.begin() + i, args.begin() + std::min(args.size(), i + 2));
       break;
     }
+  // A scene file anywhere but first (after options, or a second one) was ignored: refuse it.
+  for (size_t i = 2; i < args.size() && !bad_launch; ++i) {
+    const std::string ext = std::filesystem::path(args[i]).extension().string();
+    const bool yaml = ext == ".yaml" || ext == ".yml";
+    const bool option_value = args[i - 1] == "-options_file_yaml" || args[i - 1] == "-options_file" ||
+                              args[i - 1] == "-output_dir" || args[i - 1] == "-scene";
+    if (yaml && !option_value) {
+      bad_launch = true;
+      launch_error = "argument '" + args[i] +
+                     "' is invalid here; valid: one scene file, as the first argument (" + args[0] +
+                     " SCENE.yaml [options])";
+    }
+  }
   if (args.size() > 1 && args[1][0] != '-') {
     scene_file = args[1];
     scene_name = std::filesystem::path(scene_file).stem().string();

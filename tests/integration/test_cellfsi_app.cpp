@@ -476,6 +476,17 @@ TEST_F(CellfsiApp, StepCountsThatDoNotFitAndMissingValuesAreRejected) {
   }
 }
 
+TEST_F(CellfsiApp, SceneFileAfterOptionsOrTwiceIsRejected) {
+  // Issue 10: a scene file after options ran the default scene instead; a second one was ignored.
+  for (const auto& args :
+       {with(kTiny, {scene("shear.yaml")}), with({scene("shear.yaml"), scene("poiseuille.yaml")}, kTiny)}) {
+    const RunResult r = cellfsi(args);
+    expect_one_clear_error(r);
+    EXPECT_NE(r.output.find("as the first argument"), std::string::npos) << r.output;
+    EXPECT_TRUE(nothing_written());
+  }
+}
+
 // Bad input the app does not reject cleanly yet (see the integration-test report): a non-number for an
 // integer option, more element counts than dimensions, a misspelt option of an inner solver.
 
