@@ -184,6 +184,12 @@ void read_bodies(SceneSettings& s) {
        {"-coupling_max_mesh_ratio", 'r'},
        {"-metrics_average_from", 'r'}});
   if (set && n > 64) bad("solid_bodies", std::to_string(n) + " names", "at most 64 bodies");
+  PetscBool given = PETSC_FALSE;
+  PetscOptionsHasName(nullptr, nullptr, "-solid_bodies", &given);
+  if (given && (!set || n == 0 || (n == 1 && names[0] && names[0][0] == '\0')))
+    bad("solid_bodies", "(empty)",
+        "one or more comma-separated names, e.g. membrane,nucleus (for a run without cells use a scene "
+        "without bodies, e.g. scenes/shear.yaml)");
   if (!(s_i >= 1)) bad("s_interface", str(s_i), ">= 1");
   if (!(tol > 0 && tol < 1)) bad("coupling_tolerance", str(tol), "0 < tolerance < 1");
   if (max_it < 1) bad("coupling_max_iterations", std::to_string(max_it), ">= 1");
@@ -509,7 +515,20 @@ void check_bodies(const SceneSettings& s, const geometry::Patch& domain) {
   if (s.bodies.empty()) return;
   const coupling::Locator locator(domain);
   std::vector<coupling::BodyPlacement> placed;
+  Vec3 lo, hi;
+  domain.bounding_box(lo, hi);
   for (const BodySettings& b : s.bodies) {
+    // A periodic direction wraps every point into the domain (the locator finds their images), but the body
+    // is drawn where its centre is: the centre itself must lie inside.
+    for (int d = 0; d < s.dim && std::isfinite(b.center[0]); ++d)
+      if (s.periodic[d] && !(b.center[d] >= lo[d] && b.center[d] < hi[d])) {
+        std::ostringstream v, w;
+        for (int e = 0; e < s.dim; ++e) v << (e ? "," : "") << b.center[e];
+        w << "a centre inside the domain, " << lo[d] << " <= "
+          << "xyz"[d] << " < " << hi[d] << " cm in the periodic direction "
+          << "xyz"[d];
+        bad("solid_" + b.name + "_center", v.str(), w.str());
+      }
     coupling::BodyPlacement pl{b.name, build_body_patch(s, b), b.membrane()};
     coupling::check_inside(locator, pl);
     const coupling::Resolution r = coupling::resolution(domain, pl);

@@ -843,6 +843,24 @@ TEST_F(CellfsiApp, CapsuleOutsideTheDomainIsRejected) {
   EXPECT_TRUE(nothing_written());
 }
 
+TEST_F(CellfsiApp, CentreOutsideAPeriodicDirectionIsRejected) {
+  // Issue 10: x = 0.003 cm in a box 0.0024 long, periodic in x, was accepted (the locator wraps the points).
+  const RunResult r =
+      cellfsi(with({scene("capsule_shear.yaml"), "-solid_membrane_center", "0.003,0.0006"}, kCapsule));
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("-solid_membrane_center"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("periodic direction x"), std::string::npos) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
+TEST_F(CellfsiApp, EmptyBodyListIsRejected) {
+  // Issue 10: -solid_bodies "" ended in "unknown option -solid_membrane_angle", naming a symptom.
+  const RunResult r = cellfsi(with({scene("capsule_shear.yaml"), "-solid_bodies", ""}, kCapsule));
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("-solid_bodies = (empty)"), std::string::npos) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
 TEST_F(CellfsiApp, OverlappingBodiesAreRejected) {
   const RunResult r =
       cellfsi(with({scene("capsule_shear.yaml"), "-solid_bodies", "membrane,nucleus", "-solid_nucleus_shape",
