@@ -15,6 +15,7 @@
 
 #include "apps/run_output.hpp"
 #include "apps/scene.hpp"
+#include "apps/scene_file.hpp"
 #include "coupling/remote_solid.hpp"
 #include "fluid/fluid_output.hpp"
 #include "fluid/petsc_error.hpp"
@@ -402,6 +403,11 @@ int launch(int argc, char** argv, Role role) {
   if (bad_launch) return fail_early(launch_error);
   if (!std::filesystem::is_regular_file(scene_file))
     return fail_early("scene file '" + scene_file + "' not found (expected a .yaml scene, see scenes/)");
+  try {
+    check_scene_file(scene_file);
+  } catch (const std::invalid_argument& e) {
+    return fail_early(e.what());
+  }
 
   // The split: color 0 fluid, 1 solid.
   int color = 0;

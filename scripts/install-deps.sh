@@ -12,6 +12,7 @@ packages=(
   libeigen3-dev
   libcgal-dev
   libvtk9-dev
+  libyaml-cpp-dev            # scene files checked before PETSc reads them
   libgtest-dev
   libbenchmark-dev
   time python3               # bench/ scripts: /usr/bin/time -v for peak memory, python3 to read -log_view

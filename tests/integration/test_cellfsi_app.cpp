@@ -487,6 +487,27 @@ TEST_F(CellfsiApp, SceneFileAfterOptionsOrTwiceIsRejected) {
   }
 }
 
+TEST_F(CellfsiApp, MalformedSceneFilesAreRejectedWithFileAndLine) {
+  // Issue 10: PETSc printed a 13-line traceback naming no file or line for a malformed file, and ran a file
+  // with a duplicate key (the last won) or no keys at all (the defaults).
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"dim: 2\nfluid_elements: [8, 4\nfluid_degree: 2\n", "line 3"},
+      {"dim: 2\nfluid:\n  density: 1\nfluid:\n  viscosity: 0.01\n", "line 4: key 'fluid' appears twice"},
+      {"dim: 2\n\tfluid_degree: 2\n", "line 2"},
+      {"- dim\n- 2\n", "not a list"},
+      {"# nothing\n", "is empty"}};
+  int k = 0;
+  for (const auto& [text, why] : cases) {
+    const fs::path file = root_ / ("scene" + std::to_string(k++) + ".yaml");
+    std::ofstream(file) << text;
+    const RunResult r = cellfsi(with({file.string()}, kTiny));
+    expect_one_clear_error(r);
+    EXPECT_NE(r.output.find(file.string()), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(why), std::string::npos) << r.output;
+    EXPECT_TRUE(nothing_written());
+  }
+}
+
 // Bad input the app does not reject cleanly yet (see the integration-test report): a non-number for an
 // integer option, more element counts than dimensions, a misspelt option of an inner solver.
 
