@@ -150,7 +150,7 @@ def write_figure(args, rows):
             ax.set_xlabel("filling fraction phi")
             ax.set_ylabel(name)
             ax.grid(True, lw=0.3)
-        axes[0].set_title(f"Compound capsules ({label}); x: membrane not tank-treading", fontsize=9)
+        fig.suptitle(f"Compound capsules ({label}); x: membrane not tank-treading", fontsize=10)
     else:
         body = SWEEPS[args.sweep][2]
         ell = [s for s in done if not s["_scene"].startswith("biconcave")]
