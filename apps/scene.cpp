@@ -655,12 +655,10 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
       }
     }
     // The Lagrangian mesh actually used (automatic counts are chosen from the fluid mesh).
-    const geometry::Patch ref = bodies_[b]->reference_patch();
-    for (int d = 0; d < ref.param_dim(); ++d)
-      m.emplace_back(bodies_[b]->name() + "_elements_" + std::to_string(d), ref.n_elements(d));
-    const coupling::Resolution r =
-        coupling::resolution(patch_, {bodies_[b]->name(), ref, bodies_[b]->is_membrane()});
-    m.emplace_back(bodies_[b]->name() + "_mesh_ratio", r.ratio());
+    for (int d = 0; d < reference.param_dim(); ++d)
+      m.emplace_back(name + "_elements_" + std::to_string(d), reference.n_elements(d));
+    const coupling::Resolution r = coupling::resolution(patch_, {name, reference, bodies_[b]->is_membrane()});
+    m.emplace_back(name + "_mesh_ratio", r.ratio());
   }
   return m;
 }

@@ -211,7 +211,7 @@ std::string motion_regime(bool round, bool membrane, const std::vector<double>& 
   const double turned = std::abs(axis.back() - axis.front()),
                moved = std::abs(material.back() - material.front());
   if (turned >= kPi * (1 - 1e-12) || (turned >= kPi / 4 && turned >= 0.5 * moved)) return "tumbling";
-  if (std::abs(material.back() - material.front()) < kPi / 2) return "steady";
+  if (moved < kPi / 2) return "steady";
   const auto [lo, hi] = std::minmax_element(axis.begin(), axis.end());
   return 0.5 * (*hi - *lo) * 180 / kPi >= swing_deg ? "swinging" : "tank-treading";
 }

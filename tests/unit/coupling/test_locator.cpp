@@ -124,6 +124,28 @@ TEST(InterfaceMarking, CentralMarkingKeepsTheFunctionsCentredOnTheMembrane) {
   EXPECT_LE(reach_central, h * std::sqrt(2.0) * (1 + 1e-12));
   EXPECT_GT(reach_support, 1.5 * h * std::sqrt(2.0));
   EXPECT_LT(central.size(), support.size() * 2 / 3);
+  // s^h at every interface point stays of the order of s_I: per direction the kept functions sum to at least
+  // 1/2 (quadratics: the one centred on the element, 1/2 ... 3/4 there) or 5/6 (cubics: 1 - ((1-u)^3 + u^3) /
+  // 6).
+  for (const int p : {2, 3}) {
+    const geometry::Patch bp = geometry::rectangle(0.0024, 0.0012, 64, 32, p, {true, false});
+    const coupling::Locator bl(bp);
+    const double sI = 1e10;
+    const std::vector<double> sv = coupling::scaling_values(
+        bp.n_control(), coupling::functions_near(bl, pts, coupling::Marking::central), sI);
+    const double bound = p == 2 ? 0.25 : 25.0 / 36.0;
+    double smin = 1e300;
+    geometry::BasisValues bv;
+    for (const Vec3& x : pts) {
+      const coupling::Location l = bl.locate_or_throw(x);
+      bp.basis(l.xi, 0, bv, &l.element);
+      double sh = 0;
+      for (int k = 0; k < bv.n; ++k) sh += bv.value[k] * sv[bv.index[k]];
+      smin = std::min(smin, sh);
+    }
+    std::printf("  p = %d: smallest s^h on the membrane %.4f s_I (bound %.4f)\n", p, smin / sI, bound);
+    EXPECT_GE(smin, bound * sI * (1 - 1e-12)) << "p = " << p;
+  }
   // Every point keeps marked functions around it: its element's 4 corners.
   for (const Vec3& p : pts) {
     const std::vector<int> own = coupling::functions_near(loc, {p}, coupling::Marking::central);
