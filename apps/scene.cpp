@@ -117,6 +117,9 @@ void read_bodies(SceneSettings& s) {
   PetscEnum solver = static_cast<PetscEnum>(s.coupling.solver);
   const char* markings[] = {"support", "central", "Marking", "", nullptr};
   PetscEnum marking = static_cast<PetscEnum>(s.coupling.marking);
+  const char* accelerations[] = {"none", "anderson", "Acceleration", "", nullptr};
+  PetscEnum acceleration = static_cast<PetscEnum>(s.coupling.acceleration);
+  PetscInt acc_columns = s.coupling.acceleration_columns, acc_reuse = s.coupling.acceleration_reuse;
   call_reporting_input_errors(
       [&]() -> PetscErrorCode {
         PetscFunctionBeginUser;
@@ -138,6 +141,16 @@ void read_bodies(SceneSettings& s) {
                                   max_it, &max_it, nullptr));
         PetscCall(PetscOptionsInt("-coupling_pc_lag", "Linear solves between preconditioner rebuilds",
                                   nullptr, lag, &lag, nullptr));
+        PetscCall(PetscOptionsEnum("-coupling_acceleration",
+                                   "Iterates of the coupling loop: none (x - dx, the paper's) or anderson "
+                                   "(Anderson acceleration of that map; the same stopping test)",
+                                   nullptr, accelerations, acceleration, &acceleration, nullptr));
+        PetscCall(PetscOptionsInt("-coupling_acceleration_columns",
+                                  "Difference pairs kept by the Anderson acceleration", nullptr, acc_columns,
+                                  &acc_columns, nullptr));
+        PetscCall(PetscOptionsInt("-coupling_acceleration_reuse",
+                                  "Previous time steps whose Anderson pairs are kept (0: none)", nullptr,
+                                  acc_reuse, &acc_reuse, nullptr));
         PetscCall(PetscOptionsBool("-coupling_monitor", "Print every coupling iteration's residuals", nullptr,
                                    monitor, &monitor, nullptr));
         PetscCall(PetscOptionsEnum(
@@ -177,6 +190,8 @@ void read_bodies(SceneSettings& s) {
        {"-coupling_tolerance", 'r'},
        {"-coupling_max_iterations", 'i'},
        {"-coupling_pc_lag", 'i'},
+       {"-coupling_acceleration_columns", 'i'},
+       {"-coupling_acceleration_reuse", 'i'},
        {"-coupling_band_margin", 'i'},
        {"-coupling_band_refactor_every", 'i'},
        {"-coupling_band_schur_lag", 'i'},
@@ -194,6 +209,10 @@ void read_bodies(SceneSettings& s) {
   if (!(tol > 0 && tol < 1)) bad("coupling_tolerance", str(tol), "0 < tolerance < 1");
   if (max_it < 1) bad("coupling_max_iterations", std::to_string(max_it), ">= 1");
   if (lag < 1) bad("coupling_pc_lag", std::to_string(lag), ">= 1");
+  if (acc_columns < 1 || acc_columns > 50)
+    bad("coupling_acceleration_columns", std::to_string(acc_columns), "1 ... 50");
+  if (acc_reuse < 0 || acc_reuse > 1000)
+    bad("coupling_acceleration_reuse", std::to_string(acc_reuse), "0 ... 1000 (0: this step's pairs only)");
   if (margin < 0) bad("coupling_band_margin", std::to_string(margin), ">= 0");
   if (refactor < 0)
     bad("coupling_band_refactor_every", std::to_string(refactor), ">= 0 (0: only when needed)");
@@ -214,6 +233,9 @@ void read_bodies(SceneSettings& s) {
   s.coupling.band_schur_lag = static_cast<int>(schur_lag);
   s.coupling.band_refresh_steps = static_cast<int>(refresh);
   s.coupling.monitor = monitor == PETSC_TRUE;
+  s.coupling.acceleration = static_cast<coupling::Acceleration>(acceleration);
+  s.coupling.acceleration_columns = static_cast<int>(acc_columns);
+  s.coupling.acceleration_reuse = static_cast<int>(acc_reuse);
   s.max_mesh_ratio = ratio;
   s.metrics_average_from = avg;
   std::vector<std::string> list;

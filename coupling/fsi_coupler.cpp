@@ -83,6 +83,9 @@ FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver
   CELLFSI_PETSC(VecDuplicate(X_, &dX_));
   CELLFSI_PETSC(VecDuplicate(X_, &F_));
   events();
+  if (opt_.acceleration == Acceleration::anderson)
+    anderson_ = std::make_unique<AndersonAcceleration>(X_, fluid.dim() + 1, opt_.acceleration_columns,
+                                                       opt_.acceleration_reuse);
   solver_ = opt_.solver;
   int fluid_ranks = 1;
   MPI_Comm_size(fluid.comm(), &fluid_ranks);
@@ -310,6 +313,7 @@ CouplerStats FsiCoupler::step() {
   tp_ = tp;
   fluid_.begin_step(X_);
   for (auto* b : bodies_) b->begin_step(tp);
+  if (anderson_) anderson_->begin_step();
   st.solid_residual0.assign(bodies_.size(), 0.0);
   st.solid_residual.assign(bodies_.size(), 0.0);
   double fluid_peak = 0;
@@ -378,11 +382,16 @@ CouplerStats FsiCoupler::step() {
       st.linear_iterations += solver_ == CouplingSolver::band ? solve_band(st, it == 0) : solve_fluid(st);
     } catch (const std::exception& e) {
       st.reason = e.what();
+      if (anderson_) anderson_->reset();
       return st;
     }
-    CELLFSI_PETSC(VecAXPY(X_, -1.0, dX_));
+    if (anderson_)
+      anderson_->update(X_, dX_);
+    else
+      CELLFSI_PETSC(VecAXPY(X_, -1.0, dX_));
   }
   if (!st.converged) {
+    if (anderson_) anderson_->reset();
     if (st.reason.empty())
       st.reason = "no convergence in " + std::to_string(opt_.max_iterations) + " iterations";
     return st;

@@ -8,9 +8,11 @@
 //   5-7: K_MC, a linear solve, the update of the fluid unknowns.
 // It stops when the fluid residual and every body's kinematic residual have dropped by `tolerance` (paper:
 // 1e-4) below the largest value each has had in the step.
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "coupling/anderson.hpp"
 #include "coupling/interface_marking.hpp"
 #include "coupling/locator.hpp"
 #include "fluid/band_schur.hpp"
@@ -31,6 +33,12 @@ enum class CouplingSolver {
   fluid,
 };
 
+/// How the coupling loop's iterates are formed from its corrections.
+enum class Acceleration {
+  none,      // x_{k+1} = x_k - dx_k (the paper's block iteration)
+  anderson,  // Anderson acceleration of that fixed-point map (coupling/anderson.hpp)
+};
+
 struct CouplerOptions {
   double s_interface = 1e10;           // s_I (paper Sec. 3.3)
   Marking marking = Marking::central;  // which functions get s_I (coupling/interface_marking.hpp)
@@ -39,6 +47,11 @@ struct CouplerOptions {
   int max_iterations = 30;
   int preconditioner_lag = 10;  // linear solves between rebuilds of the preconditioner (1: every iteration)
   bool monitor = false;         // print every iteration's residual norms (rank 0)
+  // Measured on the default scene (160 x 80, 50 steps): 259 coupling iterations instead of 312, theta the
+  // same to 4e-9 relative.
+  Acceleration acceleration = Acceleration::anderson;
+  int acceleration_columns = 5;                  // difference pairs kept by the Anderson acceleration
+  int acceleration_reuse = 0;                    // previous steps whose pairs are kept (0: only this step's)
   CouplingSolver solver = CouplingSolver::band;  // falls back to `fluid` on several fluid ranks
   // Band solver. Elements around the active ones in the band region (measured: margins 2 and 6 were slower).
   int band_margin = 4;
@@ -111,7 +124,8 @@ class FsiCoupler {
   KSP band_ksp_ = nullptr;                    // FGMRES (prefix coupling_band_) preconditioned by band_
   std::vector<char> region_;                  // elements whose Jacobian is re-assembled at every refresh
   int steps_since_factor_ = 0, solves_since_schur_ = 0, steps_since_refresh_ = 0;
-  bool band_marking_changed_ = true;  // the marking moved since the band was last refreshed
+  bool band_marking_changed_ = true;                // the marking moved since the band was last refreshed
+  std::unique_ptr<AndersonAcceleration> anderson_;  // with Acceleration::anderson
 };
 
 }  // namespace cellfsi::coupling
