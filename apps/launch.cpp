@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "apps/interrupt.hpp"
 #include "apps/run_output.hpp"
 #include "apps/scene.hpp"
 #include "apps/scene_file.hpp"
@@ -38,6 +39,9 @@ const std::vector<std::string> kDefaultOverrides{
 
 /// Mailbox per rank for shared-memory exchange [bytes] (payloads above it go as messages).
 constexpr std::size_t kMailboxBytes = 8u << 20;
+
+// The command line as the user gave it (summary.json records it).
+std::vector<std::string> g_command_line;
 
 void print_error(const std::string& message) {
   PetscFPrintf(PETSC_COMM_WORLD, PETSC_STDERR, "cellfsi: error: %s\n", message.c_str());
@@ -192,7 +196,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   MPI_Comm_size(PETSC_COMM_WORLD, &size);
   MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
   if (exchange) solid_ranks = exchange->remote_size();
-  RunOutput out(PETSC_COMM_WORLD, settings.output_dir, settings.name);
+  RunOutput out(PETSC_COMM_WORLD, settings.output_dir, settings.name, g_command_line);
   std::unique_ptr<fluid::FluidSeriesWriter> series;
   std::unique_ptr<solid::SolidSeriesWriter> solid_series;
   static const PetscLogEvent output_event = register_log_event("cellfsi app", "CellfsiOutput");
@@ -262,7 +266,23 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       row.insert(row.end(), last.begin(), last.end());
       out.metrics_row(row);
       out.progress(k, n_steps, scene.fluid().time(), st.iterations, st.linear_iterations);
-      if (series && k % settings.output_every == 0) write_series();
+      const bool written = series && k % settings.output_every == 0;
+      if (written) write_series();
+      // A stop request (SIGINT, SIGTERM, SIGUSR1; apps/interrupt.hpp) ends the run after this step.
+      if (const int sig = agreed_stop_signal(PETSC_COMM_WORLD); sig != 0 && k < n_steps) {
+        if (series && !written) write_series();  // the state the run stopped at
+        char where[128];
+        std::snprintf(where, sizeof where, " after step %d of %d at t = %g s", k, n_steps,
+                      scene.fluid().time());
+        std::vector<std::pair<std::string, double>> final_metrics = scene.summary_metrics();
+        if (scene.coupler())
+          final_metrics.emplace_back("factorizations", static_cast<double>(factorizations));
+        out.summary("interrupted: " + signal_name(sig) + where, done, newton, linear, final_metrics,
+                    scene.summary_text());
+        CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "cellfsi: interrupted by %s%s; output in %s\n",
+                                  signal_name(sig).c_str(), where, settings.output_dir.c_str()));
+        return 128 + sig;
+      }
     }
   } catch (const std::invalid_argument& e) {
     // Bad input found once the solvers read their options (after the first step): exit 1, as before a run.
@@ -345,6 +365,7 @@ int launch(int argc, char** argv, Role role) {
   // Arguments: a scene file first is read as PETSc options before the command line, which therefore wins;
   // -solid_ranks B (launch option, command line only) splits the job.
   std::vector<std::string> args(argv, argv + argc);
+  g_command_line = args;
   std::string scene_name = "capsule_shear_quick", scene_file;
   int solid_ranks = 0;
   bool bad_launch = false;
@@ -448,6 +469,9 @@ int launch(int argc, char** argv, Role role) {
     status = 1;
   } else {
     Handshake hs(inter);
+    int local_rank = 0;
+    MPI_Comm_rank(PETSC_COMM_WORLD, &local_rank);
+    install_stop_handlers(color == 0 && local_rank == 0);  // replaces PETSc's handlers for these signals
     try {
       status = color == 1 ? run_solid(scene_name, inter, hs) : run_fluid(scene_name, inter, hs);
     } catch (const std::invalid_argument& e) {

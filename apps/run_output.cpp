@@ -1,13 +1,22 @@
 #include "apps/run_output.hpp"
 
+#include <fcntl.h>
 #include <petscsys.h>
+#include <sys/file.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <iomanip>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
+
+#include "apps/build_info.hpp"
 
 namespace cellfsi::app {
 
@@ -50,17 +59,72 @@ std::string options_yaml() {
   return out.str();
 }
 
-std::string json_number(double v) {
-  if (!std::isfinite(v)) return "null";
-  std::ostringstream os;
-  os << std::setprecision(12) << v;
-  return os.str();
+/// Locks DIR/.cellfsi.lock (flock: released by the kernel when the process ends, however it ends) and
+/// writes this process's id into it. Returns the descriptor, or -1 with `why` set.
+int lock_folder(const std::string& dir, std::string& why) {
+  const std::string path = dir + "/.cellfsi.lock";
+  const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    why = "cannot open '" + path + "': " + std::strerror(errno);
+    return -1;
+  }
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    const int err = errno;
+    char pid[32] = {};
+    const ssize_t n = ::pread(fd, pid, sizeof pid - 1, 0);
+    ::close(fd);
+    std::string holder = n > 0 ? std::string(pid, static_cast<size_t>(n)) : std::string("?");
+    while (!holder.empty() && (holder.back() == '\n' || holder.back() == ' ')) holder.pop_back();
+    why = err == EWOULDBLOCK ? "it is in use by another cellfsi run (process " + holder +
+                                   "); wait for it or choose another -output_dir"
+                             : "cannot lock '" + path + "': " + std::strerror(err);
+    return -1;
+  }
+  const std::string pid = std::to_string(::getpid()) + "\n";
+  if (::ftruncate(fd, 0) != 0 || ::pwrite(fd, pid.data(), pid.size(), 0) < 0) {
+    // The lock holds without the id; only the message of a refused second run is poorer.
+  }
+  return fd;
+}
+
+/// The arguments as one line a shell would split back into them (single quotes where needed).
+std::string shell_words(const std::vector<std::string>& args) {
+  std::string line;
+  for (const std::string& a : args) {
+    const bool plain = !a.empty() && a.find_first_not_of(
+                                         "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                                         "0123456789-_./,:=+@%") == std::string::npos;
+    if (!line.empty()) line += ' ';
+    if (plain) {
+      line += a;
+    } else {
+      line += '\'';
+      for (char c : a) line += c == '\'' ? std::string("'\\''") : std::string(1, c);
+      line += '\'';
+    }
+  }
+  return line;
+}
+
+std::string utc_now() {
+  const std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
 }
 
 }  // namespace
 
-RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& scene)
-    : comm_(comm), dir_(dir), scene_(scene), start_(MPI_Wtime()) {
+RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& scene,
+                     std::vector<std::string> command_line)
+    : comm_(comm),
+      dir_(dir),
+      scene_(scene),
+      started_(utc_now()),
+      command_line_(std::move(command_line)),
+      start_(MPI_Wtime()) {
   MPI_Comm_rank(comm, &rank_);
   MPI_Comm_size(comm, &size_);
   int ok = 1;
@@ -70,23 +134,36 @@ RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& s
     std::filesystem::create_directories(dir_, ec);
     if (ec || !std::filesystem::is_directory(dir_)) {
       ok = 0;
-      why = ec.message();
+      why = "it cannot be created: " + ec.message();
+    } else {
+      lock_fd_ = lock_folder(dir_, why);
+      ok = lock_fd_ >= 0;
     }
   }
   MPI_Bcast(&ok, 1, MPI_INT, 0, comm);
-  if (!ok) throw std::invalid_argument("-output_dir '" + dir_ + "' cannot be created: " + why);
+  if (!ok) {
+    // Only rank 0 knows why; the message is the same on every rank that prints it (rank 0).
+    throw std::invalid_argument("option -output_dir = '" + dir_ +
+                                "' is invalid: " + (rank_ == 0 ? why : std::string("see rank 0")));
+  }
   if (rank_ == 0) {
     // A previous run's results in this folder would be mistaken for this run's: remove them first.
     for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
       const std::string name = entry.path().filename().string();
-      if (name == "summary.json" || name == "fluid.pvd" || name == "profile.csv" ||
-          (name.rfind("fluid_", 0) == 0 && entry.path().extension() == ".vts"))
+      const bool series = (name.rfind("fluid_", 0) == 0 || name.rfind("solid_", 0) == 0) &&
+                          entry.path().extension() == ".vts";
+      if (name == "summary.json" || name == "fluid.pvd" || name == "solid.pvd" || name == "profile.csv" ||
+          series)
         std::filesystem::remove(entry.path());
     }
     write_atomically(dir_ + "/options.yaml", options_yaml());
     csv_.open(dir_ + "/metrics.csv", std::ios::trunc);
     if (!csv_) throw std::runtime_error("cannot write '" + dir_ + "/metrics.csv'");
   }
+}
+
+RunOutput::~RunOutput() {
+  if (lock_fd_ >= 0) ::close(lock_fd_);  // releases the lock
 }
 
 void RunOutput::metrics_columns(const std::vector<std::string>& names) {
@@ -133,15 +210,26 @@ void RunOutput::summary(const std::string& status, int steps, long newton, long 
                         const std::vector<std::pair<std::string, double>>& metrics,
                         const std::vector<std::pair<std::string, std::string>>& text) {
   if (rank_ != 0) return;
-  std::ostringstream os;
-  os << "{\n  \"scene\": \"" << scene_ << "\",\n  \"status\": \"" << status
-     << "\",\n  \"wall_time_s\": " << json_number(elapsed()) << ",\n  \"steps\": " << steps
-     << ",\n  \"newton_iterations\": " << newton << ",\n  \"linear_iterations\": " << linear
-     << ",\n  \"ranks\": " << size_;
-  for (auto& [k, v] : metrics) os << ",\n  \"" << k << "\": " << json_number(v);
-  for (auto& [k, v] : text) os << ",\n  \"" << k << "\": \"" << v << "\"";  // plain words (regimes)
-  os << "\n}\n";
-  write_atomically(dir_ + "/summary.json", os.str());
+  nlohmann::ordered_json js;
+  js["scene"] = scene_;
+  js["status"] = status;
+  js["cellfsi_version"] = CELLFSI_VERSION;
+  js["commit"] = build_commit();
+  js["command_line"] = shell_words(command_line_);
+  js["started_utc"] = started_;
+  js["wall_time_s"] = elapsed();
+  js["steps"] = steps;
+  js["newton_iterations"] = newton;
+  js["linear_iterations"] = linear;
+  js["ranks"] = size_;
+  for (const auto& [k, v] : metrics) {
+    if (std::isfinite(v))
+      js[k] = v;
+    else
+      js[k] = nullptr;
+  }
+  for (const auto& [k, v] : text) js[k] = v;
+  write_atomically(dir_ + "/summary.json", js.dump(2) + "\n");
 }
 
 }  // namespace cellfsi::app

@@ -2,7 +2,8 @@
 // The run contract of DESIGN.md section 4: DIR/options.yaml (effective options), DIR/metrics.csv (one row per
 // step, named columns), DIR/summary.json (scalars and final metrics), and a progress line. Rank 0 writes;
 // every file is rewritten atomically or appended line by line, so a run that stops mid-way leaves what it
-// wrote intact.
+// wrote intact. The folder is locked for the run (DIR/.cellfsi.lock, flock): a second run on it is refused
+// instead of interleaving its files with this one's.
 #include <mpi.h>
 
 #include <fstream>
@@ -14,9 +15,14 @@ namespace cellfsi::app {
 
 class RunOutput {
  public:
-  /// Creates DIR (rank 0) and writes DIR/options.yaml from the options database. Throws if DIR cannot be
-  /// made.
-  RunOutput(MPI_Comm comm, const std::string& dir, const std::string& scene);
+  /// Creates DIR (rank 0), locks it, removes a previous run's results and writes DIR/options.yaml from the
+  /// options database. Throws std::invalid_argument if DIR cannot be made or another run holds it.
+  /// `command_line`: the arguments as given (recorded in summary.json).
+  RunOutput(MPI_Comm comm, const std::string& dir, const std::string& scene,
+            std::vector<std::string> command_line = {});
+  ~RunOutput();
+  RunOutput(const RunOutput&) = delete;
+  RunOutput& operator=(const RunOutput&) = delete;
   const std::string& dir() const { return dir_; }
 
   /// Writes metrics.csv's header now (a run that fails in its first step leaves the columns, not an empty
@@ -28,8 +34,9 @@ class RunOutput {
   /// Prints "step k/n  t=...  newton ..  linear ..  elapsed ..  left ~.." at most every `every_seconds`.
   void progress(int step, int n_steps, double t, int newton, int linear, bool force = false);
 
-  /// Writes summary.json: the fixed scalars plus `metrics` and the words in `text` (status: "completed" or
-  /// why it stopped).
+  /// Writes summary.json: what ran (scene, cellfsi version, source revision, command line, start time), the
+  /// status ("completed", or why and where it stopped), the fixed scalars, `metrics` (non-finite values as
+  /// null) and the words in `text`.
   void summary(const std::string& status, int steps, long newton, long linear,
                const std::vector<std::pair<std::string, double>>& metrics,
                const std::vector<std::pair<std::string, std::string>>& text = {});
@@ -38,7 +45,9 @@ class RunOutput {
  private:
   MPI_Comm comm_;
   int rank_ = 0, size_ = 1;
-  std::string dir_, scene_;
+  std::string dir_, scene_, started_;
+  std::vector<std::string> command_line_;
+  int lock_fd_ = -1;
   std::vector<std::string> columns_;
   std::ofstream csv_;
   double start_ = 0, last_print_ = -1e9;

@@ -13,6 +13,7 @@ packages=(
   libcgal-dev
   libvtk9-dev
   libyaml-cpp-dev            # scene files checked before PETSc reads them
+  nlohmann-json3-dev         # summary.json
   libgtest-dev
   libbenchmark-dev
   time python3               # bench/ scripts: /usr/bin/time -v for peak memory, python3 to read -log_view

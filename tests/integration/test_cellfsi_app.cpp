@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 #include <poll.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <sys/types.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -21,6 +22,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <optional>
 #include <regex>
 #include <sstream>
@@ -43,7 +45,9 @@ struct RunResult {
 /// Runs argv[0] (a path) with argv, stdout and stderr captured together, in its own process group, with the
 /// MPI/BLAS environment of the test suite. After `timeout_s` the whole process group gets SIGTERM (mpiexec
 /// forwards it to its ranks), then SIGKILL, so a hanging run fails the test instead of blocking the suite.
-RunResult run_process(const std::vector<std::string>& argv, double timeout_s = 60) {
+/// `during`, if given, is called with the child's pid about every 50 ms while it runs (e.g. to signal it).
+RunResult run_process(const std::vector<std::string>& argv, double timeout_s = 60,
+                      const std::function<void(pid_t)>& during = {}) {
   // The child inherits these (this test process is single-threaded, so setenv is safe here).
   setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
   setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
@@ -89,8 +93,9 @@ RunResult run_process(const std::vector<std::string>& argv, double timeout_s = 6
       r.timed_out = true;
       break;
     }
+    if (during) during(pid);
     pollfd p{fd[0], POLLIN, 0};
-    const int k = poll(&p, 1, static_cast<int>(std::min<long long>(left.count(), 1000)));
+    const int k = poll(&p, 1, static_cast<int>(std::min<long long>(left.count(), during ? 50 : 1000)));
     if (k < 0 && errno != EINTR) break;
     if (k <= 0) continue;
     const ssize_t n = read(fd[0], buf, sizeof buf);
@@ -250,23 +255,25 @@ class CellfsiApp : public ::testing::Test {
   }
 
   /// Runs `cellfsi args... -output_dir out_` (one rank).
-  RunResult cellfsi(std::vector<std::string> args, double timeout_s = 60) const {
+  RunResult cellfsi(std::vector<std::string> args, double timeout_s = 60,
+                    const std::function<void(pid_t)>& during = {}) const {
     args.insert(args.begin(), CELLFSI_EXE);
     args.push_back("-output_dir");
     args.push_back(out_.string());
-    RunResult r = run_process(args, timeout_s);
+    RunResult r = run_process(args, timeout_s, during);
     last_output_ = r.output;
     return r;
   }
 
   /// Runs `mpiexec -np N --oversubscribe cellfsi args... -output_dir out_`.
-  RunResult mpi_cellfsi(int np, std::vector<std::string> args, double timeout_s = 60) const {
+  RunResult mpi_cellfsi(int np, std::vector<std::string> args, double timeout_s = 60,
+                        const std::function<void(pid_t)>& during = {}) const {
     std::vector<std::string> a = {MPIEXEC_EXECUTABLE, "-np", std::to_string(np), "--oversubscribe",
                                   CELLFSI_EXE};
     a.insert(a.end(), args.begin(), args.end());
     a.push_back("-output_dir");
     a.push_back(out_.string());
-    RunResult r = run_process(a, timeout_s);
+    RunResult r = run_process(a, timeout_s, during);
     last_output_ = r.output;
     return r;
   }
@@ -325,6 +332,17 @@ TEST_F(CellfsiApp, PoiseuilleWritesTheRunContract) {
                           "mean_velocity_rel_error", "max_velocity", "flow_rate"})
     EXPECT_TRUE(json_number(js, key).has_value()) << "summary.json lacks " << key << ":\n" << js;
   EXPECT_GT(json_number(js, "wall_time_s").value_or(-1), 0) << js;
+  // What ran: version, source revision, the command line as given, the start time.
+  EXPECT_TRUE(std::regex_match(json_string(js, "cellfsi_version").value_or(""),
+                               std::regex("[0-9]+\\.[0-9]+\\.[0-9]+")))
+      << js;
+  EXPECT_FALSE(json_string(js, "commit").value_or("").empty()) << js;
+  EXPECT_NE(json_string(js, "command_line").value_or("").find("poiseuille.yaml -fluid_elements 16,8"),
+            std::string::npos)
+      << js;
+  EXPECT_TRUE(std::regex_match(json_string(js, "started_utc").value_or(""),
+                               std::regex("20[0-9]{2}-[01][0-9]-[0-3][0-9]T[0-9:]{8}Z")))
+      << js;
   EXPECT_GE(json_number(js, "newton_iterations").value_or(-1), 10)
       << "at least one Newton iteration per step";
   EXPECT_GE(json_number(js, "linear_iterations").value_or(-1),
@@ -567,6 +585,94 @@ TEST_F(CellfsiApp, SecondRunOverwritesCleanly) {
             (std::vector<std::string>{"fluid_000000.vts", "fluid_000001.vts", "fluid_000002.vts"}));
 }
 
+TEST_F(CellfsiApp, RunStopsCleanlyOnSigterm) {
+  // Issue 10: SIGTERM used to end the run at once, with no message and no summary. Now the run finishes the
+  // step in progress, writes its row, the series and summary.json ("interrupted: SIGTERM after step k ..."),
+  // and exits with 128 + 15. The signal is sent once the first two steps are in metrics.csv.
+  bool sent = false;
+  const fs::path csv_path = out_ / "metrics.csv";
+  const RunResult r =
+      cellfsi(with(kDefaultCapsule, {"-final_time", "4", "-output_every", "1000"}), 120, [&](pid_t pid) {
+        if (!sent && fs::exists(csv_path) && lines(read_text(csv_path)).size() >= 3) {
+          kill(pid, SIGTERM);
+          sent = true;
+        }
+      });
+  ASSERT_TRUE(sent) << r.output;
+  ASSERT_FALSE(r.timed_out) << r.output;
+  EXPECT_EQ(r.exit_code, 128 + SIGTERM) << r.output;
+  EXPECT_NE(r.output.find("cellfsi: interrupted by SIGTERM after step"), std::string::npos) << r.output;
+  EXPECT_EQ(count(r.output, "PETSC ERROR"), 0u) << r.output;
+  const std::string js = summary();
+  EXPECT_TRUE(is_flat_json_object(js));
+  EXPECT_EQ(json_string(js, "status").value_or("").rfind("interrupted: SIGTERM after step", 0), 0u) << js;
+  const auto steps = json_number(js, "steps");
+  ASSERT_TRUE(steps.has_value()) << js;
+  EXPECT_GE(*steps, 2) << js;
+  EXPECT_LT(*steps, 2000) << js;
+  EXPECT_EQ(read_csv(csv_path).rows.size(), static_cast<size_t>(*steps)) << "one row per step done";
+  EXPECT_TRUE(json_number(js, "membrane_r_A").has_value()) << "the metrics of the steps done:\n" << js;
+  // The series ends with the state the run stopped at (its 1000-step output interval was never reached).
+  EXPECT_EQ(pvd_files(out_ / "fluid.pvd").size(), 2u) << read_text(out_ / "fluid.pvd");
+}
+
+TEST_F(CellfsiApp, MpirunForwardsSigusr1AndBothRanksStopAfterTheSameStep) {
+  bool sent = false;
+  const fs::path csv_path = out_ / "metrics.csv";
+  const RunResult r =
+      mpi_cellfsi(2,
+                  {scene("shear.yaml"), "-fluid_elements", "16,8", "-fluid_degree", "2", "-dt", "5e-4",
+                   "-final_time", "100", "-output_every", "0"},
+                  120, [&](pid_t pid) {
+                    if (!sent && fs::exists(csv_path) && lines(read_text(csv_path)).size() >= 3) {
+                      kill(pid, SIGUSR1);  // to mpiexec, which forwards it
+                      sent = true;
+                    }
+                  });
+  ASSERT_TRUE(sent) << r.output;
+  ASSERT_FALSE(r.timed_out) << r.output;
+  EXPECT_EQ(r.exit_code, 128 + SIGUSR1) << r.output;
+  const std::string js = summary();
+  EXPECT_EQ(json_string(js, "status").value_or("").rfind("interrupted: SIGUSR1 after step", 0), 0u) << js;
+  EXPECT_EQ(read_csv(csv_path).rows.size(), static_cast<size_t>(json_number(js, "steps").value_or(-1)));
+}
+
+TEST_F(CellfsiApp, OutputFolderInUseIsRefusedAndLeftIntact) {
+  // Issue 10: two runs on one folder interleaved their metrics.csv and both said "completed". The folder is
+  // locked (DIR/.cellfsi.lock); here this test holds the lock, as a running cellfsi would.
+  fs::create_directories(out_);
+  { std::ofstream(out_ / "metrics.csv") << "step,time\n1,0.5\n"; }
+  const int fd = open((out_ / ".cellfsi.lock").c_str(), O_RDWR | O_CREAT, 0644);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(flock(fd, LOCK_EX | LOCK_NB), 0);
+  const std::string pid = std::to_string(getpid());
+  ASSERT_EQ(write(fd, pid.data(), pid.size()), static_cast<ssize_t>(pid.size()));
+  const RunResult r = cellfsi(with({scene("shear.yaml")}, kTiny));
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("-output_dir = '" + out_.string() +
+                          "' is invalid: it is in use by another cellfsi run (process " + pid + ")"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(read_text(out_ / "metrics.csv"), "step,time\n1,0.5\n") << "the other run's file was touched";
+  EXPECT_FALSE(fs::exists(out_ / "summary.json"));
+  close(fd);  // released: now the run goes ahead
+  const RunResult ok = cellfsi(with({scene("shear.yaml")}, kTiny));
+  EXPECT_EQ(ok.exit_code, 0) << ok.output;
+}
+
+TEST_F(CellfsiApp, ReusedFolderLosesThePreviousRunsSolidSeries) {
+  // Issue 10: a capsule run's solid series stayed behind when the next run in the folder wrote none.
+  fs::create_directories(out_);
+  for (const char* f : {"solid.pvd", "solid_membrane_000007.vts", "fluid_000003.vts", "fluid.pvd"})
+    std::ofstream(out_ / f) << "old";
+  { std::ofstream(out_ / "notes.txt") << "mine"; }
+  const RunResult r = cellfsi(kDefaultCapsule);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  for (const char* f : {"solid.pvd", "solid_membrane_000007.vts", "fluid_000003.vts", "fluid.pvd"})
+    EXPECT_FALSE(fs::exists(out_ / f)) << f;
+  EXPECT_EQ(read_text(out_ / "notes.txt"), "mine") << "files cellfsi does not write are kept";
+}
+
 // ---------------------------------------------------------------------------------------------------------
 // 5. Two MPI ranks
 
@@ -733,12 +839,13 @@ TEST_F(CellfsiApp, ThreeDimensionalCompoundCapsuleWritesItsSeries) {
 }
 
 TEST_F(CellfsiApp, RunFailingInItsFirstStepSaysWhereAndKeepsTheColumns) {
-  // Issue 10: a step too long for the membrane at 192 x 96 (dt 4e-3 inverts an element in step 1). The run
-  // exits with 2, the message and summary.json name the step and the time, and metrics.csv has its header
-  // (before: a 0-byte file and no step or time).
+  // Issue 10: a step too long for the membrane at 192 x 96 (dt 4e-3 inverts an element in step 1 with the
+  // paper's iteration; the Anderson-accelerated one, the default, gets through it). The run exits with 2, the
+  // message and summary.json name the step and the time, and metrics.csv has its header (before: a 0-byte
+  // file and no step or time).
   const RunResult r =
       cellfsi({scene("capsule_shear.yaml"), "-fluid_elements", "192,96", "-dt", "4e-3", "-final_time", "8e-3",
-               "-solid_membrane_elements", "1,0", "-output_every", "0"},
+               "-solid_membrane_elements", "1,0", "-output_every", "0", "-coupling_acceleration", "none"},
               120);
   ASSERT_FALSE(r.timed_out) << r.output;
   EXPECT_EQ(r.exit_code, 2) << r.output;
