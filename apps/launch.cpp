@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "apps/checkpoint.hpp"
 #include "apps/interrupt.hpp"
 #include "apps/run_output.hpp"
 #include "apps/scene.hpp"
@@ -196,7 +197,52 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   MPI_Comm_size(PETSC_COMM_WORLD, &size);
   MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
   if (exchange) solid_ranks = exchange->remote_size();
-  RunOutput out(PETSC_COMM_WORLD, settings.output_dir, settings.name, g_command_line);
+  const int n_steps = static_cast<int>(std::ceil(settings.final_time / settings.dt - 1e-9));
+  // A restart: the checkpoint must come from a run with the same options (but the final time and the output
+  // intervals); the scene then takes its state.
+  Checkpoint resume;
+  if (settings.restart) {
+    Vec U = nullptr, Udot = nullptr;
+    CELLFSI_PETSC(DMCreateGlobalVector(scene.fluid().dm(), &U));
+    CELLFSI_PETSC(VecDuplicate(U, &Udot));
+    try {
+      resume = read_checkpoint(PETSC_COMM_WORLD, settings.output_dir, U, Udot);
+      const std::vector<std::string> conflicts =
+          conflicting_options(resume.options, effective_options_yaml());
+      if (!conflicts.empty()) {
+        std::string list;
+        for (const std::string& c : conflicts) list += (list.empty() ? "" : "; ") + c;
+        throw std::invalid_argument("option -restart is invalid here: the checkpoint in '" +
+                                    settings.output_dir + "' was written with other options (" + list +
+                                    "); a restart may change only -final_time, -output_every, "
+                                    "-checkpoint_every, -metrics_average_from and monitors");
+      }
+      std::vector<std::string> names;
+      for (const solid::SolidSolver* b : scene.bodies()) names.push_back(b->name());
+      if (names != resume.body_names)
+        throw std::invalid_argument(
+            "option -restart is invalid here: the checkpoint's bodies differ from the "
+            "scene's");
+      if (resume.step >= n_steps) {
+        char msg[256];
+        std::snprintf(
+            msg, sizeof msg,
+            "option -final_time = %g is invalid with -restart: the checkpoint in '%s' is at t = %g s "
+            "(after %d steps); valid: a later time",
+            settings.final_time, settings.output_dir.c_str(), resume.time, resume.step);
+        throw std::invalid_argument(msg);
+      }
+      scene.restore(U, Udot, resume.step, resume.bodies, resume.trackers);
+    } catch (...) {
+      VecDestroy(&U);
+      VecDestroy(&Udot);
+      throw;
+    }
+    VecDestroy(&U);
+    VecDestroy(&Udot);
+  }
+  RunOutput out(PETSC_COMM_WORLD, settings.output_dir, settings.name, g_command_line,
+                settings.restart ? resume.step : -1);
   std::unique_ptr<fluid::FluidSeriesWriter> series;
   std::unique_ptr<solid::SolidSeriesWriter> solid_series;
   static const PetscLogEvent output_event = register_log_event("cellfsi app", "CellfsiOutput");
@@ -213,9 +259,20 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       series->set_undisturbed_velocity(scene.undisturbed_velocity());
     if (!bodies.empty())
       solid_series = std::make_unique<solid::SolidSeriesWriter>(settings.output_dir, rank == 0);
-    write_series();
+    if (settings.restart) {
+      series->resume(resume.fluid_series);
+      if (solid_series) solid_series->resume(resume.solid_series, resume.solid_writes);
+    } else {
+      write_series();
+    }
   }
-  const int n_steps = static_cast<int>(std::ceil(settings.final_time / settings.dt - 1e-9));
+  if (settings.restart) {
+    // Series files written after the checkpoint (before the run stopped) belong to no series now.
+    std::vector<std::string> keep;
+    for (const auto* list : {&resume.fluid_series, &resume.solid_series})
+      for (const geometry::PvdEntry& e : *list) keep.push_back(e.file);
+    out.remove_series_except(keep);
+  }
   CELLFSI_PETSC(PetscPrintf(
       PETSC_COMM_WORLD,
       "cellfsi %s: %s, %d fluid ranks%s, %zu bodies, %d steps of %g s to t = %g s, output in %s\n",
@@ -228,9 +285,27 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
                     "cellfsi: note: the band solver needs one fluid rank and a BAIJ Jacobian; on %d "
                     "rank(s) the coupling loop uses -coupling_solver fluid\n",
                     size));
-  long newton = 0, linear = 0, factorizations = 0;
-  int done = 0;
+  long newton = resume.newton, linear = resume.linear, factorizations = resume.factorizations;
+  int done = resume.step;
   std::vector<std::pair<std::string, double>> last;
+  auto write_checkpoint_now = [&](int k) {
+    Checkpoint c;
+    c.step = k;
+    c.time = scene.fluid().time();
+    c.newton = newton, c.linear = linear, c.factorizations = factorizations;
+    c.options = effective_options_yaml();
+    for (const solid::SolidSolver* b : scene.bodies()) c.body_names.push_back(b->name());
+    c.bodies = scene.body_states();
+    c.trackers = scene.tracker_states();
+    if (series) c.fluid_series = series->entries();
+    if (solid_series) c.solid_series = solid_series->entries(), c.solid_writes = solid_series->count();
+    write_checkpoint(PETSC_COMM_WORLD, settings.output_dir, c, scene.fluid().solution(),
+                     scene.fluid().solution_rate());
+  };
+  if (settings.restart)
+    CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
+                              "cellfsi: restarting from the checkpoint at t = %g s (step %d)\n", resume.time,
+                              resume.step));
   const std::string iteration = bodies.empty() ? "Newton" : "the coupling iteration";
   {
     // metrics.csv's columns from the start: those of every step's row (the metrics' names at t = 0).
@@ -240,12 +315,12 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     out.metrics_columns(columns);
   }
   try {
-    for (int k = 1; k <= n_steps; ++k) {
+    for (int k = resume.step + 1; k <= n_steps; ++k) {
       const SceneStep st = scene.step();
       newton += st.iterations;
       linear += st.linear_iterations;
       factorizations += st.factorizations;
-      if (k == 1)
+      if (k == resume.step + 1)
         reject_unknown_options(scene.coupler() && scene.coupler()->solver() != coupling::CouplingSolver::band
                                    ? OptionCheck::after_first_step_fluid
                                    : OptionCheck::after_first_step);
@@ -268,9 +343,12 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       out.progress(k, n_steps, scene.fluid().time(), st.iterations, st.linear_iterations);
       const bool written = series && k % settings.output_every == 0;
       if (written) write_series();
+      if (settings.checkpoint_every > 0 && k % settings.checkpoint_every == 0 && k < n_steps)
+        write_checkpoint_now(k);
       // A stop request (SIGINT, SIGTERM, SIGUSR1; apps/interrupt.hpp) ends the run after this step.
       if (const int sig = agreed_stop_signal(PETSC_COMM_WORLD); sig != 0 && k < n_steps) {
         if (series && !written) write_series();  // the state the run stopped at
+        write_checkpoint_now(k);
         char where[128];
         std::snprintf(where, sizeof where, " after step %d of %d at t = %g s", k, n_steps,
                       scene.fluid().time());
@@ -279,7 +357,9 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
           final_metrics.emplace_back("factorizations", static_cast<double>(factorizations));
         out.summary("interrupted: " + signal_name(sig) + where, done, newton, linear, final_metrics,
                     scene.summary_text());
-        CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "cellfsi: interrupted by %s%s; output in %s\n",
+        CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
+                                  "cellfsi: interrupted by %s%s; output in %s (continue it with the same "
+                                  "options and -restart)\n",
                                   signal_name(sig).c_str(), where, settings.output_dir.c_str()));
         return 128 + sig;
       }
@@ -308,6 +388,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     final_metrics.emplace_back("exchange_message_mb", exchange->message_bytes() / 1e6);
   }
   out.summary("completed", done, newton, linear, final_metrics, scene.summary_text());
+  write_checkpoint_now(n_steps);  // a later run may go on from here (-restart with a later -final_time)
   // The velocity profile across the domain at x = mid-length (section xi_0 = 1/2), as CSV.
   const fluid::SectionData sec = fluid::section(scene.fluid(), 0.5, 65);
   std::ostringstream csv;

@@ -5,9 +5,11 @@
 #include <sys/file.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
@@ -31,10 +33,7 @@ void write_atomically(const std::string& path, const std::string& text) {
   if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error("cannot rename '" + tmp + "'");
 }
 
-namespace {
-
-/// The options database as YAML (flat keys, re-runnable with -options_file_yaml).
-std::string options_yaml() {
+std::string effective_options_yaml() {
   char* all = nullptr;
   if (PetscOptionsGetAll(nullptr, &all) != 0) throw std::runtime_error("cannot read the options database");
   std::istringstream in(all);
@@ -58,6 +57,8 @@ std::string options_yaml() {
     if (k != "options_file_yaml") out << k << ": " << v << "\n";
   return out.str();
 }
+
+namespace {
 
 /// Locks DIR/.cellfsi.lock (flock: released by the kernel when the process ends, however it ends) and
 /// writes this process's id into it. Returns the descriptor, or -1 with `why` set.
@@ -118,7 +119,7 @@ std::string utc_now() {
 }  // namespace
 
 RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& scene,
-                     std::vector<std::string> command_line)
+                     std::vector<std::string> command_line, int resume_step)
     : comm_(comm),
       dir_(dir),
       scene_(scene),
@@ -146,7 +147,31 @@ RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& s
     throw std::invalid_argument("option -output_dir = '" + dir_ +
                                 "' is invalid: " + (rank_ == 0 ? why : std::string("see rank 0")));
   }
-  if (rank_ == 0) {
+  resumed_ = resume_step >= 0;
+  if (rank_ == 0 && resumed_) {
+    // A restart: the rows up to the checkpoint's step stay (those after it, written before the run stopped,
+    // go), and the run appends to them.
+    std::error_code ec;
+    std::filesystem::remove(dir_ + "/summary.json", ec);
+    std::filesystem::remove(dir_ + "/profile.csv", ec);
+    std::ifstream in(dir_ + "/metrics.csv");
+    std::string line, kept;
+    if (std::getline(in, line)) {
+      kept = line + "\n";
+      std::istringstream cols(line);
+      for (std::string c; std::getline(cols, c, ',');) columns_.push_back(c);
+    }
+    while (std::getline(in, line)) {
+      const long step = std::strtol(line.c_str(), nullptr, 10);
+      if (step >= 1 && step <= resume_step && line.find(',') != std::string::npos) kept += line + "\n";
+    }
+    in.close();
+    write_atomically(dir_ + "/metrics.csv", kept);
+    write_atomically(dir_ + "/options.yaml", effective_options_yaml());
+    csv_.open(dir_ + "/metrics.csv", std::ios::app);
+    if (!csv_) throw std::runtime_error("cannot write '" + dir_ + "/metrics.csv'");
+  }
+  if (rank_ == 0 && !resumed_) {
     // A previous run's results in this folder would be mistaken for this run's: remove them first.
     for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
       const std::string name = entry.path().filename().string();
@@ -156,7 +181,7 @@ RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& s
           series)
         std::filesystem::remove(entry.path());
     }
-    write_atomically(dir_ + "/options.yaml", options_yaml());
+    write_atomically(dir_ + "/options.yaml", effective_options_yaml());
     csv_.open(dir_ + "/metrics.csv", std::ios::trunc);
     if (!csv_) throw std::runtime_error("cannot write '" + dir_ + "/metrics.csv'");
   }
@@ -166,8 +191,26 @@ RunOutput::~RunOutput() {
   if (lock_fd_ >= 0) ::close(lock_fd_);  // releases the lock
 }
 
+void RunOutput::remove_series_except(const std::vector<std::string>& keep) const {
+  if (rank_ != 0) return;
+  for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
+    const std::string name = entry.path().filename().string();
+    const bool series =
+        (name.rfind("fluid_", 0) == 0 || name.rfind("solid_", 0) == 0) && entry.path().extension() == ".vts";
+    if (series && std::find(keep.begin(), keep.end(), name) == keep.end())
+      std::filesystem::remove(entry.path());
+  }
+}
+
 void RunOutput::metrics_columns(const std::vector<std::string>& names) {
   if (rank_ != 0) return;
+  if (resumed_) {
+    // A restart continues the file: its columns must be this run's.
+    if (columns_ != names)
+      throw std::invalid_argument("option -restart is invalid here: metrics.csv in '" + dir_ +
+                                  "' has other columns than this run writes");
+    return;
+  }
   if (!columns_.empty()) throw std::logic_error("metrics.csv: the columns are already written");
   columns_ = names;
   for (size_t i = 0; i < names.size(); ++i) csv_ << (i ? "," : "") << names[i];

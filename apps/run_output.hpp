@@ -18,13 +18,18 @@ class RunOutput {
   /// Creates DIR (rank 0), locks it, removes a previous run's results and writes DIR/options.yaml from the
   /// options database. Throws std::invalid_argument if DIR cannot be made or another run holds it.
   /// `command_line`: the arguments as given (recorded in summary.json).
+  /// `resume_step` >= 0: a restart from the checkpoint after that step: metrics.csv keeps its header and the
+  /// rows up to that step and grows from there, the series files stay (see also remove_series_except).
   RunOutput(MPI_Comm comm, const std::string& dir, const std::string& scene,
-            std::vector<std::string> command_line = {});
+            std::vector<std::string> command_line = {}, int resume_step = -1);
   ~RunOutput();
   RunOutput(const RunOutput&) = delete;
   RunOutput& operator=(const RunOutput&) = delete;
   const std::string& dir() const { return dir_; }
 
+  /// Removes the fluid_*.vts and solid_*.vts files of the folder that are not in `keep` (a restart: those
+  /// written after its checkpoint). Rank 0.
+  void remove_series_except(const std::vector<std::string>& keep) const;
   /// Writes metrics.csv's header now (a run that fails in its first step leaves the columns, not an empty
   /// file); the rows must then have these columns.
   void metrics_columns(const std::vector<std::string>& names);
@@ -48,6 +53,7 @@ class RunOutput {
   std::string dir_, scene_, started_;
   std::vector<std::string> command_line_;
   int lock_fd_ = -1;
+  bool resumed_ = false;
   std::vector<std::string> columns_;
   std::ofstream csv_;
   double start_ = 0, last_print_ = -1e9;
@@ -55,5 +61,7 @@ class RunOutput {
 
 /// Writes text to path atomically (temporary file + rename).
 void write_atomically(const std::string& path, const std::string& text);
+/// The options database as options.yaml writes it (flat keys, re-runnable with -options_file_yaml).
+std::string effective_options_yaml();
 
 }  // namespace cellfsi::app

@@ -49,6 +49,8 @@ struct Raw {
   PetscInt degree = 3;
   PetscReal shear_rate = 70.0, final_time = 0.05, dt = 5e-4;
   PetscInt output_every = 0;
+  PetscInt checkpoint_every = 100;
+  PetscBool restart = PETSC_FALSE;
   PetscReal ch[6];
 };
 
@@ -96,6 +98,13 @@ PetscErrorCode read_raw(Raw& r, const geometry::NarrowingChannel& ch0) {
   PetscCall(PetscOptionsReal("-dt", "Time step [s]", nullptr, r.dt, &r.dt, nullptr));
   PetscCall(PetscOptionsInt("-output_every", "Write fluid.pvd every N steps (0: never)", nullptr,
                             r.output_every, &r.output_every, nullptr));
+  PetscCall(PetscOptionsInt("-checkpoint_every",
+                            "Write DIR/checkpoint every N steps (0: only at the end and when interrupted)",
+                            nullptr, r.checkpoint_every, &r.checkpoint_every, nullptr));
+  PetscCall(PetscOptionsBool("-restart",
+                             "Continue the run in the output folder from its checkpoint (same options; "
+                             "-final_time may grow)",
+                             nullptr, r.restart, &r.restart, nullptr));
   PetscCall(PetscOptionsString("-output_dir", "Output folder (default out/<scene>)", nullptr, r.output_dir,
                                r.output_dir, sizeof r.output_dir, nullptr));
   PetscOptionsEnd();
@@ -385,7 +394,8 @@ SceneSettings SceneSettings::from_options(const std::string& default_name) {
                                                                        {"-shear_rate", 'r'},
                                                                        {"-final_time", 'r'},
                                                                        {"-dt", 'r'},
-                                                                       {"-output_every", 'i'}});
+                                                                       {"-output_every", 'i'},
+                                                                       {"-checkpoint_every", 'i'}});
   s.name = r.name;
   if (s.name.empty()) bad("scene", "''", "a non-empty name");
   if (r.dim != 2 && r.dim != 3) bad("dim", str(r.dim), "2 or 3");
@@ -441,6 +451,11 @@ SceneSettings SceneSettings::from_options(const std::string& default_name) {
         "at least -final_time / 1e9 = " + str(r.final_time / 1e9) + " s (at most 1e9 steps)");
   if (r.output_every < 0) bad("output_every", std::to_string(r.output_every), ">= 0");
   s.output_every = static_cast<int>(r.output_every);
+  if (r.checkpoint_every < 0)
+    bad("checkpoint_every", std::to_string(r.checkpoint_every),
+        ">= 0 (0: only at the end and when interrupted)");
+  s.checkpoint_every = static_cast<int>(r.checkpoint_every);
+  s.restart = r.restart == PETSC_TRUE;
   s.output_dir = r.output_dir[0] ? r.output_dir : "out/" + s.name;
   s.dt = r.dt;
   read_bodies(s);
@@ -620,6 +635,32 @@ void Scene::attach_bodies(std::vector<solid::SolidSolver*> bodies) {
     trackers_.emplace_back(b->reference_patch(), b->is_membrane(), plane);
     trackers_.back().record(fluid_->time(), b->current_patch());
   }
+}
+
+std::vector<std::vector<double>> Scene::body_states() const {
+  std::vector<std::vector<double>> out;
+  for (const solid::SolidSolver* b : bodies_) out.push_back(b->state());
+  return out;
+}
+
+std::vector<std::vector<double>> Scene::tracker_states() const {
+  std::vector<std::vector<double>> out;
+  for (const solid::BodyTracker& t : trackers_) out.push_back(t.state());
+  return out;
+}
+
+void Scene::restore(Vec U, Vec Udot, int steps, const std::vector<std::vector<double>>& bodies,
+                    const std::vector<std::vector<double>>& trackers) {
+  if (bodies.size() != bodies_.size() || trackers.size() != bodies_.size())
+    throw std::invalid_argument("option -restart is invalid here: the checkpoint has " +
+                                std::to_string(bodies.size()) + " bodies, the scene " +
+                                std::to_string(bodies_.size()));
+  fluid_->restore(U, Udot, steps);
+  for (size_t b = 0; b < bodies_.size(); ++b) {
+    bodies_[b]->set_state(bodies[b]);
+    trackers_[b].restore(trackers[b]);
+  }
+  if (coupler_) coupler_->restart();
 }
 
 SceneStep Scene::step() {

@@ -49,6 +49,8 @@ struct SceneSettings {
   double shear_rate = 70.0;    // [1/s]
   double final_time = 0.05;    // [s]
   int output_every = 0;        // write fluid.pvd every N steps (0: never)
+  int checkpoint_every = 100;  // write DIR/checkpoint every N steps (0: only at the end and when interrupted)
+  bool restart = false;        // continue the run in output_dir from its checkpoint
   std::string output_dir;      // default out/<name>
   double dt = 5e-4;            // time step [s] (-dt)
   std::vector<BodySettings> bodies;
@@ -92,6 +94,12 @@ class Scene {
   /// The coupling loop (null before attach_bodies or without bodies).
   const coupling::FsiCoupler* coupler() const { return coupler_.get(); }
   SceneStep step();
+  /// Each body's state (SolidSolver::state) and metric records (BodyTracker::state), for a checkpoint.
+  std::vector<std::vector<double>> body_states() const;
+  std::vector<std::vector<double>> tracker_states() const;
+  /// A restart (after attach_bodies): the fluid state after `steps` steps, the bodies' states and records.
+  void restore(Vec U, Vec Udot, int steps, const std::vector<std::vector<double>>& bodies,
+               const std::vector<std::vector<double>>& trackers);
   /// The flow without cells where it is known (shear: gammadot (y - H/2) along x), else empty.
   const std::function<geometry::Vec3(const geometry::Vec3&)>& undisturbed_velocity() const {
     return undisturbed_;

@@ -306,6 +306,11 @@ void FsiCoupler::initialize() {
   update_immersed(true);
 }
 
+void FsiCoupler::restart() {
+  if (anderson_) anderson_->reset();
+  update_immersed(true);
+}
+
 CouplerStats FsiCoupler::step() {
   CouplerStats st;
   const fluid::FluidOptions& fo = fluid_.options();

@@ -87,6 +87,9 @@ class FsiCoupler {
   /// Before the first step: the bodies' rates from the fluid velocity at their points, and the immersed
   /// points and s^h of the initial configuration.
   void initialize();
+  /// After the fluid's and the bodies' states were restored (a restart): the immersed points and s^h of
+  /// that configuration, the bodies' rates left as restored.
+  void restart();
   /// One time step of the coupled problem.
   CouplerStats step();
   /// The solver in use (CouplingSolver::fluid when `band` was asked for but cannot run: several fluid ranks,

@@ -214,6 +214,10 @@ void RemoteSolid::end_step() { call(SolidOp::end_step, {}); }
 
 void RemoteSolid::set_rate(const std::vector<solid::Vec3>& rate) { call(SolidOp::set_rate, flat(rate)); }
 
+std::vector<double> RemoteSolid::state() const { return call(SolidOp::state, {}); }
+
+void RemoteSolid::set_state(const std::vector<double>& state) { call(SolidOp::set_state, state); }
+
 geometry::Patch RemoteSolid::current_patch() const {
   std::vector<geometry::Vec3> cps = vecs(call(SolidOp::current_patch, {}));
   return geometry::Patch(reference_.all_knots(), dim(), std::move(cps), reference_.weights(),
@@ -282,6 +286,12 @@ void serve_solids(Exchange& ex, const std::vector<solid::SolidSolver*>& bodies) 
           break;
         case SolidOp::current_patch:
           out = flat(b.current_patch().control_points());
+          break;
+        case SolidOp::state:
+          out = b.state();
+          break;
+        case SolidOp::set_state:
+          b.set_state(d);
           break;
         case SolidOp::cauchy_stress: {
           std::vector<geometry::Param> xi(d.size() / 3);

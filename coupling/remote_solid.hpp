@@ -72,6 +72,8 @@ enum class SolidOp : int {
   set_rate,
   current_patch,
   cauchy_stress,
+  state,
+  set_state,
   shutdown,
   error = 99
 };
@@ -97,6 +99,8 @@ class RemoteSolid final : public solid::SolidSolver {
   std::vector<solid::Vec3> interface_points() const override;
   void end_step() override;
   void set_rate(const std::vector<solid::Vec3>& rate) override;
+  std::vector<double> state() const override;
+  void set_state(const std::vector<double>& state) override;
   bool is_membrane() const override { return membrane_; }
   geometry::Patch reference_patch() const override { return reference_; }
   geometry::Patch current_patch() const override;

@@ -121,11 +121,14 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
   char name[64];
   std::snprintf(name, sizeof name, "fluid_%06d.vts", fluid.steps_taken());
   const std::string path = (std::filesystem::path(dir_) / name).string();
+  // Written under a temporary name and renamed: a run killed mid-write leaves no truncated file.
+  const std::string tmp = path + ".tmp";
   vtkNew<vtkXMLStructuredGridWriter> writer;
-  writer->SetFileName(path.c_str());
+  writer->SetFileName(tmp.c_str());
   writer->SetInputData(grid);
   if (writer->Write() != 1 || writer->GetErrorCode() != 0)
-    throw std::runtime_error("cannot write VTK file '" + path + "'");
+    throw std::runtime_error("cannot write VTK file '" + tmp + "'");
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error("cannot rename '" + tmp + "'");
   entries_.push_back({name, fluid.time(), 0, ""});  // time is steps * dt: no accumulated round-off
   geometry::write_pvd((std::filesystem::path(dir_) / "fluid.pvd").string(), entries_);
 }

@@ -23,6 +23,9 @@ class FluidSeriesWriter {
     undisturbed_ = std::move(undisturbed);
   }
   void write(const FluidSolver& fluid);
+  /// The entries written so far, and a restart's: continue the series after these.
+  const std::vector<geometry::PvdEntry>& entries() const { return entries_; }
+  void resume(std::vector<geometry::PvdEntry> entries) { entries_ = std::move(entries); }
 
  private:
   std::string dir_;

@@ -1030,6 +1030,14 @@ void FluidSolver::end_step(Vec X) {
   time_ = steps_ * opt_.dt;
 }
 
+void FluidSolver::restore(Vec U, Vec Udot, int steps) {
+  if (steps < 0) throw std::invalid_argument("FluidSolver::restore: steps must be >= 0");
+  CELLFSI_PETSC(VecCopy(U, U_));
+  CELLFSI_PETSC(VecCopy(Udot, Udot_));
+  steps_ = steps;
+  time_ = steps_ * opt_.dt;
+}
+
 KSP FluidSolver::ksp() const {
   KSP k;
   CELLFSI_PETSC(SNESGetKSP(snes_, &k));

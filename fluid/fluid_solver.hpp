@@ -144,6 +144,9 @@ class FluidSolver {
                            const std::vector<geometry::Param>& xi, const std::vector<ImmersedPoint>& data);
   /// Accepts X as U_{n+1}: updates the rate and the time.
   void end_step(Vec X);
+  /// Restores the state after `steps` steps (U and its rate, as solution() and solution_rate() held them; a
+  /// restart from a checkpoint).
+  void restore(Vec U, Vec Udot, int steps);
   /// The Jacobian matrix and the linear solver of the fluid (KSP prefix fluid_).
   Mat jacobian_matrix() const { return J_; }
   KSP ksp() const;

@@ -21,15 +21,20 @@ namespace cellfsi::geometry {
 namespace {
 
 /// VTK reports some failures (e.g. a missing directory) only through the error code, and prints them; the
-/// directory is checked first so the user gets one clear message.
+/// directory is checked first so the user gets one clear message. The file is written under a temporary name
+/// and renamed, so a process killed mid-write leaves no truncated file behind.
 template <class Writer>
 void write_or_throw(Writer& writer, const std::string& path) {
   const std::filesystem::path parent = std::filesystem::path(path).parent_path();
   if (!parent.empty() && !std::filesystem::is_directory(parent))
     throw std::runtime_error("cannot write '" + path + "': directory '" + parent.string() +
                              "' does not exist");
+  const std::string tmp = path + ".tmp";
+  writer->SetFileName(tmp.c_str());
   if (writer->Write() != 1 || writer->GetErrorCode() != 0)
     throw std::runtime_error("cannot write VTK file '" + path + "'");
+  if (std::rename(tmp.c_str(), path.c_str()) != 0)
+    throw std::runtime_error("cannot rename '" + tmp + "' to '" + path + "'");
 }
 
 void check_samples(int s) {
@@ -114,7 +119,6 @@ void write_patch_vts(const Patch& patch, const std::string& path, int samples_pe
   }
 
   vtkNew<vtkXMLStructuredGridWriter> writer;
-  writer->SetFileName(path.c_str());
   writer->SetInputData(grid);
   write_or_throw(writer, path);
 }
@@ -163,7 +167,6 @@ void write_patch_elements_vtp(const Patch& patch, const std::string& path, int s
   poly->SetPoints(points);
   poly->SetLines(lines);
   vtkNew<vtkXMLPolyDataWriter> writer;
-  writer->SetFileName(path.c_str());
   writer->SetInputData(poly);
   write_or_throw(writer, path);
 }

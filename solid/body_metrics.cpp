@@ -62,6 +62,40 @@ BodyTracker::BodyTracker(const Patch& reference, bool membrane, int plane_dir, i
   }
 }
 
+std::vector<double> BodyTracker::state() const {
+  // [n_angles, angles..., n_records, per record: time r_a r_p axis anisotropy material cx cy cz]
+  std::vector<double> out{static_cast<double>(last_angles_.size())};
+  out.insert(out.end(), last_angles_.begin(), last_angles_.end());
+  out.push_back(static_cast<double>(history_.size()));
+  for (const Sample& s : history_)
+    out.insert(out.end(), {s.time, s.r_a, s.r_p, s.axis, s.anisotropy, s.material, s.centroid[0],
+                           s.centroid[1], s.centroid[2]});
+  return out;
+}
+
+void BodyTracker::restore(const std::vector<double>& state) {
+  auto bad = [] { return std::invalid_argument("BodyTracker::restore: the state does not fit this body"); };
+  std::size_t k = 0;
+  auto next = [&]() {
+    if (k >= state.size()) throw bad();
+    return state[k++];
+  };
+  const double n_angles = next();
+  if (n_angles != static_cast<double>(material_xi_.size()) && n_angles != 0) throw bad();
+  std::vector<double> angles;
+  for (int i = 0; i < static_cast<int>(n_angles); ++i) angles.push_back(next());
+  const double n_records = next();
+  if (!(n_records >= 0) || state.size() != k + 9 * static_cast<std::size_t>(n_records)) throw bad();
+  std::vector<Sample> history(static_cast<std::size_t>(n_records));
+  for (Sample& s : history) {
+    s.time = next(), s.r_a = next(), s.r_p = next(), s.axis = next(), s.anisotropy = next();
+    s.material = next();
+    for (int c = 0; c < 3; ++c) s.centroid[c] = next();
+  }
+  last_angles_ = std::move(angles);
+  history_ = std::move(history);
+}
+
 void BodyTracker::measure(const Patch& p, double& area, double& boundary,
                           geometry::RegionMoments& region) const {
   area = geometry::patch_measure(p);

@@ -54,6 +54,11 @@ class BodyTracker {
   /// records.
   std::string regime(double average_from) const;
 
+  /// The records and the unwrapping state as plain numbers (for a checkpoint), and their restoration into a
+  /// tracker built for the same body (throws std::invalid_argument if they do not fit).
+  std::vector<double> state() const;
+  void restore(const std::vector<double>& state);
+
   bool membrane() const { return membrane_; }
   /// True when the body has a long axis (second moments differ by more than 1 %): theta is defined.
   bool elongated() const { return elongated_; }

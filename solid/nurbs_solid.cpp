@@ -124,6 +124,29 @@ void NurbsSolid::set_rate(const std::vector<Vec3>& rate) {
   for (int i = 0; i < n_points(); ++i) rate_n_.row(i) = rate[i].head(dim_).transpose();
 }
 
+std::vector<double> NurbsSolid::state() const {
+  std::vector<double> out;
+  out.reserve(2 * u_n_.size() + c_n_.size());
+  for (const Eigen::MatrixXd* m : {&u_n_, &rate_n_, &c_n_})
+    for (Eigen::Index r = 0; r < m->rows(); ++r)
+      for (Eigen::Index c = 0; c < m->cols(); ++c) out.push_back((*m)(r, c));
+  return out;
+}
+
+void NurbsSolid::set_state(const std::vector<double>& state) {
+  const std::size_t expected = static_cast<std::size_t>(2 * u_n_.size() + c_n_.size());
+  if (state.size() != expected)
+    throw std::invalid_argument("body '" + name_ + "': a state of " + std::to_string(state.size()) +
+                                " numbers does not fit its " + std::to_string(expected) +
+                                " (another mesh or shape?)");
+  std::size_t k = 0;
+  for (Eigen::MatrixXd* m : {&u_n_, &rate_n_, &c_n_})
+    for (Eigen::Index r = 0; r < m->rows(); ++r)
+      for (Eigen::Index c = 0; c < m->cols(); ++c) (*m)(r, c) = state[k++];
+  u_ = u_n_;
+  c_ = c_n_;
+}
+
 void NurbsSolid::begin_step(const TimeParameters& time) {
   time_ = time;
   u_ = u_n_ +

@@ -38,6 +38,9 @@ class NurbsSolid final : public SolidSolver {
   /// Sets the displacement rate at the collocation points (e.g. the fluid velocity there at t = 0, so the
   /// first step starts consistent); the displacement stays as it is.
   void set_rate(const std::vector<Vec3>& rate) override;
+  /// u_n, rate_n (collocation points) and the control variables at t_n, row by row.
+  std::vector<double> state() const override;
+  void set_state(const std::vector<double>& state) override;
 
   bool is_membrane() const override { return membrane_; }
   geometry::Patch reference_patch() const override { return reference_; }

@@ -17,6 +17,13 @@ class SolidSeriesWriter {
   /// nothing is written (ranks other than the one that writes).
   SolidSeriesWriter(std::string dir, bool writes, int samples_per_element = 4);
   void write(double time, const std::vector<SolidSolver*>& bodies);
+  /// The entries and the number of writes so far, and a restart's: continue the series after these.
+  const std::vector<geometry::PvdEntry>& entries() const { return entries_; }
+  int count() const { return count_; }
+  void resume(std::vector<geometry::PvdEntry> entries, int count) {
+    entries_ = std::move(entries);
+    count_ = count;
+  }
 
  private:
   std::string dir_;

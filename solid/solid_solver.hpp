@@ -63,6 +63,10 @@ class SolidSolver {
   /// Sets the displacement rate at the collocation points (before the first step: the fluid velocity there,
   /// so the first step starts consistent).
   virtual void set_rate(const std::vector<Vec3>& rate) = 0;
+  /// The accepted state at t_n as plain numbers (for a checkpoint; valid between steps), and its restoration
+  /// into a body built from the same scene (throws std::invalid_argument if the numbers do not fit it).
+  virtual std::vector<double> state() const = 0;
+  virtual void set_state(const std::vector<double>& state) = 0;
 
   // Measures and output (plain data; valid between steps).
   /// True for a membrane (direction 0 runs through a thin wall around an enclosed fluid), false for a bulky

@@ -1,0 +1,175 @@
+#include "apps/checkpoint.hpp"
+
+#include <petscviewer.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <stdexcept>
+
+#include "apps/run_output.hpp"
+#include "fluid/petsc_error.hpp"
+
+namespace cellfsi::app {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+nlohmann::json series_json(const std::vector<geometry::PvdEntry>& entries) {
+  nlohmann::json a = nlohmann::json::array();
+  for (const auto& e : entries)
+    a.push_back({{"file", e.file}, {"time", e.time}, {"part", e.part}, {"name", e.name}});
+  return a;
+}
+
+std::vector<geometry::PvdEntry> series_from(const nlohmann::json& a) {
+  std::vector<geometry::PvdEntry> out;
+  for (const auto& e : a)
+    out.push_back({e.at("file").get<std::string>(), e.at("time").get<double>(), e.at("part").get<int>(),
+                   e.at("name").get<std::string>()});
+  return out;
+}
+
+/// "key: value" lines of an options.yaml text (comments skipped).
+std::map<std::string, std::string> option_map(const std::string& text) {
+  std::map<std::string, std::string> m;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    const auto colon = line.find(": ");
+    if (colon == std::string::npos) continue;
+    m[line.substr(0, colon)] = line.substr(colon + 2);
+  }
+  return m;
+}
+
+/// A PETSc binary viewer on path (no .info file).
+PetscViewer binary_viewer(MPI_Comm comm, const fs::path& path, PetscFileMode mode) {
+  PetscViewer v = nullptr;
+  CELLFSI_PETSC(PetscViewerCreate(comm, &v));
+  CELLFSI_PETSC(PetscViewerSetType(v, PETSCVIEWERBINARY));
+  CELLFSI_PETSC(PetscViewerBinarySetSkipInfo(v, PETSC_TRUE));
+  CELLFSI_PETSC(PetscViewerFileSetMode(v, mode));
+  CELLFSI_PETSC(PetscViewerFileSetName(v, path.c_str()));
+  return v;
+}
+
+bool may_change(const std::string& key) {
+  static const char* const kFree[] = {
+      "final_time",           "restart", "output_every", "checkpoint_every", "output_dir",
+      "metrics_average_from", "help",    "log_view",     "options_left",     "malloc_dump"};
+  for (const char* k : kFree)
+    if (key == k) return true;
+  return key.find("monitor") != std::string::npos || key.find("view") != std::string::npos ||
+         key.find("converged_reason") != std::string::npos;
+}
+
+}  // namespace
+
+std::vector<std::string> conflicting_options(const std::string& saved, const std::string& current) {
+  const auto a = option_map(saved), b = option_map(current);
+  std::vector<std::string> out;
+  for (const auto& [k, v] : a) {
+    if (may_change(k)) continue;
+    const auto it = b.find(k);
+    if (it == b.end())
+      out.push_back(k + ": " + v + " -> (not given)");
+    else if (it->second != v)
+      out.push_back(k + ": " + v + " -> " + it->second);
+  }
+  for (const auto& [k, v] : b)
+    if (!may_change(k) && a.find(k) == a.end()) out.push_back(k + ": (not given) -> " + v);
+  return out;
+}
+
+void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c, Vec U, Vec Udot) {
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  const fs::path next = fs::path(dir) / "checkpoint.new", cur = fs::path(dir) / "checkpoint",
+                 old = fs::path(dir) / "checkpoint.old";
+  int ok = 1;
+  if (rank == 0) {
+    std::error_code ec;
+    fs::remove_all(next, ec);
+    fs::create_directories(next, ec);
+    ok = !ec;
+  }
+  MPI_Bcast(&ok, 1, MPI_INT, 0, comm);
+  if (!ok) throw std::runtime_error("cannot create '" + next.string() + "'");
+  PetscViewer v = binary_viewer(comm, next / "fluid.petsc", FILE_MODE_WRITE);
+  CELLFSI_PETSC(VecView(U, v));
+  CELLFSI_PETSC(VecView(Udot, v));
+  CELLFSI_PETSC(PetscViewerDestroy(&v));
+  if (rank == 0) {
+    nlohmann::ordered_json js;
+    js["format"] = "cellfsi checkpoint 1";
+    js["step"] = c.step;
+    js["time"] = c.time;
+    js["newton_iterations"] = c.newton;
+    js["linear_iterations"] = c.linear;
+    js["factorizations"] = c.factorizations;
+    js["options"] = c.options;
+    js["body_names"] = c.body_names;
+    js["bodies"] = c.bodies;
+    js["trackers"] = c.trackers;
+    js["fluid_series"] = series_json(c.fluid_series);
+    js["solid_series"] = series_json(c.solid_series);
+    js["solid_writes"] = c.solid_writes;
+    write_atomically((next / "state.json").string(), js.dump() + "\n");
+    // The new checkpoint replaces the previous one; between the two renames the previous one is
+    // checkpoint.old, which read_checkpoint falls back on.
+    std::error_code ec;
+    fs::remove_all(old, ec);
+    if (fs::exists(cur)) fs::rename(cur, old);
+    fs::rename(next, cur);
+    fs::remove_all(old, ec);
+  }
+  MPI_Barrier(comm);
+}
+
+Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, Vec U, Vec Udot) {
+  fs::path at = fs::path(dir) / "checkpoint";
+  if (!fs::exists(at / "state.json") && fs::exists(fs::path(dir) / "checkpoint.old" / "state.json"))
+    at = fs::path(dir) / "checkpoint.old";
+  if (!fs::exists(at / "state.json") || !fs::exists(at / "fluid.petsc"))
+    throw std::invalid_argument("option -restart is invalid here: '" + dir +
+                                "' holds no checkpoint (a run writes DIR/checkpoint every -checkpoint_every "
+                                "steps, at its end and when it is interrupted)");
+  Checkpoint c;
+  try {
+    std::ifstream in(at / "state.json");
+    const nlohmann::json js = nlohmann::json::parse(in);
+    if (js.at("format") != "cellfsi checkpoint 1") throw std::runtime_error("unknown format");
+    c.step = js.at("step").get<int>();
+    c.time = js.at("time").get<double>();
+    c.newton = js.at("newton_iterations").get<long>();
+    c.linear = js.at("linear_iterations").get<long>();
+    c.factorizations = js.at("factorizations").get<long>();
+    c.options = js.at("options").get<std::string>();
+    c.body_names = js.at("body_names").get<std::vector<std::string>>();
+    c.bodies = js.at("bodies").get<std::vector<std::vector<double>>>();
+    c.trackers = js.at("trackers").get<std::vector<std::vector<double>>>();
+    c.fluid_series = series_from(js.at("fluid_series"));
+    c.solid_series = series_from(js.at("solid_series"));
+    c.solid_writes = js.at("solid_writes").get<int>();
+  } catch (const std::exception& e) {
+    throw std::invalid_argument("checkpoint '" + (at / "state.json").string() +
+                                "' cannot be read: " + e.what());
+  }
+  PetscViewer v = binary_viewer(comm, at / "fluid.petsc", FILE_MODE_READ);
+  // A file of another size is an input error, reported once below (no PETSc traceback).
+  PetscPushErrorHandler(PetscReturnErrorHandler, nullptr);
+  const PetscErrorCode e1 = VecLoad(U, v);
+  const PetscErrorCode e2 = e1 ? e1 : VecLoad(Udot, v);
+  PetscPopErrorHandler();
+  PetscViewerDestroy(&v);
+  if (e1 || e2)
+    throw std::invalid_argument("checkpoint '" + (at / "fluid.petsc").string() +
+                                "' does not fit this fluid mesh (or is damaged)");
+  return c;
+}
+
+}  // namespace cellfsi::app

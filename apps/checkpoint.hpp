@@ -1,0 +1,37 @@
+#pragma once
+// Checkpoints and restarts. DIR/checkpoint/ holds fluid.petsc (PETSc binary: the fluid unknowns and their
+// rate after the checkpoint's step, in the DMDA's natural ordering, so any number of ranks can read it) and
+// state.json (the step, the run's counters, the options of the run that wrote it, each body's state and
+// metric records, the output series so far). It is replaced whole: written as DIR/checkpoint.new, then
+// renamed.
+#include <petscvec.h>
+
+#include <string>
+#include <vector>
+
+#include "geometry/patch_vtk.hpp"
+
+namespace cellfsi::app {
+
+struct Checkpoint {
+  int step = 0;
+  double time = 0;
+  long newton = 0, linear = 0, factorizations = 0;
+  std::string options;  // options.yaml of the run that wrote it
+  std::vector<std::string> body_names;
+  std::vector<std::vector<double>> bodies, trackers;  // per body: SolidSolver::state, BodyTracker::state
+  std::vector<geometry::PvdEntry> fluid_series, solid_series;
+  int solid_writes = 0;
+};
+
+/// Writes DIR/checkpoint: collective over comm (the fluid vectors); rank 0 writes the rest and renames.
+void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c, Vec U, Vec Udot);
+/// Reads DIR/checkpoint (collective); U and Udot, vectors of the fluid's DMDA, receive the fluid state.
+/// Throws std::invalid_argument naming the folder when there is no checkpoint or it cannot be read.
+Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, Vec U, Vec Udot);
+/// The options (as "name: saved -> current") whose values differ between two options.yaml texts, leaving out
+/// those a restart may change: final_time, restart, output_every, checkpoint_every, output_dir,
+/// metrics_average_from, and monitors, viewers and -help.
+std::vector<std::string> conflicting_options(const std::string& saved, const std::string& current);
+
+}  // namespace cellfsi::app
