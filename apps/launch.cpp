@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <iomanip>
+#include <map>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -127,22 +128,74 @@ void reject_inapplicable_solver_options(const std::vector<std::string>& user_opt
 class Handshake {
  public:
   explicit Handshake(MPI_Comm inter) : inter_(inter) {}
-  /// Returns the other group's state (2 when there is no other group).
-  int agree(int state) {
+  /// Returns the other group's state (2 when there is no other group). `options`: this side's effective
+  /// options (options.yaml text), handed to the other side (remote_options()).
+  int agree(int state, const std::string& options = "") {
     if (inter_ == MPI_COMM_NULL || done_) return 2;
     done_ = true;
     int local = 0, remote = 0;
     MPI_Comm local_comm = PETSC_COMM_WORLD;
     MPI_Allreduce(&state, &local, 1, MPI_INT, MPI_MIN, local_comm);
     MPI_Allreduce(&local, &remote, 1, MPI_INT, MPI_MIN, inter_);
+    // The options texts: leader to leader, then to every rank of the group.
+    int rank = 0;
+    MPI_Comm_rank(local_comm, &rank);
+    long n_mine = static_cast<long>(options.size()), n_other = 0;
+    if (rank == 0)
+      MPI_Sendrecv(&n_mine, 1, MPI_LONG, 0, 1, &n_other, 1, MPI_LONG, 0, 1, inter_, MPI_STATUS_IGNORE);
+    MPI_Bcast(&n_other, 1, MPI_LONG, 0, local_comm);
+    remote_options_.assign(static_cast<std::size_t>(n_other), ' ');
+    if (rank == 0)
+      MPI_Sendrecv(options.data(), static_cast<int>(n_mine), MPI_CHAR, 0, 2, remote_options_.data(),
+                   static_cast<int>(n_other), MPI_CHAR, 0, 2, inter_, MPI_STATUS_IGNORE);
+    MPI_Bcast(remote_options_.data(), static_cast<int>(n_other), MPI_CHAR, 0, local_comm);
     return remote;
   }
   bool done() const { return done_ || inter_ == MPI_COMM_NULL; }
+  bool split() const { return inter_ != MPI_COMM_NULL; }
+  const std::string& remote_options() const { return remote_options_; }
 
  private:
   MPI_Comm inter_;
   bool done_ = false;
+  std::string remote_options_;
 };
+
+/// In a split job (two executables, or -solid_ranks), the options that shape the bodies must be the same on
+/// both sides: the solid side builds and steps the bodies from its own. Those are the -solid_* options and
+/// the domain and mesh the bodies are checked against. Returns the differences ("name: fluid side -> solid
+/// side"), the same list on both sides.
+std::string body_option_differences(const std::string& fluid_side, const std::string& solid_side) {
+  auto map = [](const std::string& text) {
+    std::map<std::string, std::string> m;
+    std::istringstream in(text);
+    for (std::string line; std::getline(in, line);) {
+      const auto colon = line.find(": ");
+      if (line.empty() || line[0] == '#' || colon == std::string::npos) continue;
+      const std::string key = line.substr(0, colon);
+      const bool shapes_bodies = key.rfind("solid_", 0) == 0 || key.rfind("domain", 0) == 0 ||
+                                 key.rfind("channel_", 0) == 0 || key == "dim" || key == "fluid_elements" ||
+                                 key == "fluid_degree" || key == "coupling_max_mesh_ratio";
+      if (shapes_bodies && key != "solid_ranks") m[key] = line.substr(colon + 2);
+    }
+    return m;
+  };
+  const auto f = map(fluid_side), sd = map(solid_side);
+  std::string out;
+  auto add = [&](const std::string& k, const std::string& a, const std::string& b) {
+    out += (out.empty() ? "" : "; ") + k + ": " + a + " -> " + b;
+  };
+  for (const auto& [k, v] : f) {
+    const auto it = sd.find(k);
+    if (it == sd.end())
+      add(k, v, "(not given)");
+    else if (it->second != v)
+      add(k, v, it->second);
+  }
+  for (const auto& [k, v] : sd)
+    if (f.find(k) == f.end()) add(k, "(not given)", v);
+  return out;
+}
 
 /// The fluid side (and, without a solid group, the bodies too).
 int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
@@ -158,7 +211,15 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   check_bodies(settings, scene.fluid().patch());
   scene.fluid().setup();
   reject_unknown_options(OptionCheck::before_coupling);
-  if (hs.agree(2) != 2) throw std::invalid_argument("the solid side stopped at start-up (see its message)");
+  if (hs.agree(2, effective_options_yaml()) != 2)
+    throw std::invalid_argument("the solid side stopped at start-up (see its message)");
+  if (hs.split())
+    if (const std::string diff = body_option_differences(effective_options_yaml(), hs.remote_options());
+        !diff.empty())
+      throw std::invalid_argument(
+          "the fluid and the solid side were given different options for the bodies (fluid side -> solid "
+          "side: " +
+          diff + "); give both executables the same scene and options");
 
   std::vector<std::unique_ptr<solid::NurbsSolid>> owned;
   std::vector<std::unique_ptr<coupling::RemoteSolid>> remote;
@@ -429,7 +490,11 @@ int run_solid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     error = e.what();
     state = 0;
   }
-  const int fluid_state = hs.agree(state);
+  const int fluid_state = hs.agree(state, state == 2 ? effective_options_yaml() : std::string());
+  // The same check as the fluid side's, which reports it.
+  if (state == 2 && fluid_state == 2 &&
+      !body_option_differences(hs.remote_options(), effective_options_yaml()).empty())
+    return 1;
   if (state == 0) {
     if (fluid_state == 2) print_error(error);
     return 1;
@@ -502,13 +567,25 @@ int launch(int argc, char** argv, Role role) {
     MPI_Finalize();
     return 1;
   };
-  if (bad_launch) return fail_early(launch_error);
-  if (!std::filesystem::is_regular_file(scene_file))
-    return fail_early("scene file '" + scene_file + "' not found (expected a .yaml scene, see scenes/)");
-  try {
-    check_scene_file(scene_file);
-  } catch (const std::invalid_argument& e) {
-    return fail_early(e.what());
+  // Errors found before the job is split, agreed over the whole job: in an MPMD job only one executable may
+  // have one (-solid_ranks given to cellfsi-solid, its scene file missing), and the other must not wait for
+  // it. The lowest rank with an error prints it.
+  std::string early_error = bad_launch ? launch_error : std::string();
+  if (early_error.empty() && !std::filesystem::is_regular_file(scene_file))
+    early_error = "scene file '" + scene_file + "' not found (expected a .yaml scene, see scenes/)";
+  if (early_error.empty()) {
+    try {
+      check_scene_file(scene_file);
+    } catch (const std::invalid_argument& e) {
+      early_error = e.what();
+    }
+  }
+  int first_error = early_error.empty() ? world_size : world_rank;
+  MPI_Allreduce(MPI_IN_PLACE, &first_error, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+  if (first_error < world_size) {
+    if (world_rank == first_error) std::fprintf(stderr, "cellfsi: error: %s\n", early_error.c_str());
+    MPI_Finalize();
+    return 1;
   }
 
   // The split: color 0 fluid, 1 solid.
@@ -549,6 +626,7 @@ int launch(int argc, char** argv, Role role) {
   if (PetscInitialize(&n, &avp, nullptr, nullptr) != 0) {
     status = 1;
   } else {
+    record_petsc_errors();  // PETSc errors become one-line messages (a misspelt type: bad input, exit 1)
     Handshake hs(inter);
     int local_rank = 0;
     MPI_Comm_rank(PETSC_COMM_WORLD, &local_rank);

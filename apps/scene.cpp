@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <iomanip>
 #include <numbers>
 #include <sstream>
 #include <stdexcept>
@@ -375,6 +377,27 @@ void read_bodies(SceneSettings& s) {
 
 }  // namespace
 
+double fluid_jacobian_bytes(const SceneSettings& s) {
+  double nodes = 1, coupled = 1;
+  for (int d = 0; d < s.dim; ++d) {
+    nodes *= s.periodic[d] ? s.elements[d] : s.elements[d] + s.degree;
+    coupled *= 2 * s.degree + 1;
+  }
+  const double dof = s.dim + 1;
+  return nodes * coupled * dof * dof * sizeof(PetscScalar);
+}
+
+double available_memory_bytes() {
+  std::ifstream in("/proc/meminfo");
+  for (std::string key; in >> key;) {
+    double kb = 0;
+    std::string unit;
+    in >> kb >> unit;
+    if (key == "MemAvailable:") return kb * 1024.0;
+  }
+  return 0;
+}
+
 SceneSettings SceneSettings::from_options(const std::string& default_name) {
   SceneSettings s;
   Raw r;
@@ -434,6 +457,19 @@ SceneSettings SceneSettings::from_options(const std::string& default_name) {
   for (int d = 0; d < D; ++d)
     if (s.periodic[d] && s.elements[d] < s.degree)
       bad("fluid_elements", std::to_string(s.elements[d]), ">= degree in a periodic direction");
+  // A mesh this machine cannot hold is refused now, with the estimate, instead of allocating for minutes.
+  if (const double available = available_memory_bytes(); available > 0) {
+    const double need = 3 * fluid_jacobian_bytes(s);
+    if (need > available) {
+      std::ostringstream v, w;
+      for (int d = 0; d < D; ++d) v << (d ? "," : "") << s.elements[d];
+      w << std::setprecision(3) << "fewer elements: a run needs at least " << need / 1e9
+        << " GB (the fluid Jacobian three times: its kept part, its band part and their sum; LU factors come "
+           "on top) and this machine has "
+        << available / 1e9 << " GB available";
+      bad("fluid_elements", v.str(), w.str());
+    }
+  }
   s.flow = r.flow;
   if (s.flow != "shear" && s.flow != "poiseuille" && s.flow != "rest")
     bad("flow", s.flow, "shear, poiseuille or rest");

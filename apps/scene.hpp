@@ -63,6 +63,11 @@ struct SceneSettings {
   static SceneSettings from_options(const std::string& default_name);
 };
 
+/// Bytes of the fluid Jacobian of a scene's mesh (BAIJ values: every node couples with (2p + 1)^d nodes).
+double fluid_jacobian_bytes(const SceneSettings& s);
+/// MemAvailable of /proc/meminfo in bytes (0 where there is none).
+double available_memory_bytes();
+
 /// The Eulerian patch of a scene.
 geometry::Patch build_domain(const SceneSettings& s);
 /// The reference patch of a body (elements from the fluid mesh where not given).

@@ -385,6 +385,8 @@ CouplerStats FsiCoupler::step() {
     // Steps 5-7: K_MC, a linear solve, the update.
     try {
       st.linear_iterations += solver_ == CouplingSolver::band ? solve_band(st, it == 0) : solve_fluid(st);
+    } catch (const std::invalid_argument&) {
+      throw;  // bad input found by the solver (a misspelt type read at the first solve)
     } catch (const std::exception& e) {
       st.reason = e.what();
       if (anderson_) anderson_->reset();

@@ -11,18 +11,62 @@
 #include <utility>
 #include <vector>
 
-#define CELLFSI_PETSC(...)                                                                                \
-  do {                                                                                                    \
-    const PetscErrorCode cellfsi_ierr_ = __VA_ARGS__;                                                     \
-    if (PetscUnlikely(cellfsi_ierr_))                                                                     \
-      throw std::runtime_error("PETSc error " + std::to_string(cellfsi_ierr_) + " at " + __FILE__ + ":" + \
-                               std::to_string(__LINE__));                                                 \
+#define CELLFSI_PETSC(...)                                                                             \
+  do {                                                                                                 \
+    const PetscErrorCode cellfsi_ierr_ = __VA_ARGS__;                                                  \
+    if (PetscUnlikely(cellfsi_ierr_)) ::cellfsi::throw_petsc_error(cellfsi_ierr_, __FILE__, __LINE__); \
   } while (0)
 
 #include <initializer_list>
+#include <sstream>
 #include <utility>
 
 namespace cellfsi {
+
+namespace detail {
+/// The first message of the PETSc error being handled (record_petsc_errors), cleared once thrown.
+inline std::string& pending_petsc_message() {
+  static std::string m;
+  return m;
+}
+inline PetscErrorCode record_pending(MPI_Comm, int, const char*, const char*, PetscErrorCode n,
+                                     PetscErrorType, const char* mess, void*) {
+  std::string& m = detail::pending_petsc_message();
+  if (m.empty() && mess) m = mess;
+  return n;
+}
+}  // namespace detail
+
+/// From now on PETSc errors are recorded instead of printed as a traceback; CELLFSI_PETSC's exceptions carry
+/// the message (call once, after PetscInitialize).
+inline void record_petsc_errors() { PetscPushErrorHandler(detail::record_pending, nullptr); }
+
+/// Throws for a failed PETSc call: std::invalid_argument for an unknown type (a misspelt -..._type option,
+/// named with its value), std::runtime_error with PETSc's message otherwise.
+[[noreturn]] inline void throw_petsc_error(PetscErrorCode code, const char* file, int line) {
+  std::string message;
+  std::swap(message, detail::pending_petsc_message());
+  if (code == PETSC_ERR_ARG_UNKNOWN_TYPE && !message.empty()) {
+    // "Unable to find requested KSP type gmress": the option with that value.
+    const std::string value = message.substr(message.find_last_of(' ') + 1);
+    char* all = nullptr;
+    std::string option;
+    if (PetscOptionsGetAll(nullptr, &all) == 0 && all) {
+      std::istringstream in(all);
+      std::string prev, tok;
+      while (in >> tok) {
+        if (tok == value && prev.size() > 1 && prev[0] == '-') option = prev;
+        prev = tok;
+      }
+      PetscFree(all);
+    }
+    throw std::invalid_argument(
+        (option.empty() ? std::string("a type") : "option " + option + " = " + value) +
+        " is invalid: " + message + " (-help lists the types this PETSc has)");
+  }
+  throw std::runtime_error("PETSc error " + std::to_string(code) + " at " + file + ":" +
+                           std::to_string(line) + (message.empty() ? std::string() : ": " + message));
+}
 
 /// Registers a PETSc log event (shown by -log_view) under a class of that name; call once per event, e.g. to
 /// initialise a function-local static.

@@ -494,6 +494,32 @@ TEST_F(CellfsiApp, StepCountsThatDoNotFitAndMissingValuesAreRejected) {
   }
 }
 
+TEST_F(CellfsiApp, MisspeltPetscTypesAreRejectedByName) {
+  // Issue 10: a misspelt type gave a 40-line PETSc traceback and exit 2 (59 for a PC type).
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {with({scene("shear.yaml")}, with(kTiny, {"-fluid_ksp_type", "gmress"})),
+       "option -fluid_ksp_type = gmress is invalid: Unable to find requested KSP type gmress"},
+      {with(kDefaultCapsule, {"-coupling_solver", "fluid", "-fluid_sub_pc_type", "ilux"}),
+       "option -fluid_sub_pc_type = ilux is invalid: Unable to find requested PC type ilux"},
+  };
+  for (const auto& [args, message] : cases) {
+    expect_one_clear_error(cellfsi(args));
+    EXPECT_NE(last_output_.find(message), std::string::npos) << last_output_;
+    EXPECT_TRUE(nothing_written());
+  }
+}
+
+TEST_F(CellfsiApp, MeshTooLargeForTheMachineIsRejectedWithAnEstimate) {
+  // It allocated for minutes; now it stops at once with what the mesh would need.
+  // 1e5 x 1e5 cubic: 3.5e4 GB for the Jacobian alone, more than any one machine has.
+  expect_one_clear_error(cellfsi(with({scene("shear.yaml")}, {"-fluid_elements", "100000,100000"}), 20));
+  EXPECT_NE(last_output_.find("option -fluid_elements = 100000,100000 is invalid; valid: fewer elements: a run "
+                              "needs at least 1.06e+05 GB"),
+            std::string::npos)
+      << last_output_;
+  EXPECT_TRUE(nothing_written());
+}
+
 TEST_F(CellfsiApp, SceneFileAfterOptionsOrTwiceIsRejected) {
   // Issue 10: a scene file after options ran the default scene instead; a second one was ignored.
   for (const auto& args :
@@ -1175,6 +1201,45 @@ TEST_F(CellfsiApp, MpmdBadInputStopsBothSidesWithOneMessage) {
   EXPECT_FALSE(r.timed_out) << r.output;
   EXPECT_NE(r.exit_code, 0) << r.output;
   EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
+TEST_F(CellfsiApp, MpmdSidesWithDifferentBodyOptionsAreRefused) {
+  // Issue 10: the solid side builds the bodies from its own options; a modulus given to one side only, or an
+  // option misspelt on the solid side only, used to run to completion with results unlike options.yaml.
+  const std::vector<std::string> args = with({scene("capsule_shear.yaml")}, kCapsule);
+  for (const std::vector<std::string>& solid_only :
+       {std::vector<std::string>{"-solid_membrane_shear_modulus", "100"},
+        std::vector<std::string>{"-solid_membrane_shear_modulos", "100"}}) {
+    std::vector<std::string> mpmd = {MPIEXEC_EXECUTABLE, "--oversubscribe", "-np", "1", CELLFSI_FLUID_EXE};
+    mpmd.insert(mpmd.end(), args.begin(), args.end());
+    mpmd.insert(mpmd.end(), {"-output_dir", out_.string(), ":", "-np", "1", CELLFSI_SOLID_EXE});
+    mpmd.insert(mpmd.end(), args.begin(), args.end());
+    mpmd.insert(mpmd.end(), solid_only.begin(), solid_only.end());
+    const RunResult r = run_process(mpmd, 60);
+    EXPECT_FALSE(r.timed_out) << r.output;
+    EXPECT_NE(r.exit_code, 0) << r.output;
+    EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
+    EXPECT_NE(r.output.find("different options for the bodies (fluid side -> solid side: " +
+                            solid_only[0].substr(1)),
+              std::string::npos)
+        << r.output;
+    EXPECT_TRUE(nothing_written());
+  }
+}
+
+TEST_F(CellfsiApp, SolidRanksGivenToTheSolidExecutableStopsBothSides) {
+  // It hung: the solid executable stopped before the job was split, the fluid one waited for it.
+  const std::vector<std::string> args = with({scene("capsule_shear.yaml")}, kCapsule);
+  std::vector<std::string> mpmd = {MPIEXEC_EXECUTABLE, "--oversubscribe", "-np", "1", CELLFSI_FLUID_EXE};
+  mpmd.insert(mpmd.end(), args.begin(), args.end());
+  mpmd.insert(mpmd.end(), {"-output_dir", out_.string(), ":", "-np", "1", CELLFSI_SOLID_EXE});
+  mpmd.insert(mpmd.end(), args.begin(), args.end());
+  mpmd.insert(mpmd.end(), {"-solid_ranks", "1"});
+  const RunResult r = run_process(mpmd, 60);
+  EXPECT_FALSE(r.timed_out) << r.output;
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_EQ(count(r.output, "cellfsi: error: option -solid_ranks is for cellfsi"), 1u) << r.output;
   EXPECT_TRUE(nothing_written());
 }
 
