@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "fluid/petsc_error.hpp"
+#include "common/petsc_error.hpp"
 #include "geometry/builders.hpp"
 #include "geometry/measures.hpp"
 #include "geometry/patch_vtk.hpp"

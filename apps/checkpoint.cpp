@@ -10,7 +10,7 @@
 #include <stdexcept>
 
 #include "apps/run_output.hpp"
-#include "fluid/petsc_error.hpp"
+#include "common/petsc_error.hpp"
 
 namespace cellfsi::app {
 

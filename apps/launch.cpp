@@ -19,25 +19,27 @@
 #include "apps/run_output.hpp"
 #include "apps/scene.hpp"
 #include "apps/scene_file.hpp"
+#include "common/petsc_error.hpp"
 #include "coupling/remote_solid.hpp"
 #include "fluid/fluid_output.hpp"
-#include "fluid/petsc_error.hpp"
 #include "solid/solid_output.hpp"
 
 namespace cellfsi::app {
 
 namespace {
 
-/// The scene run by `cellfsi` with no scene file: the capsule in shear (scenes/capsule_shear.yaml) at the
-/// coarsest mesh whose theta is within 1 deg of the converged value (docs/validation.md, "The default
-/// scene"): 160 x 80 cubic, dt 2e-3 (theta does not change with dt below it), to t = 0.25 s, where theta has
-/// been steady for 0.15 s. Options given on the command line still win.
-const char* const kDefaultScene = CELLFSI_SCENES_DIR "/capsule_shear.yaml";
-// clang-format off
-const std::vector<std::string> kDefaultOverrides{
-    "-scene", "capsule_shear_quick", "-fluid_elements", "160,80", "-solid_membrane_elements", "1,0",
-    "-dt", "2e-3", "-final_time", "0.25", "-output_every", "25"};
-// clang-format on
+/// The scene run by `cellfsi` with no scene file (scenes/capsule_shear_quick.yaml: the capsule in shear at
+/// the coarsest mesh whose theta is within 1 deg of the converged value), found next to the executable: in
+/// <prefix>/share/cellfsi/scenes of an installation, in <build>/share/cellfsi/scenes of a build (CMake copies
+/// the scenes there). Empty if it is not there.
+std::string default_scene_path() {
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (ec) return {};
+  const std::filesystem::path p =
+      exe.parent_path().parent_path() / "share" / "cellfsi" / "scenes" / "capsule_shear_quick.yaml";
+  return std::filesystem::is_regular_file(p, ec) ? p.string() : std::string();
+}
 
 /// Mailbox per rank for shared-memory exchange [bytes] (payloads above it go as messages).
 constexpr std::size_t kMailboxBytes = 8u << 20;
@@ -512,7 +514,7 @@ int launch(int argc, char** argv, Role role) {
   // -solid_ranks B (launch option, command line only) splits the job.
   std::vector<std::string> args(argv, argv + argc);
   g_command_line = args;
-  std::string scene_name = "capsule_shear_quick", scene_file;
+  std::string scene_name = "capsule_shear_quick", scene_file;  // the default scene's name
   int solid_ranks = 0;
   bool bad_launch = false;
   std::string launch_error;
@@ -551,11 +553,16 @@ int launch(int argc, char** argv, Role role) {
     args[1] = "-options_file_yaml";
     args.insert(args.begin() + 2, scene_file);
   } else {
-    // No scene: the default scene, its overrides before the user's options.
-    scene_file = kDefaultScene;
-    std::vector<std::string> pre{"-options_file_yaml", scene_file};
-    pre.insert(pre.end(), kDefaultOverrides.begin(), kDefaultOverrides.end());
-    args.insert(args.begin() + 1, pre.begin(), pre.end());
+    // No scene: the default scene.
+    scene_file = default_scene_path();
+    if (scene_file.empty()) {
+      bad_launch = true;
+      launch_error =
+          "no scene file given, and the default scene (share/cellfsi/scenes/capsule_shear_quick.yaml next to "
+          "the executable's folder) is not there; give one: " +
+          args[0] + " SCENE.yaml [options]";
+    }
+    args.insert(args.begin() + 1, {"-options_file_yaml", scene_file});
   }
 
   MPI_Init(&argc, &argv);

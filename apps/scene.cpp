@@ -12,7 +12,7 @@
 
 #include "coupling/placement.hpp"
 #include "fluid/fluid_output.hpp"
-#include "fluid/petsc_error.hpp"
+#include "common/petsc_error.hpp"
 
 namespace cellfsi::app {
 

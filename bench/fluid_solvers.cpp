@@ -29,7 +29,7 @@
 #include <vector>
 
 #include "fluid/fluid_solver.hpp"
-#include "fluid/petsc_error.hpp"
+#include "common/petsc_error.hpp"
 #include "geometry/builders.hpp"
 
 using namespace cellfsi;

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "fluid/petsc_error.hpp"
+#include "common/petsc_error.hpp"
 
 namespace cellfsi::coupling {
 

@@ -4,9 +4,9 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "common/petsc_error.hpp"
 #include "coupling/band_region.hpp"
 #include "coupling/interface_marking.hpp"
-#include "fluid/petsc_error.hpp"
 
 namespace cellfsi::coupling {
 
@@ -374,7 +374,8 @@ CouplerStats FsiCoupler::step() {
     bool done = st.fluid_residual <= opt_.tolerance * fluid_peak || st.fluid_residual <= opt_.fluid_atol;
     for (size_t b = 0; b < bodies_.size(); ++b) {
       solid_peak[b] = std::max(solid_peak[b], st.solid_residual[b]);
-      done = done && (st.solid_residual[b] <= opt_.tolerance * solid_peak[b] || solid_peak[b] == 0.0);
+      done = done && (st.solid_residual[b] <= opt_.tolerance * solid_peak[b] ||
+                      st.solid_residual[b] <= opt_.solid_atol);
     }
     if (done && it > 0) {
       st.converged = true;

@@ -44,6 +44,9 @@ struct CouplerOptions {
   Marking marking = Marking::central;  // which functions get s_I (coupling/interface_marking.hpp)
   double tolerance = 1e-4;             // drop of every residual's L2 norm (paper: four orders of magnitude)
   double fluid_atol = 1e-16;           // or an absolute fluid residual below this
+  // or an absolute kinematic residual below this [cm/s]: round-off (a body whose predictor matches the flow,
+  // e.g. a tracer, has a residual of 1e-17 that cannot drop by the tolerance; converged cells have 1e-7)
+  double solid_atol = 1e-14;
   int max_iterations = 30;
   int preconditioner_lag = 10;  // linear solves between rebuilds of the preconditioner (1: every iteration)
   bool monitor = false;         // print every iteration's residual norms (rank 0)

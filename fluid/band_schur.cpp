@@ -10,7 +10,7 @@
 #include <cstring>
 #include <stdexcept>
 
-#include "fluid/petsc_error.hpp"
+#include "common/petsc_error.hpp"
 
 namespace cellfsi::fluid {
 

@@ -11,7 +11,7 @@
 #include <vtkStructuredGrid.h>
 #include <vtkXMLStructuredGridWriter.h>
 
-#include "fluid/petsc_error.hpp"
+#include "common/petsc_error.hpp"
 #include "geometry/quadrature.hpp"
 
 namespace cellfsi::fluid {

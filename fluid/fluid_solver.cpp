@@ -5,7 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "fluid/petsc_error.hpp"
+#include "common/petsc_error.hpp"
 #include "geometry/quadrature.hpp"
 
 namespace cellfsi::fluid {

@@ -5,7 +5,7 @@
 #include <random>
 
 #include "fluid/band_schur.hpp"
-#include "fluid/petsc_error.hpp"
+#include "common/petsc_error.hpp"
 
 using cellfsi::fluid::BandSchurSolver;
 

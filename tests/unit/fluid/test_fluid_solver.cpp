@@ -7,7 +7,7 @@
 #include <numbers>
 
 #include "fluid/fluid_solver.hpp"
-#include "fluid/petsc_error.hpp"
+#include "common/petsc_error.hpp"
 #include "geometry/builders.hpp"
 #include "geometry/quadrature.hpp"
 
