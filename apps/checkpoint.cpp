@@ -115,6 +115,7 @@ void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c
     js["body_names"] = c.body_names;
     js["bodies"] = c.bodies;
     js["trackers"] = c.trackers;
+    js["scene_metrics"] = c.scene_metrics;
     js["fluid_series"] = series_json(c.fluid_series);
     js["solid_series"] = series_json(c.solid_series);
     js["solid_writes"] = c.solid_writes;
@@ -152,6 +153,7 @@ Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, Vec U, Vec Udo
     c.body_names = js.at("body_names").get<std::vector<std::string>>();
     c.bodies = js.at("bodies").get<std::vector<std::vector<double>>>();
     c.trackers = js.at("trackers").get<std::vector<std::vector<double>>>();
+    c.scene_metrics = js.at("scene_metrics").get<std::vector<double>>();
     c.fluid_series = series_from(js.at("fluid_series"));
     c.solid_series = series_from(js.at("solid_series"));
     c.solid_writes = js.at("solid_writes").get<int>();

@@ -296,6 +296,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
         throw std::invalid_argument(msg);
       }
       scene.restore(U, Udot, resume.step, resume.bodies, resume.trackers);
+      scene.restore_metric_state(resume.scene_metrics);
     } catch (...) {
       VecDestroy(&U);
       VecDestroy(&Udot);
@@ -360,6 +361,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     for (const solid::SolidSolver* b : scene.bodies()) c.body_names.push_back(b->name());
     c.bodies = scene.body_states();
     c.trackers = scene.tracker_states();
+    c.scene_metrics = scene.metric_state();
     if (series) c.fluid_series = series->entries();
     if (solid_series) c.solid_series = solid_series->entries(), c.solid_writes = solid_series->count();
     write_checkpoint(PETSC_COMM_WORLD, settings.output_dir, c, scene.fluid().solution(),
@@ -460,6 +462,15 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     csv << sec.points[i][0] << "," << sec.points[i][1] << "," << sec.points[i][2] << "," << sec.velocity[i][0]
         << "," << sec.velocity[i][1] << "," << sec.velocity[i][2] << "\n";
   if (rank == 0) write_atomically(settings.output_dir + "/profile.csv", csv.str());
+  // Channel flows: the same profile averaged over the metrics' window.
+  if (const fluid::SectionData mean = scene.mean_profile(); !mean.points.empty() && rank == 0) {
+    std::ostringstream m;
+    m << std::setprecision(12) << "x,y,z,vx,vy,vz\n";
+    for (size_t i = 0; i < mean.points.size(); ++i)
+      m << mean.points[i][0] << "," << mean.points[i][1] << "," << mean.points[i][2] << ","
+        << mean.velocity[i][0] << "," << mean.velocity[i][1] << "," << mean.velocity[i][2] << "\n";
+    write_atomically(settings.output_dir + "/profile_mean.csv", m.str());
+  }
   CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
                             "cellfsi: completed %d steps in %.2f s; summary in %s/summary.json\n", n_steps,
                             out.elapsed(), settings.output_dir.c_str()));

@@ -154,6 +154,7 @@ RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& s
     std::error_code ec;
     std::filesystem::remove(dir_ + "/summary.json", ec);
     std::filesystem::remove(dir_ + "/profile.csv", ec);
+    std::filesystem::remove(dir_ + "/profile_mean.csv", ec);
     std::ifstream in(dir_ + "/metrics.csv");
     std::string line, kept;
     if (std::getline(in, line)) {
@@ -178,7 +179,7 @@ RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& s
       const bool series = (name.rfind("fluid_", 0) == 0 || name.rfind("solid_", 0) == 0) &&
                           entry.path().extension() == ".vts";
       if (name == "summary.json" || name == "fluid.pvd" || name == "solid.pvd" || name == "profile.csv" ||
-          series)
+          name == "profile_mean.csv" || series)
         std::filesystem::remove(entry.path());
     }
     write_atomically(dir_ + "/options.yaml", effective_options_yaml());

@@ -7,12 +7,14 @@
 #include <fstream>
 #include <iomanip>
 #include <numbers>
+#include <random>
 #include <sstream>
 #include <stdexcept>
 
+#include "common/petsc_error.hpp"
 #include "coupling/placement.hpp"
 #include "fluid/fluid_output.hpp"
-#include "common/petsc_error.hpp"
+#include "geometry/measures.hpp"
 
 namespace cellfsi::app {
 
@@ -273,6 +275,10 @@ void read_bodies(SceneSettings& s) {
     PetscReal axis[4] = {0, 0, 1, 0};
     PetscInt n_axis = 4;
     PetscBool axis_set = PETSC_FALSE;
+    PetscInt count = 1, seed = 1;
+    PetscReal spread = 0;
+    const char* arrangements[] = {"even", "staggered", "random", "Arrangement", "", nullptr};
+    PetscEnum arrangement = static_cast<PetscEnum>(0);
     std::string o = "-" + pre;
     call_reporting_input_errors(
         [&]() -> PetscErrorCode {
@@ -304,6 +310,18 @@ void read_bodies(SceneSettings& s) {
           PetscCall(PetscOptionsInt("-degree", "Lagrangian degree, 2..4", nullptr, degree, &degree, nullptr));
           PetscCall(PetscOptionsReal("-shear_modulus", "G [dyn/cm^2]", nullptr, G, &G, nullptr));
           PetscCall(PetscOptionsReal("-density", "rho_2 [g/cm^3]", nullptr, rho, &rho, nullptr));
+          PetscCall(PetscOptionsInt("-count",
+                                    "Copies of the body (NAME_1 ... NAME_N) spread evenly along x, the "
+                                    "periodic flow direction; -center gives the row's y (and z)",
+                                    nullptr, count, &count, nullptr));
+          PetscCall(PetscOptionsEnum("-arrangement",
+                                     "Copies across the flow: even (all at the row), staggered (+-spread "
+                                     "alternately), random (uniform in +-spread, -seed)",
+                                     nullptr, arrangements, arrangement, &arrangement, nullptr));
+          PetscCall(PetscOptionsReal("-spread", "Offset across the flow of staggered or random copies [cm]",
+                                     nullptr, spread, &spread, nullptr));
+          PetscCall(
+              PetscOptionsInt("-seed", "Seed of the random arrangement", nullptr, seed, &seed, nullptr));
           PetscOptionsEnd();
           PetscFunctionReturn(0);
         },
@@ -316,7 +334,10 @@ void read_bodies(SceneSettings& s) {
          {o + "elements", 'I'},
          {o + "degree", 'i'},
          {o + "shear_modulus", 'r'},
-         {o + "density", 'r'}});
+         {o + "density", 'r'},
+         {o + "count", 'i'},
+         {o + "spread", 'r'},
+         {o + "seed", 'i'}});
     b.shape = shape;
     const bool is2d = b.shape == "hollow_ellipse" || b.shape == "ellipse" || b.shape == "rbc";
     const bool is3d = b.shape == "hollow_ellipsoid" || b.shape == "ellipsoid";
@@ -371,7 +392,38 @@ void read_bodies(SceneSettings& s) {
     if (!(rho > 0)) bad(pre + "density", str(rho), "> 0 [g/cm^3]");
     b.shear_modulus = G;
     b.density = rho;
-    s.bodies.push_back(b);
+    if (count < 1 || count > 64) bad(pre + "count", std::to_string(count), "1 ... 64");
+    if (!(spread >= 0) || !std::isfinite(spread)) bad(pre + "spread", str(spread), ">= 0 [cm]");
+    if (count == 1) {
+      s.bodies.push_back(b);
+      continue;
+    }
+    // Copies: x evenly over the periodic flow direction, y (and z) from the row's centre and the arrangement.
+    if (!s.periodic[0]) bad(pre + "count", std::to_string(count), "1 unless the domain is periodic in x");
+    if (s.bodies.size() + static_cast<std::size_t>(count) > 64)
+      bad(pre + "count", std::to_string(count), "at most 64 bodies in all");
+    Vec3 row = b.center;
+    for (int d = 0; d < 3; ++d)
+      if (!std::isfinite(row[d])) row[d] = d < D ? s.origin[d] + 0.5 * s.size[d] : 0.0;
+    std::mt19937 rng(static_cast<unsigned>(seed));
+    std::uniform_real_distribution<double> uni(-1.0, 1.0);
+    for (int i = 0; i < count; ++i) {
+      BodySettings c = b;
+      c.name = name + "_" + std::to_string(i + 1);
+      for (const BodySettings& other : s.bodies)
+        if (other.name == c.name) bad("solid_bodies", c.name, "distinct names (a copy of " + name + ")");
+      c.center = row;
+      c.center[0] = s.origin[0] + (i + 0.5) * s.size[0] / count;
+      int across = 1;  // across the flow: the wall direction (the last non-periodic one), else y
+      for (int d = D - 1; d >= 1; --d)
+        if (!s.periodic[d]) {
+          across = d;
+          break;
+        }
+      if (arrangement == 1) c.center[across] += (i % 2 == 0 ? spread : -spread);
+      if (arrangement == 2) c.center[across] += spread * uni(rng);
+      s.bodies.push_back(c);
+    }
   }
 }
 
@@ -671,6 +723,101 @@ void Scene::attach_bodies(std::vector<solid::SolidSolver*> bodies) {
     trackers_.emplace_back(b->reference_patch(), b->is_membrane(), plane);
     trackers_.back().record(fluid_->time(), b->current_patch());
   }
+  suspension_on_ =
+      s_.flow == "poiseuille" && s_.domain == "rectangle" && s_.dim == 2 && wall_dir_ == 1 &&
+      std::any_of(bodies_.begin(), bodies_.end(), [](const auto* b) { return b->is_membrane(); });
+  if (suspension_on_) record_suspension();
+}
+
+void Scene::record_suspension() {
+  solid::SuspensionRecord r;
+  r.time = fluid_->time();
+  const fluid::SectionData sec = fluid::section(*fluid_, 0.5, 65);
+  r.mean_velocity = sec.flow_rate / sec.area;
+  const double y0 = s_.origin[1], y1 = s_.origin[1] + s_.size[1];
+  r.gap_low = r.gap_high = s_.size[1];
+  for (const solid::SolidSolver* b : bodies_) {
+    if (!b->is_membrane()) continue;
+    const geometry::Patch p = b->current_patch();
+    const geometry::MembraneShape m = geometry::membrane_shape(p, 0);
+    r.cell_area += m.enclosed;
+    r.cell_x.push_back(m.moments.centroid[0]);
+    // The membrane's extent across the channel: both faces sampled around.
+    const geometry::KnotVector &k0 = p.knots(0), &k1 = p.knots(1);
+    for (double xi0 : {k0.a(), k0.b()})
+      for (int i = 0; i < 256; ++i) {
+        const double y = p.point({xi0, k1.a() + (k1.b() - k1.a()) * i / 256, 0})[1];
+        r.gap_low = std::min(r.gap_low, y - y0);
+        r.gap_high = std::min(r.gap_high, y1 - y);
+      }
+  }
+  suspension_.push_back(std::move(r));
+}
+
+void Scene::accumulate_profile() {
+  if (s_.flow == "shear" || fluid_->time() < average_from()) return;
+  const fluid::SectionData sec = fluid::section(*fluid_, 0.5, 65);
+  if (profile_count_ == 0) {
+    profile_sum_ = sec;
+  } else {
+    for (std::size_t i = 0; i < sec.velocity.size(); ++i) profile_sum_.velocity[i] += sec.velocity[i];
+    profile_sum_.flow_rate += sec.flow_rate;
+  }
+  ++profile_count_;
+}
+
+fluid::SectionData Scene::mean_profile() const {
+  fluid::SectionData m = profile_sum_;
+  if (profile_count_ == 0) return {};
+  for (auto& v : m.velocity) v /= profile_count_;
+  m.flow_rate /= profile_count_;
+  return m;
+}
+
+std::vector<double> Scene::metric_state() const {
+  // [profile_count, n_points, (x y z vx vy vz) per point, flow_rate, area,
+  //  n_records, per record: time mean_velocity cell_area gap_low gap_high n_cells cell_x...]
+  std::vector<double> out{static_cast<double>(profile_count_),
+                          static_cast<double>(profile_sum_.points.size())};
+  for (std::size_t i = 0; i < profile_sum_.points.size(); ++i)
+    for (const geometry::Vec3* v : {&profile_sum_.points[i], &profile_sum_.velocity[i]})
+      out.insert(out.end(), v->data(), v->data() + 3);
+  out.insert(out.end(), {profile_sum_.flow_rate, profile_sum_.area, static_cast<double>(suspension_.size())});
+  for (const solid::SuspensionRecord& r : suspension_) {
+    out.insert(out.end(), {r.time, r.mean_velocity, r.cell_area, r.gap_low, r.gap_high,
+                           static_cast<double>(r.cell_x.size())});
+    out.insert(out.end(), r.cell_x.begin(), r.cell_x.end());
+  }
+  return out;
+}
+
+void Scene::restore_metric_state(const std::vector<double>& state) {
+  std::size_t k = 0;
+  auto next = [&]() {
+    if (k >= state.size())
+      throw std::invalid_argument("option -restart: the checkpoint's scene records are damaged");
+    return state[k++];
+  };
+  profile_count_ = static_cast<int>(next());
+  fluid::SectionData p;
+  const auto n = static_cast<std::size_t>(next());
+  for (std::size_t i = 0; i < n; ++i) {
+    geometry::Vec3 x, v;
+    for (int c = 0; c < 3; ++c) x[c] = next();
+    for (int c = 0; c < 3; ++c) v[c] = next();
+    p.points.push_back(x);
+    p.velocity.push_back(v);
+  }
+  p.flow_rate = next();
+  p.area = next();
+  profile_sum_ = std::move(p);
+  std::vector<solid::SuspensionRecord> recs(static_cast<std::size_t>(next()));
+  for (solid::SuspensionRecord& r : recs) {
+    r.time = next(), r.mean_velocity = next(), r.cell_area = next(), r.gap_low = next(), r.gap_high = next();
+    r.cell_x.resize(static_cast<std::size_t>(next()));
+    for (double& x : r.cell_x) x = next();
+  }
+  suspension_ = std::move(recs);
 }
 
 std::vector<std::vector<double>> Scene::body_states() const {
@@ -705,15 +852,19 @@ SceneStep Scene::step() {
     const fluid::StepStats st = fluid_->step();
     r.iterations = st.newton_iterations, r.linear_iterations = st.linear_iterations;
     r.converged = st.converged, r.reason = st.reason;
+    if (r.converged) accumulate_profile();
     return r;
   }
   const coupling::CouplerStats st = coupler_->step();
   r.iterations = st.iterations, r.linear_iterations = st.linear_iterations;
   r.factorizations = st.factorizations;
   r.converged = st.converged, r.reason = st.reason;
-  if (st.converged)
+  if (st.converged) {
     for (size_t b = 0; b < bodies_.size(); ++b)
       trackers_[b].record(fluid_->time(), bodies_[b]->current_patch());
+    if (suspension_on_) record_suspension();
+    accumulate_profile();
+  }
   return r;
 }
 
@@ -725,6 +876,23 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     if (!body) m.push_back(kv);
   }
   const double from = average_from();
+  if (suspension_on_) {
+    // The suspension's rheology over the window (paper Sec. 4.3).
+    const fluid::FluidOptions& fo = fluid_->options();
+    const double H = s_.size[1], plasma_mean = fo.body_force[0] * H * H / (12 * fo.viscosity);
+    const solid::SuspensionRheology r =
+        solid::suspension_rheology(suspension_, s_.size[0] * s_.size[1], plasma_mean, from);
+    if (r.records >= 2) {
+      m.emplace_back("H_t", r.tube_hematocrit);
+      m.emplace_back("H_d", r.discharge_hematocrit);
+      m.emplace_back("zeta", r.fahraeus);
+      m.emplace_back("eta", r.relative_viscosity);
+      m.emplace_back("h_cf", r.cell_free_layer);
+      m.emplace_back("v_cells", r.cell_velocity);
+      m.emplace_back("v_mean", r.mean_velocity);
+    }
+    m.emplace_back("rheology_records", r.records);
+  }
   // The paper's dimensionless numbers (Sec. 3.1-3.2) from the scene: the shear rate of a shear flow, the
   // half-width across the walls.
   solid::FlowScales flow;
@@ -735,6 +903,15 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
   for (size_t b = 0; b < bodies_.size(); ++b) {
     const std::string& name = bodies_[b]->name();
     for (const auto& [k, v] : trackers_[b].summary(from)) m.emplace_back(name + "_" + k, v);
+    if (s_.flow == "poiseuille" && wall_dir_ >= 0) {
+      // Lateral migration across the channel (paper Sec. 4.2): offsets from the centre line, and when the
+      // offset first fell to a tenth of its start.
+      const solid::Migration mg = solid::lateral_migration(trackers_[b].centroid_track(), wall_dir_,
+                                                           s_.origin[wall_dir_] + 0.5 * s_.size[wall_dir_]);
+      m.emplace_back(name + "_lateral_offset_start", mg.offset_start);
+      m.emplace_back(name + "_lateral_offset_final", mg.offset_final);
+      m.emplace_back(name + "_time_to_centreline", mg.time_to_centreline);
+    }
     const geometry::Patch reference = bodies_[b]->reference_patch();
     const BodySettings& bs = body_settings(name);
     for (const auto& [k, v] : solid::dimensionless_numbers(reference, bodies_[b]->is_membrane(), bs.thickness,
@@ -799,12 +976,22 @@ std::vector<std::pair<std::string, double>> Scene::flow_metrics() {
     if (s_.domain == "rectangle" && s_.flow == "poiseuille" && wall_dir_ == 1) {
       // Plane Poiseuille: u_max = f H^2 / (8 mu), mean f H^2 / (12 mu) (f a force per volume).
       const double H = s_.size[1], f = fo.body_force[0];
-      const double exact = f * H * H / (8 * fo.viscosity);
-      m.emplace_back("max_velocity_exact", exact);
-      m.emplace_back("max_velocity_rel_error", std::abs(umax - exact) / std::abs(exact));
-      m.emplace_back(
-          "mean_velocity_rel_error",
-          std::abs(sec.flow_rate / sec.area - f * H * H / (12 * fo.viscosity)) / std::abs(2 * exact / 3));
+      const double exact = f * H * H / (8 * fo.viscosity), plasma_mean = f * H * H / (12 * fo.viscosity);
+      if (bodies_.empty()) {
+        m.emplace_back("max_velocity_exact", exact);
+        m.emplace_back("max_velocity_rel_error", std::abs(umax - exact) / std::abs(exact));
+        m.emplace_back("mean_velocity_rel_error",
+                       std::abs(sec.flow_rate / sec.area - plasma_mean) / std::abs(2 * exact / 3));
+      } else {
+        // With cells the difference from the plasma flow is their effect, not an error: v_m / v_P = 1 / eta.
+        m.emplace_back("plasma_mean_velocity", plasma_mean);
+        m.emplace_back("mean_velocity_ratio", sec.flow_rate / sec.area / plasma_mean);
+      }
+      if (suspension_on_ && !suspension_.empty()) {
+        const solid::SuspensionRecord& r = suspension_.back();
+        m.emplace_back("tube_hematocrit", r.cell_area / (s_.size[0] * s_.size[1]));
+        m.emplace_back("cell_free_layer", 0.5 * (r.gap_low + r.gap_high));
+      }
     }
   } else {
     // Shear: the velocity against the linear profile at points across the gap, relative to the wall speed.

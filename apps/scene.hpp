@@ -11,10 +11,12 @@
 #include <vector>
 
 #include "coupling/fsi_coupler.hpp"
+#include "fluid/fluid_output.hpp"
 #include "fluid/fluid_solver.hpp"
 #include "geometry/builders.hpp"
 #include "solid/body_metrics.hpp"
 #include "solid/nurbs_solid.hpp"
+#include "solid/suspension_metrics.hpp"
 
 namespace cellfsi::app {
 
@@ -105,6 +107,13 @@ class Scene {
   /// A restart (after attach_bodies): the fluid state after `steps` steps, the bodies' states and records.
   void restore(Vec U, Vec Udot, int steps, const std::vector<std::vector<double>>& bodies,
                const std::vector<std::vector<double>>& trackers);
+  /// The scene's own records (suspension rheology, the time-averaged profile) as plain numbers, for a
+  /// checkpoint, and their restoration.
+  std::vector<double> metric_state() const;
+  void restore_metric_state(const std::vector<double>& state);
+  /// The velocity across the channel at mid-length averaged over the metrics' window (channel flows; empty
+  /// before the window or for shear): points and mean velocity.
+  fluid::SectionData mean_profile() const;
   /// The flow without cells where it is known (shear: gammadot (y - H/2) along x), else empty.
   const std::function<geometry::Vec3(const geometry::Vec3&)>& undisturbed_velocity() const {
     return undisturbed_;
@@ -120,6 +129,11 @@ class Scene {
 
  private:
   std::vector<std::pair<std::string, double>> flow_metrics();
+  /// A suspension record of the current state (channel flow with membranes; see
+  /// solid/suspension_metrics.hpp).
+  void record_suspension();
+  /// Adds the current mid-length profile to the window's average (channel flows).
+  void accumulate_profile();
   double average_from() const;  // start of the metrics' averaging window [s]
   const BodySettings& body_settings(const std::string& name) const;
   SceneSettings s_;
@@ -131,6 +145,10 @@ class Scene {
   std::vector<solid::BodyTracker> trackers_;
   std::vector<std::pair<std::string, double>> last_;
   std::function<geometry::Vec3(const geometry::Vec3&)> undisturbed_;
+  bool suspension_on_ = false;  // a plane channel (Poiseuille, 2D) with membranes: rheology recorded
+  std::vector<solid::SuspensionRecord> suspension_;
+  fluid::SectionData profile_sum_;  // velocity summed over the window's steps (points: the last section's)
+  int profile_count_ = 0;
 };
 
 }  // namespace cellfsi::app

@@ -62,6 +62,27 @@ BodyTracker::BodyTracker(const Patch& reference, bool membrane, int plane_dir, i
   }
 }
 
+std::vector<std::pair<double, Vec3>> BodyTracker::centroid_track() const {
+  std::vector<std::pair<double, Vec3>> out;
+  for (const Sample& s : history_) out.emplace_back(s.time, s.centroid);
+  return out;
+}
+
+Migration lateral_migration(const std::vector<std::pair<double, Vec3>>& track, int dir, double mid,
+                            double fraction) {
+  Migration m;
+  if (track.empty()) return m;
+  m.offset_start = track.front().second[dir] - mid;
+  m.offset_final = track.back().second[dir] - mid;
+  m.time_to_centreline = std::numeric_limits<double>::quiet_NaN();
+  for (const auto& [t, c] : track)
+    if (std::abs(c[dir] - mid) <= fraction * std::abs(m.offset_start)) {
+      m.time_to_centreline = t - track.front().first;
+      break;
+    }
+  return m;
+}
+
 std::vector<double> BodyTracker::state() const {
   // [n_angles, angles..., n_records, per record: time r_a r_p axis anisotropy material cx cy cz]
   std::vector<double> out{static_cast<double>(last_angles_.size())};

@@ -54,6 +54,8 @@ class BodyTracker {
   /// records.
   std::string regime(double average_from) const;
 
+  /// The centroid at every record: (time, centroid).
+  std::vector<std::pair<double, geometry::Vec3>> centroid_track() const;
   /// The records and the unwrapping state as plain numbers (for a checkpoint), and their restoration into a
   /// tracker built for the same body (throws std::invalid_argument if they do not fit).
   std::vector<double> state() const;
@@ -95,6 +97,15 @@ class BodyTracker {
 ///   swinging   -> the axis oscillates by at least `swing_deg` (half peak-to-peak) while the material turns;
 ///   tank-treading -> otherwise: the axis stays (oscillating by less), the material turns.
 /// `axis` and `material` are unwrapped angles [rad] at the window's records (at least two).
+/// Lateral migration across a channel (paper Sec. 4.2) from a centroid track: the offset from the centre line
+/// `mid` along direction `dir` at the first and last record, and the first time the offset fell below
+/// `fraction` of its initial magnitude (NaN if it never did; 0 for a body starting on the line).
+struct Migration {
+  double offset_start = 0, offset_final = 0, time_to_centreline = 0;
+};
+Migration lateral_migration(const std::vector<std::pair<double, geometry::Vec3>>& track, int dir, double mid,
+                            double fraction = 0.1);
+
 std::string motion_regime(bool round, bool membrane, const std::vector<double>& axis,
                           const std::vector<double>& material, double swing_deg = 2.0);
 

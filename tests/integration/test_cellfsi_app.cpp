@@ -513,9 +513,10 @@ TEST_F(CellfsiApp, MeshTooLargeForTheMachineIsRejectedWithAnEstimate) {
   // It allocated for minutes; now it stops at once with what the mesh would need.
   // 1e5 x 1e5 cubic: 3.5e4 GB for the Jacobian alone, more than any one machine has.
   expect_one_clear_error(cellfsi(with({scene("shear.yaml")}, {"-fluid_elements", "100000,100000"}), 20));
-  EXPECT_NE(last_output_.find("option -fluid_elements = 100000,100000 is invalid; valid: fewer elements: a run "
-                              "needs at least 1.06e+05 GB"),
-            std::string::npos)
+  EXPECT_NE(
+      last_output_.find("option -fluid_elements = 100000,100000 is invalid; valid: fewer elements: a run "
+                        "needs at least 1.06e+05 GB"),
+      std::string::npos)
       << last_output_;
   EXPECT_TRUE(nothing_written());
 }
@@ -1030,6 +1031,81 @@ TEST_F(CellfsiApp, SplitJobRestartsItsRemoteBodies) {
       << last_output_;
   EXPECT_EQ(csv_steps(out_ / "metrics.csv"), one_to(4));
   EXPECT_TRUE(rows_agree(metrics_only(straight), metrics_only(last_row(out_ / "metrics.csv")), 1e-6, 1e-2));
+}
+
+// Channel scenes (issue 12): RBC suspensions and their rheology, an off-centre capsule's migration.
+
+TEST_F(CellfsiApp, RbcChannelSceneGivesItsHematocritAndRheology) {
+  // Six RBCs placed by -solid_rbc_count (two steps at a tiny mesh): H_t is the paper's 0.2573 (six cells of
+  // the default RBC's area in the 0.003 x 0.001 channel); the window's zeta, eta, h_cf are in summary.json
+  // and the time-averaged profile in profile_mean.csv. With cells the plasma comparison is a ratio, not an
+  // error.
+  const RunResult r = cellfsi({scene("rbc_channel.yaml"), "-fluid_elements", "96,32", "-fluid_degree", "2",
+                               "-solid_rbc_elements", "1,0", "-final_time", "5e-4", "-output_every", "0"},
+                              120);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string js = summary();
+  EXPECT_NEAR(json_number(js, "H_t").value_or(0), 0.2573, 2e-4) << js;
+  for (const char* key : {"H_d", "zeta", "eta", "h_cf", "v_cells", "v_mean"})
+    EXPECT_TRUE(json_number(js, key).has_value()) << key << "\n" << js;
+  EXPECT_EQ(json_number(js, "rheology_records"), 2) << js;
+  for (int i = 1; i <= 6; ++i)
+    EXPECT_TRUE(json_number(js, "rbc_" + std::to_string(i) + "_r_A").has_value()) << i;
+  const Csv csv = read_csv(out_ / "metrics.csv");
+  EXPECT_GE(csv.column("tube_hematocrit"), 0);
+  EXPECT_GE(csv.column("mean_velocity_ratio"), 0);
+  EXPECT_LT(csv.column("mean_velocity_rel_error"), 0);
+  EXPECT_EQ(read_csv(out_ / "profile_mean.csv").rows.size(), 65u);
+}
+
+TEST_F(CellfsiApp, TwelveRbcsPlacedEvenlyOrStaggeredAreAcceptedAndOverlapsRefused) {
+  const std::vector<std::string> base = {scene("rbc_channel.yaml"),
+                                         "-fluid_elements",
+                                         "96,32",
+                                         "-fluid_degree",
+                                         "2",
+                                         "-solid_rbc_elements",
+                                         "1,0",
+                                         "-final_time",
+                                         "2.5e-4",
+                                         "-output_every",
+                                         "0",
+                                         "-solid_rbc_count",
+                                         "12"};
+  // metrics.csv after one step (2.5e-4 s at about 0.01 cm/s: the cells moved about 3e-6 cm).
+  auto value = [&](const std::string& key) {
+    for (const auto& [k, v] : last_row(out_ / "metrics.csv"))
+      if (k == key) return v;
+    return -1.0;
+  };
+  ASSERT_EQ(cellfsi(base, 120).exit_code, 0) << last_output_;
+  EXPECT_NEAR(value("rbc_12_centroid_x"), 0.003 * 23 / 24, 1e-5);
+  ASSERT_EQ(cellfsi(with(base, {"-solid_rbc_arrangement", "staggered", "-solid_rbc_spread", "5e-5"}), 120)
+                .exit_code,
+            0)
+      << last_output_;
+  EXPECT_NEAR(value("rbc_1_centroid_y"), 5e-4 + 5e-5, 1e-5);
+  EXPECT_NEAR(value("rbc_2_centroid_y"), 5e-4 - 5e-5, 1e-5);
+  // 24 cells lying along the flow (angle 0, 7.8e-4 cm long) cannot fit in 0.003 cm.
+  fs::remove_all(out_);
+  expect_one_clear_error(cellfsi(with(base, {"-solid_rbc_count", "24", "-solid_rbc_angle", "0"})));
+  EXPECT_NE(last_output_.find("overlap"), std::string::npos) << last_output_;
+  expect_one_clear_error(cellfsi(with(base, {"-domain_periodic", "0,0"})));
+  EXPECT_NE(last_output_.find("option -solid_rbc_count = 12 is invalid"), std::string::npos) << last_output_;
+}
+
+TEST_F(CellfsiApp, MigrationSceneReportsTheLateralOffset) {
+  const RunResult r =
+      cellfsi({scene("capsule_channel_migration.yaml"), "-fluid_elements", "64,32", "-fluid_degree", "2",
+               "-solid_membrane_elements", "1,0", "-final_time", "5e-4", "-output_every", "0"},
+              120);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string js = summary();
+  EXPECT_NEAR(json_number(js, "membrane_lateral_offset_start").value_or(0), 2e-4, 1e-8) << js;
+  EXPECT_TRUE(json_number(js, "membrane_lateral_offset_final").has_value()) << js;
+  EXPECT_TRUE(js.find("\"membrane_time_to_centreline\": null") != std::string::npos)
+      << "not there in 2 steps\n"
+      << js;
 }
 
 // Linear-solver options of a coupled run (issue 13): the fluid's KSP options do not apply to the band solver

@@ -208,3 +208,18 @@ TEST(DimensionlessNumbers, ThePapersCapsulesAndCompoundCapsule) {
   EXPECT_NEAR(m.at("Re"), 0.000322, 1e-6);
   EXPECT_NEAR(solid::filling_fraction(sphere, shell), 0.083, 5e-4);
 }
+
+TEST(LateralMigration, OffsetsAndTheTimeToTheCentreLine) {
+  // A centroid approaching y = 5e-4 as 2e-4 exp(-t / 0.1): a tenth of the offset at t = 0.1 ln 10.
+  std::vector<std::pair<double, cellfsi::geometry::Vec3>> track;
+  for (int k = 0; k <= 1000; ++k) {
+    const double t = 1e-3 * k;
+    track.emplace_back(t, cellfsi::geometry::Vec3(0.001 + 0.01 * t, 5e-4 + 2e-4 * std::exp(-t / 0.1), 0));
+  }
+  const solid::Migration m = solid::lateral_migration(track, 1, 5e-4);
+  EXPECT_NEAR(m.offset_start, 2e-4, 1e-18);
+  EXPECT_NEAR(m.offset_final, 2e-4 * std::exp(-10.0), 1e-18);
+  EXPECT_NEAR(m.time_to_centreline, 0.1 * std::log(10.0), 1e-3);  // the first record past it
+  track.resize(100);                                              // to t = 0.099: not there yet
+  EXPECT_TRUE(std::isnan(solid::lateral_migration(track, 1, 5e-4).time_to_centreline));
+}

@@ -1,0 +1,56 @@
+// Rheology of a suspension in a channel (solid/suspension_metrics.hpp) on prescribed records: a plug of cells
+// moving at a known speed gives the known zeta and H_d; the plasma flow gives eta = 1.
+#include <gtest/gtest.h>
+
+#include "solid/suspension_metrics.hpp"
+
+using cellfsi::solid::suspension_rheology;
+using cellfsi::solid::SuspensionRecord;
+
+namespace {
+
+// Three cells of area 1e-8 cm^2 each moving at speed u in a 0.003 x 0.001 channel whose mean velocity is vm;
+// the walls 2e-5 and 4e-5 cm from the nearest membrane points.
+std::vector<SuspensionRecord> plug(double u, double vm, int n, double dt) {
+  std::vector<SuspensionRecord> out;
+  for (int k = 0; k < n; ++k) {
+    SuspensionRecord r;
+    r.time = k * dt;
+    r.mean_velocity = vm;
+    r.cell_area = 3e-8;
+    r.cell_x = {0.0005 + u * r.time, 0.0015 + u * r.time, 0.0025 + u * r.time};
+    r.gap_low = 2e-5, r.gap_high = 4e-5;
+    out.push_back(r);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(SuspensionRheology, PlugOfCellsFasterThanTheMeanGivesTheFahraeusRatio) {
+  const double area = 0.003 * 0.001, vm = 0.01, u = 0.0125, vp = 0.0116;
+  const auto rec = plug(u, vm, 41, 0.01);
+  const auto r = suspension_rheology(rec, area, vp, 0.1);
+  EXPECT_EQ(r.records, 31);
+  EXPECT_NEAR(r.tube_hematocrit, 0.01, 1e-15);
+  EXPECT_NEAR(r.cell_velocity, u, 1e-15);
+  EXPECT_NEAR(r.mean_velocity, vm, 1e-15);
+  EXPECT_NEAR(r.fahraeus, vm / u, 1e-14);  // 0.8 < 1: cells faster than the blood
+  EXPECT_NEAR(r.discharge_hematocrit, 0.01 * u / vm, 1e-15);
+  EXPECT_NEAR(r.tube_hematocrit / r.discharge_hematocrit, r.fahraeus, 1e-14);  // zeta = H_t / H_d
+  EXPECT_NEAR(r.relative_viscosity, vp / vm, 1e-14);
+  EXPECT_NEAR(r.cell_free_layer, 3e-5, 1e-18);
+}
+
+TEST(SuspensionRheology, PlasmaFlowGivesUnitViscosityAndShortWindowsNothing) {
+  const double vp = 0.01157;
+  const auto r = suspension_rheology(plug(vp, vp, 5, 0.01), 3e-6, vp, 0.0);
+  EXPECT_DOUBLE_EQ(r.relative_viscosity, 1.0);
+  EXPECT_DOUBLE_EQ(r.fahraeus, 1.0);
+  EXPECT_EQ(suspension_rheology(plug(vp, vp, 5, 0.01), 3e-6, vp, 0.035).records, 1);
+  EXPECT_EQ(suspension_rheology(plug(vp, vp, 5, 0.01), 3e-6, vp, 0.035).fahraeus, 0.0);
+  EXPECT_THROW(suspension_rheology(plug(vp, vp, 5, 0.01), 0.0, vp, 0.0), std::invalid_argument);
+  auto bad = plug(vp, vp, 5, 0.01);
+  bad[3].cell_x.pop_back();
+  EXPECT_THROW(suspension_rheology(bad, 3e-6, vp, 0.0), std::invalid_argument);
+}
