@@ -349,6 +349,9 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
                     "cellfsi: note: the band solver needs one fluid rank and a BAIJ Jacobian; on %d "
                     "rank(s) the coupling loop uses -coupling_solver fluid\n",
                     size));
+  // A coupled run's iterations are the coupling loop's block iterations, not Newton iterations.
+  const std::string iterations_key = scene.coupler() ? "coupling_iterations" : "newton_iterations";
+  out.set_iteration_kind(scene.coupler() ? "coupling" : "newton");
   long newton = resume.newton, linear = resume.linear, factorizations = resume.factorizations;
   int done = resume.step;
   std::vector<std::pair<std::string, double>> last;
@@ -374,7 +377,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   const std::string iteration = bodies.empty() ? "Newton" : "the coupling iteration";
   {
     // metrics.csv's columns from the start: those of every step's row (the metrics' names at t = 0).
-    std::vector<std::string> columns{"step", "time", "newton_iterations", "linear_iterations"};
+    std::vector<std::string> columns{"step", "time", iterations_key, "linear_iterations"};
     if (scene.coupler()) columns.emplace_back("factorizations");
     for (const auto& kv : scene.metrics()) columns.push_back(kv.first);
     out.metrics_columns(columns);
@@ -400,7 +403,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       last = scene.metrics();
       std::vector<std::pair<std::string, double>> row{{"step", k},
                                                       {"time", scene.fluid().time()},
-                                                      {"newton_iterations", st.iterations},
+                                                      {iterations_key, st.iterations},
                                                       {"linear_iterations", st.linear_iterations}};
       if (scene.coupler()) row.emplace_back("factorizations", st.factorizations);
       row.insert(row.end(), last.begin(), last.end());

@@ -245,8 +245,8 @@ void RunOutput::progress(int step, int n_steps, double t, int newton, int linear
   last_print_ = now;
   const double el = now - start_;
   const double left = step > 0 ? el / step * (n_steps - step) : 0.0;
-  std::printf("step %d/%d  t=%.5g s  newton %d  linear %d  elapsed %.1f s  left ~%.0f s\n", step, n_steps, t,
-              newton, linear, el, left);
+  std::printf("step %d/%d  t=%.5g s  %s %d  linear %d  elapsed %.1f s  left ~%.0f s\n", step, n_steps, t,
+              iteration_kind_.c_str(), newton, linear, el, left);
   std::fflush(stdout);
 }
 
@@ -263,7 +263,7 @@ void RunOutput::summary(const std::string& status, int steps, long newton, long 
   js["started_utc"] = started_;
   js["wall_time_s"] = elapsed();
   js["steps"] = steps;
-  js["newton_iterations"] = newton;
+  js[iteration_kind_ + "_iterations"] = newton;
   js["linear_iterations"] = linear;
   js["ranks"] = size_;
   for (const auto& [k, v] : metrics) {

@@ -36,6 +36,9 @@ class RunOutput {
   /// Appends one row to metrics.csv; the first call fixes the columns (in the given order) unless
   /// metrics_columns did.
   void metrics_row(const std::vector<std::pair<std::string, double>>& row);
+  /// What an iteration of a step is: "newton" (a fluid-only run's Newton iterations) or "coupling" (a coupled
+  /// run's block iterations); names the summary's "<kind>_iterations" and the progress line.
+  void set_iteration_kind(const std::string& kind) { iteration_kind_ = kind; }
   /// Prints "step k/n  t=...  newton ..  linear ..  elapsed ..  left ~.." at most every `every_seconds`.
   void progress(int step, int n_steps, double t, int newton, int linear, bool force = false);
 
@@ -54,6 +57,7 @@ class RunOutput {
   std::vector<std::string> command_line_;
   int lock_fd_ = -1;
   bool resumed_ = false;
+  std::string iteration_kind_ = "newton";
   std::vector<std::string> columns_;
   std::ofstream csv_;
   double start_ = 0, last_print_ = -1e9;

@@ -97,7 +97,7 @@ if [[ "$MODE" == sweep || "$MODE" == report ]]; then
       [[ -f "$d/summary.json" ]] || continue
       j="$d/summary.json"; tag="$(basename "$d")"
       s="${tag##*_sI}"; rest="${tag#sweep_}"; mesh="${rest%%_*}"; p="${rest#*_p}"; p="${p%%_*}"
-      steps="$(num "$j" steps)"; it="$(num "$j" newton_iterations)"; lit="$(num "$j" linear_iterations)"
+      steps="$(num "$j" steps)"; it="$(num "$j" coupling_iterations)"; [ -n "$it" ] || it="$(num "$j" newton_iterations)"; lit="$(num "$j" linear_iterations)"
       opts="$d/options.yaml"; dt="$(grep -E '^dt:' "$opts" | awk '{print $2}')"; T="$(grep -E '^final_time:' "$opts" | awk '{print $2}')"
       echo "| $s | $mesh | $p | $dt | $T | $(fmt %.3e "$(num "$j" membrane_r_A)") | $(fmt %.3e "$(num "$j" membrane_max_abs_r_A)") |" \
         "$(fmt %.4f "$(num "$j" membrane_max_abs_r_P)") | $(fmt %.2f "$(num "$j" membrane_theta_deg)") | $(fmt %.3f "$(num "$j" membrane_omega_tt)") |" \
@@ -119,7 +119,7 @@ if [[ "$MODE" == table1 || "$MODE" == report ]]; then
       j="$d/summary.json"; tag="$(basename "$d")"; rest="${tag#table1_}"
       mesh="${rest%%_*}"; p="${rest#*_p}"; p="${p%%_*}"; dt="${rest##*_dt}"
       read -r pt pw <<< "$(paper_row "$p" "$mesh" "$dt")"
-      steps="$(num "$j" steps)"; it="$(num "$j" newton_iterations)"; lit="$(num "$j" linear_iterations)"; wall="$(num "$j" wall_time_s)"
+      steps="$(num "$j" steps)"; it="$(num "$j" coupling_iterations)"; [ -n "$it" ] || it="$(num "$j" newton_iterations)"; lit="$(num "$j" linear_iterations)"; wall="$(num "$j" wall_time_s)"
       echo "| $mesh | $p | $dt | $(fmt %.2f "$(num "$j" membrane_theta_deg)") | $pt | $(fmt %.3f "$(num "$j" membrane_omega_tt)") | $pw |" \
         "$(fmt %.2f "$(num "$j" membrane_theta_oscillation_deg)") | $(fmt %.4f "$(num "$j" membrane_max_abs_r_P)") | $(fmt %.2e "$(num "$j" membrane_r_A)") |" \
         "$(fmt %.2f "$(num "$j" membrane_average_from)")-$(fmt %.2f "$(num "$j" membrane_average_to)") |" \

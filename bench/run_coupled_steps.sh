@@ -137,8 +137,9 @@ for p in glob.glob(work + "/time.*"):
 per = wall / steps
 unit = ms_t / ms_n if ms_n else float("nan")
 wo = (wall - f_t) / steps
-coupling = s["newton_iterations"] / steps
-gmres = s["linear_iterations"] / max(1, s["newton_iterations"])
+iterations = s.get("coupling_iterations", s.get("newton_iterations", 0))  # runs before the key was renamed
+coupling = iterations / steps
+gmres = s["linear_iterations"] / max(1, iterations)
 print(f"| {mesh} | {solver} | {ranks} | {steps} | {per:.3f} | {unit:.4f} | {per / unit:.1f} | {fact} ({f_t / max(1, f_n):.2f}) "
       f"| {wo:.3f} | {coupling:.2f} | {gmres:.2f} | {int(s.get('band_unknowns', 0))} | {max(rss) if rss else 0:.0f} |")
 PY

@@ -880,7 +880,7 @@ TEST_F(CellfsiApp, RunFailingInItsFirstStepSaysWhereAndKeepsTheColumns) {
   EXPECT_NE(json_string(summary(), "status").value_or("").find("in step 1 at t = 0.004 s"), std::string::npos)
       << summary();
   const std::string csv = read_text(out_ / "metrics.csv");
-  EXPECT_EQ(csv.rfind("step,time,newton_iterations,linear_iterations,factorizations,", 0), 0u) << csv;
+  EXPECT_EQ(csv.rfind("step,time,coupling_iterations,linear_iterations,factorizations,", 0), 0u) << csv;
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1) << csv;
 }
 
@@ -924,7 +924,7 @@ TEST_F(CellfsiApp, LaunchModesAgree) {
 std::vector<std::pair<std::string, double>> metrics_only(std::vector<std::pair<std::string, double>> row) {
   row.erase(std::remove_if(row.begin(), row.end(),
                            [](const auto& kv) {
-                             return kv.first == "newton_iterations" || kv.first == "linear_iterations" ||
+                             return kv.first == "coupling_iterations" || kv.first == "linear_iterations" ||
                                     kv.first == "factorizations";
                            }),
             row.end());
