@@ -6,6 +6,7 @@
 #include <cmath>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <numbers>
 #include <random>
 #include <sstream>
@@ -500,7 +501,17 @@ SceneSettings SceneSettings::from_options(const std::string& default_name) {
   for (int d = 0; d < 3; ++d) s.periodic[d] = d < D && r.periodic[d] == PETSC_TRUE;
   s.channel.length = r.ch[0], s.channel.height = r.ch[1], s.channel.throat_height = r.ch[2];
   s.channel.throat_length = r.ch[3], s.channel.transition_length = r.ch[4], s.channel.throat_center = r.ch[5];
-  if (s.domain == "narrowing") s.channel.validate();
+  if (s.domain == "narrowing") {
+    s.channel.validate();
+    // The narrowing's extent is the channel's (it was silently ignored when given as -domain_size).
+    if (r.size_set)
+      bad("domain_size", "(given)", "not with -domain narrowing: use -channel_length, -channel_height");
+    if (r.origin_set)
+      bad("domain_origin", "(given)",
+          "not with -domain narrowing (it spans 0..length x -height/2..height/2)");
+    s.size = {s.channel.length, s.channel.height};
+    s.origin = Vec3(0, -s.channel.height / 2, 0);
+  }
   for (int d = 0; d < 3; ++d) s.elements[d] = d < D ? static_cast<int>(r.elements[d]) : 1;
   for (int d = 0; d < D; ++d)
     if (s.elements[d] < 1) bad("fluid_elements", std::to_string(s.elements[d]), "every count >= 1");
@@ -755,8 +766,10 @@ void Scene::record_suspension() {
 }
 
 void Scene::accumulate_profile() {
-  if (s_.flow == "shear" || fluid_->time() < average_from()) return;
+  if (s_.flow == "shear") return;
   const fluid::SectionData sec = fluid::section(*fluid_, 0.5, 65);
+  flow_rates_.emplace_back(fluid_->time(), sec.flow_rate);
+  if (fluid_->time() < average_from()) return;
   if (profile_count_ == 0) {
     profile_sum_ = sec;
   } else {
@@ -788,6 +801,8 @@ std::vector<double> Scene::metric_state() const {
                            static_cast<double>(r.cell_x.size())});
     out.insert(out.end(), r.cell_x.begin(), r.cell_x.end());
   }
+  out.push_back(static_cast<double>(flow_rates_.size()));
+  for (const auto& [t, q] : flow_rates_) out.insert(out.end(), {t, q});
   return out;
 }
 
@@ -818,6 +833,9 @@ void Scene::restore_metric_state(const std::vector<double>& state) {
     for (double& x : r.cell_x) x = next();
   }
   suspension_ = std::move(recs);
+  std::vector<std::pair<double, double>> rates(static_cast<std::size_t>(next()));
+  for (auto& [t, q] : rates) t = next(), q = next();
+  flow_rates_ = std::move(rates);
 }
 
 std::vector<std::vector<double>> Scene::body_states() const {
@@ -893,6 +911,20 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     }
     m.emplace_back("rheology_records", r.records);
   }
+  if (!flow_rates_.empty()) {
+    // The flow rate through mid-length over the run: its largest value, and its smallest once the flow had
+    // developed from rest (first reached 95 % of the largest) and when (a cell in a narrowing slows the flow,
+    // paper Sec. 4.4).
+    auto by_rate = [](const auto& a, const auto& b) { return a.second < b.second; };
+    const double high = std::max_element(flow_rates_.begin(), flow_rates_.end(), by_rate)->second;
+    auto developed = flow_rates_.begin();
+    while (developed != flow_rates_.end() && developed->second < 0.95 * high) ++developed;
+    if (developed == flow_rates_.end()) developed = flow_rates_.begin();  // no positive flow
+    const auto low = std::min_element(developed, flow_rates_.end(), by_rate);
+    m.emplace_back("flow_rate_max", high);
+    m.emplace_back("flow_rate_min", low->second);
+    m.emplace_back("flow_rate_min_time", low->first);
+  }
   // The paper's dimensionless numbers (Sec. 3.1-3.2) from the scene: the shear rate of a shear flow, the
   // half-width across the walls.
   solid::FlowScales flow;
@@ -911,6 +943,19 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
       m.emplace_back(name + "_lateral_offset_start", mg.offset_start);
       m.emplace_back(name + "_lateral_offset_final", mg.offset_final);
       m.emplace_back(name + "_time_to_centreline", mg.time_to_centreline);
+    }
+    if (s_.domain == "narrowing") {
+      // Passage through the throat (paper Sec. 4.4): when the centroid crossed its start and its end.
+      const double x_in = s_.channel.throat_center - s_.channel.throat_length / 2,
+                   x_out = s_.channel.throat_center + s_.channel.throat_length / 2;
+      double t_in = std::numeric_limits<double>::quiet_NaN(), t_out = t_in;
+      for (const auto& [t, c] : trackers_[b].centroid_track()) {
+        if (std::isnan(t_in) && c[0] >= x_in) t_in = t;
+        if (std::isnan(t_out) && c[0] >= x_out) t_out = t;
+      }
+      m.emplace_back(name + "_throat_entry_time", t_in);
+      m.emplace_back(name + "_throat_exit_time", t_out);
+      m.emplace_back(name + "_throat_transit_time", t_out - t_in);
     }
     const geometry::Patch reference = bodies_[b]->reference_patch();
     const BodySettings& bs = body_settings(name);

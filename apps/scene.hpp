@@ -148,6 +148,7 @@ class Scene {
   bool suspension_on_ = false;  // a plane channel (Poiseuille, 2D) with membranes: rheology recorded
   std::vector<solid::SuspensionRecord> suspension_;
   fluid::SectionData profile_sum_;  // velocity summed over the window's steps (points: the last section's)
+  std::vector<std::pair<double, double>> flow_rates_;  // channel flows: (time, flow rate) at every record
   int profile_count_ = 0;
 };
 

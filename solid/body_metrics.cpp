@@ -217,10 +217,18 @@ std::vector<Metric> BodyTracker::summary(double average_from) const {
   double max_ra = 0, max_rp = 0;
   for (const Sample& s : history_)
     max_ra = std::max(max_ra, std::abs(s.r_a)), max_rp = std::max(max_rp, std::abs(s.r_p));
+  // The most deformed record: the largest anisotropy of the shape (largest / smallest second moment - 1),
+  // when and where (the CTC's nucleus deforms most as it leaves the narrowing, paper Sec. 4.4).
+  const Sample* peak = &history_.front();
+  for (const Sample& s : history_)
+    if (s.anisotropy > peak->anisotropy) peak = &s;
   std::vector<Metric> m{{"r_A", history_.back().r_a},
                         {"r_P", history_.back().r_p},
                         {"max_abs_r_A", max_ra},
-                        {"max_abs_r_P", max_rp}};
+                        {"max_abs_r_P", max_rp},
+                        {"max_anisotropy", peak->anisotropy},
+                        {"max_anisotropy_time", peak->time},
+                        {"max_anisotropy_x", peak->centroid[0]}};
   if (win.size() < 2) return m;  // no window to average over (a run of one step)
   const Sample& a = *win.front();
   const Sample& b = *win.back();

@@ -45,7 +45,8 @@ class BodyTracker {
 
   /// Values at the last record (omega: over the last interval; 0 before the second record).
   std::vector<Metric> metrics() const;
-  /// The run's results: final r_A and r_P, the largest |r_A| and |r_P|, and over the records with time >=
+  /// The run's results: final r_A and r_P, the largest |r_A| and |r_P|, the largest anisotropy of the shape
+  /// (largest / smallest second moment - 1) with its time and centroid x, and over the records with time >=
   /// average_from (the oscillatory regime) the mean inclination, its half peak-to-peak oscillation and the
   /// mean frequencies (left out when fewer than two records fall into the window).
   std::vector<Metric> summary(double average_from) const;

@@ -1108,6 +1108,29 @@ TEST_F(CellfsiApp, MigrationSceneReportsTheLateralOffset) {
       << js;
 }
 
+TEST_F(CellfsiApp, CtcNarrowingSceneRunsAndReportsItsPassage) {
+  // Paper Sec. 4.4 (two steps at a tiny mesh): the compound capsule upstream of the throat; the passage keys
+  // are there (null until the cell crosses the throat) with the flow rate's extremes and each body's peak
+  // deformation.
+  const RunResult r = cellfsi({scene("ctc_narrowing.yaml"), "-fluid_elements", "96,32", "-fluid_degree", "2",
+                               "-solid_membrane_elements", "1,0", "-solid_nucleus_elements", "0,0",
+                               "-final_time", "5e-4", "-output_every", "0"},
+                              120);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string js = summary();
+  for (const char* key :
+       {"membrane_throat_entry_time", "nucleus_throat_exit_time", "membrane_throat_transit_time"})
+    EXPECT_NE(js.find("\"" + std::string(key) + "\": null"), std::string::npos) << key << "\n" << js;
+  for (const char* key :
+       {"flow_rate_max", "flow_rate_min", "nucleus_max_anisotropy", "nucleus_max_anisotropy_x"})
+    EXPECT_TRUE(json_number(js, key).has_value()) << key << "\n" << js;
+  // The narrowing's size comes from the channel options; -domain_size was silently ignored.
+  fs::remove_all(out_);
+  expect_one_clear_error(
+      cellfsi({scene("ctc_narrowing.yaml"), "-domain_size", "0.01,0.002", "-fluid_elements", "96,32"}));
+  EXPECT_NE(last_output_.find("use -channel_length, -channel_height"), std::string::npos) << last_output_;
+}
+
 // Linear-solver options of a coupled run (issue 13): the fluid's KSP options do not apply to the band solver
 // and say so; options PETSc reads at the first solve (factorisation packages, convergence reports) are
 // accepted in both solvers, and a misspelt one is reported once every solver has read its options.
