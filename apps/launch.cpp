@@ -106,9 +106,15 @@ std::vector<std::string> option_names() {
 /// fluid's KSP; without it, the band solver's options have nothing to act on.
 void reject_inapplicable_solver_options(const std::vector<std::string>& user_options, bool band_solver) {
   for (const std::string& name : user_options) {
+    // The coupling loop is a coupled run's nonlinear iteration, whichever linear solver it uses.
+    if (name.rfind("fluid_snes_", 0) == 0)
+      throw std::invalid_argument("option -" + name +
+                                  " does not apply: in a coupled run the nonlinear iteration is the coupling "
+                                  "loop (-coupling_tolerance, -coupling_max_iterations, -coupling_monitor, "
+                                  "-coupling_acceleration); -fluid_snes_ options act on runs without cells");
     if (band_solver) {
       if (name == "fluid_mat_type_jacobian") continue;  // the matrix type applies to both solvers
-      for (const char* p : {"fluid_ksp_", "fluid_pc_", "fluid_sub_", "fluid_mat_", "fluid_snes_"})
+      for (const char* p : {"fluid_ksp_", "fluid_pc_", "fluid_sub_", "fluid_mat_"})
         if (name.rfind(p, 0) == 0)
           throw std::invalid_argument(
               "option -" + name +

@@ -1118,9 +1118,11 @@ TEST_F(CellfsiApp, CtcNarrowingSceneRunsAndReportsItsPassage) {
                               120);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const std::string js = summary();
-  for (const char* key :
-       {"membrane_throat_entry_time", "nucleus_throat_exit_time", "membrane_throat_transit_time"})
-    EXPECT_NE(js.find("\"" + std::string(key) + "\": null"), std::string::npos) << key << "\n" << js;
+  for (const std::string key :
+       {"membrane_throat_entry_time", "nucleus_throat_exit_time", "membrane_throat_transit_time"}) {
+    const std::string entry = '"' + key + "\": null";
+    EXPECT_NE(js.find(entry), std::string::npos) << key << "\n" << js;
+  }
   for (const char* key :
        {"flow_rate_max", "flow_rate_min", "nucleus_max_anisotropy", "nucleus_max_anisotropy_x"})
     EXPECT_TRUE(json_number(js, key).has_value()) << key << "\n" << js;
@@ -1140,6 +1142,19 @@ TEST_F(CellfsiApp, FluidSolverOptionsOfABandRunAreRejectedWithTheReason) {
   EXPECT_NE(r.output.find("-fluid_pc_type"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("-coupling_solver fluid"), std::string::npos) << r.output;
   EXPECT_TRUE(nothing_written());
+}
+
+TEST_F(CellfsiApp, SnesOptionsOfACoupledRunAreRejectedWithTheReason) {
+  // Issue 10: -fluid_snes_* options were silently ignored in coupled runs with -coupling_solver fluid.
+  for (const char* solver : {"band", "fluid"}) {
+    expect_one_clear_error(
+        cellfsi(with(kDefaultCapsule, {"-coupling_solver", solver, "-fluid_snes_rtol", "1e-3"})));
+    EXPECT_NE(
+        last_output_.find("option -fluid_snes_rtol does not apply: in a coupled run the nonlinear iteration "
+                          "is the coupling loop"),
+        std::string::npos)
+        << last_output_;
+  }
 }
 
 TEST_F(CellfsiApp, OptionsReadAtTheFirstSolveAreAcceptedInBothSolvers) {
