@@ -2,7 +2,7 @@
 // Stopping a run cleanly. SIGINT (Ctrl-C), SIGTERM (kill, batch systems) and SIGUSR1 (forwarded by mpirun to
 // every rank; e.g. Slurm's --signal=USR1@300) ask the run to stop after the time step in progress: the step's
 // metrics row, the output series and summary.json (status "interrupted: ...") are written and the process
-// exits with 128 + the signal's number. A second signal of the same kind ends the process at once.
+// exits with 128 + the signal's number. A second signal (any of the three) ends the process at once.
 #include <mpi.h>
 
 #include <string>

@@ -51,6 +51,17 @@ void print_error(const std::string& message) {
   PetscFPrintf(PETSC_COMM_WORLD, PETSC_STDERR, "cellfsi: error: %s\n", message.c_str());
 }
 
+/// A failure that need not be the same on every rank (out of memory, a body leaving one rank's part): the
+/// ranks other than 0 print it too, with their rank, since rank 0 may not have failed.
+void print_failure(const std::string& message) {
+  int rank = 0;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  if (rank == 0)
+    print_error(message);
+  else
+    std::fprintf(stderr, "cellfsi: error (rank %d): %s\n", rank, message.c_str());
+}
+
 /// When the unknown-option check runs: before the coupling loop exists, once it is set up, after the first
 /// step.
 enum class OptionCheck { before_coupling, before_first_step, after_first_step, after_first_step_fluid };
@@ -267,6 +278,9 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
   if (exchange) solid_ranks = exchange->remote_size();
   const int n_steps = static_cast<int>(std::ceil(settings.final_time / settings.dt - 1e-9));
+  // The folder is this run's from here on (before a restart reads its checkpoint: another run may be writing
+  // one).
+  FolderLock lock(PETSC_COMM_WORLD, settings.output_dir);
   // A restart: the checkpoint must come from a run with the same options (but the final time and the output
   // intervals); the scene then takes its state.
   Checkpoint resume;
@@ -311,8 +325,14 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     VecDestroy(&U);
     VecDestroy(&Udot);
   }
-  RunOutput out(PETSC_COMM_WORLD, settings.output_dir, settings.name, g_command_line,
+  // metrics.csv's columns: those of every step's row (the metrics' names now).
+  const std::string iterations_key = scene.coupler() ? "coupling_iterations" : "newton_iterations";
+  std::vector<std::string> columns{"step", "time", iterations_key, "linear_iterations"};
+  if (scene.coupler()) columns.emplace_back("factorizations");
+  for (const auto& kv : scene.metrics()) columns.push_back(kv.first);
+  RunOutput out(PETSC_COMM_WORLD, settings.output_dir, settings.name, columns, g_command_line,
                 settings.restart ? resume.step : -1);
+  out.set_first_step(resume.step);
   std::unique_ptr<fluid::FluidSeriesWriter> series;
   std::unique_ptr<solid::SolidSeriesWriter> solid_series;
   static const PetscLogEvent output_event = register_log_event("cellfsi app", "CellfsiOutput");
@@ -356,7 +376,6 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
                     "rank(s) the coupling loop uses -coupling_solver fluid\n",
                     size));
   // A coupled run's iterations are the coupling loop's block iterations, not Newton iterations.
-  const std::string iterations_key = scene.coupler() ? "coupling_iterations" : "newton_iterations";
   out.set_iteration_kind(scene.coupler() ? "coupling" : "newton");
   long newton = resume.newton, linear = resume.linear, factorizations = resume.factorizations;
   int done = resume.step;
@@ -371,8 +390,10 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     c.bodies = scene.body_states();
     c.trackers = scene.tracker_states();
     c.scene_metrics = scene.metric_state();
-    if (series) c.fluid_series = series->entries();
-    if (solid_series) c.solid_series = solid_series->entries(), c.solid_writes = solid_series->count();
+    // Without writers (-output_every 0 in this run) the series so far stay as the checkpoint found them.
+    c.fluid_series = series ? series->entries() : resume.fluid_series;
+    c.solid_series = solid_series ? solid_series->entries() : resume.solid_series;
+    c.solid_writes = solid_series ? solid_series->count() : resume.solid_writes;
     write_checkpoint(PETSC_COMM_WORLD, settings.output_dir, c, scene.fluid().solution(),
                      scene.fluid().solution_rate());
   };
@@ -381,13 +402,6 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
                               "cellfsi: restarting from the checkpoint at t = %g s (step %d)\n", resume.time,
                               resume.step));
   const std::string iteration = bodies.empty() ? "Newton" : "the coupling iteration";
-  {
-    // metrics.csv's columns from the start: those of every step's row (the metrics' names at t = 0).
-    std::vector<std::string> columns{"step", "time", iterations_key, "linear_iterations"};
-    if (scene.coupler()) columns.emplace_back("factorizations");
-    for (const auto& kv : scene.metrics()) columns.push_back(kv.first);
-    out.metrics_columns(columns);
-  }
   try {
     for (int k = resume.step + 1; k <= n_steps; ++k) {
       const SceneStep st = scene.step();
@@ -494,7 +508,7 @@ int run_solid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   std::vector<solid::SolidSolver*> mine;
   int state = 2;
   try {
-    const SceneSettings settings = SceneSettings::from_options(default_name);
+    const SceneSettings settings = SceneSettings::from_options(default_name, false);
     PetscBool help = PETSC_FALSE;
     CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-help", &help));
     if (help) state = 1;
@@ -664,7 +678,7 @@ int launch(int argc, char** argv, Role role) {
       print_error(e.what());
       status = 1;
     } catch (const std::exception& e) {
-      print_error(e.what());
+      print_failure(e.what());
       status = 2;
     }
     if (!hs.done()) hs.agree(0);  // the fluid side failed before the solid side was told to start

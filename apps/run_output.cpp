@@ -118,62 +118,67 @@ std::string utc_now() {
 
 }  // namespace
 
+FolderLock::FolderLock(MPI_Comm comm, const std::string& dir) {
+  on_rank_zero(comm, [&] {
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec || !std::filesystem::is_directory(dir))
+      throw std::invalid_argument("option -output_dir = '" + dir +
+                                  "' is invalid: it cannot be created: " + ec.message());
+    std::string why;
+    fd_ = lock_folder(dir, why);
+    if (fd_ < 0) throw std::invalid_argument("option -output_dir = '" + dir + "' is invalid: " + why);
+  });
+}
+
+FolderLock::~FolderLock() {
+  if (fd_ >= 0) ::close(fd_);  // releases the lock
+}
+
 RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& scene,
-                     std::vector<std::string> command_line, int resume_step)
+                     const std::vector<std::string>& columns, std::vector<std::string> command_line,
+                     int resume_step)
     : comm_(comm),
       dir_(dir),
       scene_(scene),
       started_(utc_now()),
       command_line_(std::move(command_line)),
+      columns_(columns),
       start_(MPI_Wtime()) {
   MPI_Comm_rank(comm, &rank_);
   MPI_Comm_size(comm, &size_);
-  int ok = 1;
-  std::string why;
-  if (rank_ == 0) {
-    std::error_code ec;
-    std::filesystem::create_directories(dir_, ec);
-    if (ec || !std::filesystem::is_directory(dir_)) {
-      ok = 0;
-      why = "it cannot be created: " + ec.message();
-    } else {
-      lock_fd_ = lock_folder(dir_, why);
-      ok = lock_fd_ >= 0;
-    }
-  }
-  MPI_Bcast(&ok, 1, MPI_INT, 0, comm);
-  if (!ok) {
-    // Only rank 0 knows why; the message is the same on every rank that prints it (rank 0).
-    throw std::invalid_argument("option -output_dir = '" + dir_ +
-                                "' is invalid: " + (rank_ == 0 ? why : std::string("see rank 0")));
-  }
   resumed_ = resume_step >= 0;
-  if (rank_ == 0 && resumed_) {
-    // A restart: the rows up to the checkpoint's step stay (those after it, written before the run stopped,
-    // go), and the run appends to them.
-    std::error_code ec;
-    std::filesystem::remove(dir_ + "/summary.json", ec);
-    std::filesystem::remove(dir_ + "/profile.csv", ec);
-    std::filesystem::remove(dir_ + "/profile_mean.csv", ec);
-    std::ifstream in(dir_ + "/metrics.csv");
-    std::string line, kept;
-    if (std::getline(in, line)) {
-      kept = line + "\n";
-      std::istringstream cols(line);
-      for (std::string c; std::getline(cols, c, ',');) columns_.push_back(c);
+  on_rank_zero(comm, [&] {
+    if (resumed_) {
+      // A restart: the columns must be this run's (checked before anything is touched); the rows up to the
+      // checkpoint's step stay (those after it, written before the run stopped, go), and the run appends.
+      std::ifstream in(dir_ + "/metrics.csv");
+      std::string line, kept;
+      std::vector<std::string> existing;
+      if (std::getline(in, line)) {
+        kept = line + "\n";
+        std::istringstream cols(line);
+        for (std::string c; std::getline(cols, c, ',');) existing.push_back(c);
+      }
+      if (existing != columns_)
+        throw std::invalid_argument("option -restart is invalid here: metrics.csv in '" + dir_ +
+                                    "' has other columns than this run writes (written by another version?)");
+      while (std::getline(in, line)) {
+        const long step = std::strtol(line.c_str(), nullptr, 10);
+        if (step >= 1 && step <= resume_step && line.find(',') != std::string::npos) kept += line + "\n";
+      }
+      in.close();
+      std::error_code ec;
+      for (const char* f : {"/summary.json", "/profile.csv", "/profile_mean.csv"})
+        std::filesystem::remove(dir_ + f, ec);
+      write_atomically(dir_ + "/metrics.csv", kept);
+      write_atomically(dir_ + "/options.yaml", effective_options_yaml());
+      csv_.open(dir_ + "/metrics.csv", std::ios::app);
+      if (!csv_) throw std::runtime_error("cannot write '" + dir_ + "/metrics.csv'");
+      return;
     }
-    while (std::getline(in, line)) {
-      const long step = std::strtol(line.c_str(), nullptr, 10);
-      if (step >= 1 && step <= resume_step && line.find(',') != std::string::npos) kept += line + "\n";
-    }
-    in.close();
-    write_atomically(dir_ + "/metrics.csv", kept);
-    write_atomically(dir_ + "/options.yaml", effective_options_yaml());
-    csv_.open(dir_ + "/metrics.csv", std::ios::app);
-    if (!csv_) throw std::runtime_error("cannot write '" + dir_ + "/metrics.csv'");
-  }
-  if (rank_ == 0 && !resumed_) {
-    // A previous run's results in this folder would be mistaken for this run's: remove them first.
+    // A previous run's results (and its checkpoint, which -restart would otherwise resume) in this folder
+    // would be mistaken for this run's: remove them first.
     for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
       const std::string name = entry.path().filename().string();
       const bool series = (name.rfind("fluid_", 0) == 0 || name.rfind("solid_", 0) == 0) &&
@@ -181,15 +186,17 @@ RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& s
       if (name == "summary.json" || name == "fluid.pvd" || name == "solid.pvd" || name == "profile.csv" ||
           name == "profile_mean.csv" || series)
         std::filesystem::remove(entry.path());
+      if (name == "checkpoint" || name == "checkpoint.new" || name == "checkpoint.old")
+        std::filesystem::remove_all(entry.path());
     }
     write_atomically(dir_ + "/options.yaml", effective_options_yaml());
     csv_.open(dir_ + "/metrics.csv", std::ios::trunc);
     if (!csv_) throw std::runtime_error("cannot write '" + dir_ + "/metrics.csv'");
-  }
-}
-
-RunOutput::~RunOutput() {
-  if (lock_fd_ >= 0) ::close(lock_fd_);  // releases the lock
+    // The header now: a run that fails in its first step leaves the columns, not an empty file.
+    for (size_t i = 0; i < columns_.size(); ++i) csv_ << (i ? "," : "") << columns_[i];
+    csv_ << "\n";
+    csv_.flush();
+  });
 }
 
 void RunOutput::remove_series_except(const std::vector<std::string>& keep) const {
@@ -203,29 +210,8 @@ void RunOutput::remove_series_except(const std::vector<std::string>& keep) const
   }
 }
 
-void RunOutput::metrics_columns(const std::vector<std::string>& names) {
-  if (rank_ != 0) return;
-  if (resumed_) {
-    // A restart continues the file: its columns must be this run's.
-    if (columns_ != names)
-      throw std::invalid_argument("option -restart is invalid here: metrics.csv in '" + dir_ +
-                                  "' has other columns than this run writes");
-    return;
-  }
-  if (!columns_.empty()) throw std::logic_error("metrics.csv: the columns are already written");
-  columns_ = names;
-  for (size_t i = 0; i < names.size(); ++i) csv_ << (i ? "," : "") << names[i];
-  csv_ << "\n";
-  csv_.flush();
-}
-
 void RunOutput::metrics_row(const std::vector<std::pair<std::string, double>>& row) {
   if (rank_ != 0) return;
-  if (columns_.empty()) {
-    std::vector<std::string> names;
-    for (const auto& kv : row) names.push_back(kv.first);
-    metrics_columns(names);
-  }
   for (size_t i = 0; i < row.size() && i < columns_.size(); ++i)
     if (row[i].first != columns_[i])
       throw std::logic_error("metrics.csv: column " + std::to_string(i + 1) + " is '" + columns_[i] +
@@ -244,7 +230,8 @@ void RunOutput::progress(int step, int n_steps, double t, int newton, int linear
   if (!force && now - last_print_ < 2.0 && step != n_steps) return;
   last_print_ = now;
   const double el = now - start_;
-  const double left = step > 0 ? el / step * (n_steps - step) : 0.0;
+  const int done = step - first_step_;  // this run's steps (a restart started after first_step_)
+  const double left = done > 0 ? el / done * (n_steps - step) : 0.0;
   std::printf("step %d/%d  t=%.5g s  %s %d  linear %d  elapsed %.1f s  left ~%.0f s\n", step, n_steps, t,
               iteration_kind_.c_str(), newton, linear, el, left);
   std::fflush(stdout);
@@ -253,7 +240,12 @@ void RunOutput::progress(int step, int n_steps, double t, int newton, int linear
 void RunOutput::summary(const std::string& status, int steps, long newton, long linear,
                         const std::vector<std::pair<std::string, double>>& metrics,
                         const std::vector<std::pair<std::string, std::string>>& text) {
-  if (rank_ != 0) return;
+  on_rank_zero(comm_, [&] { write_summary(status, steps, newton, linear, metrics, text); });
+}
+
+void RunOutput::write_summary(const std::string& status, int steps, long newton, long linear,
+                              const std::vector<std::pair<std::string, double>>& metrics,
+                              const std::vector<std::pair<std::string, std::string>>& text) const {
   nlohmann::ordered_json js;
   js["scene"] = scene_;
   js["status"] = status;

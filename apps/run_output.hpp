@@ -8,21 +8,43 @@
 
 #include <fstream>
 #include <map>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 namespace cellfsi::app {
 
+/// Runs `work` on rank 0 of comm and makes its outcome collective: if it throws, every rank throws the same
+/// (std::invalid_argument stays one, anything else becomes std::runtime_error), so no rank is left waiting in
+/// a collective call that rank 0 never reaches.
+template <class Work>
+void on_rank_zero(MPI_Comm comm, Work&& work);
+
+/// The output folder locked for one run (DIR/.cellfsi.lock, flock on rank 0: released by the kernel however
+/// the process ends). Creates DIR. Collective; throws std::invalid_argument on every rank if DIR cannot be
+/// made or another run holds it.
+class FolderLock {
+ public:
+  FolderLock(MPI_Comm comm, const std::string& dir);
+  ~FolderLock();
+  FolderLock(const FolderLock&) = delete;
+  FolderLock& operator=(const FolderLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
 class RunOutput {
  public:
-  /// Creates DIR (rank 0), locks it, removes a previous run's results and writes DIR/options.yaml from the
-  /// options database. Throws std::invalid_argument if DIR cannot be made or another run holds it.
-  /// `command_line`: the arguments as given (recorded in summary.json).
-  /// `resume_step` >= 0: a restart from the checkpoint after that step: metrics.csv keeps its header and the
-  /// rows up to that step and grows from there, the series files stay (see also remove_series_except).
+  /// In DIR (made and locked by a FolderLock the caller holds for the run): removes a previous run's results
+  /// (and its checkpoint) and writes DIR/options.yaml and metrics.csv's header (`columns`; the rows must then
+  /// have them). `command_line`: the arguments as given (recorded in summary.json).
+  /// `resume_step` >= 0: a restart from the checkpoint after that step: metrics.csv must have the same
+  /// columns (else std::invalid_argument before any file is touched), keeps the rows up to that step and
+  /// grows from there; the series files stay (see also remove_series_except). Collective.
   RunOutput(MPI_Comm comm, const std::string& dir, const std::string& scene,
-            std::vector<std::string> command_line = {}, int resume_step = -1);
-  ~RunOutput();
+            const std::vector<std::string>& columns, std::vector<std::string> command_line = {},
+            int resume_step = -1);
   RunOutput(const RunOutput&) = delete;
   RunOutput& operator=(const RunOutput&) = delete;
   const std::string& dir() const { return dir_; }
@@ -30,11 +52,7 @@ class RunOutput {
   /// Removes the fluid_*.vts and solid_*.vts files of the folder that are not in `keep` (a restart: those
   /// written after its checkpoint). Rank 0.
   void remove_series_except(const std::vector<std::string>& keep) const;
-  /// Writes metrics.csv's header now (a run that fails in its first step leaves the columns, not an empty
-  /// file); the rows must then have these columns.
-  void metrics_columns(const std::vector<std::string>& names);
-  /// Appends one row to metrics.csv; the first call fixes the columns (in the given order) unless
-  /// metrics_columns did.
+  /// Appends one row to metrics.csv (the constructor's columns, in order).
   void metrics_row(const std::vector<std::pair<std::string, double>>& row);
   /// What an iteration of a step is: "newton" (a fluid-only run's Newton iterations) or "coupling" (a coupled
   /// run's block iterations); names the summary's "<kind>_iterations" and the progress line.
@@ -42,26 +60,57 @@ class RunOutput {
   /// Prints "step k/n  t=...  newton ..  linear ..  elapsed ..  left ~.." at most every `every_seconds`.
   void progress(int step, int n_steps, double t, int newton, int linear, bool force = false);
 
-  /// Writes summary.json: what ran (scene, cellfsi version, source revision, command line, start time), the
-  /// status ("completed", or why and where it stopped), the fixed scalars, `metrics` (non-finite values as
-  /// null) and the words in `text`.
+  /// Writes summary.json (collective): what ran (scene, cellfsi version, source revision, command line, start
+  /// time), the status ("completed", or why and where it stopped), the fixed scalars, `metrics` (non-finite
+  /// values as null) and the words in `text`.
   void summary(const std::string& status, int steps, long newton, long linear,
                const std::vector<std::pair<std::string, double>>& metrics,
                const std::vector<std::pair<std::string, std::string>>& text = {});
   double elapsed() const { return MPI_Wtime() - start_; }
+  /// Steps before this run's first (a restart's), so that the progress line's estimate counts only this
+  /// run's.
+  void set_first_step(int step) { first_step_ = step; }
 
  private:
   MPI_Comm comm_;
   int rank_ = 0, size_ = 1;
   std::string dir_, scene_, started_;
   std::vector<std::string> command_line_;
-  int lock_fd_ = -1;
   bool resumed_ = false;
+  int first_step_ = 0;
+  void write_summary(const std::string& status, int steps, long newton, long linear,
+                     const std::vector<std::pair<std::string, double>>& metrics,
+                     const std::vector<std::pair<std::string, std::string>>& text) const;
   std::string iteration_kind_ = "newton";
   std::vector<std::string> columns_;
   std::ofstream csv_;
   double start_ = 0, last_print_ = -1e9;
 };
+
+template <class Work>
+void on_rank_zero(MPI_Comm comm, Work&& work) {
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  int kind = 0;  // 0 ok, 1 invalid_argument, 2 other
+  std::string message;
+  if (rank == 0) {
+    try {
+      work();
+    } catch (const std::invalid_argument& e) {
+      kind = 1, message = e.what();
+    } catch (const std::exception& e) {
+      kind = 2, message = e.what();
+    }
+  }
+  MPI_Bcast(&kind, 1, MPI_INT, 0, comm);
+  if (kind == 0) return;
+  int n = static_cast<int>(message.size());
+  MPI_Bcast(&n, 1, MPI_INT, 0, comm);
+  message.resize(static_cast<std::size_t>(n));
+  MPI_Bcast(message.data(), n, MPI_CHAR, 0, comm);
+  if (kind == 1) throw std::invalid_argument(message);
+  throw std::runtime_error(message);
+}
 
 /// Writes text to path atomically (temporary file + rename).
 void write_atomically(const std::string& path, const std::string& text);

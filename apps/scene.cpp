@@ -396,9 +396,18 @@ void read_bodies(SceneSettings& s) {
     if (count < 1 || count > 64) bad(pre + "count", std::to_string(count), "1 ... 64");
     if (!(spread >= 0) || !std::isfinite(spread)) bad(pre + "spread", str(spread), ">= 0 [cm]");
     if (count == 1) {
+      // A row's options without a row would do nothing.
+      if (arrangement != 0)
+        bad(pre + "arrangement", arrangements[arrangement], "even (or -" + pre + "count 2 or more)");
+      if (spread > 0) bad(pre + "spread", str(spread), "0 (or -" + pre + "count 2 or more)");
       s.bodies.push_back(b);
       continue;
     }
+    if (arrangement == 1 && count % 2)
+      bad(pre + "count", std::to_string(count),
+          "an even count with -" + pre +
+              "arrangement staggered (an odd one puts the first and the last copy, "
+              "side by side across the periodic end, on the same side)");
     // Copies: x evenly over the periodic flow direction, y (and z) from the row's centre and the arrangement.
     if (!s.periodic[0]) bad(pre + "count", std::to_string(count), "1 unless the domain is periodic in x");
     if (s.bodies.size() + static_cast<std::size_t>(count) > 64)
@@ -451,7 +460,40 @@ double available_memory_bytes() {
   return 0;
 }
 
-SceneSettings SceneSettings::from_options(const std::string& default_name) {
+namespace {
+
+/// A mesh the machine cannot hold is refused now, with the estimate, instead of allocating for minutes: the
+/// fluid Jacobian (three times with the band solver: its kept part, its band part and their sum), shared over
+/// the nodes of the fluid ranks, against the least memory available on any of them. Collective.
+void check_memory(const SceneSettings& s) {
+  MPI_Comm comm = PETSC_COMM_WORLD;
+  int size = 1;
+  MPI_Comm_size(comm, &size);
+  double available = available_memory_bytes();
+  if (!(available > 0)) available = 1e300;  // unknown: no check
+  MPI_Allreduce(MPI_IN_PLACE, &available, 1, MPI_DOUBLE, MPI_MIN, comm);
+  MPI_Comm node = MPI_COMM_NULL;
+  MPI_Comm_split_type(comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node);
+  int node_rank = 0, leaders = 0;
+  MPI_Comm_rank(node, &node_rank);
+  MPI_Comm_free(&node);
+  int leader = node_rank == 0 ? 1 : 0;
+  MPI_Allreduce(&leader, &leaders, 1, MPI_INT, MPI_SUM, comm);
+  const bool band = !s.bodies.empty() && size == 1 && s.coupling.solver == coupling::CouplingSolver::band;
+  const double need = (band ? 3 : 1) * fluid_jacobian_bytes(s) / std::max(1, leaders);
+  if (need <= available) return;
+  std::ostringstream v, w;
+  for (int d = 0; d < s.dim; ++d) v << (d ? "," : "") << s.elements[d];
+  w << std::setprecision(3) << "fewer elements: a run needs at least " << need / 1e9 << " GB per node ("
+    << (band ? "the fluid Jacobian three times: its kept part, its band part and their sum"
+             : "the fluid Jacobian")
+    << "; LU factors come on top) and " << available / 1e9 << " GB are available";
+  bad("fluid_elements", v.str(), w.str());
+}
+
+}  // namespace
+
+SceneSettings SceneSettings::from_options(const std::string& default_name, bool fluid_side) {
   SceneSettings s;
   Raw r;
   std::snprintf(r.name, sizeof r.name, "%s", default_name.c_str());
@@ -520,19 +562,6 @@ SceneSettings SceneSettings::from_options(const std::string& default_name) {
   for (int d = 0; d < D; ++d)
     if (s.periodic[d] && s.elements[d] < s.degree)
       bad("fluid_elements", std::to_string(s.elements[d]), ">= degree in a periodic direction");
-  // A mesh this machine cannot hold is refused now, with the estimate, instead of allocating for minutes.
-  if (const double available = available_memory_bytes(); available > 0) {
-    const double need = 3 * fluid_jacobian_bytes(s);
-    if (need > available) {
-      std::ostringstream v, w;
-      for (int d = 0; d < D; ++d) v << (d ? "," : "") << s.elements[d];
-      w << std::setprecision(3) << "fewer elements: a run needs at least " << need / 1e9
-        << " GB (the fluid Jacobian three times: its kept part, its band part and their sum; LU factors come "
-           "on top) and this machine has "
-        << available / 1e9 << " GB available";
-      bad("fluid_elements", v.str(), w.str());
-    }
-  }
   s.flow = r.flow;
   if (s.flow != "shear" && s.flow != "poiseuille" && s.flow != "rest")
     bad("flow", s.flow, "shear, poiseuille or rest");
@@ -558,6 +587,7 @@ SceneSettings SceneSettings::from_options(const std::string& default_name) {
   s.output_dir = r.output_dir[0] ? r.output_dir : "out/" + s.name;
   s.dt = r.dt;
   read_bodies(s);
+  if (fluid_side) check_memory(s);
   return s;
 }
 
@@ -696,6 +726,7 @@ void check_bodies(const SceneSettings& s, const geometry::Patch& domain) {
 
 Scene::Scene(MPI_Comm comm, const SceneSettings& settings) : s_(settings) {
   const int D = s_.dim;
+  profile_from_ = average_from();
   patch_ = build_domain(s_);
   for (int d = D - 1; d >= 0 && wall_dir_ < 0; --d)
     if (!patch_.knots(d).periodic()) wall_dir_ = d;
@@ -769,7 +800,7 @@ void Scene::accumulate_profile() {
   if (s_.flow == "shear") return;
   const fluid::SectionData sec = fluid::section(*fluid_, 0.5, 65);
   flow_rates_.emplace_back(fluid_->time(), sec.flow_rate);
-  if (fluid_->time() < average_from()) return;
+  if (fluid_->time() < average_from() || profile_from_ != average_from()) return;
   if (profile_count_ == 0) {
     profile_sum_ = sec;
   } else {
@@ -781,7 +812,7 @@ void Scene::accumulate_profile() {
 
 fluid::SectionData Scene::mean_profile() const {
   fluid::SectionData m = profile_sum_;
-  if (profile_count_ == 0) return {};
+  if (profile_count_ == 0 || profile_from_ != average_from()) return {};
   for (auto& v : m.velocity) v /= profile_count_;
   m.flow_rate /= profile_count_;
   return m;
@@ -790,7 +821,7 @@ fluid::SectionData Scene::mean_profile() const {
 std::vector<double> Scene::metric_state() const {
   // [profile_count, n_points, (x y z vx vy vz) per point, flow_rate, area,
   //  n_records, per record: time mean_velocity cell_area gap_low gap_high n_cells cell_x...]
-  std::vector<double> out{static_cast<double>(profile_count_),
+  std::vector<double> out{profile_from_, static_cast<double>(profile_count_),
                           static_cast<double>(profile_sum_.points.size())};
   for (std::size_t i = 0; i < profile_sum_.points.size(); ++i)
     for (const geometry::Vec3* v : {&profile_sum_.points[i], &profile_sum_.velocity[i]})
@@ -813,6 +844,9 @@ void Scene::restore_metric_state(const std::vector<double>& state) {
       throw std::invalid_argument("option -restart: the checkpoint's scene records are damaged");
     return state[k++];
   };
+  // The window the profile was summed over: a restart that moves it (-final_time, -metrics_average_from) has
+  // no average over the new one (the steps before the restart are gone), so profile_mean.csv is not written.
+  profile_from_ = next();
   profile_count_ = static_cast<int>(next());
   fluid::SectionData p;
   const auto n = static_cast<std::size_t>(next());

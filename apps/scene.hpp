@@ -62,7 +62,8 @@ struct SceneSettings {
 
   /// Reads every scene option (see -help) and validates; throws std::invalid_argument naming option, value
   /// and range.
-  static SceneSettings from_options(const std::string& default_name);
+  /// fluid_side: also checks that the machine can hold the fluid mesh (the solid side holds no fluid).
+  static SceneSettings from_options(const std::string& default_name, bool fluid_side = true);
 };
 
 /// Bytes of the fluid Jacobian of a scene's mesh (BAIJ values: every node couples with (2p + 1)^d nodes).
@@ -150,6 +151,7 @@ class Scene {
   fluid::SectionData profile_sum_;  // velocity summed over the window's steps (points: the last section's)
   std::vector<std::pair<double, double>> flow_rates_;  // channel flows: (time, flow rate) at every record
   int profile_count_ = 0;
+  double profile_from_ = 0;  // the window start the profile is summed from (average_from() of its run)
 };
 
 }  // namespace cellfsi::app

@@ -30,8 +30,10 @@ inline std::string& pending_petsc_message() {
   return m;
 }
 inline PetscErrorCode record_pending(MPI_Comm, int, const char*, const char*, PetscErrorCode n,
-                                     PetscErrorType, const char* mess, void*) {
+                                     PetscErrorType p, const char* mess, void*) {
+  // A new error starts a new message (one whose code was ignored must not be reported with the next).
   std::string& m = detail::pending_petsc_message();
+  if (p == PETSC_ERROR_INITIAL) m.clear();
   if (m.empty() && mess) m = mess;
   return n;
 }

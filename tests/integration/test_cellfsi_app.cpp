@@ -511,11 +511,11 @@ TEST_F(CellfsiApp, MisspeltPetscTypesAreRejectedByName) {
 
 TEST_F(CellfsiApp, MeshTooLargeForTheMachineIsRejectedWithAnEstimate) {
   // It allocated for minutes; now it stops at once with what the mesh would need.
-  // 1e5 x 1e5 cubic: 3.5e4 GB for the Jacobian alone, more than any one machine has.
+  // 1e5 x 1e5 cubic: 3.5e4 GB for the Jacobian alone, more than any one machine has (no cells: once).
   expect_one_clear_error(cellfsi(with({scene("shear.yaml")}, {"-fluid_elements", "100000,100000"}), 20));
   EXPECT_NE(
       last_output_.find("option -fluid_elements = 100000,100000 is invalid; valid: fewer elements: a run "
-                        "needs at least 1.06e+05 GB"),
+                        "needs at least 3.53e+04 GB per node (the fluid Jacobian;"),
       std::string::npos)
       << last_output_;
   EXPECT_TRUE(nothing_written());
@@ -974,6 +974,23 @@ TEST_F(CellfsiApp, RestartContinuesTheRunAsIfItHadNotStopped) {
   EXPECT_EQ(pvd_files(out_ / "solid.pvd").size(), 5u);
 }
 
+TEST_F(CellfsiApp, RestartsWithAndWithoutOutputKeepTheSeries) {
+  // A restart without series output (-output_every 0) must keep the series written before it for the next
+  // restart (the checkpoint used to drop them, and the next restart deleted their files).
+  const std::vector<std::string> base = {
+      scene("shear.yaml"), "-fluid_elements", "8,4", "-fluid_degree", "2", "-dt", "5e-4"};
+  ASSERT_EQ(cellfsi(with(base, {"-final_time", "2e-3", "-output_every", "2"})).exit_code, 0) << last_output_;
+  ASSERT_EQ(cellfsi(with(base, {"-final_time", "3e-3", "-output_every", "0", "-restart"})).exit_code, 0)
+      << last_output_;
+  ASSERT_EQ(cellfsi(with(base, {"-final_time", "4e-3", "-output_every", "2", "-restart"})).exit_code, 0)
+      << last_output_;
+  const std::vector<std::string> files = pvd_files(out_ / "fluid.pvd");
+  EXPECT_EQ(files, (std::vector<std::string>{"fluid_000000.vts", "fluid_000002.vts", "fluid_000004.vts",
+                                             "fluid_000008.vts"}));
+  for (const std::string& f : files) EXPECT_TRUE(fs::is_regular_file(out_ / f)) << f;
+  EXPECT_EQ(csv_steps(out_ / "metrics.csv"), one_to(8));
+}
+
 TEST_F(CellfsiApp, KilledRunRestartsFromItsLastCheckpoint) {
   // kill -9 after step 7 or later; checkpoints every 3 steps. The restart drops the rows written after the
   // last checkpoint and finishes the run: every step once in metrics.csv.
@@ -1049,6 +1066,10 @@ TEST_F(CellfsiApp, RbcChannelSceneGivesItsHematocritAndRheology) {
   for (const char* key : {"H_d", "zeta", "eta", "h_cf", "v_cells", "v_mean"})
     EXPECT_TRUE(json_number(js, key).has_value()) << key << "\n" << js;
   EXPECT_EQ(json_number(js, "rheology_records"), 2) << js;
+  // The cell-free layer of the placement: half the height less the RBC's half-length across the flow (the
+  // Evans-Fung R0 = 3.91e-4 cm scaled by sqrt(1.2868e-7 / 1.36271e-7) = 0.971747 to the default area) and
+  // half the membrane's thickness: 1.19797e-4 cm; in two steps the cells move by less than 1e-7 cm across.
+  EXPECT_NEAR(json_number(js, "h_cf").value_or(0), 1.19797e-4, 2e-7) << js;
   for (int i = 1; i <= 6; ++i)
     EXPECT_TRUE(json_number(js, "rbc_" + std::to_string(i) + "_r_A").has_value()) << i;
   const Csv csv = read_csv(out_ / "metrics.csv");
@@ -1086,6 +1107,15 @@ TEST_F(CellfsiApp, TwelveRbcsPlacedEvenlyOrStaggeredAreAcceptedAndOverlapsRefuse
       << last_output_;
   EXPECT_NEAR(value("rbc_1_centroid_y"), 5e-4 + 5e-5, 1e-5);
   EXPECT_NEAR(value("rbc_2_centroid_y"), 5e-4 - 5e-5, 1e-5);
+  // Arrangement options without copies, and an odd staggered row, are refused.
+  fs::remove_all(out_);
+  expect_one_clear_error(cellfsi(with(base, {"-solid_rbc_count", "1", "-solid_rbc_spread", "1e-5"})));
+  EXPECT_NE(last_output_.find("option -solid_rbc_spread = 1e-05 is invalid; valid: 0 (or -solid_rbc_count 2"),
+            std::string::npos)
+      << last_output_;
+  expect_one_clear_error(
+      cellfsi(with(base, {"-solid_rbc_count", "5", "-solid_rbc_arrangement", "staggered"})));
+  EXPECT_NE(last_output_.find("an even count"), std::string::npos) << last_output_;
   // 24 cells lying along the flow (angle 0, 7.8e-4 cm long) cannot fit in 0.003 cm.
   fs::remove_all(out_);
   expect_one_clear_error(cellfsi(with(base, {"-solid_rbc_count", "24", "-solid_rbc_angle", "0"})));
