@@ -270,9 +270,11 @@ std::string motion_regime(bool round, bool membrane, const std::vector<double>& 
                           const std::vector<double>& material, double swing_deg) {
   if (axis.size() < 2 || axis.size() != material.size())
     throw std::invalid_argument("motion_regime: at least two records of axis and material angles");
-  if (round) return membrane ? "tank-treading" : "tumbling";
   const double turned = std::abs(axis.back() - axis.front()),
                moved = std::abs(material.back() - material.front());
+  // A round body's axis says nothing (a circle squeezed through a narrowing swaps its long axis without
+  // turning): its material decides.
+  if (round) return moved < kPi / 2 ? "steady" : membrane ? "tank-treading" : "tumbling";
   if (turned >= kPi * (1 - 1e-12) || (turned >= kPi / 4 && turned >= 0.5 * moved)) return "tumbling";
   if (moved < kPi / 2) return "steady";
   const auto [lo, hi] = std::minmax_element(axis.begin(), axis.end());

@@ -90,8 +90,10 @@ class BodyTracker {
 };
 
 /// How a body moves over a window of time (paper Sec. 3.2), from its long axis and its material:
-///   round      -> a body without a long axis of its own (reference shape round): "tumbling" when bulky (it
-///                 turns as a whole, as the paper's inclusions), "tank-treading" when a membrane;
+///   round      -> a body without a long axis of its own (reference shape round): "steady" when its material
+///                 turned by less than a quarter turn (e.g. a circular cell pushed through a narrowing),
+///                 else "tumbling" when bulky (it turns as a whole, as the paper's inclusions) and
+///                 "tank-treading" when a membrane;
 ///   tumbling   -> the long axis turned through at least half a turn (pi: the axis has no sign), or, in a
 ///                 window shorter than that, by at least 45 deg and at least half as far as the material;
 ///   steady     -> the material turned by less than a quarter turn (no rotation to speak of);

@@ -149,6 +149,12 @@ TEST(MotionRegime, DecidedFromTheAxisAndTheMaterial) {
   // A body round in its reference shape has no axis of its own: a bulky one turns as a whole.
   EXPECT_EQ(solid::motion_regime(true, false, still, material), "tumbling");
   EXPECT_EQ(solid::motion_regime(true, true, still, material), "tank-treading");
+  // ... unless its material does not turn (a circular cell squeezed through a narrowing: its long axis swaps by
+  // 90 deg, the material stays).
+  std::vector<double> swap(still.size());
+  for (size_t k = 0; k < swap.size(); ++k) swap[k] = k < swap.size() / 2 ? 0.0 : kPi / 2;
+  EXPECT_EQ(solid::motion_regime(true, true, swap, still), "steady");
+  EXPECT_EQ(solid::motion_regime(true, false, swap, still), "steady");
   EXPECT_THROW(solid::motion_regime(false, true, {0.0}, {0.0}), std::invalid_argument);
 }
 
