@@ -974,6 +974,7 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
   for (size_t b = 0; b < bodies_.size(); ++b) {
     const std::string& name = bodies_[b]->name();
     for (const auto& [k, v] : trackers_[b].summary(from)) m.emplace_back(name + "_" + k, v);
+    for (const auto& [k, v] : shape_symmetry(b)) m.emplace_back(name + "_" + k, v);
     if (s_.flow == "poiseuille" && wall_dir_ >= 0) {
       // Lateral migration across the channel (paper Sec. 4.2): offsets from the centre line, and when the
       // offset first fell to a tenth of its start.
@@ -1042,9 +1043,26 @@ std::vector<std::pair<std::string, std::string>> Scene::summary_text() const {
 
 std::vector<std::pair<std::string, double>> Scene::metrics() {
   last_ = flow_metrics();
-  for (size_t b = 0; b < bodies_.size(); ++b)
+  for (size_t b = 0; b < bodies_.size(); ++b) {
     for (const auto& [k, v] : trackers_[b].metrics()) last_.emplace_back(bodies_[b]->name() + "_" + k, v);
+    for (const auto& [k, v] : shape_symmetry(b)) last_.emplace_back(bodies_[b]->name() + "_" + k, v);
+  }
   return last_;
+}
+
+std::vector<std::pair<std::string, double>> Scene::shape_symmetry(std::size_t b) const {
+  // A membrane in a 2D channel: its mid-line's mirror asymmetry about the line along the flow through its
+  // centroid, and about the line across (solid::mirror_asymmetry): an inclined ellipse has both, a parachute
+  // only the second, a cell aligned and symmetric neither (paper Sec. 4.2).
+  if (s_.flow != "poiseuille" || s_.dim != 2 || !bodies_[b]->is_membrane()) return {};
+  const geometry::Patch p = bodies_[b]->current_patch();
+  const geometry::Vec3 c = geometry::membrane_shape(p, 0).moments.centroid;
+  const geometry::KnotVector &k0 = p.knots(0), &k1 = p.knots(1);
+  std::vector<geometry::Vec3> mid;
+  for (int i = 0; i < 256; ++i)
+    mid.push_back(p.point({0.5 * (k0.a() + k0.b()), k1.a() + (k1.b() - k1.a()) * i / 256, 0}));
+  return {{"asymmetry_flow_axis", solid::mirror_asymmetry(mid, c, 0)},
+          {"asymmetry_front_back", solid::mirror_asymmetry(mid, c, 1)}};
 }
 
 std::vector<std::pair<std::string, double>> Scene::flow_metrics() {

@@ -133,6 +133,8 @@ class Scene {
   /// A suspension record of the current state (channel flow with membranes; see
   /// solid/suspension_metrics.hpp).
   void record_suspension();
+  /// Membranes in a 2D channel: the shape's mirror asymmetries (keys without the body's name).
+  std::vector<std::pair<std::string, double>> shape_symmetry(std::size_t body) const;
   /// Adds the current mid-length profile to the window's average (channel flows).
   void accumulate_profile();
   double average_from() const;  // start of the metrics' averaging window [s]

@@ -83,6 +83,22 @@ Migration lateral_migration(const std::vector<std::pair<double, Vec3>>& track, i
   return m;
 }
 
+double mirror_asymmetry(const std::vector<Vec3>& curve, const Vec3& centre, int axis) {
+  if (curve.size() < 3 || (axis != 0 && axis != 1))
+    throw std::invalid_argument("mirror_asymmetry: at least 3 points, axis 0 or 1");
+  const int across = 1 - axis;  // the coordinate that the mirror flips
+  double dist = 0, radius = 0;
+  for (const Vec3& p : curve) {
+    Vec3 m = p;
+    m[across] = 2 * centre[across] - p[across];
+    double nearest = std::numeric_limits<double>::max();
+    for (const Vec3& q : curve) nearest = std::min(nearest, (m - q).head<2>().squaredNorm());
+    dist += std::sqrt(nearest);
+    radius += (p - centre).head<2>().norm();
+  }
+  return radius > 0 ? dist / radius : 0.0;
+}
+
 std::vector<double> BodyTracker::state() const {
   // [n_angles, angles..., n_records, per record: time r_a r_p axis anisotropy material cx cy cz]
   std::vector<double> out{static_cast<double>(last_angles_.size())};

@@ -109,6 +109,14 @@ struct Migration {
 Migration lateral_migration(const std::vector<std::pair<double, geometry::Vec3>>& track, int dir, double mid,
                             double fraction = 0.1);
 
+/// How far a closed curve (points in order, e.g. a membrane's mid-line sampled around) is from its mirror
+/// image about the line through `centre` along direction `axis` (0: x, 1: y): the mean distance from each
+/// mirrored point to the nearest point of the curve, over the curve's mean distance from the centre. 0 for a
+/// shape symmetric about that line (to the sampling); an ellipse inclined to the line gives more. Along a
+/// channel (axis 0, the flow direction) a parachute and an aligned ellipse are both symmetric, but about the
+/// line across the flow (axis 1) only the ellipse is: the pair tells them apart (paper Sec. 4.2).
+double mirror_asymmetry(const std::vector<geometry::Vec3>& curve, const geometry::Vec3& centre, int axis);
+
 std::string motion_regime(bool round, bool membrane, const std::vector<double>& axis,
                           const std::vector<double>& material, double swing_deg = 2.0);
 

@@ -1133,6 +1133,10 @@ TEST_F(CellfsiApp, MigrationSceneReportsTheLateralOffset) {
   const std::string js = summary();
   EXPECT_NEAR(json_number(js, "membrane_lateral_offset_start").value_or(0), 2e-4, 1e-8) << js;
   EXPECT_TRUE(json_number(js, "membrane_lateral_offset_final").has_value()) << js;
+  // The ellipse starts aligned with the flow: symmetric about both lines through its centroid (measured after
+  // 2 steps: 0.004-0.016 depending on the mesh).
+  for (const char* key : {"membrane_asymmetry_flow_axis", "membrane_asymmetry_front_back"})
+    EXPECT_LT(json_number(js, key).value_or(1), 0.03) << key << "\n" << js;
   EXPECT_TRUE(js.find("\"membrane_time_to_centreline\": null") != std::string::npos)
       << "not there in 2 steps\n"
       << js;

@@ -149,8 +149,8 @@ TEST(MotionRegime, DecidedFromTheAxisAndTheMaterial) {
   // A body round in its reference shape has no axis of its own: a bulky one turns as a whole.
   EXPECT_EQ(solid::motion_regime(true, false, still, material), "tumbling");
   EXPECT_EQ(solid::motion_regime(true, true, still, material), "tank-treading");
-  // ... unless its material does not turn (a circular cell squeezed through a narrowing: its long axis swaps by
-  // 90 deg, the material stays).
+  // ... unless its material does not turn (a circular cell squeezed through a narrowing: its long axis swaps
+  // by 90 deg, the material stays).
   std::vector<double> swap(still.size());
   for (size_t k = 0; k < swap.size(); ++k) swap[k] = k < swap.size() / 2 ? 0.0 : kPi / 2;
   EXPECT_EQ(solid::motion_regime(true, true, swap, still), "steady");
@@ -228,4 +228,33 @@ TEST(LateralMigration, OffsetsAndTheTimeToTheCentreLine) {
   EXPECT_NEAR(m.time_to_centreline, 0.1 * std::log(10.0), 1e-3);  // the first record past it
   track.resize(100);                                              // to t = 0.099: not there yet
   EXPECT_TRUE(std::isnan(solid::lateral_migration(track, 1, 5e-4).time_to_centreline));
+}
+
+TEST(MirrorAsymmetry, TellsAnAlignedEllipseAnInclinedOneAndAParachuteApart) {
+  // 400 points of each curve around the origin.
+  auto curve = [](auto point) {
+    std::vector<cellfsi::geometry::Vec3> c;
+    for (int i = 0; i < 400; ++i) c.push_back(point(2 * kPi * i / 400));
+    return c;
+  };
+  const auto aligned =
+      curve([](double t) { return cellfsi::geometry::Vec3(2 * std::cos(t), std::sin(t), 0); });
+  const double a = 0.5;  // inclined by 0.5 rad
+  const auto inclined = curve([&](double t) {
+    const double x = 2 * std::cos(t), y = std::sin(t);
+    return cellfsi::geometry::Vec3(std::cos(a) * x - std::sin(a) * y, std::sin(a) * x + std::cos(a) * y, 0);
+  });
+  // A bullet / parachute: round at the front (x > 0), flattened and hollowed at the rear.
+  const auto parachute = curve([](double t) {
+    const double x = std::cos(t), y = std::sin(t);
+    return cellfsi::geometry::Vec3(x > 0 ? x : 0.3 * x - 0.3 * (1 - y * y), y, 0);
+  });
+  const cellfsi::geometry::Vec3 o = cellfsi::geometry::Vec3::Zero();
+  EXPECT_LT(solid::mirror_asymmetry(aligned, o, 0), 0.01);
+  EXPECT_LT(solid::mirror_asymmetry(aligned, o, 1), 0.01);
+  EXPECT_GT(solid::mirror_asymmetry(inclined, o, 0), 0.1);
+  EXPECT_GT(solid::mirror_asymmetry(inclined, o, 1), 0.1);
+  EXPECT_LT(solid::mirror_asymmetry(parachute, o, 0), 0.01);  // symmetric about the flow axis
+  EXPECT_GT(solid::mirror_asymmetry(parachute, o, 1), 0.1);   // but not front to back
+  EXPECT_THROW(solid::mirror_asymmetry({o, o}, o, 0), std::invalid_argument);
 }
