@@ -734,6 +734,22 @@ TEST_F(CellfsiApp, TwoRanksWriteTheFluidSeries) {
   const std::vector<std::string> pieces = pvd_files(out_ / "fluid.pvd");
   EXPECT_EQ(pieces, (std::vector<std::string>{"fluid_000000.vts", "fluid_000001.vts", "fluid_000002.vts"}));
   for (const std::string& p : pieces) EXPECT_TRUE(fs::is_regular_file(out_ / p)) << p;
+  // The whole grid, not one rank's part: the same extent and the same arrays as a one-rank run's file.
+  const std::string two = read_text(out_ / "fluid_000002.vts");
+  const fs::path one_dir = root_ / "one_rank";
+  const RunResult one =
+      run_process({CELLFSI_EXE, scene("shear.yaml"), "-fluid_elements", "16,8", "-fluid_degree", "2",
+                   "-final_time", "1e-3", "-output_every", "1", "-output_dir", one_dir.string()});
+  ASSERT_EQ(one.exit_code, 0) << one.output;
+  const std::string ref = read_text(one_dir / "fluid_000002.vts");
+  const std::regex extent("WholeExtent=\"[^\"]*\"");
+  std::smatch a, b;
+  ASSERT_TRUE(std::regex_search(two, a, extent)) << two.substr(0, 400);
+  ASSERT_TRUE(std::regex_search(ref, b, extent));
+  EXPECT_EQ(a.str(), b.str());
+  for (const char* array : {"Name=\"velocity\"", "Name=\"pressure\"", "Name=\"s_h\"", "Name=\"vorticity\""})
+    EXPECT_EQ(count(two, array), count(ref, array)) << array;
+  EXPECT_EQ(two.size(), ref.size()) << "the same grid and arrays give files of one size";
 }
 
 // ---------------------------------------------------------------------------------------------------------
