@@ -892,8 +892,13 @@ void Scene::restore(Vec U, Vec Udot, int steps, const std::vector<std::vector<do
                                 std::to_string(bodies_.size()));
   fluid_->restore(U, Udot, steps);
   for (size_t b = 0; b < bodies_.size(); ++b) {
-    bodies_[b]->set_state(bodies[b]);
-    trackers_[b].restore(trackers[b]);
+    try {
+      bodies_[b]->set_state(bodies[b]);
+      trackers_[b].restore(trackers[b]);
+    } catch (const std::exception& e) {
+      // Also a remote body's refusal, which arrives as a runtime error: the checkpoint is bad input.
+      throw std::invalid_argument(std::string("option -restart is invalid here: ") + e.what());
+    }
   }
   if (coupler_) coupler_->restart();
 }

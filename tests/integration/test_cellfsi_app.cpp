@@ -1007,6 +1007,24 @@ TEST_F(CellfsiApp, RestartsWithAndWithoutOutputKeepTheSeries) {
   EXPECT_EQ(csv_steps(out_ / "metrics.csv"), one_to(8));
 }
 
+TEST_F(CellfsiApp, CheckpointThatDoesNotFitTheRemoteBodiesIsBadInput) {
+  // A body state of the wrong size, refused on the solid rank, reaches the fluid side as bad input (exit 1).
+  const std::vector<std::string> args = with({scene("capsule_shear.yaml")}, kCapsule);
+  ASSERT_EQ(mpi_cellfsi(2, with(args, {"-final_time", "1e-3", "-solid_ranks", "1"})).exit_code, 0)
+      << last_output_;
+  const fs::path state = out_ / "checkpoint" / "state.json";
+  std::string js = read_text(state);
+  const std::size_t at = js.find("\"bodies\":[[");
+  ASSERT_NE(at, std::string::npos) << js.substr(0, 300);
+  js.insert(at + 11, "1.0,");
+  { std::ofstream(state) << js; }
+  const RunResult r = mpi_cellfsi(2, with(args, {"-final_time", "2e-3", "-solid_ranks", "1", "-restart"}));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("option -restart is invalid here: body 'membrane' (solid side)"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("a state of 577 numbers does not fit its 576"), std::string::npos) << r.output;
+}
+
 TEST_F(CellfsiApp, KilledRunRestartsFromItsLastCheckpoint) {
   // kill -9 after step 7 or later; checkpoints every 3 steps. The restart drops the rows written after the
   // last checkpoint and finishes the run: every step once in metrics.csv.
