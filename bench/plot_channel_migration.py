@@ -12,7 +12,8 @@ import json
 import os
 import sys
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_common import ROOT, pyplot, save_figure  # noqa: E402
 
 
 def main():
@@ -21,12 +22,9 @@ def main():
     p.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "channel_migration.png"))
     p.add_argument("--body", default="membrane")
     args = p.parse_args()
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        sys.exit("plot_channel_migration: no matplotlib (python3-matplotlib)")
+    plt = pyplot("plot_channel_migration")
+    if plt is None:
+        sys.exit(1)
     with open(os.path.join(args.run, "metrics.csv")) as f:
         rows = list(csv.DictReader(f))
     with open(os.path.join(args.run, "options.yaml")) as f:
@@ -53,10 +51,7 @@ def main():
     ttc = summary.get(args.body + "_time_to_centreline")
     fig.suptitle(f"Capsule in a channel ({opts.get('fluid_elements', '?')} elements); time to a tenth of the "
                  f"offset: {'not reached' if ttc is None else f'{ttc:.3f} s'}", fontsize=10)
-    fig.tight_layout()
-    os.makedirs(os.path.dirname(args.figure) or ".", exist_ok=True)
-    fig.savefig(args.figure, dpi=110)
-    print(f"plot_channel_migration: wrote {args.figure}")
+    save_figure(fig, args.figure, "plot_channel_migration")
 
 
 if __name__ == "__main__":

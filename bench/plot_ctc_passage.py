@@ -13,7 +13,8 @@ import json
 import os
 import sys
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_common import ROOT, pyplot, save_figure  # noqa: E402
 
 
 def main():
@@ -21,12 +22,9 @@ def main():
     p.add_argument("run")
     p.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "ctc_passage.png"))
     args = p.parse_args()
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        sys.exit("plot_ctc_passage: no matplotlib (python3-matplotlib)")
+    plt = pyplot("plot_ctc_passage")
+    if plt is None:
+        sys.exit(1)
     with open(os.path.join(args.run, "metrics.csv")) as f:
         rows = list(csv.DictReader(f))
     with open(os.path.join(args.run, "summary.json")) as f:
@@ -51,10 +49,7 @@ def main():
                  f"t = {s.get('flow_rate_min_time', 0):.3f} s; nucleus most deformed (anisotropy "
                  f"{s.get('nucleus_max_anisotropy', 0):.2f}) at x = {s.get('nucleus_max_anisotropy_x', 0) * 1e4:.1f} um",
                  fontsize=9)
-    fig.tight_layout()
-    os.makedirs(os.path.dirname(args.figure) or ".", exist_ok=True)
-    fig.savefig(args.figure, dpi=110)
-    print(f"plot_ctc_passage: wrote {args.figure}")
+    save_figure(fig, args.figure, "plot_ctc_passage")
 
 
 if __name__ == "__main__":

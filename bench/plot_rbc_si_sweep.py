@@ -13,7 +13,8 @@ import json
 import os
 import sys
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_common import ROOT, pyplot, save_figure, write_table  # noqa: E402
 
 
 def main():
@@ -46,16 +47,10 @@ def main():
              " step | wall s | status | commit |", "|---|---|---|---|---|---|---|---|"]
     for v, mean, peak, its, wall, status, commit, steps in rows:
         lines.append(f"| {v:g} | {steps} | {mean:.2e} | {peak:.2e} | {its:.2f} | {wall:.0f} | {status} | {commit} |")
-    os.makedirs(os.path.dirname(args.table) or ".", exist_ok=True)
-    with open(args.table, "w") as f:
-        f.write("\n".join(lines) + "\n")
-    print("\n".join(lines))
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        sys.exit("plot_rbc_si_sweep: no matplotlib (python3-matplotlib): figure skipped")
+    write_table(args.table, lines)
+    plt = pyplot("plot_rbc_si_sweep")
+    if plt is None:
+        sys.exit(1)
     if not rows:
         return
     fig, ax = plt.subplots(figsize=(5.5, 3.8))
@@ -70,9 +65,7 @@ def main():
     ax.grid(True, which="both", lw=0.3)
     ax.legend(fontsize=8)
     ax.set_title(f"Six RBCs in a channel ({args.mesh}, to 0.4 s)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(args.figure, dpi=110)
-    print(f"plot_rbc_si_sweep: wrote {args.figure}")
+    save_figure(fig, args.figure, "plot_rbc_si_sweep")
 
 
 if __name__ == "__main__":

@@ -21,7 +21,7 @@ import shlex
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from run_shear_sweeps import ROOT, fmt, provenance, run_one  # noqa: E402
+from bench_common import ROOT, fmt, provenance, pyplot, run_one, save_figure, write_table  # noqa: E402
 
 # The channel of scenes/rbc_channel.yaml (CGS): the plasma's parabola u(y) = f / (2 mu) y (H - y).
 HEIGHT, FORCE, VISCOSITY = 0.001, 1666.66, 0.012
@@ -55,7 +55,7 @@ def collect(args):
     return sorted(rows, key=lambda s: s["_count"])
 
 
-def write_table(args, rows, command):
+def write_rheology_table(args, rows, command):
     lines = [provenance(args, command), "",
              "| cells | H_t | H_d | zeta = v_m / v_RBCs | eta = v_P / v_m | h_cf um | v_RBCs cm/s | v_m cm/s |"
              " max abs r_A | steps | wall s | status |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -69,19 +69,12 @@ def write_table(args, rows, command):
     lines.append("")
     lines.append(f"Plasma alone: v_P = f H^2 / (12 mu) = {FORCE * HEIGHT ** 2 / (12 * VISCOSITY):.5f} cm/s "
                  "(analytic; the code reproduces it to 2.2e-7, docs/performance.md).")
-    os.makedirs(os.path.dirname(args.table) or ".", exist_ok=True)
-    with open(args.table, "w") as f:
-        f.write("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_table(args.table, lines)
 
 
 def write_figure(args, rows):
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("run_channel_rheology: no matplotlib (python3-matplotlib): figure skipped", file=sys.stderr)
+    plt = pyplot("run_channel_rheology")
+    if plt is None:
         return
     done = [s for s in rows if s.get("status") == "completed" and s.get("zeta") is not None]
     if not done:
@@ -109,10 +102,7 @@ def write_figure(args, rows):
     ax.legend(fontsize=7)
     fig.suptitle(f"RBCs in a channel ({args.mesh}, p = {args.degree}, dt = {args.dt:g} s, averaged over "
                  f"{args.average_from:g}-{args.final_time:g} s)", fontsize=10)
-    fig.tight_layout()
-    os.makedirs(os.path.dirname(args.figure) or ".", exist_ok=True)
-    fig.savefig(args.figure, dpi=110)
-    print(f"run_channel_rheology: wrote {args.figure}")
+    save_figure(fig, args.figure, "run_channel_rheology")
 
 
 def main():
@@ -143,7 +133,7 @@ def main():
             for tag, how in pool.map(lambda r: run_one(args, *r), runs_of(args)):
                 print(f"run_channel_rheology: {tag}: {how}", flush=True)
     rows = collect(args)
-    write_table(args, rows, command)
+    write_rheology_table(args, rows, command)
     write_figure(args, rows)
     missing = len(runs_of(args)) - sum(1 for s in rows if s.get("status") == "completed")
     if missing:
