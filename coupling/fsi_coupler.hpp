@@ -7,7 +7,7 @@
 //   around the interface points; once per step, at the first iteration) -> the fluid residual R_MC; steps
 //   5-7: K_MC, a linear solve, the update of the fluid unknowns.
 // It stops when the fluid residual and every body's kinematic residual have dropped by `tolerance` (paper:
-// 1e-4) below the largest value each has had in the step.
+// 1e-4) below the largest value each has had in the step, or are at round-off (fluid_atol, solid_atol).
 #include <memory>
 #include <string>
 #include <vector>

@@ -1135,6 +1135,7 @@ TEST_F(CellfsiApp, TwelveRbcsPlacedEvenlyOrStaggeredAreAcceptedAndOverlapsRefuse
   };
   ASSERT_EQ(cellfsi(base, 120).exit_code, 0) << last_output_;
   EXPECT_NEAR(value("rbc_12_centroid_x"), 0.003 * 23 / 24, 1e-5);
+  EXPECT_NEAR(value("tube_hematocrit"), 0.5147, 2e-4);  // the paper's H_t of twelve cells
   ASSERT_EQ(cellfsi(with(base, {"-solid_rbc_arrangement", "staggered", "-solid_rbc_spread", "5e-5"}), 120)
                 .exit_code,
             0)
@@ -1194,6 +1195,10 @@ TEST_F(CellfsiApp, CtcNarrowingSceneRunsAndReportsItsPassage) {
   for (const char* key :
        {"flow_rate_max", "flow_rate_min", "nucleus_max_anisotropy", "nucleus_max_anisotropy_x"})
     EXPECT_TRUE(json_number(js, key).has_value()) << key << "\n" << js;
+  // In 2.5e-3 s the cell (about 0.013 cm/s) has moved less than 5e-5 cm from its start at x = 0.001 cm.
+  EXPECT_NEAR(json_number(js, "nucleus_max_anisotropy_x").value_or(0), 0.001, 5e-5) << js;
+  EXPECT_LE(json_number(js, "flow_rate_min").value_or(1), json_number(js, "flow_rate_max").value_or(0)) << js;
+  EXPECT_GT(json_number(js, "flow_rate_min").value_or(0), 0.0) << js;
   // The narrowing's size comes from the channel options; -domain_size was silently ignored.
   fs::remove_all(out_);
   expect_one_clear_error(
