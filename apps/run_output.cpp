@@ -60,6 +60,13 @@ std::string effective_options_yaml() {
 
 namespace {
 
+/// A file of the fluid or solid series: fluid_NNNNNN.vts, its parallel form fluid_NNNNNN.pvts with pieces
+/// fluid_NNNNNN_pRRRR.vts, solid_BODY_NNNNNN.vts.
+bool is_series_file(const std::string& name) {
+  const std::string ext = std::filesystem::path(name).extension().string();
+  return (name.rfind("fluid_", 0) == 0 || name.rfind("solid_", 0) == 0) && (ext == ".vts" || ext == ".pvts");
+}
+
 /// Locks DIR/.cellfsi.lock (flock: released by the kernel when the process ends, however it ends) and
 /// writes this process's id into it. Returns the descriptor, or -1 with `why` set.
 int lock_folder(const std::string& dir, std::string& why) {
@@ -181,8 +188,7 @@ RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& s
     // would be mistaken for this run's: remove them first.
     for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
       const std::string name = entry.path().filename().string();
-      const bool series = (name.rfind("fluid_", 0) == 0 || name.rfind("solid_", 0) == 0) &&
-                          entry.path().extension() == ".vts";
+      const bool series = is_series_file(name);
       if (name == "summary.json" || name == "fluid.pvd" || name == "solid.pvd" || name == "profile.csv" ||
           name == "profile_mean.csv" || series)
         std::filesystem::remove(entry.path());
@@ -203,9 +209,12 @@ void RunOutput::remove_series_except(const std::vector<std::string>& keep) const
   if (rank_ != 0) return;
   for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
     const std::string name = entry.path().filename().string();
-    const bool series =
-        (name.rfind("fluid_", 0) == 0 || name.rfind("solid_", 0) == 0) && entry.path().extension() == ".vts";
-    if (series && std::find(keep.begin(), keep.end(), name) == keep.end())
+    // A piece of a parallel file (fluid_NNNNNN_pRRRR.vts) goes with its index (fluid_NNNNNN.pvts).
+    const std::size_t piece = name.rfind("_p");
+    const std::string owner =
+        name.rfind("fluid_", 0) == 0 && piece != std::string::npos ? name.substr(0, piece) + ".pvts" : name;
+    if (is_series_file(name) && std::find(keep.begin(), keep.end(), name) == keep.end() &&
+        std::find(keep.begin(), keep.end(), owner) == keep.end())
       std::filesystem::remove(entry.path());
   }
 }

@@ -12,8 +12,9 @@
 
 namespace cellfsi::fluid {
 
-/// Writes DIR/fluid_NNNNNN.vts for each call and keeps DIR/fluid.pvd listing them (rank 0 writes;
-/// collective).
+/// Writes DIR/fluid_NNNNNN.vts for each call (on several ranks: a piece per rank, fluid_NNNNNN_pRRRR.vts, and
+/// the index fluid_NNNNNN.pvts) and keeps DIR/fluid.pvd listing them (collective; each rank samples its own
+/// elements, nothing is gathered).
 class FluidSeriesWriter {
  public:
   FluidSeriesWriter(std::string dir, int samples_per_element = 2);

@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "common/generalized_alpha.hpp"
 #include "fluid/element_basis.hpp"
 #include "fluid/vms_kernel.hpp"
 #include "geometry/inversion.hpp"
@@ -164,6 +165,13 @@ class FluidSolver {
   int dim() const { return dim_; }
   MPI_Comm comm() const { return comm_; }
 
+  /// The elements whose first support node this rank owns (each element belongs to exactly one rank; per
+  /// direction a contiguous range, in lexicographic order, direction 0 fastest): their control points are in
+  /// this rank's ghosted region.
+  std::vector<geometry::Index3> owned_elements() const;
+  /// The scaling field s^h (a vector of a one-dof DMDA compatible with dm()).
+  Vec scaling() const { return S_; }
+
   /// Natural-ordered copy of a DMDA vector on rank 0 (empty elsewhere): node-major, dof-minor.
   std::vector<double> gather_to_zero(Vec global) const;
   /// The scaling field s^h by natural node index on rank 0 (empty elsewhere).
@@ -173,22 +181,19 @@ class FluidSolver {
   friend PetscErrorCode fluid_residual(SNES, Vec, Vec, void*);
   friend PetscErrorCode fluid_jacobian(SNES, Vec, Mat, Mat, void*);
 
-  struct Alpha {
-    double alpha_m = 0, alpha_f = 0, gamma = 0;
-  };
   // Either of F, J may be null. With an element mask, J receives the part of K_MC described in jacobian_part.
   void assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band = nullptr, bool band_side = true);
   void apply_dirichlet_values(Vec U, double t) const;
   std::vector<PetscInt> dirichlet_rows() const;  // global PETSc indices of owned Dirichlet rows
   bool owns_element(const geometry::Index3& e) const;
-  /// The elements whose first support node this rank owns (each element belongs to exactly one rank).
-  std::vector<geometry::Index3> owned_elements() const;
+  /// Every rank's samples (each found by the rank that owns its element) on every rank.
+  std::vector<PointSample> gather_samples(const std::vector<PointSample>& local) const;
 
   MPI_Comm comm_;
   const geometry::Patch& patch_;
   FluidOptions opt_;
   int dim_ = 2, dof_ = 3;
-  Alpha alpha_;
+  GeneralizedAlpha alpha_;
   DM da_ = nullptr, da_scalar_ = nullptr;
   Vec U_ = nullptr, Udot_ = nullptr;            // at t_n between steps
   Vec Un_loc_ = nullptr, Udotn_loc_ = nullptr;  // ghosted copies of t_n values during a step

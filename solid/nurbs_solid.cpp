@@ -13,17 +13,6 @@ using geometry::Index3;
 using geometry::MapValues;
 using geometry::Param;
 
-TimeParameters TimeParameters::from_rho_inf(double rho_inf, double dt) {
-  if (!(rho_inf >= 0 && rho_inf <= 1)) throw std::invalid_argument("rho_inf must be in [0, 1]");
-  if (!(dt > 0)) throw std::invalid_argument("dt must be > 0");
-  TimeParameters t;
-  t.dt = dt;
-  t.alpha_m = (3.0 - rho_inf) / (2.0 * (1.0 + rho_inf));
-  t.alpha_f = 1.0 / (1.0 + rho_inf);
-  t.gamma = 0.5 + t.alpha_m - t.alpha_f;
-  return t;
-}
-
 NurbsSolid::NurbsSolid(std::string name, geometry::Patch reference, std::shared_ptr<const Material> material,
                        double density)
     : name_(std::move(name)),

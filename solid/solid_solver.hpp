@@ -12,6 +12,7 @@
 
 #include <Eigen/Dense>
 
+#include "common/generalized_alpha.hpp"
 #include "geometry/patch.hpp"
 
 namespace cellfsi::solid {
@@ -20,10 +21,7 @@ using Vec3 = Eigen::Vector3d;
 using Mat3 = Eigen::Matrix3d;
 
 /// Generalized-alpha parameters shared with the fluid (DESIGN.md section 3).
-struct TimeParameters {
-  double dt = 0, alpha_m = 0, alpha_f = 0, gamma = 0;
-  static TimeParameters from_rho_inf(double rho_inf, double dt);
-};
+using TimeParameters = GeneralizedAlpha;
 
 /// The fluid velocity and its gradient at one point (grad_v(i, j) = d v_i / d x_j).
 struct VelocitySample {
