@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "common/option_table.hpp"
 #include "common/petsc_error.hpp"
 #include "geometry/builders.hpp"
 #include "geometry/measures.hpp"
@@ -25,38 +26,21 @@ namespace {
 
 struct Options {
   std::string output_dir = "out/geometry";
-  PetscInt samples = 4;       // sampling intervals per element for cell patches
-  PetscInt mesh_samples = 1;  // per element for the Eulerian meshes (1: the element grid itself)
-  PetscBool three_d = PETSC_TRUE;
+  int samples = 4;       // sampling intervals per element for cell patches
+  int mesh_samples = 1;  // per element for the Eulerian meshes (1: the element grid itself)
+  bool three_d = true;
 };
 
-/// Reads the options (PETSc options database; -help lists them). Values are checked by validate().
-PetscErrorCode read_options(Options& o) {
-  PetscFunctionBeginUser;
-  char dir[PETSC_MAX_PATH_LEN];
-  std::snprintf(dir, sizeof dir, "%s", o.output_dir.c_str());
-  PetscBool set = PETSC_FALSE;
-  PetscOptionsBegin(PETSC_COMM_WORLD, nullptr,
-                    "cellfsi-geometry: the paper's domains and cells written to VTK", nullptr);
-  PetscCall(PetscOptionsString("-output_dir", "Folder for geometry.pvd and its pieces (created if missing)",
-                               nullptr, dir, dir, sizeof dir, &set));
-  PetscCall(PetscOptionsInt("-samples", "Sampling intervals per element for the cell patches (>= 1)", nullptr,
-                            o.samples, &o.samples, nullptr));
-  PetscCall(PetscOptionsInt("-mesh_samples", "Sampling intervals per element for the Eulerian meshes (>= 1)",
-                            nullptr, o.mesh_samples, &o.mesh_samples, nullptr));
-  PetscCall(PetscOptionsBool("-three_d", "Also write the 3D compound capsule scene (64^3 box)", nullptr,
-                             o.three_d, &o.three_d, nullptr));
-  PetscOptionsEnd();
-  o.output_dir = dir;
-  PetscFunctionReturn(0);
-}
-
-void validate(const Options& o) {
-  if (o.samples < 1)
-    throw std::invalid_argument("-samples " + std::to_string(o.samples) + " is invalid: must be >= 1");
-  if (o.mesh_samples < 1)
-    throw std::invalid_argument("-mesh_samples " + std::to_string(o.mesh_samples) +
-                                " is invalid: must be >= 1");
+/// Reads and checks the options (an option table: -help lists them).
+void read_options(Options& o) {
+  cellfsi::OptionTable t("cellfsi-geometry: the paper's domains and cells written to VTK");
+  t.text("output_dir", o.output_dir, "Folder for geometry.pvd and its pieces (created if missing)")
+      .integer("samples", o.samples, "Sampling intervals per element for the cell patches",
+               cellfsi::at_least(1))
+      .integer("mesh_samples", o.mesh_samples, "Sampling intervals per element for the Eulerian meshes",
+               cellfsi::at_least(1))
+      .flag("three_d", o.three_d, "Also write the 3D compound capsule scene (64^3 box)");
+  t.read();
 }
 
 /// Collects written pieces into one .pvd, one part per piece.
@@ -174,7 +158,7 @@ int main(int argc, char** argv) {
   int status = 0;
   try {
     Options o;
-    PetscCall(read_options(o));
+    read_options(o);
     PetscBool help = PETSC_FALSE;
     PetscCall(PetscOptionsHasName(nullptr, nullptr, "-help", &help));
     // Unknown options are errors, not silently ignored.
@@ -190,7 +174,6 @@ int main(int argc, char** argv) {
     }
     PetscCall(PetscOptionsLeftRestore(nullptr, &n_left, &names, &values));
     if (!help) {
-      validate(o);
       // The demo is serial: under mpirun only rank 0 builds and writes (no two ranks write one file).
       PetscMPIInt rank = 0;
       PetscCallMPI(MPI_Comm_rank(PETSC_COMM_WORLD, &rank));

@@ -90,7 +90,7 @@ inline PetscErrorCode record_first_message(MPI_Comm, int, const char*, const cha
 }  // namespace detail
 
 /// Kinds of option values for call_reporting_input_errors: 'i' integer, 'r' real, 'I' integer list, 'R' real
-/// list, 'b' boolean.
+/// list, 'b' boolean, 'B' boolean list, 's' word, 'S' list of words.
 using OptionProbe = std::pair<const char*, char>;
 
 /// Runs `call` (which returns a PetscErrorCode, e.g. a function reading options) with PETSc's error handler
@@ -108,6 +108,8 @@ void call_reporting_input_errors(Call&& call, const std::vector<std::pair<std::s
            : kind == 'r' ? "a number"
            : kind == 'b' ? "true or false"
            : kind == 'B' ? "comma-separated true/false (or 1/0)"
+           : kind == 's' ? "a word"
+           : kind == 'S' ? "comma-separated words"
                          : "comma-separated numbers";
   };
   if (!ierr) {
@@ -136,6 +138,7 @@ void call_reporting_input_errors(Call&& call, const std::vector<std::pair<std::s
     return;
   }
   for (const auto& [option, kind] : probes) {
+    if (kind == 's' || kind == 'S') continue;  // any text parses
     const char* name = option.c_str();
     std::string why;
     PetscPushErrorHandler(detail::record_first_message, &why);

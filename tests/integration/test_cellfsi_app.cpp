@@ -793,6 +793,15 @@ TEST_F(CellfsiApp, HelpListsSceneOptions) {
   for (const char* opt : {"-fluid_elements", "-fluid_degree", "-shear_rate", "-final_time", "-dt",
                           "-output_dir", "-output_every", "-domain", "-flow"})
     EXPECT_NE(r.output.find(std::string("  ") + opt + " <"), std::string::npos) << "-help lacks " << opt;
+  // Every table, each option with its help text and valid choices, after the program's description.
+  EXPECT_EQ(r.output.find("cellfsi: cell-resolved microscale blood flow"), 0u) << r.output.substr(0, 300);
+  EXPECT_NE(r.output.find("Usage: cellfsi [SCENE.yaml]"), std::string::npos) << r.output;
+  for (const char* table : {"cellfsi scene (DESIGN.md section 4; CGS units):",
+                            "Fluid (VMS Navier-Stokes; CGS units):", "cellfsi immersed bodies and coupling:"})
+    EXPECT_NE(r.output.find(table), std::string::npos) << "-help lacks the table " << table;
+  EXPECT_NE(r.output.find("Eulerian domain (rectangle, box, narrowing)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("  -fluid_density <"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("  -coupling_acceleration <"), std::string::npos) << r.output;
   EXPECT_EQ(count(r.output, "cellfsi: error"), 0u) << r.output;
   EXPECT_TRUE(nothing_written()) << "-help runs nothing";
 }

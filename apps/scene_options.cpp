@@ -1,0 +1,372 @@
+// SceneSettings::from_options: the scene's, the coupling's and each body's option tables
+// (common/option_table.hpp), the checks between options, and the memory check before allocating.
+#include <petscsys.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <iomanip>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+
+#include "apps/scene.hpp"
+#include "common/option_table.hpp"
+
+namespace cellfsi::app {
+
+using geometry::Vec3;
+
+namespace {
+
+std::string str(double v) { return option_value_text(v); }
+
+[[noreturn]] void bad(const std::string& option, const std::string& value, const std::string& valid) {
+  bad_option(option, value, valid);
+}
+
+/// Index of `word` in `words` (the table has checked that it is one of them).
+template <class Enum>
+Enum enum_of(const std::string& word, const std::vector<std::string>& words) {
+  return static_cast<Enum>(std::find(words.begin(), words.end(), word) - words.begin());
+}
+
+const std::vector<std::string> kSolvers{"band", "fluid"};
+const std::vector<std::string> kMarkings{"support", "central"};
+const std::vector<std::string> kAccelerations{"none", "anderson"};
+const std::vector<std::string> kShapes{"hollow_ellipse", "ellipse", "rbc", "hollow_ellipsoid", "ellipsoid"};
+const std::vector<std::string> kArrangements{"even", "staggered", "random"};
+
+/// The coupling's options (and the scene's body list, averaging window and mesh-ratio limit).
+void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
+  coupling::CouplerOptions& c = s.coupling;
+  std::string solver = kSolvers[static_cast<int>(c.solver)], marking = kMarkings[static_cast<int>(c.marking)],
+              acceleration = kAccelerations[static_cast<int>(c.acceleration)];
+  // "-solid_bodies ''" would read as no list at all: name the mistake.
+  PetscBool has = PETSC_FALSE;
+  char value[8] = "";
+  PetscOptionsHasName(nullptr, nullptr, "-solid_bodies", &has);
+  if (has) PetscOptionsGetString(nullptr, nullptr, "-solid_bodies", value, sizeof value, nullptr);
+  if (has && value[0] == '\0')
+    bad("solid_bodies", "(empty)",
+        "one or more comma-separated names, e.g. membrane,nucleus (for a run without cells use a scene "
+        "without bodies, e.g. scenes/shear.yaml)");
+  OptionTable t("cellfsi immersed bodies and coupling");
+  t.texts("solid_bodies", names, "Names of the immersed bodies, e.g. membrane,nucleus", 64)
+      .real("s_interface", c.s_interface, "s_I: s^h on the basis functions at interfaces (paper 3.3)",
+            {[](const double& v) { return v >= 1; }, ">= 1"})
+      .text("s_interface_marking", marking,
+            "Functions given s_I: support (every function nonzero on an element the interface crosses) or "
+            "central (only those whose support it crosses in an inner element)",
+            kMarkings)
+      .real("coupling_tolerance", c.tolerance, "Drop of every residual's L2 norm per step",
+            {[](const double& v) { return v > 0 && v < 1; }, "0 < tolerance < 1"})
+      .integer("coupling_max_iterations", c.max_iterations, "Block-iterative iterations per step",
+               at_least(1))
+      .integer("coupling_pc_lag", c.preconditioner_lag, "Linear solves between preconditioner rebuilds",
+               at_least(1))
+      .text("coupling_acceleration", acceleration,
+            "Iterates of the coupling loop: none (x - dx, the paper's) or anderson (Anderson acceleration of "
+            "that map; the same stopping test)",
+            kAccelerations)
+      .integer("coupling_acceleration_columns", c.acceleration_columns,
+               "Difference pairs kept by the Anderson acceleration", int_between(1, 50))
+      .integer("coupling_acceleration_reuse", c.acceleration_reuse,
+               "Previous time steps whose Anderson pairs are kept (0: none)",
+               int_between(0, 1000, "(0: this step's pairs only)"))
+      .flag("coupling_monitor", c.monitor, "Print every coupling iteration's residuals")
+      .text("coupling_solver", solver,
+            "Linear solver of the coupling loop: band (the Jacobian away from the cells factorised once, the "
+            "band around them re-solved exactly; one fluid rank) or fluid (the fluid's KSP, -fluid_ options)",
+            kSolvers)
+      .integer("coupling_band_margin", c.band_margin,
+               "Elements around the s^h band and immersed points in the band solver's region", at_least(0))
+      .integer("coupling_band_refactor_every", c.band_refactor_every,
+               "Steps between factorisations of the band solver's fixed part (0: when the cells leave its "
+               "region)",
+               at_least(0, "(0: only when needed)"))
+      .integer("coupling_band_refresh_steps", c.band_refresh_steps,
+               "Steps between refreshes of the band Jacobian while the s^h marking stays (it is refreshed "
+               "whenever the marking moves)",
+               at_least(1, "(1: every step)"))
+      .integer(
+          "coupling_band_schur_lag", c.band_schur_lag,
+          "Coupling iterations between re-assemblies of the band Jacobian and factorisations of its Schur "
+          "complement inside a step (0: none)",
+          at_least(0, "(0: none inside a step)"))
+      .real("coupling_max_mesh_ratio", s.max_mesh_ratio,
+            "Largest Lagrangian / smallest Eulerian element size (paper Remark 3)", positive())
+      .real("metrics_average_from", s.metrics_average_from,
+            "Start of the metrics' averaging window [s] (default: half the final time)");
+  t.read();
+  if (s.metrics_average_from >= s.final_time)
+    t.bad("metrics_average_from", str(s.metrics_average_from),
+          "less than -final_time = " + str(s.final_time) + " s");
+  c.solver = enum_of<coupling::CouplingSolver>(solver, kSolvers);
+  c.marking = enum_of<coupling::Marking>(marking, kMarkings);
+  c.acceleration = enum_of<coupling::Acceleration>(acceleration, kAccelerations);
+}
+
+/// One body's options (-solid_NAME_*), and its copies when -solid_NAME_count > 1.
+void read_body(SceneSettings& s, const std::string& name) {
+  const int D = s.dim;
+  BodySettings b;
+  b.name = name;
+  const std::string pre = "solid_" + name + "_";
+  std::vector<double> axes = b.semi_axes, center, axis{b.axis[0], b.axis[1], b.axis[2]};
+  std::vector<int> elements(b.elements.begin(), b.elements.begin() + D);
+  int count = 1, seed = 1;
+  double spread = 0;
+  std::string arrangement = kArrangements[0];
+  OptionTable t("cellfsi body '" + name + "'", pre);
+  const auto dim = [D] { return D; };
+  t.text("shape", b.shape, "Body shape (the first three 2D, the last two 3D)", kShapes)
+      .reals("semi_axes", axes, "Semi-axes a,b[,c] [cm] (membranes: of the mid-surface)", nullptr,
+             positive("[cm]"))
+      .reals("center", center, "Centre x,y[,z] [cm] (default: the domain's centre)", dim, finite("[cm]"))
+      .real("angle", b.angle_deg,
+            "Rotation [degrees]: 2D, of the first semi-axis from +x; 3D, of the body about -axis "
+            "(right-handed)",
+            finite("[degrees]"))
+      .reals("axis", axis, "3D: rotation axis x,y,z of -angle", nullptr, finite())
+      .real("area", b.area, "rbc: area enclosed by the mid-line [cm^2] (0: the default RBC, DESIGN.md)")
+      .real("thickness", b.thickness, "Membrane thickness h [cm]")
+      .integers("elements", elements,
+                "Lagrangian elements per direction (through/around; radial,around; 0: slightly smaller than "
+                "the fluid's)",
+                dim, at_least(0, "(0: automatic)"))
+      .integer("degree", b.degree, "Lagrangian degree, 2..4",
+               {[](const long long& v) { return v >= 2 && v <= 4; }, "2, 3 or 4"})
+      .real("shear_modulus", b.shear_modulus, "G [dyn/cm^2]", positive("[dyn/cm^2]"))
+      .real("density", b.density, "rho_2 [g/cm^3]", positive("[g/cm^3]"))
+      .integer("count", count,
+               "Copies of the body (NAME_1 ... NAME_N) spread evenly along x, the periodic flow direction; "
+               "-center gives the row's y (and z)",
+               int_between(1, 64))
+      .text(
+          "arrangement", arrangement,
+          "Copies across the flow: even (all at the row), staggered (+-spread alternately), random (uniform "
+          "in +-spread, -seed)",
+          kArrangements)
+      .real("spread", spread, "Offset across the flow of staggered or random copies [cm]",
+            non_negative("[cm]"))
+      .integer("seed", seed, "Seed of the random arrangement");
+  t.read();
+
+  const bool is2d = b.shape == "hollow_ellipse" || b.shape == "ellipse" || b.shape == "rbc";
+  if ((D == 2) != is2d) t.bad("shape", b.shape, D == 2 ? "a 2D shape (-dim 2)" : "a 3D shape (-dim 3)");
+  if (b.shape != "rbc") {
+    if (!t.given("semi_axes") && D == 3 && axes.size() == 2) axes.push_back(axes[1]);  // c = b
+    if (static_cast<int>(axes.size()) != D)
+      t.bad("semi_axes", std::to_string(axes.size()) + " values", std::to_string(D) + " values");
+    b.semi_axes = axes;
+  } else {
+    b.semi_axes.clear();
+  }
+  b.center = t.given("center") ? Vec3(center[0], center[1], D == 3 ? center[2] : 0.0) : Vec3(NAN, NAN, NAN);
+  if (t.given("axis") && D != 3)
+    t.bad("axis", std::to_string(axis.size()) + " values", "only in 3D (-dim 3)");
+  if (axis.size() != 3) t.bad("axis", std::to_string(axis.size()) + " values", "3 values x,y,z");
+  const Vec3 ax(axis[0], axis[1], axis[2]);
+  if (!(ax.norm() > 0)) t.bad("axis", "0,0,0", "a nonzero direction");
+  b.axis = ax.normalized();
+  if (b.shape != "rbc" && b.area != 0) t.bad("area", str(b.area), "only for shape rbc");
+  if (b.shape == "rbc" && !(b.area >= 0)) t.bad("area", str(b.area), "> 0 [cm^2] (0: the default RBC)");
+  if (b.membrane()) {
+    if (!(b.thickness > 0)) t.bad("thickness", str(b.thickness), "> 0 [cm]");
+    for (double a : b.semi_axes)
+      if (!(b.thickness < a)) t.bad("thickness", str(b.thickness), "smaller than every semi-axis");
+  }
+  if (b.membrane() && elements[0] > 1)
+    t.bad("elements", std::to_string(elements[0]), "1 element through a membrane's thickness");
+  const int around = D == 2 ? 1 : 2;  // every builder needs a multiple of 4 elements around
+  if (elements[around] % 4)
+    t.bad("elements", std::to_string(elements[around]), "a multiple of 4 around the body");
+  if (D == 3 && elements[1] % 2)
+    t.bad("elements", std::to_string(elements[1]), "an even number of polar elements");
+  for (int d = 0; d < 3; ++d) b.elements[d] = d < D ? elements[d] : 1;
+  if (count == 1) {
+    // A row's options without a row would do nothing.
+    if (arrangement != kArrangements[0])
+      t.bad("arrangement", arrangement, "even (or -" + pre + "count 2 or more)");
+    if (spread > 0) t.bad("spread", str(spread), "0 (or -" + pre + "count 2 or more)");
+    s.bodies.push_back(b);
+    return;
+  }
+  if (arrangement == "staggered" && count % 2)
+    t.bad("count", std::to_string(count),
+          "an even count with -" + pre +
+              "arrangement staggered (an odd one puts the first and the last copy, side by side across the "
+              "periodic end, on the same side)");
+  // Copies: x evenly over the periodic flow direction, y (and z) from the row's centre and the arrangement.
+  if (!s.periodic[0]) t.bad("count", std::to_string(count), "1 unless the domain is periodic in x");
+  if (s.bodies.size() + static_cast<std::size_t>(count) > 64)
+    t.bad("count", std::to_string(count), "at most 64 bodies in all");
+  Vec3 row = b.center;
+  for (int d = 0; d < 3; ++d)
+    if (!std::isfinite(row[d])) row[d] = d < D ? s.origin[d] + 0.5 * s.size[d] : 0.0;
+  std::mt19937 rng(static_cast<unsigned>(seed));
+  std::uniform_real_distribution<double> uni(-1.0, 1.0);
+  int across = 1;  // across the flow: the wall direction (the last non-periodic one), else y
+  for (int d = D - 1; d >= 1; --d)
+    if (!s.periodic[d]) {
+      across = d;
+      break;
+    }
+  for (int i = 0; i < count; ++i) {
+    BodySettings c = b;
+    c.name = name + "_" + std::to_string(i + 1);
+    for (const BodySettings& other : s.bodies)
+      if (other.name == c.name) bad("solid_bodies", c.name, "distinct names (a copy of " + name + ")");
+    c.center = row;
+    c.center[0] = s.origin[0] + (i + 0.5) * s.size[0] / count;
+    if (arrangement == "staggered") c.center[across] += (i % 2 == 0 ? spread : -spread);
+    if (arrangement == "random") c.center[across] += spread * uni(rng);
+    s.bodies.push_back(c);
+  }
+}
+
+/// A mesh the machine cannot hold is refused now, with the estimate, instead of allocating for minutes: the
+/// fluid Jacobian (three times with the band solver: its kept part, its band part and their sum), shared over
+/// the nodes of the fluid ranks, against the least memory available on any of them. Collective.
+void check_memory(const SceneSettings& s) {
+  MPI_Comm comm = PETSC_COMM_WORLD;
+  int size = 1;
+  MPI_Comm_size(comm, &size);
+  double available = available_memory_bytes();
+  if (!(available > 0)) available = 1e300;  // unknown: no check
+  MPI_Allreduce(MPI_IN_PLACE, &available, 1, MPI_DOUBLE, MPI_MIN, comm);
+  MPI_Comm node = MPI_COMM_NULL;
+  MPI_Comm_split_type(comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node);
+  int node_rank = 0, leaders = 0;
+  MPI_Comm_rank(node, &node_rank);
+  MPI_Comm_free(&node);
+  int leader = node_rank == 0 ? 1 : 0;
+  MPI_Allreduce(&leader, &leaders, 1, MPI_INT, MPI_SUM, comm);
+  const bool band = !s.bodies.empty() && size == 1 && s.coupling.solver == coupling::CouplingSolver::band;
+  const double need = (band ? 3 : 1) * fluid_jacobian_bytes(s) / std::max(1, leaders);
+  if (need <= available) return;
+  std::ostringstream v, w;
+  for (int d = 0; d < s.dim; ++d) v << (d ? "," : "") << s.elements[d];
+  w << std::setprecision(3) << "fewer elements: a run needs at least " << need / 1e9 << " GB per node ("
+    << (band ? "the fluid Jacobian three times: its kept part, its band part and their sum"
+             : "the fluid Jacobian")
+    << "; LU factors come on top) and " << available / 1e9 << " GB are available";
+  bad("fluid_elements", v.str(), w.str());
+}
+
+}  // namespace
+
+double fluid_jacobian_bytes(const SceneSettings& s) {
+  double nodes = 1, coupled = 1;
+  for (int d = 0; d < s.dim; ++d) {
+    nodes *= s.periodic[d] ? s.elements[d] : s.elements[d] + s.degree;
+    coupled *= 2 * s.degree + 1;
+  }
+  const double dof = s.dim + 1;
+  return nodes * coupled * dof * dof * sizeof(PetscScalar);
+}
+
+double available_memory_bytes() {
+  std::ifstream in("/proc/meminfo");
+  for (std::string key; in >> key;) {
+    double kb = 0;
+    std::string unit;
+    in >> kb >> unit;
+    if (key == "MemAvailable:") return kb * 1024.0;
+  }
+  return 0;
+}
+
+SceneSettings SceneSettings::from_options(const std::string& default_name, bool fluid_side) {
+  SceneSettings s;
+  s.name = default_name;
+  // Lists as the table reads them; where a 3D default is not in SceneSettings, z repeats y (extent,
+  // elements) and only the last direction is bounded by walls.
+  std::vector<double> size = s.size, origin{s.origin[0], s.origin[1], s.origin[2]};
+  std::vector<bool> periodic(s.periodic.begin(), s.periodic.end());
+  std::vector<int> elements(s.elements.begin(), s.elements.end());
+  const auto dim = [&s] { return s.dim; };
+  OptionTable t("cellfsi scene (DESIGN.md section 4; CGS units)");
+  t.text("scene", s.name, "Scene name (default: the YAML file's stem)")
+      .integer("dim", s.dim, "Spatial dimension, 2 or 3",
+               {[](const long long& v) { return v == 2 || v == 3; }, "2 or 3"})
+      .text("domain", s.domain, "Eulerian domain", {"rectangle", "box", "narrowing"})
+      .reals("domain_size", size, "Domain extent Lx,Ly[,Lz] [cm] (rectangle, box)", dim, positive("[cm]"))
+      .reals("domain_origin", origin, "Domain corner x,y[,z] [cm]", dim, finite("[cm]"))
+      .flags("domain_periodic", periodic, "Periodic flag per direction, e.g. 1,0", dim)
+      .real("channel_length", s.channel.length, "Narrowing channel: period in x [cm]")
+      .real("channel_height", s.channel.height, "Narrowing channel: height [cm]")
+      .real("channel_throat_height", s.channel.throat_height, "Narrowing channel: throat height [cm]")
+      .real("channel_throat_length", s.channel.throat_length, "Narrowing channel: throat length [cm]")
+      .real("channel_transition_length", s.channel.transition_length,
+            "Narrowing channel: transition length [cm]")
+      .real("channel_throat_center", s.channel.throat_center,
+            "Narrowing channel: x of the throat centre [cm]")
+      .integers("fluid_elements", elements, "Eulerian elements NX,NY[,NZ]", dim, at_least(1, "(every count)"))
+      .integer("fluid_degree", s.degree, "Eulerian degree p (continuity p-1), 2..8",
+               {[](const long long& v) { return v >= 2 && v <= 8; }, "2 <= p <= 8"})
+      .text("flow", s.flow, "shear (moving walls), poiseuille (body force) or rest",
+            {"shear", "poiseuille", "rest"})
+      .real("shear_rate", s.shear_rate, "Shear rate of the shear flow [1/s]", finite("[1/s]"))
+      .real("final_time", s.final_time, "End time [s]", positive("[s]"))
+      .real("dt", s.dt, "Time step [s]", positive("[s]"))
+      .integer("output_every", s.output_every, "Write fluid.pvd every N steps (0: never)", at_least(0))
+      .integer("checkpoint_every", s.checkpoint_every,
+               "Write DIR/checkpoint every N steps (0: only at the end and when interrupted)",
+               at_least(0, "(0: only at the end and when interrupted)"))
+      .flag("restart", s.restart,
+            "Continue the run in the output folder from its checkpoint (same options; -final_time may grow)")
+      .text("output_dir", s.output_dir, "Output folder (default out/<scene>)");
+  t.read();
+  if (s.name.empty()) t.bad("scene", "''", "a non-empty name");
+  if (s.domain == "box" && s.dim != 3) t.bad("domain", "box", "box needs -dim 3");
+  if (s.domain != "box" && s.dim == 3) t.bad("dim", "3", "3D needs -domain box");
+  const int D = s.dim;
+  if (!t.given("domain_size") && D == 3 && size.size() == 2) size.push_back(size[1]);
+  if (!t.given("fluid_elements") && D == 3) elements[2] = elements[1];
+  if (!t.given("domain_periodic"))
+    for (int d = 0; d < D; ++d) periodic[d] = d < D - 1;  // the last direction bounded by walls
+  s.size.assign(size.begin(), size.begin() + D);
+  s.origin = Vec3(origin[0], origin[1], D == 3 ? origin[2] : 0.0);
+  for (int d = 0; d < 3; ++d) s.periodic[d] = d < D && periodic[d];
+  if (s.domain == "narrowing") {
+    s.channel.validate();
+    // The narrowing's extent is the channel's (it was silently ignored when given as -domain_size).
+    if (t.given("domain_size"))
+      t.bad("domain_size", "(given)", "not with -domain narrowing: use -channel_length, -channel_height");
+    if (t.given("domain_origin"))
+      t.bad("domain_origin", "(given)",
+            "not with -domain narrowing (it spans 0..length x -height/2..height/2)");
+    s.size = {s.channel.length, s.channel.height};
+    s.origin = Vec3(0, -s.channel.height / 2, 0);
+  }
+  for (int d = 0; d < 3; ++d) s.elements[d] = d < D ? elements[d] : 1;
+  for (int d = 0; d < D; ++d)
+    if (s.periodic[d] && s.elements[d] < s.degree)
+      t.bad("fluid_elements", std::to_string(s.elements[d]), ">= degree in a periodic direction");
+  if (s.flow == "shear" && s.domain == "narrowing") t.bad("flow", "shear", "shear needs a rectangle or box");
+  // The step count must be at least 1 and fit its int (-final_time 10 -dt 1e-12 wrapped to a negative count).
+  if (!(s.dt <= s.final_time))
+    t.bad("dt", str(s.dt), "at most -final_time = " + str(s.final_time) + " s (at least one step)");
+  if (!(s.final_time / s.dt <= 1e9))
+    t.bad("dt", str(s.dt),
+          "at least -final_time / 1e9 = " + str(s.final_time / 1e9) + " s (at most 1e9 steps)");
+  if (s.output_dir.empty()) s.output_dir = "out/" + s.name;
+
+  std::vector<std::string> names;
+  read_coupling(s, names);
+  for (const std::string& name : names) {
+    const bool ok = !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
+      return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
+    });
+    if (!ok) bad("solid_bodies", name, "names of lower-case letters, digits and _");
+    for (const BodySettings& o : s.bodies)
+      if (o.name == name) bad("solid_bodies", name, "distinct names");
+    read_body(s, name);
+  }
+  if (fluid_side) check_memory(s);
+  return s;
+}
+
+}  // namespace cellfsi::app
