@@ -685,7 +685,7 @@ int launch(int argc, char** argv, Role role) {
     try {
       status = color == 1 ? run_solid(scene_name, inter, hs) : run_fluid(scene_name, inter, hs);
     } catch (const std::invalid_argument& e) {
-      print_error(e.what());
+      print_error(with_scene_file_line(e.what(), scene_file, g_command_line));
       status = 1;
     } catch (const std::exception& e) {
       print_failure(e.what());

@@ -29,7 +29,38 @@ void check_unique_keys(const std::string& path, const YAML::Node& node, const st
   }
 }
 
+/// The line of every option the file sets (flattened names, without '-').
+void option_lines(const YAML::Node& node, const std::string& prefix, std::map<std::string, int>& out) {
+  if (!node.IsMap()) return;
+  for (auto it = node.begin(); it != node.end(); ++it) {
+    const std::string name = prefix + it->first.Scalar();
+    if (it->second.IsMap())
+      option_lines(it->second, name + "_", out);
+    else
+      out[name] = it->first.Mark().line + 1;
+  }
+}
+
 }  // namespace
+
+std::string with_scene_file_line(const std::string& message, const std::string& path,
+                                 const std::vector<std::string>& command_line) {
+  const std::string head = "option -";
+  if (path.empty() || message.rfind(head, 0) != 0) return message;
+  const std::size_t end = message.find_first_of(" =", head.size());
+  const std::string name = message.substr(head.size(), end - head.size());
+  for (const std::string& arg : command_line)
+    if (arg == "-" + name) return message;  // the command line's value
+  std::map<std::string, int> lines;
+  try {
+    option_lines(YAML::LoadFile(path), "", lines);
+  } catch (const YAML::Exception&) {
+    return message;
+  }
+  const auto it = lines.find(name);
+  if (it == lines.end()) return message;
+  return message + " (scene file '" + path + "', line " + std::to_string(it->second) + ")";
+}
 
 void check_scene_file(const std::string& path) {
   YAML::Node root;

@@ -559,6 +559,24 @@ TEST_F(CellfsiApp, MalformedSceneFilesAreRejectedWithFileAndLine) {
   }
 }
 
+TEST_F(CellfsiApp, BadValueInSceneFileNamesFileAndLine) {
+  // A value the option table refuses names the scene file's line that set it (nested keys included); the
+  // command line's value, which wins, is named as such.
+  const fs::path file = root_ / "bad_value.yaml";
+  std::ofstream(file) << "dim: 2\nflow: shear\nfluid:\n  viscosity: 0.012\n  density: -2\n";
+  RunResult r = cellfsi(with({file.string()}, kTiny));
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("option -fluid_density = -2 is invalid; valid: > 0 [g/cm^3] (scene file '" +
+                          file.string() + "', line 5)"),
+            std::string::npos)
+      << r.output;
+  r = cellfsi(with({file.string(), "-fluid_density", "-3"}, kTiny));
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("option -fluid_density = -3 is invalid"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("line 5"), std::string::npos) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
 // Bad input the app does not reject cleanly yet (see the integration-test report): a non-number for an
 // integer option, more element counts than dimensions, a misspelt option of an inner solver.
 
