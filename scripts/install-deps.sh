@@ -18,6 +18,7 @@ packages=(
   libbenchmark-dev
   time python3               # bench/ scripts: /usr/bin/time -v for peak memory, python3 to read -log_view
   python3-matplotlib         # bench/ scripts: the figures in docs/figures/
+  python3-vtk9               # bench/plot_velocity_snapshot.py reads the VTK output
 )
 
 missing=()

@@ -4,8 +4,8 @@
 
 #include <random>
 
-#include "fluid/band_schur.hpp"
 #include "common/petsc_error.hpp"
+#include "fluid/band_schur.hpp"
 
 using cellfsi::fluid::BandSchurSolver;
 

@@ -6,8 +6,8 @@
 #include <cmath>
 #include <numbers>
 
-#include "fluid/fluid_solver.hpp"
 #include "common/petsc_error.hpp"
+#include "fluid/fluid_solver.hpp"
 #include "geometry/builders.hpp"
 #include "geometry/quadrature.hpp"
 
@@ -272,7 +272,8 @@ TEST(FluidSolver, JacobianPartsAddUpToTheJacobian) {
   CELLFSI_PETSC(MatAXPY(Jf, 1.0, Jb, SAME_NONZERO_PATTERN));
   CELLFSI_PETSC(MatAXPY(Jf, -1.0, J, SAME_NONZERO_PATTERN));
   CELLFSI_PETSC(MatNorm(Jf, NORM_FROBENIUS, &nd));
-  // (The wall rows' unit diagonal dominates |J|: the difference is measured against the band part, the smaller.)
+  // (The wall rows' unit diagonal dominates |J|: the difference is measured against the band part, the
+  // smaller.)
   EXPECT_GT(nb, 0.0);
   EXPECT_GT(nf, nb);
   EXPECT_LT(nd, 1e-13 * nb) << "|J_fixed + J_band - J| / |J_band| = " << nd / nb;

@@ -1,0 +1,131 @@
+// See option_checks.hpp.
+#include "apps/option_checks.hpp"
+
+#include <petscsys.h>
+
+#include <cctype>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+
+#include "common/petsc_error.hpp"
+
+namespace cellfsi::app {
+
+namespace {
+
+/// Whether PETSc may not have read `name` yet at `when`: the coupling loop's solver options are read when it
+/// is created; factorisation packages' options (MUMPS, SuperLU_DIST, ...) and convergence reports only at
+/// the first solve.
+bool maybe_unread(const std::string& name, OptionCheck when) {
+  if (when == OptionCheck::after_first_step) return false;
+  // The band solver fell back to the fluid's in the first step (its region held most of the domain, which
+  // the run reported): its factorisation options were never read.
+  if (when == OptionCheck::after_first_step_fluid) return name.rfind("coupling_band_", 0) == 0;
+  if (when == OptionCheck::before_coupling && name.rfind("coupling_band_", 0) == 0) return true;
+  for (const char* late : {"mat_mumps_", "mat_superlu", "mat_strumpack", "converged_reason", "ksp_view"})
+    if (name.find(late) != std::string::npos) return true;
+  return false;
+}
+
+}  // namespace
+
+/// Fails on options nobody read (a misspelt key must not be silently ignored), skipping those PETSc may read
+/// later than `when`.
+void reject_unknown_options(OptionCheck when) {
+  PetscInt n = 0;
+  char** names = nullptr;
+  char** values = nullptr;
+  CELLFSI_PETSC(PetscOptionsLeftGet(nullptr, &n, &names, &values));
+  std::string first;
+  for (PetscInt i = 0; i < n && first.empty(); ++i)
+    if (!maybe_unread(names[i], when)) first = names[i];
+  CELLFSI_PETSC(PetscOptionsLeftRestore(nullptr, &n, &names, &values));
+  if (!first.empty())
+    throw std::invalid_argument("unknown option -" + first +
+                                " (misspelt? run with -help for the valid options)" +
+                                (when >= OptionCheck::after_first_step
+                                     ? " (found after the first time step, when every solver had read "
+                                       "its options)"
+                                     : ""));
+}
+
+/// Names (without the dash) of the options in the database now: the user's command line and scene file.
+std::vector<std::string> option_names() {
+  char* all = nullptr;
+  CELLFSI_PETSC(PetscOptionsGetAll(nullptr, &all));
+  std::vector<std::string> names;
+  std::istringstream is(all ? all : "");
+  for (std::string w; is >> w;)
+    if (w.size() > 1 && w[0] == '-' && std::isalpha(static_cast<unsigned char>(w[1])))
+      names.push_back(w.substr(1));
+  CELLFSI_PETSC(PetscFree(all));
+  return names;
+}
+
+/// Solver options that would be silently ignored: with the band solver the coupling loop does not use the
+/// fluid's KSP; without it, the band solver's options have nothing to act on.
+void reject_inapplicable_solver_options(const std::vector<std::string>& user_options, bool band_solver) {
+  for (const std::string& name : user_options) {
+    // The coupling loop is a coupled run's nonlinear iteration, whichever linear solver it uses.
+    if (name.rfind("fluid_snes_", 0) == 0)
+      throw std::invalid_argument("option -" + name +
+                                  " does not apply: in a coupled run the nonlinear iteration is the coupling "
+                                  "loop (-coupling_tolerance, -coupling_max_iterations, -coupling_monitor, "
+                                  "-coupling_acceleration); -fluid_snes_ options act on runs without cells");
+    if (band_solver) {
+      if (name == "fluid_mat_type_jacobian") continue;  // the matrix type applies to both solvers
+      for (const char* p : {"fluid_ksp_", "fluid_pc_", "fluid_sub_", "fluid_mat_"})
+        if (name.rfind(p, 0) == 0)
+          throw std::invalid_argument(
+              "option -" + name +
+              " does not apply: this coupled run solves with -coupling_solver band (the default on one fluid "
+              "rank), which has its own options under -coupling_band_ (e.g. -coupling_band_ksp_monitor, "
+              "-coupling_band_mat_mumps_icntl_14 40, -coupling_band_schur_mat_mumps_icntl_35 1); for the "
+              "fluid's KSP and PC options use -coupling_solver fluid");
+    } else if (name.rfind("coupling_band_", 0) == 0) {
+      throw std::invalid_argument("option -" + name +
+                                  " does not apply: this coupled run solves with -coupling_solver fluid "
+                                  "(asked for, or because the band solver needs one fluid rank and a BAIJ "
+                                  "Jacobian)");
+    }
+  }
+}
+
+/// In a split job (two executables, or -solid_ranks), the options that shape the bodies must be the same on
+/// both sides: the solid side builds and steps the bodies from its own. Those are the -solid_* options and
+/// the domain and mesh the bodies are checked against. Returns the differences ("name: fluid side -> solid
+/// side"), the same list on both sides.
+std::string body_option_differences(const std::string& fluid_side, const std::string& solid_side) {
+  auto map = [](const std::string& text) {
+    std::map<std::string, std::string> m;
+    std::istringstream in(text);
+    for (std::string line; std::getline(in, line);) {
+      const auto colon = line.find(": ");
+      if (line.empty() || line[0] == '#' || colon == std::string::npos) continue;
+      const std::string key = line.substr(0, colon);
+      const bool shapes_bodies = key.rfind("solid_", 0) == 0 || key.rfind("domain", 0) == 0 ||
+                                 key.rfind("channel_", 0) == 0 || key == "dim" || key == "fluid_elements" ||
+                                 key == "fluid_degree" || key == "coupling_max_mesh_ratio";
+      if (shapes_bodies && key != "solid_ranks") m[key] = line.substr(colon + 2);
+    }
+    return m;
+  };
+  const auto f = map(fluid_side), sd = map(solid_side);
+  std::string out;
+  auto add = [&](const std::string& k, const std::string& a, const std::string& b) {
+    out += (out.empty() ? "" : "; ") + k + ": " + a + " -> " + b;
+  };
+  for (const auto& [k, v] : f) {
+    const auto it = sd.find(k);
+    if (it == sd.end())
+      add(k, v, "(not given)");
+    else if (it->second != v)
+      add(k, v, it->second);
+  }
+  for (const auto& [k, v] : sd)
+    if (f.find(k) == f.end()) add(k, "(not given)", v);
+  return out;
+}
+
+}  // namespace cellfsi::app

@@ -1,0 +1,31 @@
+#pragma once
+// Checks of the options a run was given, beyond each option table's own: options nobody read (misspelt),
+// solver options that would be silently ignored, and (in a job of two executables) differences between the
+// two sides' options that shape the bodies.
+#include <string>
+#include <vector>
+
+namespace cellfsi::app {
+
+/// When the unknown-option check runs: before the coupling loop exists, once it is set up, after the first
+/// step.
+enum class OptionCheck { before_coupling, before_first_step, after_first_step, after_first_step_fluid };
+
+/// Fails on options nobody read (a misspelt key must not be silently ignored), skipping those PETSc may read
+/// later than `when`.
+void reject_unknown_options(OptionCheck when);
+
+/// Names (without the dash) of the options in the database now: the user's command line and scene file.
+std::vector<std::string> option_names();
+
+/// Solver options that would be silently ignored: with the band solver the coupling loop does not use the
+/// fluid's KSP; without it, the band solver's options have nothing to act on.
+void reject_inapplicable_solver_options(const std::vector<std::string>& user_options, bool band_solver);
+
+/// In a split job (two executables, or -solid_ranks), the options that shape the bodies must be the same on
+/// both sides: the solid side builds and steps the bodies from its own. Those are the -solid_* options and
+/// the domain and mesh the bodies are checked against. Returns the differences ("name: fluid side -> solid
+/// side"), the same list on both sides.
+std::string body_option_differences(const std::string& fluid_side, const std::string& solid_side);
+
+}  // namespace cellfsi::app

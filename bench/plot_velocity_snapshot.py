@@ -1,0 +1,94 @@
+#!/usr/bin/env python3
+"""A velocity snapshot of a 2D run (paper Figs. 3c/3d, 4e/4f): the velocity magnitude and, where the run wrote it
+(shear flows with cells), the magnitude of the velocity minus the undisturbed shear, with the bodies' outlines, from
+the fluid and solid series (fluid.pvd, solid.pvd; one .vts per output or, from several ranks, a .pvts).
+
+    python3 bench/plot_velocity_snapshot.py RUN [--time T] [--figure docs/figures/shear_velocity.png]
+
+--time picks the output nearest T (default: the last). Needs python3-vtk9 and python3-matplotlib
+(scripts/install-deps.sh; Debian's /usr/bin/python3)."""
+import argparse
+import os
+import sys
+import xml.etree.ElementTree as ET
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_common import ROOT, pyplot, save_figure  # noqa: E402
+
+
+def series(pvd):
+    """(time, file, name) of each data set of a .pvd collection."""
+    root = ET.parse(pvd).getroot()
+    return [(float(d.get("timestep")), d.get("file"), d.get("name") or "")
+            for d in root.iter("DataSet")]
+
+
+def read_grid(path):
+    import vtk
+    from vtk.util.numpy_support import vtk_to_numpy
+    reader = vtk.vtkXMLPStructuredGridReader() if path.endswith(".pvts") else vtk.vtkXMLStructuredGridReader()
+    reader.SetFileName(path)
+    reader.Update()
+    grid = reader.GetOutput()
+    nx, ny, nz = grid.GetDimensions()
+    xyz = vtk_to_numpy(grid.GetPoints().GetData()).reshape(nz, ny, nx, 3)[0]
+    arrays = {}
+    pd = grid.GetPointData()
+    for i in range(pd.GetNumberOfArrays()):
+        a = vtk_to_numpy(pd.GetArray(i))
+        arrays[pd.GetArrayName(i)] = a.reshape((nz, ny, nx) + a.shape[1:])[0]
+    return xyz, arrays
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("run")
+    p.add_argument("--time", type=float, default=None)
+    p.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "shear_velocity.png"))
+    args = p.parse_args()
+    try:
+        import numpy as np
+        import vtk  # noqa: F401
+    except ImportError:
+        print("plot_velocity_snapshot: needs python3-vtk9 and python3-numpy (scripts/install-deps.sh)",
+              file=sys.stderr)
+        sys.exit(1)
+    plt = pyplot("plot_velocity_snapshot")
+    if plt is None:
+        sys.exit(1)
+    fluid = series(os.path.join(args.run, "fluid.pvd"))
+    if not fluid:
+        sys.exit(f"plot_velocity_snapshot: {args.run}/fluid.pvd lists no output (run with -output_every N)")
+    pick = fluid[-1] if args.time is None else min(fluid, key=lambda e: abs(e[0] - args.time))
+    t = pick[0]
+    xyz, arrays = read_grid(os.path.join(args.run, pick[1]))
+    x, y = xyz[..., 0] * 1e4, xyz[..., 1] * 1e4  # um
+    panels = [("velocity", "|v| (cm/s)")]
+    if "velocity_disturbance" in arrays:
+        panels.append(("velocity_disturbance", "|v - v_shear| (cm/s)"))
+    outlines = []
+    solid_pvd = os.path.join(args.run, "solid.pvd")
+    if os.path.isfile(solid_pvd):
+        for time, f, _ in series(solid_pvd):
+            if abs(time - t) <= 1e-9 * max(1.0, abs(t)):
+                sxyz, _ = read_grid(os.path.join(args.run, f))
+                outlines.append(sxyz)
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.2), squeeze=False)
+    for ax, (name, label) in zip(axes[0], panels):
+        mag = np.linalg.norm(arrays[name], axis=-1)
+        m = ax.pcolormesh(x, y, mag, shading="gouraud", cmap="viridis")
+        fig.colorbar(m, ax=ax, label=label, shrink=0.85)
+        for s in outlines:  # a body's grid: its first and last rows are its outer curves
+            for row in (s[0], s[-1]):
+                ax.plot(row[:, 0] * 1e4, row[:, 1] * 1e4, color="w", lw=0.8)
+            for col in (s[:, 0], s[:, -1]):
+                ax.plot(col[:, 0] * 1e4, col[:, 1] * 1e4, color="w", lw=0.8)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (um)")
+        ax.set_ylabel("y (um)")
+    fig.suptitle(f"{os.path.basename(os.path.normpath(args.run))} at t = {t:g} s", fontsize=10)
+    save_figure(fig, args.figure, "plot_velocity_snapshot")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,348 @@
+// Integration tests (cellfsi_app_fixture.hpp): immersed bodies: the scenes with cells, the launch modes, the
+// coupled solvers' options.
+#include "cellfsi_app_fixture.hpp"
+
+using namespace cellfsi_app_test;
+
+namespace {
+
+// ---------------------------------------------------------------------------------------------------------
+// 4. Immersed bodies: the capsule scene, its launch modes and its input checks
+
+TEST_F(CellfsiApp, CapsuleSceneWritesBodyMetricsAndSolidSeries) {
+  const RunResult r = cellfsi(
+      with({scene("capsule_shear.yaml")}, with(kCapsule, {"-final_time", "2e-3", "-output_every", "2"})));
+  ASSERT_FALSE(r.timed_out) << r.output;
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string js = summary();
+  EXPECT_TRUE(is_flat_json_object(js));
+  for (const char* key :
+       {"membrane_r_A", "membrane_r_P", "membrane_theta_deg", "membrane_omega_tt", "membrane_max_abs_r_P"})
+    EXPECT_TRUE(json_number(js, key).has_value()) << key << " missing:\n" << js;
+  // Starts across the flow (90 deg) and turns clockwise towards it.
+  const double theta = json_number(js, "membrane_theta_deg").value_or(0);
+  EXPECT_GT(theta, 60.0) << js;
+  EXPECT_LT(theta, 89.9) << js;
+  EXPECT_GT(json_number(js, "membrane_omega_tt").value_or(0), 0.0) << js;
+  // The paper's dimensionless numbers of this scene (Sec. 3.3) and the motion regime (two steps: too short
+  // for the material to turn a quarter, "steady").
+  EXPECT_NEAR(json_number(js, "membrane_Delta").value_or(0), 0.841, 5e-4) << js;
+  EXPECT_NEAR(json_number(js, "membrane_chi").value_or(0), 0.257, 5e-4) << js;
+  EXPECT_NEAR(json_number(js, "membrane_Ca").value_or(0), 0.0345, 5e-5) << js;
+  EXPECT_NEAR(json_number(js, "membrane_Re").value_or(0), 1.42e-4, 5e-7) << js;
+  EXPECT_EQ(json_string(js, "membrane_regime"), "steady") << js;
+  const std::vector<std::string> files = pvd_files(out_ / "solid.pvd");
+  ASSERT_EQ(files.size(), 3u) << read_text(out_ / "solid.pvd");
+  for (const auto& f : files) EXPECT_TRUE(fs::exists(out_ / f)) << f;
+  EXPECT_GE(read_csv(out_ / "metrics.csv").column("membrane_theta_deg"), 0);
+}
+
+TEST_F(CellfsiApp, CoarseCapsuleInclinationWithCentralAndSupportMarking) {
+  // Issue 8: at 96 x 48 quadratic elements the capsule's inclination with the default (central) s^h marking
+  // is closer to the converged 26.09 deg (paper, 512 x 256 cubic) than the paper's own 17.81 at this mesh;
+  // the wider support marking gives 14.1 (docs/validation.md, "Coarse meshes: the s^h marking"). Measured
+  // over 0.08-0.12 s with dt 2e-3 (theta is steady from about 0.08 s and does not depend on dt): 18.942 and
+  // 14.142 deg. Pinned to 0.05 deg: a change of the discretisation shows here first.
+  // clang-format off
+  const std::vector<std::string> run = {
+      scene("capsule_shear.yaml"), "-fluid_elements", "96,48", "-fluid_degree", "2",
+      "-solid_membrane_elements", "1,0", "-dt", "2e-3", "-final_time", "0.12",
+      "-metrics_average_from", "0.08", "-output_every", "0"};
+  // clang-format on
+  double theta[2] = {0, 0};
+  const char* markings[2] = {"central", "support"};
+  for (int k = 0; k < 2; ++k) {
+    const RunResult r = cellfsi(with(run, {"-s_interface_marking", markings[k]}), 120);
+    ASSERT_FALSE(r.timed_out) << r.output;
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    theta[k] = json_number(summary(), "membrane_theta_deg").value_or(0);
+  }
+  std::printf("  theta %.3f deg (central), %.3f deg (support)\n", theta[0], theta[1]);
+  EXPECT_NEAR(theta[0], 18.942, 0.05);
+  EXPECT_NEAR(theta[1], 14.142, 0.05);
+  EXPECT_LT(std::abs(theta[0] - 26.09), std::abs(17.81 - 26.09));
+}
+
+TEST_F(CellfsiApp, ThreeDimensionalCompoundCapsuleWritesItsSeries) {
+  // The 3D compound capsule of paper Sec. 3.6 (scenes/compound_capsule_shear_3d.yaml) at 12^3, two steps with
+  // output: the polar points of the ellipsoid and the sphere, where F is undefined, no longer stop the
+  // writer; the summary carries the paper's numbers (Delta_m = 0.960, chi = 0.387, phi = 0.083).
+  const RunResult r = cellfsi(
+      {scene("compound_capsule_shear_3d.yaml"), "-fluid_elements", "12,12,12", "-solid_membrane_elements",
+       "1,0,0", "-solid_nucleus_elements", "0,0,0", "-final_time", "1e-3", "-output_every", "1"},
+      120);
+  ASSERT_FALSE(r.timed_out) << r.output;
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string js = summary();
+  EXPECT_NEAR(json_number(js, "membrane_Delta").value_or(0), 0.960, 5e-4) << js;
+  EXPECT_NEAR(json_number(js, "membrane_chi").value_or(0), 0.387, 1e-3) << js;
+  EXPECT_NEAR(json_number(js, "nucleus_phi").value_or(0), 0.083, 5e-4) << js;
+  // The scene's walls are normal to y (-domain_periodic 1,0,1, once ignored: the walls were normal to z and
+  // theta, measured in the x-z plane where this ellipsoid is round, was noise): the long axis starts across
+  // the flow and has barely turned after two steps.
+  EXPECT_GT(std::abs(json_number(js, "membrane_theta_deg").value_or(0)), 85.0) << js;
+  const std::vector<std::string> files = pvd_files(out_ / "solid.pvd");
+  EXPECT_EQ(files.size(), 6u) << read_text(out_ / "solid.pvd");  // two bodies, steps 0, 1, 2
+  for (const auto& f : files) EXPECT_TRUE(fs::exists(out_ / f)) << f;
+}
+
+TEST_F(CellfsiApp, RunFailingInItsFirstStepSaysWhereAndKeepsTheColumns) {
+  // Issue 10: a step too long for the membrane at 192 x 96 (dt 4e-3 inverts an element in step 1 with the
+  // paper's iteration; the Anderson-accelerated one, the default, gets through it). The run exits with 2, the
+  // message and summary.json name the step and the time, and metrics.csv has its header (before: a 0-byte
+  // file and no step or time).
+  const RunResult r =
+      cellfsi({scene("capsule_shear.yaml"), "-fluid_elements", "192,96", "-dt", "4e-3", "-final_time", "8e-3",
+               "-solid_membrane_elements", "1,0", "-output_every", "0", "-coupling_acceleration", "none"},
+              120);
+  ASSERT_FALSE(r.timed_out) << r.output;
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("in step 1 at t = 0.004 s"), std::string::npos) << r.output;
+  EXPECT_NE(json_string(summary(), "status").value_or("").find("in step 1 at t = 0.004 s"), std::string::npos)
+      << summary();
+  const std::string csv = read_text(out_ / "metrics.csv");
+  EXPECT_EQ(csv.rfind("step,time,coupling_iterations,linear_iterations,factorizations,", 0), 0u) << csv;
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1) << csv;
+}
+
+TEST_F(CellfsiApp, DomainArraysOfTheWrongLengthAreRejected) {
+  // -domain_periodic, -domain_size and -domain_origin were read without their "set" flag: a wrong length
+  // passed and -domain_periodic was ignored altogether (issue 10).
+  for (const char* opt : {"-domain_periodic", "-domain_size", "-domain_origin"}) {
+    const std::string value = std::string(opt) == "-domain_periodic" ? "1,0,1" : "0.001,0.001,0.001";
+    const RunResult r = cellfsi(with({scene("shear.yaml"), opt, value}, kTiny));
+    expect_one_clear_error(r);
+    EXPECT_NE(r.output.find(opt), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("2 comma-separated values"), std::string::npos) << r.output;
+  }
+}
+
+TEST_F(CellfsiApp, LaunchModesAgree) {
+  // One process; one job split into a fluid and a solid rank; two executables (MPMD). Same numbers.
+  const std::vector<std::string> args =
+      with({scene("capsule_shear.yaml")}, with(kCapsule, {"-final_time", "2e-3"}));
+  ASSERT_EQ(cellfsi(args).exit_code, 0) << last_output_;
+  const auto single = last_row(out_ / "metrics.csv");
+  ASSERT_EQ(mpi_cellfsi(2, with(args, {"-solid_ranks", "1"})).exit_code, 0) << last_output_;
+  const auto split = last_row(out_ / "metrics.csv");
+  EXPECT_EQ(json_number(summary(), "solid_ranks"), 1) << summary();
+  std::vector<std::string> mpmd = {MPIEXEC_EXECUTABLE, "--oversubscribe", "-np", "1", CELLFSI_FLUID_EXE};
+  mpmd.insert(mpmd.end(), args.begin(), args.end());
+  mpmd.insert(mpmd.end(), {"-output_dir", out_.string(), ":", "-np", "1", CELLFSI_SOLID_EXE});
+  mpmd.insert(mpmd.end(), args.begin(), args.end());
+  const RunResult r = run_process(mpmd);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto two_exes = last_row(out_ / "metrics.csv");
+  // r_A is a difference of areas (cancellation): compared against a floor of 1e-6.
+  EXPECT_TRUE(rows_agree(single, split, 1e-10, 1e-6));
+  EXPECT_TRUE(rows_agree(single, two_exes, 1e-10, 1e-6));
+}
+
+// Restarts (issue 10: a run lost at hour 20 started again from zero). A run writes DIR/checkpoint every
+// -checkpoint_every steps, at its end and when interrupted; -restart continues it.
+TEST_F(CellfsiApp, RbcChannelSceneGivesItsHematocritAndRheology) {
+  // Six RBCs placed by -solid_rbc_count (two steps at a tiny mesh): H_t is the paper's 0.2573 (six cells of
+  // the default RBC's area in the 0.003 x 0.001 channel); the window's zeta, eta, h_cf are in summary.json
+  // and the time-averaged profile in profile_mean.csv. With cells the plasma comparison is a ratio, not an
+  // error.
+  const RunResult r = cellfsi({scene("rbc_channel.yaml"), "-fluid_elements", "96,32", "-fluid_degree", "2",
+                               "-solid_rbc_elements", "1,0", "-final_time", "5e-4", "-output_every", "0"},
+                              120);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string js = summary();
+  EXPECT_NEAR(json_number(js, "H_t").value_or(0), 0.2573, 2e-4) << js;
+  for (const char* key : {"H_d", "zeta", "eta", "h_cf", "v_cells", "v_mean"})
+    EXPECT_TRUE(json_number(js, key).has_value()) << key << "\n" << js;
+  EXPECT_EQ(json_number(js, "rheology_records"), 2) << js;
+  // The cell-free layer of the placement: half the height less the RBC's half-length across the flow (the
+  // Evans-Fung R0 = 3.91e-4 cm scaled by sqrt(1.2868e-7 / 1.36271e-7) = 0.971747 to the default area) and
+  // half the membrane's thickness: 1.19797e-4 cm; in two steps the cells move by less than 1e-7 cm across.
+  EXPECT_NEAR(json_number(js, "h_cf").value_or(0), 1.19797e-4, 2e-7) << js;
+  for (int i = 1; i <= 6; ++i)
+    EXPECT_TRUE(json_number(js, "rbc_" + std::to_string(i) + "_r_A").has_value()) << i;
+  const Csv csv = read_csv(out_ / "metrics.csv");
+  EXPECT_GE(csv.column("tube_hematocrit"), 0);
+  EXPECT_GE(csv.column("mean_velocity_ratio"), 0);
+  EXPECT_LT(csv.column("mean_velocity_rel_error"), 0);
+  EXPECT_EQ(read_csv(out_ / "profile_mean.csv").rows.size(), 65u);
+}
+
+TEST_F(CellfsiApp, TwelveRbcsPlacedEvenlyOrStaggeredAreAcceptedAndOverlapsRefused) {
+  const std::vector<std::string> base = {scene("rbc_channel.yaml"),
+                                         "-fluid_elements",
+                                         "96,32",
+                                         "-fluid_degree",
+                                         "2",
+                                         "-solid_rbc_elements",
+                                         "1,0",
+                                         "-final_time",
+                                         "2.5e-4",
+                                         "-output_every",
+                                         "0",
+                                         "-solid_rbc_count",
+                                         "12"};
+  // metrics.csv after one step (2.5e-4 s at about 0.01 cm/s: the cells moved about 3e-6 cm).
+  auto value = [&](const std::string& key) {
+    for (const auto& [k, v] : last_row(out_ / "metrics.csv"))
+      if (k == key) return v;
+    return -1.0;
+  };
+  ASSERT_EQ(cellfsi(base, 120).exit_code, 0) << last_output_;
+  EXPECT_NEAR(value("rbc_12_centroid_x"), 0.003 * 23 / 24, 1e-5);
+  EXPECT_NEAR(value("tube_hematocrit"), 0.5147, 2e-4);  // the paper's H_t of twelve cells
+  ASSERT_EQ(cellfsi(with(base, {"-solid_rbc_arrangement", "staggered", "-solid_rbc_spread", "5e-5"}), 120)
+                .exit_code,
+            0)
+      << last_output_;
+  EXPECT_NEAR(value("rbc_1_centroid_y"), 5e-4 + 5e-5, 1e-5);
+  EXPECT_NEAR(value("rbc_2_centroid_y"), 5e-4 - 5e-5, 1e-5);
+  // Arrangement options without copies, and an odd staggered row, are refused.
+  fs::remove_all(out_);
+  expect_one_clear_error(cellfsi(with(base, {"-solid_rbc_count", "1", "-solid_rbc_spread", "1e-5"})));
+  EXPECT_NE(last_output_.find("option -solid_rbc_spread = 1e-05 is invalid; valid: 0 (or -solid_rbc_count 2"),
+            std::string::npos)
+      << last_output_;
+  expect_one_clear_error(
+      cellfsi(with(base, {"-solid_rbc_count", "5", "-solid_rbc_arrangement", "staggered"})));
+  EXPECT_NE(last_output_.find("an even count"), std::string::npos) << last_output_;
+  // 24 cells lying along the flow (angle 0, 7.8e-4 cm long) cannot fit in 0.003 cm.
+  fs::remove_all(out_);
+  expect_one_clear_error(cellfsi(with(base, {"-solid_rbc_count", "24", "-solid_rbc_angle", "0"})));
+  EXPECT_NE(last_output_.find("overlap"), std::string::npos) << last_output_;
+  expect_one_clear_error(cellfsi(with(base, {"-domain_periodic", "0,0"})));
+  EXPECT_NE(last_output_.find("option -solid_rbc_count = 12 is invalid"), std::string::npos) << last_output_;
+}
+
+TEST_F(CellfsiApp, MigrationSceneReportsTheLateralOffset) {
+  const RunResult r =
+      cellfsi({scene("capsule_channel_migration.yaml"), "-fluid_elements", "64,32", "-fluid_degree", "2",
+               "-solid_membrane_elements", "1,0", "-final_time", "5e-4", "-output_every", "0"},
+              120);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string js = summary();
+  EXPECT_NEAR(json_number(js, "membrane_lateral_offset_start").value_or(0), 2e-4, 1e-8) << js;
+  EXPECT_TRUE(json_number(js, "membrane_lateral_offset_final").has_value()) << js;
+  // The ellipse starts aligned with the flow: symmetric about both lines through its centroid (measured after
+  // 2 steps: 0.004-0.016 depending on the mesh).
+  for (const char* key : {"membrane_asymmetry_flow_axis", "membrane_asymmetry_front_back"})
+    EXPECT_LT(json_number(js, key).value_or(1), 0.03) << key << "\n" << js;
+  EXPECT_TRUE(js.find("\"membrane_time_to_centreline\": null") != std::string::npos)
+      << "not there in 2 steps\n"
+      << js;
+}
+
+TEST_F(CellfsiApp, CtcNarrowingSceneRunsAndReportsItsPassage) {
+  // Paper Sec. 4.4 (five steps at a tiny mesh, past the flow's 5 viscous times, 1.7e-3 s): the compound
+  // capsule upstream of the throat; the passage keys are there (null until the cell crosses the throat) with
+  // the developed flow rate's extremes and each body's peak deformation.
+  const RunResult r = cellfsi({scene("ctc_narrowing.yaml"), "-fluid_elements", "96,32", "-fluid_degree", "2",
+                               "-solid_membrane_elements", "1,0", "-solid_nucleus_elements", "0,0", "-dt",
+                               "5e-4", "-final_time", "2.5e-3", "-output_every", "0"},
+                              120);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string js = summary();
+  for (const std::string key :
+       {"membrane_throat_entry_time", "nucleus_throat_exit_time", "membrane_throat_transit_time"}) {
+    const std::string entry = '"' + key + "\": null";
+    EXPECT_NE(js.find(entry), std::string::npos) << key << "\n" << js;
+  }
+  for (const char* key :
+       {"flow_rate_max", "flow_rate_min", "nucleus_max_anisotropy", "nucleus_max_anisotropy_x"})
+    EXPECT_TRUE(json_number(js, key).has_value()) << key << "\n" << js;
+  // In 2.5e-3 s the cell (about 0.013 cm/s) has moved less than 5e-5 cm from its start at x = 0.001 cm.
+  EXPECT_NEAR(json_number(js, "nucleus_max_anisotropy_x").value_or(0), 0.001, 5e-5) << js;
+  EXPECT_LE(json_number(js, "flow_rate_min").value_or(1), json_number(js, "flow_rate_max").value_or(0)) << js;
+  EXPECT_GT(json_number(js, "flow_rate_min").value_or(0), 0.0) << js;
+  // The narrowing's size comes from the channel options; -domain_size was silently ignored.
+  fs::remove_all(out_);
+  expect_one_clear_error(
+      cellfsi({scene("ctc_narrowing.yaml"), "-domain_size", "0.01,0.002", "-fluid_elements", "96,32"}));
+  EXPECT_NE(last_output_.find("use -channel_length, -channel_height"), std::string::npos) << last_output_;
+}
+
+// Linear-solver options of a coupled run (issue 13): the fluid's KSP options do not apply to the band solver
+// and say so; options PETSc reads at the first solve (factorisation packages, convergence reports) are
+// accepted in both solvers, and a misspelt one is reported once every solver has read its options.
+TEST_F(CellfsiApp, FluidSolverOptionsOfABandRunAreRejectedWithTheReason) {
+  const RunResult r = cellfsi(with(kDefaultCapsule, {"-fluid_pc_type", "lu"}));
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("-fluid_pc_type"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("-coupling_solver fluid"), std::string::npos) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
+TEST_F(CellfsiApp, SnesOptionsOfACoupledRunAreRejectedWithTheReason) {
+  // Issue 10: -fluid_snes_* options were silently ignored in coupled runs with -coupling_solver fluid.
+  for (const char* solver : {"band", "fluid"}) {
+    expect_one_clear_error(
+        cellfsi(with(kDefaultCapsule, {"-coupling_solver", solver, "-fluid_snes_rtol", "1e-3"})));
+    EXPECT_NE(
+        last_output_.find("option -fluid_snes_rtol does not apply: in a coupled run the nonlinear iteration "
+                          "is the coupling loop"),
+        std::string::npos)
+        << last_output_;
+  }
+}
+
+TEST_F(CellfsiApp, OptionsReadAtTheFirstSolveAreAcceptedInBothSolvers) {
+  RunResult r = cellfsi(with(
+      kDefaultCapsule, {"-coupling_band_mat_mumps_icntl_14", "40", "-coupling_band_schur_mat_mumps_icntl_14",
+                        "40", "-coupling_band_ksp_converged_reason"}));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  r = cellfsi(with(kDefaultCapsule, {"-coupling_solver", "fluid", "-fluid_sub_mat_mumps_icntl_14", "40",
+                                     "-fluid_ksp_converged_reason"}));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+}
+
+TEST_F(CellfsiApp, MisspeltFactorisationOptionIsRejectedAfterTheFirstStep) {
+  const RunResult r = cellfsi(with(kDefaultCapsule, {"-coupling_band_mat_mumps_icntll_14", "40"}));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
+  EXPECT_NE(r.output.find("coupling_band_mat_mumps_icntll_14"), std::string::npos) << r.output;
+}
+
+TEST_F(CellfsiApp, BandSolverOptionsOnTwoFluidRanksAreRejectedWithTheReason) {
+  const RunResult r = mpi_cellfsi(2, with(kDefaultCapsule, {"-coupling_band_refresh_steps", "3"}));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
+  EXPECT_NE(r.output.find("-coupling_band_refresh_steps"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("one fluid rank"), std::string::npos) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
+TEST_F(CellfsiApp, OneAndTwoFluidRanksAgree) {
+  const std::vector<std::string> args =
+      with({scene("capsule_shear.yaml")}, with(kCapsule, {"-final_time", "2e-3"}));
+  ASSERT_EQ(cellfsi(args).exit_code, 0) << last_output_;
+  const auto one = last_row(out_ / "metrics.csv");
+  ASSERT_EQ(mpi_cellfsi(2, args).exit_code, 0) << last_output_;
+  const auto two = last_row(out_ / "metrics.csv");
+  // Iteration counts may differ by one between partitions (the linear solves stop at rtol 1e-5), and the
+  // solvers differ (one rank: the band solver; two: the fluid's ASM); the state agrees to well below the
+  // coupling tolerance.
+  auto state = [](std::vector<std::pair<std::string, double>> row) {
+    std::erase_if(row, [](const auto& kv) {
+      return kv.first.find("iterations") != std::string::npos || kv.first == "factorizations";
+    });
+    return row;
+  };
+  EXPECT_TRUE(rows_agree(state(one), state(two), 1e-6, 1e-4));
+}
+
+TEST_F(CellfsiApp, InterfaceScalingReducesTheAreaError) {
+  // Paper Fig. 1b on a coarse mesh: the spurious area change falls as s_I grows.
+  double previous = 1e300;
+  for (const char* s_i : {"1", "1e5", "1e10"}) {
+    const RunResult r = cellfsi(with({scene("capsule_shear.yaml")},
+                                     {"-fluid_elements", "48,24", "-solid_membrane_elements", "1,0",
+                                      "-final_time", "0.02", "-output_every", "0", "-s_interface", s_i}),
+                                120);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const double ra = std::abs(json_number(summary(), "membrane_r_A").value_or(1e300));
+    std::printf("  s_I = %s: |r_A| = %.3e\n", s_i, ra);
+    EXPECT_LT(ra, previous / 3) << "s_I = " << s_i;
+    previous = ra;
+  }
+}
+
+}  // namespace

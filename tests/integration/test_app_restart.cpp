@@ -1,0 +1,135 @@
+// Integration tests (cellfsi_app_fixture.hpp): checkpoints and restarts.
+#include "cellfsi_app_fixture.hpp"
+
+using namespace cellfsi_app_test;
+
+namespace {
+
+TEST_F(CellfsiApp, RestartContinuesTheRunAsIfItHadNotStopped) {
+  // 8 steps in one run against 4 + 4 with a restart. The continued run agrees to 1e-6 relative, not bit for
+  // bit: the band solver keeps a step's Newton matrix for the next while the s^h marking stays, and a restart
+  // builds it afresh; both stop at the same coupling tolerance (measured: 1.2e-8 on theta).
+  const std::vector<std::string> args = with(kDefaultCapsule, {"-output_every", "2"});
+  ASSERT_EQ(cellfsi(with(args, {"-final_time", "0.016"})).exit_code, 0) << last_output_;
+  const auto straight = last_row(out_ / "metrics.csv");
+  const std::string straight_js = summary();
+  const auto straight_pvd = pvd_files(out_ / "fluid.pvd");
+  fs::remove_all(out_);
+  ASSERT_EQ(cellfsi(with(args, {"-final_time", "0.008"})).exit_code, 0) << last_output_;
+  EXPECT_TRUE(fs::is_regular_file(out_ / "checkpoint" / "state.json"))
+      << "a completed run leaves a checkpoint";
+  const RunResult r = cellfsi(with(args, {"-final_time", "0.016", "-restart"}));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("restarting from the checkpoint at t = 0.008 s (step 4)"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(csv_steps(out_ / "metrics.csv"), one_to(8));
+  // r_A (a difference of areas, here 2.7e-4) and the centroid are compared against a floor of 1e-2: 1e-8
+  // absolute.
+  EXPECT_TRUE(rows_agree(metrics_only(straight), metrics_only(last_row(out_ / "metrics.csv")), 1e-6, 1e-2));
+  const std::string js = summary();
+  EXPECT_EQ(json_number(js, "steps"), 8) << js;
+  for (const char* key : {"membrane_theta_deg", "membrane_omega_tt", "membrane_omega_tu"})
+    EXPECT_NEAR(json_number(js, key).value_or(0), json_number(straight_js, key).value_or(1),
+                1e-6 * std::abs(json_number(straight_js, key).value_or(1)))
+        << key;
+  EXPECT_EQ(pvd_files(out_ / "fluid.pvd"), straight_pvd);
+  EXPECT_EQ(pvd_files(out_ / "solid.pvd").size(), 5u);
+}
+
+TEST_F(CellfsiApp, RestartsWithAndWithoutOutputKeepTheSeries) {
+  // A restart without series output (-output_every 0) must keep the series written before it for the next
+  // restart (the checkpoint used to drop them, and the next restart deleted their files).
+  const std::vector<std::string> base = {
+      scene("shear.yaml"), "-fluid_elements", "8,4", "-fluid_degree", "2", "-dt", "5e-4"};
+  ASSERT_EQ(cellfsi(with(base, {"-final_time", "2e-3", "-output_every", "2"})).exit_code, 0) << last_output_;
+  ASSERT_EQ(cellfsi(with(base, {"-final_time", "3e-3", "-output_every", "0", "-restart"})).exit_code, 0)
+      << last_output_;
+  ASSERT_EQ(cellfsi(with(base, {"-final_time", "4e-3", "-output_every", "2", "-restart"})).exit_code, 0)
+      << last_output_;
+  const std::vector<std::string> files = pvd_files(out_ / "fluid.pvd");
+  EXPECT_EQ(files, (std::vector<std::string>{"fluid_000000.vts", "fluid_000002.vts", "fluid_000004.vts",
+                                             "fluid_000008.vts"}));
+  for (const std::string& f : files) EXPECT_TRUE(fs::is_regular_file(out_ / f)) << f;
+  EXPECT_EQ(csv_steps(out_ / "metrics.csv"), one_to(8));
+}
+
+TEST_F(CellfsiApp, CheckpointThatDoesNotFitTheRemoteBodiesIsBadInput) {
+  // A body state of the wrong size, refused on the solid rank, reaches the fluid side as bad input (exit 1).
+  const std::vector<std::string> args = with({scene("capsule_shear.yaml")}, kCapsule);
+  ASSERT_EQ(mpi_cellfsi(2, with(args, {"-final_time", "1e-3", "-solid_ranks", "1"})).exit_code, 0)
+      << last_output_;
+  const fs::path state = out_ / "checkpoint" / "state.json";
+  std::string js = read_text(state);
+  const std::size_t at = js.find("\"bodies\":[[");
+  ASSERT_NE(at, std::string::npos) << js.substr(0, 300);
+  js.insert(at + 11, "1.0,");
+  { std::ofstream(state) << js; }
+  const RunResult r = mpi_cellfsi(2, with(args, {"-final_time", "2e-3", "-solid_ranks", "1", "-restart"}));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("option -restart is invalid here: body 'membrane' (solid side)"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("a state of 577 numbers does not fit its 576"), std::string::npos) << r.output;
+}
+
+TEST_F(CellfsiApp, KilledRunRestartsFromItsLastCheckpoint) {
+  // kill -9 after step 7 or later; checkpoints every 3 steps. The restart drops the rows written after the
+  // last checkpoint and finishes the run: every step once in metrics.csv.
+  const std::vector<std::string> args =
+      with({scene("shear.yaml")}, {"-fluid_elements", "16,8", "-fluid_degree", "2", "-dt", "5e-4",
+                                   "-output_every", "0", "-checkpoint_every", "3"});
+  bool sent = false;
+  const fs::path csv_path = out_ / "metrics.csv";
+  const RunResult killed = cellfsi(with(args, {"-final_time", "100"}), 60, [&](pid_t pid) {
+    if (!sent && fs::exists(csv_path) && lines(read_text(csv_path)).size() >= 8) {
+      kill(pid, SIGKILL);
+      sent = true;
+    }
+  });
+  ASSERT_TRUE(sent) << killed.output;
+  ASSERT_EQ(killed.exit_code, 128 + SIGKILL) << killed.output;
+  const int rows = static_cast<int>(read_csv(csv_path).rows.size());
+  ASSERT_GE(rows, 7);
+  // The same options (the final time may change): from the last checkpoint to 5 steps past the kill.
+  const int n = rows + 5;
+  char final_time[32];
+  std::snprintf(final_time, sizeof final_time, "%.10g", n * 5e-4);
+  const RunResult r = cellfsi(with(args, {"-final_time", final_time, "-restart"}));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(csv_steps(csv_path), one_to(n));
+  EXPECT_EQ(json_string(summary(), "status"), "completed") << summary();
+  EXPECT_LT(json_number(summary(), "shear_profile_rel_error").value_or(1), 1e-10) << summary();
+}
+
+TEST_F(CellfsiApp, RestartWithOtherOptionsOrWithoutACheckpointIsRefused) {
+  const std::vector<std::string> args = with({scene("shear.yaml")}, kTiny);
+  expect_one_clear_error(cellfsi(with(args, {"-restart"})));
+  EXPECT_NE(last_output_.find("holds no checkpoint"), std::string::npos) << last_output_;
+  ASSERT_EQ(cellfsi(args).exit_code, 0) << last_output_;
+  const std::string csv = read_text(out_ / "metrics.csv");
+  expect_one_clear_error(cellfsi(with(args, {"-final_time", "2e-3", "-dt", "2.5e-4", "-restart"})));
+  EXPECT_NE(last_output_.find("was written with other options (dt: 5e-4 -> 2.5e-4)"), std::string::npos)
+      << last_output_;
+  expect_one_clear_error(cellfsi(with(args, {"-restart"})));
+  EXPECT_NE(last_output_.find("option -final_time = 0.001 is invalid with -restart"), std::string::npos)
+      << last_output_;
+  EXPECT_EQ(read_text(out_ / "metrics.csv"), csv) << "a refused restart leaves the run's files alone";
+}
+
+TEST_F(CellfsiApp, SplitJobRestartsItsRemoteBodies) {
+  // The bodies on a solid rank (-solid_ranks 1): their state goes into the checkpoint and back through the
+  // exchange. Against the one-process run of the same 4 steps.
+  const std::vector<std::string> args = with({scene("capsule_shear.yaml")}, kCapsule);
+  ASSERT_EQ(cellfsi(with(args, {"-final_time", "2e-3"})).exit_code, 0) << last_output_;
+  const auto straight = last_row(out_ / "metrics.csv");
+  fs::remove_all(out_);
+  ASSERT_EQ(mpi_cellfsi(2, with(args, {"-final_time", "1e-3", "-solid_ranks", "1"})).exit_code, 0)
+      << last_output_;
+  ASSERT_EQ(mpi_cellfsi(2, with(args, {"-final_time", "2e-3", "-solid_ranks", "1", "-restart"})).exit_code, 0)
+      << last_output_;
+  EXPECT_EQ(csv_steps(out_ / "metrics.csv"), one_to(4));
+  EXPECT_TRUE(rows_agree(metrics_only(straight), metrics_only(last_row(out_ / "metrics.csv")), 1e-6, 1e-2));
+}
+
+// Channel scenes (issue 12): RBC suspensions and their rheology, an off-centre capsule's migration.
+
+}  // namespace
