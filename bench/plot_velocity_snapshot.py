@@ -86,7 +86,17 @@ def main():
         ax.set_aspect("equal")
         ax.set_xlabel("x (um)")
         ax.set_ylabel("y (um)")
-    fig.suptitle(f"{os.path.basename(os.path.normpath(args.run))} at t = {t:g} s", fontsize=10)
+    opts = {}
+    if os.path.isfile(os.path.join(args.run, "options.yaml")):
+        with open(os.path.join(args.run, "options.yaml")) as f:
+            opts = dict(line.rstrip("\n").split(": ", 1) for line in f if ": " in line and not line.startswith("#"))
+    name = os.path.basename(os.path.normpath(args.run))
+    if os.path.isfile(os.path.join(args.run, "summary.json")):
+        import json
+        with open(os.path.join(args.run, "summary.json")) as f:
+            name = json.load(f).get("scene", name)
+    fig.suptitle(f"{name}, {opts.get('fluid_elements', '?').replace(',', ' x ')} elements, at t = {t:g} s",
+                 fontsize=10)
     save_figure(fig, args.figure, "plot_velocity_snapshot")
 
 

@@ -24,7 +24,11 @@ void declare(OptionTable& t, FluidOptions& o, int dim, std::vector<double>& forc
       .reals("body_force", force, "Body force per volume fx,fy[,fz] [dyn/cm^3]", count, finite("[dyn/cm^3]"))
       .flag("stokes", o.stokes, "Drop convection (Stokes flow)")
       .real("rho_inf", o.rho_inf, "Generalized-alpha spectral radius at infinity, [0, 1]", between(0, 1))
-      .real("c_i", o.c_i, "C_I of tau_M", positive());
+      .real("c_i", o.c_i, "C_I of tau_M", positive())
+      .flag("pressure_null_space", o.pressure_null_space,
+            "Give the linear solver the constant pressure as the Jacobian's null space (MatNullSpace) "
+            "instead of "
+            "pinning one pressure control value");
   const char axes[3] = {'x', 'y', 'z'};
   for (int d = 0; d < dim; ++d)
     for (int s = 0; s < 2; ++s)

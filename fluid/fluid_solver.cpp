@@ -72,8 +72,25 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
   CELLFSI_PETSC(DMCreateMatrix(da_, &J_));
   CELLFSI_PETSC(MatSetOption(J_, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
 
-  // The pressure of the first control point is pinned (see the header).
-  if (xs_[0] == 0 && xs_[1] == 0 && xs_[2] == 0) {
+  // The pressure of the first control point is pinned (see the header), or the linear solver is given the
+  // constant pressure as the Jacobian's null space.
+  if (opt_.pressure_null_space) {
+    Vec constant;
+    CELLFSI_PETSC(VecDuplicate(U_, &constant));
+    CELLFSI_PETSC(VecSet(constant, 0.0));
+    CELLFSI_PETSC(VecStrideSet(constant, dim_, 1.0));
+    CELLFSI_PETSC(VecNormalize(constant, nullptr));
+    MatNullSpace nsp;
+    CELLFSI_PETSC(MatNullSpaceCreate(comm, PETSC_FALSE, 1, &constant, &nsp));
+    CELLFSI_PETSC(MatSetNullSpace(J_, nsp));
+    // Without walls the continuity rows sum to zero for any state: the constant pressure is also the left
+    // null vector, whose component of a right-hand side (round-off) KSP then removes.
+    bool walls = false;
+    for (int d = 0; d < dim_; ++d) walls = walls || !patch.knots(d).periodic();
+    if (!walls) CELLFSI_PETSC(MatSetTransposeNullSpace(J_, nsp));
+    CELLFSI_PETSC(MatNullSpaceDestroy(&nsp));
+    CELLFSI_PETSC(VecDestroy(&constant));
+  } else if (xs_[0] == 0 && xs_[1] == 0 && xs_[2] == 0) {
     PetscInt lo = 0;
     CELLFSI_PETSC(VecGetOwnershipRange(U_, &lo, nullptr));
     pin_row_ = lo + dim_;
@@ -100,6 +117,17 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
   // -fluid_snes_lag_preconditioner 1. On several ranks, an ASM overlap of 4 (PETSc's default: 1): with
   // s^h = 1e10 on a capsule's band, overlap 1 took 1324 GMRES iterations for 4 steps of the 96 x 48 cubic
   // capsule on 2 ranks, overlap 4 took 138 (1 rank: 24).
+  // With the constant pressure as null space the Jacobian is singular: MUMPS then detects the null pivot
+  // (ICNTL(24) = 1) and its solution stays in the range (measured: the same Newton and GMRES iterations and
+  // velocity to all printed digits as with the pin on the Poiseuille and capsule scenes; without it the
+  // solves degrade and Newton diverged in step 12).
+  if (opt_.pressure_null_space)
+    for (const char* name : {"-fluid_sub_mat_mumps_icntl_24", "-fluid_mat_mumps_icntl_24"}) {
+      PetscBool set = PETSC_FALSE;
+      CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, name, &set));
+      if (!set) CELLFSI_PETSC(PetscOptionsSetValue(nullptr, name, "1"));
+      CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, name, &set));  // a default: not the user's
+    }
   const char* defaults[][2] = {{"-fluid_pc_asm_overlap", "4"},
                                {"-fluid_sub_pc_type", "lu"},
                                {"-fluid_sub_pc_factor_mat_solver_type", "mumps"},
@@ -292,8 +320,21 @@ void FluidSolver::end_step(Vec X) {
   const double gm = alpha_.gamma, dt = alpha_.dt;
   CELLFSI_PETSC(VecAXPBYPCZ(Udot_, 1.0 / (gm * dt), -1.0 / (gm * dt), -(1.0 - gm) / gm, X, U_));
   CELLFSI_PETSC(VecCopy(X, U_));
+  if (opt_.pressure_null_space) normalize_pressure(U_);
   ++steps_;
   time_ = steps_ * opt_.dt;  // not accumulated: t_k = k dt exactly as written in outputs
+}
+
+void FluidSolver::normalize_pressure(Vec U) const {
+  // The gauge of the pin: the first control point's pressure 0 (its owner starts at the corner 0, 0, 0).
+  PetscScalar* u;
+  PetscInt n = 0;
+  CELLFSI_PETSC(VecGetLocalSize(U, &n));
+  CELLFSI_PETSC(VecGetArray(U, &u));
+  double p0 = xs_[0] == 0 && xs_[1] == 0 && xs_[2] == 0 && n > 0 ? u[dim_] : 0.0;
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &p0, 1, MPI_DOUBLE, MPI_SUM, comm_));
+  for (PetscInt i = dim_; i < n; i += dof_) u[i] -= p0;
+  CELLFSI_PETSC(VecRestoreArray(U, &u));
 }
 
 void FluidSolver::restore(Vec U, Vec Udot, int steps) {
