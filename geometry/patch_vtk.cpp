@@ -84,7 +84,7 @@ void write_patch_vts(const Patch& patch, const std::string& path, int samples_pe
   xi->SetNumberOfComponents(3);
   xi->SetNumberOfTuples(points->GetNumberOfPoints());
   vtkNew<vtkDoubleArray> jac;
-  jac->SetName("jacobian");
+  jac->SetName("map_jacobian");  // det dx/dxi of the map, not the deformation's J (solid output)
   jac->SetNumberOfTuples(points->GetNumberOfPoints());
   const bool volume = P == patch.physical_dim();
   BasisValues bv;

@@ -23,7 +23,7 @@ struct PointField {
 };
 
 /// Writes the patch sampled with `samples_per_element` intervals per element and direction to `path` (.vts).
-/// Point data: "parametric" (xi), for parametric dimension == physical dimension "jacobian" (det dx/dxi), and
+/// Point data: "parametric" (xi), for parametric dimension == physical dimension "map_jacobian" (det dx/dxi of the map; the solid output's "J" is the deformation's), and
 /// `fields`.
 void write_patch_vts(const Patch& patch, const std::string& path, int samples_per_element = 4,
                      const std::vector<PointField>& fields = {});

@@ -41,7 +41,7 @@ TEST(PatchVtk, StructuredGridAndElementLinesReadBack) {
   grid->GetPoint(2 + dims[0] * 5, x);
   const Vec3 ref = e.point({2.0 / 3.0, 5.0 / 48.0, 0});
   EXPECT_LT((Vec3(x[0], x[1], x[2]) - ref).norm(), 1e-18);
-  EXPECT_NE(grid->GetPointData()->GetArray("jacobian"), nullptr);
+  EXPECT_NE(grid->GetPointData()->GetArray("map_jacobian"), nullptr);
 
   vtkNew<vtkXMLPolyDataReader> lines;
   lines->SetFileName((dir / "e_elements.vtp").c_str());
