@@ -429,6 +429,25 @@ int launch(int argc, char** argv, Role role) {
                      " SCENE.yaml [options])";
     }
   }
+  // An option given twice on the command line: PETSc would silently keep the last.
+  {
+    std::map<std::string, std::size_t> seen;
+    for (size_t i = 1; i < args.size() && !bad_launch; ++i) {
+      const std::string& a = args[i];
+      if (a.size() < 2 || a[0] != '-' || !std::isalpha(static_cast<unsigned char>(a[1]))) continue;
+      const auto [it, fresh] = seen.emplace(a, i);
+      if (fresh) continue;
+      auto value = [&](std::size_t k) {
+        return k + 1 < args.size() && !(args[k + 1].size() > 1 && args[k + 1][0] == '-' &&
+                                        std::isalpha(static_cast<unsigned char>(args[k + 1][1])))
+                   ? args[k + 1]
+                   : std::string("(no value)");
+      };
+      bad_launch = true;
+      launch_error = "option " + a + " is given twice on the command line (" + value(it->second) + ", then " +
+                     value(i) + "); valid: each option once (the command line overrides the scene file)";
+    }
+  }
   if (args.size() > 1 && args[1][0] != '-') {
     scene_file = args[1];
     scene_name = std::filesystem::path(scene_file).stem().string();

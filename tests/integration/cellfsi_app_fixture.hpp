@@ -25,6 +25,7 @@
 #include <vtkXMLStructuredGridReader.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <cstdlib>
@@ -145,7 +146,7 @@ inline const std::vector<std::string> kCapsule = {
 /// kCapsule for the default scene (no scene file; dt 2e-3): one step.
 inline const std::vector<std::string> kDefaultCapsule = [] {
   std::vector<std::string> a = kCapsule;
-  a.insert(a.end(), {"-final_time", "2e-3"});
+  *(std::find(a.begin(), a.end(), "-final_time") + 1) = "2e-3";
   return a;
 }();
 
@@ -305,8 +306,30 @@ class CellfsiApp : public ::testing::Test {
   mutable std::string last_output_;
 };
 
+/// True for an option name ("-dt"), false for a value ("-1", "2e-3", "scene.yaml").
+inline bool is_option(const std::string& w) {
+  return w.size() > 1 && w[0] == '-' && std::isalpha(static_cast<unsigned char>(w[1]));
+}
+
+/// The arguments a followed by b, where an option of b that a already has replaces a's value (the command
+/// line refuses an option given twice): with(kTiny, {"-dt", "1e-3"}) runs with dt 1e-3.
 inline std::vector<std::string> with(std::vector<std::string> a, const std::vector<std::string>& b) {
-  a.insert(a.end(), b.begin(), b.end());
+  for (size_t i = 0; i < b.size(); ++i) {
+    const bool has_value = is_option(b[i]) && i + 1 < b.size() && !is_option(b[i + 1]);
+    const auto it = is_option(b[i]) ? std::find(a.begin(), a.end(), b[i]) : a.end();
+    if (it == a.end()) {
+      a.push_back(b[i]);
+      if (has_value) a.push_back(b[++i]);
+      continue;
+    }
+    const bool a_has_value = it + 1 != a.end() && !is_option(*(it + 1));
+    if (has_value && a_has_value)
+      *(it + 1) = b[++i];
+    else if (has_value)
+      a.insert(it + 1, b[++i]);
+    else if (a_has_value)
+      a.erase(it + 1);
+  }
   return a;
 }
 

@@ -161,6 +161,19 @@ TEST_F(CellfsiApp, BadValueInSceneFileNamesFileAndLine) {
 // Bad input the app does not reject cleanly yet (see the integration-test report): a non-number for an
 // integer option, more element counts than dimensions, a misspelt option of an inner solver.
 
+TEST_F(CellfsiApp, OptionGivenTwiceOnTheCommandLineIsRejected) {
+  // PETSc kept the last of "-dt 1e-3 -dt 2e-3" silently.
+  std::vector<std::string> args = with({scene("shear.yaml")}, kTiny);
+  args.erase(std::find(args.begin(), args.end(), "-dt"), std::find(args.begin(), args.end(), "-dt") + 2);
+  args.insert(args.end(), {"-dt", "1e-3", "-dt", "2e-3"});
+  const RunResult r = cellfsi(args);
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("option -dt is given twice on the command line (1e-3, then 2e-3)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
 TEST_F(CellfsiApp, NonNumericValueIsRejected) {
   const RunResult r = cellfsi(with(with({scene("shear.yaml")}, kTiny), {"-fluid_degree", "abc"}));
   expect_one_clear_error(r);
