@@ -25,6 +25,10 @@ void declare(OptionTable& t, FluidOptions& o, int dim, std::vector<double>& forc
       .flag("stokes", o.stokes, "Drop convection (Stokes flow)")
       .real("rho_inf", o.rho_inf, "Generalized-alpha spectral radius at infinity, [0, 1]", between(0, 1))
       .real("c_i", o.c_i, "C_I of tau_M", positive())
+      .text(
+          "mat_type_jacobian", o.jacobian_type,
+          "PETSc matrix type of the Jacobian: baij (one block per control point, the fast insertion) or aij",
+          {"baij", "aij"})
       .flag("pressure_null_space", o.pressure_null_space,
             "Give the linear solver the constant pressure as the Jacobian's null space (MatNullSpace) "
             "instead of "

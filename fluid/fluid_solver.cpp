@@ -64,11 +64,8 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
   CELLFSI_PETSC(DMCreateGlobalVector(da_scalar_, &S_));
   CELLFSI_PETSC(VecSet(S_, 1.0));
   CELLFSI_PETSC(DMCreateLocalVector(da_scalar_, &S_loc_));
-  // Block AIJ with one block per control point: element blocks are inserted node by node.
-  char mat_type[64] = MATBAIJ;
-  CELLFSI_PETSC(
-      PetscOptionsGetString(nullptr, "fluid_", "-mat_type_jacobian", mat_type, sizeof mat_type, nullptr));
-  CELLFSI_PETSC(DMSetMatType(da_, mat_type));
+  // Block AIJ with one block per control point (the default): element blocks are inserted node by node.
+  CELLFSI_PETSC(DMSetMatType(da_, opt_.jacobian_type.c_str()));
   CELLFSI_PETSC(DMCreateMatrix(da_, &J_));
   CELLFSI_PETSC(MatSetOption(J_, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
 

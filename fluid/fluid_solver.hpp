@@ -45,6 +45,7 @@ struct FluidOptions {
   double rho_inf = 0.5;  // generalized-alpha spectral radius at infinity, in [0, 1]
   double dt = 5e-4;      // time step [s]
   double c_i = 36.0;     // C_I of tau_M
+  std::string jacobian_type = "baij";  // PETSc matrix type of the Jacobian: baij (node blocks) or aij
   bool pressure_null_space = true;  // the constant pressure as MatNullSpace (false: one control value pinned)
   /// Velocity of the wall at side s (0: xi = a, 1: xi = b) of non-periodic direction d. (Eigen vectors are
   /// not zeroed by value-initialisation, hence the explicit zeros.)
