@@ -69,7 +69,8 @@ def main():
     if axes is None:
         return
     for ax, body in zip(axes, ("membrane", "nucleus")):
-        ax.set_title(f"{body}", fontsize=10)
+        ax.set_title(body if body == "membrane" else "nucleus (a sphere: the axis of its slight deformation)",
+                     fontsize=10)
         ax.set_xlabel("t (s)")
         ax.grid(True, lw=0.3)
     axes[0].set_ylabel("theta (deg), long axis from the flow direction")
