@@ -2,6 +2,7 @@
 
 #include <petscsys.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -456,14 +457,17 @@ int launch(int argc, char** argv, Role role) {
   } else {
     // No scene: the default scene.
     scene_file = default_scene_path();
-    if (scene_file.empty()) {
+    const bool help = std::find(args.begin(), args.end(), "-help") != args.end();
+    if (scene_file.empty() && help) {
+      // -help lists the options with their built-in defaults: no scene needed.
+    } else if (scene_file.empty()) {
       bad_launch = true;
       launch_error =
           "no scene file given, and the default scene (share/cellfsi/scenes/capsule_shear_quick.yaml next to "
           "the executable's folder) is not there; give one: " +
           args[0] + " SCENE.yaml [options]";
     }
-    args.insert(args.begin() + 1, {"-options_file_yaml", scene_file});
+    if (!scene_file.empty()) args.insert(args.begin() + 1, {"-options_file_yaml", scene_file});
   }
 
   MPI_Init(&argc, &argv);
@@ -479,9 +483,9 @@ int launch(int argc, char** argv, Role role) {
   // have one (-solid_ranks given to cellfsi-solid, its scene file missing), and the other must not wait for
   // it. The lowest rank with an error prints it.
   std::string early_error = bad_launch ? launch_error : std::string();
-  if (early_error.empty() && !std::filesystem::is_regular_file(scene_file))
+  if (early_error.empty() && !scene_file.empty() && !std::filesystem::is_regular_file(scene_file))
     early_error = "scene file '" + scene_file + "' not found (expected a .yaml scene, see scenes/)";
-  if (early_error.empty()) {
+  if (early_error.empty() && !scene_file.empty()) {
     try {
       check_scene_file(scene_file);
     } catch (const std::invalid_argument& e) {
