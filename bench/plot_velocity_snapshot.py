@@ -45,6 +45,9 @@ def main():
     p.add_argument("run")
     p.add_argument("--time", type=float, default=None)
     p.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "shear_velocity.png"))
+    p.add_argument("--reversed", action="store_true",
+                   help="outline where the flow runs against the mean flow (v_x < 0: recirculation) and print "
+                        "its area")
     args = p.parse_args()
     try:
         import numpy as np
@@ -83,6 +86,17 @@ def main():
                 ax.plot(row[:, 0] * 1e4, row[:, 1] * 1e4, color="w", lw=0.8)
             for col in (s[:, 0], s[:, -1]):
                 ax.plot(col[:, 0] * 1e4, col[:, 1] * 1e4, color="w", lw=0.8)
+        if args.reversed and name == "velocity":
+            vx = arrays["velocity"][..., 0]
+            if (vx < 0).any():
+                ax.contour(x, y, vx, levels=[0.0], colors="r", linewidths=0.8)
+            # Area with v_x < 0 (cells of the sample grid whose four corners all have v_x < 0), in um^2.
+            neg = (vx[:-1, :-1] < 0) & (vx[1:, :-1] < 0) & (vx[:-1, 1:] < 0) & (vx[1:, 1:] < 0)
+            dx1, dy1 = x[:-1, 1:] - x[:-1, :-1], y[:-1, 1:] - y[:-1, :-1]
+            dx2, dy2 = x[1:, :-1] - x[:-1, :-1], y[1:, :-1] - y[:-1, :-1]
+            area = np.abs(dx1 * dy2 - dy1 * dx2)
+            print(f"plot_velocity_snapshot: reversed flow (v_x < 0) over {area[neg].sum():.3g} um^2 of "
+                  f"{area.sum():.3g} um^2 at t = {t:g} s")
         ax.set_aspect("equal")
         ax.set_xlabel("x (um)")
         ax.set_ylabel("y (um)")
