@@ -49,7 +49,7 @@ int iterations_or_throw(KSP ksp) {
   CELLFSI_PETSC(KSPGetConvergedReason(ksp, &kr));
   PetscInt lits = 0;
   CELLFSI_PETSC(KSPGetIterationNumber(ksp, &lits));
-  if (kr < 0) throw std::runtime_error(std::string("linear solve failed: ") + KSPConvergedReasons[kr]);
+  if (kr < 0) throw std::runtime_error("linear solve failed: " + fluid::linear_solve_failure(ksp));
   return static_cast<int>(lits);
 }
 

@@ -81,6 +81,10 @@ struct ImmersedPointData {
   ImmersedPoint data;
 };
 
+/// Why the last solve of ksp failed: its converged reason and, for a failed preconditioner, why it failed
+/// (looking into ASM and block-Jacobi subdomains; e.g. an LU factorisation that ran out of memory).
+std::string linear_solve_failure(KSP ksp);
+
 class FluidSolver;
 /// SNES callbacks (the solver passes itself as context).
 PetscErrorCode fluid_residual(SNES, Vec U, Vec F, void* solver);

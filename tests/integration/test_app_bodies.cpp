@@ -105,6 +105,20 @@ TEST_F(CellfsiApp, RunFailingInItsFirstStepSaysWhereAndKeepsTheColumns) {
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1) << csv;
 }
 
+TEST_F(CellfsiApp, FactorisationOutOfMemorySaysSo) {
+  // A 3D mesh whose LU factors exceed the memory said only "DIVERGED_PC_FAILED". Under a 900 MB address-space
+  // limit the shear scene's 160 x 80 LU (through ASM's subdomain) cannot be allocated: the run exits with 2
+  // and says why, and where.
+  const std::string cmd = "ulimit -v 900000; exec " + std::string(CELLFSI_EXE) + " " + scene("shear.yaml") +
+                          " -fluid_elements 160,80 -final_time 1e-3 -output_every 0 -output_dir " +
+                          out_.string();
+  const RunResult r = run_process({"/bin/sh", "-c", cmd}, 60);
+  ASSERT_FALSE(r.timed_out) << r.output;
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("the LU factorisation ran out of memory"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("in step 1 at t = 0.0005"), std::string::npos) << r.output;
+}
+
 TEST_F(CellfsiApp, DomainArraysOfTheWrongLengthAreRejected) {
   // -domain_periodic, -domain_size and -domain_origin were read without their "set" flag: a wrong length
   // passed and -domain_periodic was ignored altogether (issue 10).
