@@ -4,6 +4,7 @@
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
+#include <string>
 
 #include "common/petsc_error.hpp"
 #include "fluid/point_evaluation.hpp"
@@ -123,6 +124,17 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
 
   // The pressure of the first control point is pinned (see the header), or the linear solver is given the
   // constant pressure as the Jacobian's null space.
+  // Factorisation packages other than MUMPS (PETSc's own LU, the paper's setting) have no null-pivot
+  // detection: unless the null space was asked for explicitly, they get the pin (measured: PETSc's LU with
+  // the null space broke down in step 12 of the Poiseuille scene).
+  PetscBool asked = PETSC_FALSE;
+  CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-fluid_pressure_null_space", &asked));
+  for (const char* name : {"-fluid_sub_pc_factor_mat_solver_type", "-fluid_pc_factor_mat_solver_type"}) {
+    char package[64] = "";
+    PetscBool set = PETSC_FALSE;
+    CELLFSI_PETSC(PetscOptionsGetString(nullptr, nullptr, name, package, sizeof package, &set));
+    if (set && std::string(package) != "mumps" && !asked) opt_.pressure_null_space = false;
+  }
   if (opt_.pressure_null_space) {
     Vec constant;
     CELLFSI_PETSC(VecDuplicate(U_, &constant));
