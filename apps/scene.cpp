@@ -22,14 +22,6 @@ namespace cellfsi::app {
 
 using geometry::Vec3;
 
-namespace {
-
-[[noreturn]] void bad(const std::string& option, const std::string& value, const std::string& valid) {
-  bad_option(option, value, valid);
-}
-
-}  // namespace
-
 geometry::Patch build_domain(const SceneSettings& s) {
   if (s.domain == "rectangle")
     return geometry::rectangle(s.size[0], s.size[1], s.elements[0], s.elements[1], s.degree,
@@ -132,7 +124,7 @@ void check_bodies(const SceneSettings& s, const geometry::Patch& domain) {
         w << "a centre inside the domain, " << lo[d] << " <= "
           << "xyz"[d] << " < " << hi[d] << " cm in the periodic direction "
           << "xyz"[d];
-        bad("solid_" + b.name + "_center", v.str(), w.str());
+        bad_option("solid_" + b.name + "_center", v.str(), w.str());
       }
     coupling::BodyPlacement pl{b.name, build_body_patch(s, b), b.membrane()};
     coupling::check_inside(locator, pl);
@@ -145,7 +137,7 @@ void check_bodies(const SceneSettings& s, const geometry::Patch& domain) {
          << " cm; use more body elements (0: automatic) or -coupling_max_mesh_ratio";
       std::ostringstream v;
       for (int d = 0; d < s.dim; ++d) v << (d ? "," : "") << pl.patch.n_elements(d);
-      bad("solid_" + b.name + "_elements", v.str(), os.str());
+      bad_option("solid_" + b.name + "_elements", v.str(), os.str());
     }
     // The cell must span the fluid mesh: its smallest semi-axis at least one fluid element.
     if (!b.semi_axes.empty()) {
@@ -155,7 +147,7 @@ void check_bodies(const SceneSettings& s, const geometry::Patch& domain) {
         for (int d = 0; d < s.dim; ++d) v << (d ? "," : "") << s.elements[d];
         w << "a fluid mesh with elements no larger than the smallest semi-axis of body '" << b.name << "' ("
           << amin << " cm; now " << r.fluid_element << " cm)";
-        bad("fluid_elements", v.str(), w.str());
+        bad_option("fluid_elements", v.str(), w.str());
       }
     }
     placed.push_back(std::move(pl));

@@ -19,12 +19,6 @@ using geometry::Vec3;
 
 namespace {
 
-std::string str(double v) { return option_value_text(v); }
-
-[[noreturn]] void bad(const std::string& option, const std::string& value, const std::string& valid) {
-  bad_option(option, value, valid);
-}
-
 /// Index of `word` in `words` (the table has checked that it is one of them).
 template <class Enum>
 Enum enum_of(const std::string& word, const std::vector<std::string>& words) {
@@ -48,7 +42,8 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
   PetscOptionsHasName(nullptr, nullptr, "-solid_bodies", &has);
   if (has) PetscOptionsGetString(nullptr, nullptr, "-solid_bodies", value, sizeof value, nullptr);
   if (has && value[0] == '\0')
-    bad("solid_bodies", "(empty)",
+    bad_option(
+        "solid_bodies", "(empty)",
         "one or more comma-separated names, e.g. membrane,nucleus (for a run without cells use a scene "
         "without bodies, e.g. scenes/shear.yaml)");
   OptionTable t("cellfsi immersed bodies and coupling");
@@ -100,8 +95,8 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
             "Start of the metrics' averaging window [s] (default: half the final time)");
   t.read();
   if (s.metrics_average_from >= s.final_time)
-    t.bad("metrics_average_from", str(s.metrics_average_from),
-          "less than -final_time = " + str(s.final_time) + " s");
+    t.bad("metrics_average_from", option_value_text(s.metrics_average_from),
+          "less than -final_time = " + option_value_text(s.final_time) + " s");
   c.solver = enum_of<coupling::CouplingSolver>(solver, kSolvers);
   c.marking = enum_of<coupling::Marking>(marking, kMarkings);
   c.acceleration = enum_of<coupling::Acceleration>(acceleration, kAccelerations);
@@ -170,12 +165,14 @@ void read_body(SceneSettings& s, const std::string& name) {
   const Vec3 ax(axis[0], axis[1], axis[2]);
   if (!(ax.norm() > 0)) t.bad("axis", "0,0,0", "a nonzero direction");
   b.axis = ax.normalized();
-  if (b.shape != "rbc" && b.area != 0) t.bad("area", str(b.area), "only for shape rbc");
-  if (b.shape == "rbc" && !(b.area >= 0)) t.bad("area", str(b.area), "> 0 [cm^2] (0: the default RBC)");
+  if (b.shape != "rbc" && b.area != 0) t.bad("area", option_value_text(b.area), "only for shape rbc");
+  if (b.shape == "rbc" && !(b.area >= 0))
+    t.bad("area", option_value_text(b.area), "> 0 [cm^2] (0: the default RBC)");
   if (b.membrane()) {
-    if (!(b.thickness > 0)) t.bad("thickness", str(b.thickness), "> 0 [cm]");
+    if (!(b.thickness > 0)) t.bad("thickness", option_value_text(b.thickness), "> 0 [cm]");
     for (double a : b.semi_axes)
-      if (!(b.thickness < a)) t.bad("thickness", str(b.thickness), "smaller than every semi-axis");
+      if (!(b.thickness < a))
+        t.bad("thickness", option_value_text(b.thickness), "smaller than every semi-axis");
   }
   if (b.membrane() && elements[0] > 1)
     t.bad("elements", std::to_string(elements[0]), "1 element through a membrane's thickness");
@@ -189,7 +186,7 @@ void read_body(SceneSettings& s, const std::string& name) {
     // A row's options without a row would do nothing.
     if (arrangement != kArrangements[0])
       t.bad("arrangement", arrangement, "even (or -" + pre + "count 2 or more)");
-    if (spread > 0) t.bad("spread", str(spread), "0 (or -" + pre + "count 2 or more)");
+    if (spread > 0) t.bad("spread", option_value_text(spread), "0 (or -" + pre + "count 2 or more)");
     s.bodies.push_back(b);
     return;
   }
@@ -217,7 +214,7 @@ void read_body(SceneSettings& s, const std::string& name) {
     BodySettings c = b;
     c.name = name + "_" + std::to_string(i + 1);
     for (const BodySettings& other : s.bodies)
-      if (other.name == c.name) bad("solid_bodies", c.name, "distinct names (a copy of " + name + ")");
+      if (other.name == c.name) bad_option("solid_bodies", c.name, "distinct names (a copy of " + name + ")");
     c.center = row;
     c.center[0] = s.origin[0] + (i + 0.5) * s.size[0] / count;
     if (arrangement == "staggered") c.center[across] += (i % 2 == 0 ? spread : -spread);
@@ -252,7 +249,7 @@ void check_memory(const SceneSettings& s) {
     << (band ? "the fluid Jacobian three times: its kept part, its band part and their sum"
              : "the fluid Jacobian")
     << "; LU factors come on top) and " << available / 1e9 << " GB are available";
-  bad("fluid_elements", v.str(), w.str());
+  bad_option("fluid_elements", v.str(), w.str());
 }
 
 }  // namespace
@@ -348,10 +345,11 @@ SceneSettings SceneSettings::from_options(const std::string& default_name, bool 
   if (s.flow == "shear" && s.domain == "narrowing") t.bad("flow", "shear", "shear needs a rectangle or box");
   // The step count must be at least 1 and fit its int (-final_time 10 -dt 1e-12 wrapped to a negative count).
   if (!(s.dt <= s.final_time))
-    t.bad("dt", str(s.dt), "at most -final_time = " + str(s.final_time) + " s (at least one step)");
+    t.bad("dt", option_value_text(s.dt),
+          "at most -final_time = " + option_value_text(s.final_time) + " s (at least one step)");
   if (!(s.final_time / s.dt <= 1e9))
-    t.bad("dt", str(s.dt),
-          "at least -final_time / 1e9 = " + str(s.final_time / 1e9) + " s (at most 1e9 steps)");
+    t.bad("dt", option_value_text(s.dt),
+          "at least -final_time / 1e9 = " + option_value_text(s.final_time / 1e9) + " s (at most 1e9 steps)");
   if (s.output_dir.empty()) s.output_dir = "out/" + s.name;
 
   std::vector<std::string> names;
@@ -360,9 +358,9 @@ SceneSettings SceneSettings::from_options(const std::string& default_name, bool 
     const bool ok = !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
       return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
     });
-    if (!ok) bad("solid_bodies", name, "names of lower-case letters, digits and _");
+    if (!ok) bad_option("solid_bodies", name, "names of lower-case letters, digits and _");
     for (const BodySettings& o : s.bodies)
-      if (o.name == name) bad("solid_bodies", name, "distinct names");
+      if (o.name == name) bad_option("solid_bodies", name, "distinct names");
     read_body(s, name);
   }
   if (fluid_side) check_memory(s);

@@ -87,37 +87,10 @@ class OptionTable {
   OptionTable& operator=(const OptionTable&) = delete;
 
   OptionTable& real(const std::string& name, double& value, std::string help, Valid<double> valid = {}) {
-    add(name, 'r', std::move(help));
-    Entry& e = entries_.back();
-    e.read = [this, &value, i = entries_.size() - 1](PetscOptionItems* PetscOptionsObject) -> PetscErrorCode {
-      PetscFunctionBeginUser;
-      Entry& me = entries_[i];
-      PetscReal v = value;
-      PetscCall(PetscOptionsReal(full(me).c_str(), me.help.c_str(), nullptr, v, &v, &me.given_flag));
-      value = v;
-      PetscFunctionReturn(0);
-    };
-    e.check = [this, &value, valid, name] {
-      if (valid.ok && !valid.ok(value)) bad(name, option_value_text(value), valid.text);
-    };
-    return *this;
+    return scalar<double, PetscReal>('r', name, value, std::move(help), std::move(valid));
   }
-
   OptionTable& integer(const std::string& name, int& value, std::string help, Valid<long long> valid = {}) {
-    add(name, 'i', std::move(help));
-    Entry& e = entries_.back();
-    e.read = [this, &value, i = entries_.size() - 1](PetscOptionItems* PetscOptionsObject) -> PetscErrorCode {
-      PetscFunctionBeginUser;
-      Entry& me = entries_[i];
-      PetscInt v = value;
-      PetscCall(PetscOptionsInt(full(me).c_str(), me.help.c_str(), nullptr, v, &v, &me.given_flag));
-      value = static_cast<int>(v);  // PetscInt is int here; larger input is refused by the probes
-      PetscFunctionReturn(0);
-    };
-    e.check = [this, &value, valid, name] {
-      if (valid.ok && !valid.ok(value)) bad(name, std::to_string(value), valid.text);
-    };
-    return *this;
+    return scalar<int, PetscInt>('i', name, value, std::move(help), std::move(valid));
   }
 
   OptionTable& flag(const std::string& name, bool& value, std::string help) {
@@ -278,6 +251,33 @@ class OptionTable {
     std::string s;
     for (std::size_t i = 0; i < words.size(); ++i) s += (i ? sep : "") + words[i];
     return s;
+  }
+
+  /// A number: PETSc reads it as P (PetscReal, PetscInt; PetscInt is int here, and larger input is refused by
+  /// the probes), valid checks it as V.
+  template <class T, class P, class V>
+  OptionTable& scalar(char kind, const std::string& name, T& value, std::string help, Valid<V> valid) {
+    add(name, kind, std::move(help));
+    Entry& e = entries_.back();
+    e.read = [this, &value, i = entries_.size() - 1](PetscOptionItems* PetscOptionsObject) -> PetscErrorCode {
+      PetscFunctionBeginUser;
+      Entry& me = entries_[i];
+      P v = value;
+      if constexpr (std::is_same_v<P, PetscReal>)
+        PetscCall(PetscOptionsReal(full(me).c_str(), me.help.c_str(), nullptr, v, &v, &me.given_flag));
+      else
+        PetscCall(PetscOptionsInt(full(me).c_str(), me.help.c_str(), nullptr, v, &v, &me.given_flag));
+      value = static_cast<T>(v);
+      PetscFunctionReturn(0);
+    };
+    e.check = [this, &value, valid, name] {
+      if (!valid.ok || valid.ok(value)) return;
+      if constexpr (std::is_floating_point_v<T>)
+        bad(name, option_value_text(value), valid.text);
+      else
+        bad(name, std::to_string(value), valid.text);
+    };
+    return *this;
   }
 
   template <class T, class P, class Each>

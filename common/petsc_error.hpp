@@ -89,14 +89,11 @@ inline PetscErrorCode record_first_message(MPI_Comm, int, const char*, const cha
 }
 }  // namespace detail
 
-/// Kinds of option values for call_reporting_input_errors: 'i' integer, 'r' real, 'I' integer list, 'R' real
-/// list, 'b' boolean, 'B' boolean list, 's' word, 'S' list of words.
-using OptionProbe = std::pair<const char*, char>;
-
 /// Runs `call` (which returns a PetscErrorCode, e.g. a function reading options) with PETSc's error handler
 /// replaced by one that records the message instead of printing a traceback. On error it finds, among
-/// `probes`, the option whose value does not parse and throws std::invalid_argument naming it, its value and
-/// PETSc's reason (for input such as "-fluid_degree abc").
+/// `probes` (option, kind: 'i' integer, 'r' real, 'I' integer list, 'R' real list, 'b' boolean, 'B' boolean
+/// list, 's' word, 'S' list of words), the option whose value does not parse and throws std::invalid_argument
+/// naming it, its value and PETSc's reason (for input such as "-fluid_degree abc"). Used by OptionTable.
 template <class Call>
 void call_reporting_input_errors(Call&& call, const std::vector<std::pair<std::string, char>>& probes) {
   std::string message;
@@ -177,11 +174,6 @@ void call_reporting_input_errors(Call&& call, const std::vector<std::pair<std::s
   }
   throw std::invalid_argument("invalid option value: " +
                               (message.empty() ? std::string("(no message)") : message));
-}
-template <class Call>
-void call_reporting_input_errors(Call&& call, std::initializer_list<OptionProbe> probes) {
-  call_reporting_input_errors(std::forward<Call>(call),
-                              std::vector<std::pair<std::string, char>>(probes.begin(), probes.end()));
 }
 
 }  // namespace cellfsi
