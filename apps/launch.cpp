@@ -118,8 +118,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     }
   }
   scene.attach_bodies(bodies);
-  const bool band_solver = scene.coupler() && scene.coupler()->solver() == coupling::CouplingSolver::band;
-  if (scene.coupler()) reject_inapplicable_solver_options(user_options, band_solver);
+  if (scene.coupler()) reject_inapplicable_solver_options(user_options, scene.coupler()->solver());
   reject_unknown_options(OptionCheck::before_first_step);
 
   int size = 1, rank = 0, solid_ranks = 0;
@@ -218,12 +217,12 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       CELLFSI_VERSION, settings.name.c_str(), size,
       solid_ranks ? (" + " + std::to_string(solid_ranks) + " solid ranks").c_str() : "", bodies.size(),
       n_steps, settings.dt, n_steps * settings.dt, settings.output_dir.c_str()));
-  if (scene.coupler() && !band_solver && settings.coupling.solver == coupling::CouplingSolver::band)
-    CELLFSI_PETSC(
-        PetscPrintf(PETSC_COMM_WORLD,
-                    "cellfsi: note: the band solver needs one fluid rank and a BAIJ Jacobian; on %d "
-                    "rank(s) the coupling loop uses -coupling_solver fluid\n",
-                    size));
+  if (scene.coupler() && scene.coupler()->solver() == coupling::CouplingSolver::fluid &&
+      settings.coupling.solver != coupling::CouplingSolver::fluid)
+    CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
+                              "cellfsi: note: the band and Fourier solvers need one fluid rank and a BAIJ "
+                              "Jacobian; on %d rank(s) the coupling loop uses -coupling_solver fluid\n",
+                              size));
   // A coupled run's iterations are the coupling loop's block iterations, not Newton iterations.
   out.set_iteration_kind(scene.coupler() ? "coupling" : "newton");
   long newton = resume.newton, linear = resume.linear, factorizations = resume.factorizations;
@@ -258,7 +257,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       linear += st.linear_iterations;
       factorizations += st.factorizations;
       if (k == resume.step + 1)
-        reject_unknown_options(scene.coupler() && scene.coupler()->solver() != coupling::CouplingSolver::band
+        reject_unknown_options(scene.coupler() && scene.coupler()->solver() == coupling::CouplingSolver::fluid
                                    ? OptionCheck::after_first_step_fluid
                                    : OptionCheck::after_first_step);
       if (!st.converged) {
@@ -315,7 +314,8 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   std::vector<std::pair<std::string, double>> final_metrics = scene.summary_metrics();
   if (scene.coupler()) {
     // What the linear algebra cost: factorisations of the whole fluid Jacobian (band solver: of its fixed
-    // part; the band's own small factorisations are not counted) and the band's size.
+    // part; Fourier solver: the bulk solver's set-up; the small factorisations of the band or the region
+    // are not counted) and the band's size.
     final_metrics.emplace_back("factorizations", static_cast<double>(factorizations));
     final_metrics.emplace_back("band_unknowns", static_cast<double>(scene.coupler()->band_unknowns()));
   }
@@ -324,7 +324,14 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     final_metrics.emplace_back("exchange_shared_mb", exchange->shared_bytes() / 1e6);
     final_metrics.emplace_back("exchange_message_mb", exchange->message_bytes() / 1e6);
   }
-  out.summary("completed", done, newton, linear, final_metrics, scene.summary_text());
+  std::vector<std::pair<std::string, std::string>> words = scene.summary_text();
+  if (scene.coupler()) {
+    const coupling::CouplingSolver used = scene.coupler()->solver();
+    words.emplace_back("coupling_solver", used == coupling::CouplingSolver::fourier ? "fourier"
+                                          : used == coupling::CouplingSolver::band  ? "band"
+                                                                                    : "fluid");
+  }
+  out.summary("completed", done, newton, linear, final_metrics, words);
   write_checkpoint_now(n_steps);  // a later run may go on from here (-restart with a later -final_time)
   // The velocity profile across the domain at x = mid-length (section xi_0 = 1/2), as CSV.
   const fluid::SectionData sec = fluid::section(scene.fluid(), 0.5, 65);

@@ -22,7 +22,9 @@ bool maybe_unread(const std::string& name, OptionCheck when) {
   // The band solver fell back to the fluid's in the first step (its region held most of the domain, which
   // the run reported): its factorisation options were never read.
   if (when == OptionCheck::after_first_step_fluid) return name.rfind("coupling_band_", 0) == 0;
-  if (when == OptionCheck::before_coupling && name.rfind("coupling_band_", 0) == 0) return true;
+  if (when == OptionCheck::before_coupling &&
+      (name.rfind("coupling_band_", 0) == 0 || name.rfind("coupling_fourier_", 0) == 0))
+    return true;
   for (const char* late : {"mat_mumps_", "mat_superlu", "mat_strumpack", "converged_reason", "ksp_view"})
     if (name.find(late) != std::string::npos) return true;
   return false;
@@ -63,9 +65,13 @@ std::vector<std::string> option_names() {
   return names;
 }
 
-/// Solver options that would be silently ignored: with the band solver the coupling loop does not use the
-/// fluid's KSP; without it, the band solver's options have nothing to act on.
-void reject_inapplicable_solver_options(const std::vector<std::string>& user_options, bool band_solver) {
+/// See option_checks.hpp.
+void reject_inapplicable_solver_options(const std::vector<std::string>& user_options,
+                                        coupling::CouplingSolver solver) {
+  using coupling::CouplingSolver;
+  const char* in_use = solver == CouplingSolver::band      ? "band"
+                       : solver == CouplingSolver::fourier ? "fourier"
+                                                           : "fluid";
   for (const std::string& name : user_options) {
     // The coupling loop is a coupled run's nonlinear iteration, whichever linear solver it uses.
     if (name.rfind("fluid_snes_", 0) == 0)
@@ -73,22 +79,33 @@ void reject_inapplicable_solver_options(const std::vector<std::string>& user_opt
                                   " does not apply: in a coupled run the nonlinear iteration is the coupling "
                                   "loop (-coupling_tolerance, -coupling_max_iterations, -coupling_monitor, "
                                   "-coupling_acceleration); -fluid_snes_ options act on runs without cells");
-    if (band_solver) {
-      if (name == "fluid_mat_type_jacobian") continue;  // the matrix type applies to both solvers
+    if (solver != CouplingSolver::fluid) {
+      if (name == "fluid_mat_type_jacobian") continue;  // the matrix type applies to every solver
       for (const char* p : {"fluid_ksp_", "fluid_pc_", "fluid_sub_", "fluid_mat_"})
         if (name.rfind(p, 0) == 0)
           throw std::invalid_argument(
-              "option -" + name +
-              " does not apply: this coupled run solves with -coupling_solver band (the default on one fluid "
-              "rank), which has its own options under -coupling_band_ (e.g. -coupling_band_ksp_monitor, "
-              "-coupling_band_mat_mumps_icntl_14 40, -coupling_band_schur_mat_mumps_icntl_35 1); for the "
-              "fluid's KSP and PC options use -coupling_solver fluid");
-    } else if (name.rfind("coupling_band_", 0) == 0) {
-      throw std::invalid_argument("option -" + name +
-                                  " does not apply: this coupled run solves with -coupling_solver fluid "
-                                  "(asked for, or because the band solver needs one fluid rank and a BAIJ "
-                                  "Jacobian)");
+              "option -" + name + " does not apply: this coupled run solves with -coupling_solver " + in_use +
+              ", which has its own options under -coupling_" + in_use + "_ (e.g. -coupling_" + in_use +
+              "_ksp_monitor" +
+              (solver == CouplingSolver::band
+                   ? ", -coupling_band_mat_mumps_icntl_14 40, -coupling_band_schur_mat_mumps_icntl_35 1"
+                   : ", -coupling_fourier_region_mat_mumps_icntl_14 40") +
+              "); for the fluid's KSP and PC options use -coupling_solver fluid");
     }
+    // The band's refresh interval and region margin also pace and bound the Fourier solver's refreshes.
+    const bool band_option = name.rfind("coupling_band_", 0) == 0;
+    if (band_option && solver != CouplingSolver::band &&
+        !(solver == CouplingSolver::fourier &&
+          (name == "coupling_band_refresh_steps" || name == "coupling_band_margin")))
+      throw std::invalid_argument("option -" + name + " does not apply: this coupled run solves with " +
+                                  "-coupling_solver " + in_use +
+                                  (solver == CouplingSolver::fluid
+                                       ? " (asked for, or because the band solver needs one fluid rank and a "
+                                         "BAIJ Jacobian)"
+                                       : ""));
+    if (name.rfind("coupling_fourier_", 0) == 0 && solver != CouplingSolver::fourier)
+      throw std::invalid_argument("option -" + name + " does not apply: this coupled run solves with " +
+                                  "-coupling_solver " + in_use);
   }
 }
 

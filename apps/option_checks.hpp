@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include "coupling/fsi_coupler.hpp"
+
 namespace cellfsi::app {
 
 /// When the unknown-option check runs: before the coupling loop exists, once it is set up, after the first
@@ -18,9 +20,11 @@ void reject_unknown_options(OptionCheck when);
 /// Names (without the dash) of the options in the database now: the user's command line and scene file.
 std::vector<std::string> option_names();
 
-/// Solver options that would be silently ignored: with the band solver the coupling loop does not use the
-/// fluid's KSP; without it, the band solver's options have nothing to act on.
-void reject_inapplicable_solver_options(const std::vector<std::string>& user_options, bool band_solver);
+/// Solver options that would be silently ignored: with the band or Fourier solver the coupling loop does not
+/// use the fluid's KSP; each solver's own options (-coupling_band_, -coupling_fourier_) act only with it.
+/// `solver`: the coupling loop's solver in use.
+void reject_inapplicable_solver_options(const std::vector<std::string>& user_options,
+                                        coupling::CouplingSolver solver);
 
 /// In a split job (two executables, or -solid_ranks), the options that shape the bodies must be the same on
 /// both sides: the solid side builds and steps the bodies from its own. Those are the -solid_* options and

@@ -25,7 +25,7 @@ Enum enum_of(const std::string& word, const std::vector<std::string>& words) {
   return static_cast<Enum>(std::find(words.begin(), words.end(), word) - words.begin());
 }
 
-const std::vector<std::string> kSolvers{"band", "fluid"};
+const std::vector<std::string> kSolvers{"auto", "band", "fluid", "fourier"};
 const std::vector<std::string> kMarkings{"support", "central"};
 const std::vector<std::string> kAccelerations{"none", "anderson"};
 const std::vector<std::string> kShapes{"hollow_ellipse", "ellipse", "rbc", "hollow_ellipsoid", "ellipsoid"};
@@ -70,10 +70,25 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
                "Previous time steps whose Anderson pairs are kept (0: none)",
                int_between(0, 1000, "(0: this step's pairs only)"))
       .flag("coupling_monitor", c.monitor, "Print every coupling iteration's residuals")
-      .text("coupling_solver", solver,
-            "Linear solver of the coupling loop: band (the Jacobian away from the cells factorised once, the "
-            "band around them re-solved exactly; one fluid rank) or fluid (the fluid's KSP, -fluid_ options)",
-            kSolvers)
+      .text(
+          "coupling_solver", solver,
+          "Linear solver of the coupling loop: auto (fourier where it applies, else band), band (the "
+          "Jacobian away from the cells factorised once, the "
+          "band around them re-solved exactly; one fluid rank), fluid (the fluid's KSP, -fluid_ options) or "
+          "fourier (FGMRES: the Jacobian without the cells inverted by FFT, corrected by an LU of the region "
+          "around them; one fluid rank, a box periodic in all directions but one)",
+          kSolvers)
+      .real(
+          "coupling_fourier_threshold", c.fourier_threshold,
+          "Fourier solver: relative deviation of a node's Jacobian rows from the bulk operator that puts it "
+          "in the LU-corrected region",
+          positive())
+      .integer("coupling_fourier_overlap", c.fourier_overlap,
+               "Fourier solver: node layers the LU-corrected region is grown by", int_between(0, 20))
+      .integer("coupling_fourier_region_solves", c.fourier_region_solves,
+               "Fourier solver: region LU solves per preconditioner application: 2 (region, bulk, region) or "
+               "1 (bulk, region)",
+               int_between(1, 2))
       .integer("coupling_band_margin", c.band_margin,
                "Elements around the s^h band and immersed points in the band solver's region", at_least(0))
       .integer("coupling_band_refactor_every", c.band_refactor_every,
@@ -240,14 +255,27 @@ void check_memory(const SceneSettings& s) {
   MPI_Comm_free(&node);
   int leader = node_rank == 0 ? 1 : 0;
   MPI_Allreduce(&leader, &leaders, 1, MPI_INT, MPI_SUM, comm);
-  const bool band = !s.bodies.empty() && size == 1 && s.coupling.solver == coupling::CouplingSolver::band;
-  const double need = (band ? 3 : 1) * fluid_jacobian_bytes(s) / std::max(1, leaders);
+  // The coupling solver the run will use (FsiCoupler's choice): the band solver keeps the Jacobian three
+  // times (its kept part, its band part and their sum), the Fourier solver twice (the part away from the
+  // cells and the sum).
+  using coupling::CouplingSolver;
+  int walls = 0;
+  for (int d = 0; d < s.dim; ++d) walls += !s.periodic[d];
+  const bool fourier_box = s.domain != "narrowing" && walls <= 1;
+  const CouplingSolver solver = s.coupling.solver;
+  const bool one = !s.bodies.empty() && size == 1;
+  const bool band =
+      one && (solver == CouplingSolver::band || (solver == CouplingSolver::automatic && !fourier_box));
+  const bool fourier =
+      one && (solver == CouplingSolver::fourier || (solver == CouplingSolver::automatic && fourier_box));
+  const double need = (band ? 3 : fourier ? 2 : 1) * fluid_jacobian_bytes(s) / std::max(1, leaders);
   if (need <= available) return;
   std::ostringstream v, w;
   for (int d = 0; d < s.dim; ++d) v << (d ? "," : "") << s.elements[d];
   w << std::setprecision(3) << "fewer elements: a run needs at least " << need / 1e9 << " GB per node ("
-    << (band ? "the fluid Jacobian three times: its kept part, its band part and their sum"
-             : "the fluid Jacobian")
+    << (band      ? "the fluid Jacobian three times: its kept part, its band part and their sum"
+        : fourier ? "the fluid Jacobian twice: its part away from the cells and the whole"
+                  : "the fluid Jacobian")
     << "; LU factors come on top) and " << available / 1e9 << " GB are available";
   bad_option("fluid_elements", v.str(), w.str());
 }

@@ -53,12 +53,14 @@ int iterations_or_throw(KSP ksp) {
   return static_cast<int>(lits);
 }
 
-PetscErrorCode apply_band_solver(PC pc, Vec r, Vec x) {
+/// PCSHELL apply of a solver object `S` with method `F`(r, x) (its exceptions become PETSc errors).
+template <class S, void (S::*F)(Vec, Vec)>
+PetscErrorCode shell_apply(PC pc, Vec r, Vec x) {
   PetscFunctionBeginUser;
   void* ctx = nullptr;
   PetscCall(PCShellGetContext(pc, &ctx));
   try {
-    static_cast<fluid::BandSchurSolver*>(ctx)->solve(r, x);
+    (static_cast<S*>(ctx)->*F)(r, x);
   } catch (const std::exception& e) {
     SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "%s", e.what());
   }
@@ -66,6 +68,17 @@ PetscErrorCode apply_band_solver(PC pc, Vec r, Vec x) {
 }
 
 }  // namespace
+
+std::string fourier_inapplicable(const geometry::Patch& patch) {
+  int walls = 0;
+  for (int d = 0; d < patch.param_dim(); ++d)
+    if (!patch.knots(d).periodic() && patch.n_control(d) > 1) ++walls;
+  if (walls > 1)
+    return "the fluid domain has " + std::to_string(walls) + " non-periodic directions (at most 1)";
+  if (!geometry::translation_invariant(patch))
+    return "the fluid mesh is not uniform along its periodic directions (e.g. the narrowing channel)";
+  return "";
+}
 
 FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver*> bodies,
                        CouplerOptions options)
@@ -93,6 +106,10 @@ FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver
   PetscBool baij = PETSC_FALSE;
   CELLFSI_PETSC(
       PetscObjectTypeCompare(reinterpret_cast<PetscObject>(fluid.jacobian_matrix()), MATSEQBAIJ, &baij));
+  if (solver_ == CouplingSolver::automatic)
+    solver_ = fluid_ranks == 1 && baij && fourier_inapplicable(fluid.patch()).empty()
+                  ? CouplingSolver::fourier
+                  : CouplingSolver::band;
   if (solver_ == CouplingSolver::band && (fluid_ranks > 1 || !baij)) solver_ = CouplingSolver::fluid;
   if (solver_ == CouplingSolver::band) {
     if (opt_.band_margin < 0) throw std::invalid_argument("band margin must be >= 0");
@@ -109,9 +126,43 @@ FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver
     CELLFSI_PETSC(KSPGetPC(band_ksp_, &pc));
     CELLFSI_PETSC(PCSetType(pc, PCSHELL));
     CELLFSI_PETSC(PCShellSetContext(pc, &band_));
-    CELLFSI_PETSC(PCShellSetApply(pc, apply_band_solver));
+    CELLFSI_PETSC(PCShellSetApply(pc, shell_apply<fluid::BandSchurSolver, &fluid::BandSchurSolver::solve>));
     CELLFSI_PETSC(PCShellSetName(pc, "cellfsi band Schur complement (fluid/band_schur.hpp)"));
     CELLFSI_PETSC(KSPSetFromOptions(band_ksp_));
+  }
+  if (solver_ == CouplingSolver::fourier) {
+    const geometry::Patch& patch = fluid.patch();
+    if (fluid_ranks > 1)
+      throw std::invalid_argument("the Fourier solver (-coupling_solver fourier) runs on one fluid rank");
+    const std::string why = fourier_inapplicable(patch);
+    if (!why.empty()) throw std::invalid_argument("-coupling_solver fourier does not apply: " + why);
+    std::array<int, 3> n{1, 1, 1}, degree{0, 0, 0};
+    std::array<bool, 3> periodic{false, false, false};
+    for (int d = 0; d < fluid.dim(); ++d) {
+      n[d] = patch.n_control(d);
+      degree[d] = patch.degree(d);
+      periodic[d] = patch.knots(d).periodic();
+    }
+    if (!(opt_.fourier_threshold > 0)) throw std::invalid_argument("Fourier threshold must be > 0");
+    if (opt_.fourier_overlap < 0) throw std::invalid_argument("Fourier overlap must be >= 0");
+    fourier_ = std::make_unique<fluid::RegionCorrectedSolver>(n, periodic, degree, fluid.dim() + 1,
+                                                              "coupling_fourier_");
+    fourier_->set_region(opt_.fourier_threshold, opt_.fourier_overlap);
+    fourier_->set_region_solves(opt_.fourier_region_solves);
+    CELLFSI_PETSC(KSPCreate(fluid.comm(), &fourier_ksp_));
+    CELLFSI_PETSC(KSPSetOptionsPrefix(fourier_ksp_, "coupling_fourier_"));
+    // Right preconditioning (the true residual decides) and the fluid's linear tolerance.
+    CELLFSI_PETSC(KSPSetType(fourier_ksp_, KSPFGMRES));
+    CELLFSI_PETSC(KSPSetTolerances(fourier_ksp_, 1e-5, PETSC_DEFAULT, PETSC_DEFAULT, 500));
+    CELLFSI_PETSC(KSPGMRESSetRestart(fourier_ksp_, 100));
+    PC pc;
+    CELLFSI_PETSC(KSPGetPC(fourier_ksp_, &pc));
+    CELLFSI_PETSC(PCSetType(pc, PCSHELL));
+    CELLFSI_PETSC(PCShellSetContext(pc, fourier_.get()));
+    CELLFSI_PETSC(
+        PCShellSetApply(pc, shell_apply<fluid::RegionCorrectedSolver, &fluid::RegionCorrectedSolver::apply>));
+    CELLFSI_PETSC(PCShellSetName(pc, "cellfsi Fourier bulk + region LU (fluid/region_corrected_solver.hpp)"));
+    CELLFSI_PETSC(KSPSetFromOptions(fourier_ksp_));
   }
 }
 
@@ -122,6 +173,7 @@ FsiCoupler::~FsiCoupler() {
   MatDestroy(&J_fixed_);
   MatDestroy(&J_band_);
   KSPDestroy(&band_ksp_);
+  KSPDestroy(&fourier_ksp_);
 }
 
 void FsiCoupler::use_fluid_solver() {
@@ -229,6 +281,74 @@ int FsiCoupler::solve_band(CouplerStats& st, bool first_iteration) {
   CELLFSI_PETSC(KSPSetOperators(band_ksp_, J, J));
   CELLFSI_PETSC(KSPSolve(band_ksp_, F_, dX_));
   return iterations_or_throw(band_ksp_);
+}
+
+int FsiCoupler::solve_fourier(CouplerStats& st, bool first_iteration) {
+  Mat J = fluid_.jacobian_matrix();
+  if (fourier_->bulk().n_modes() > 0 && fourier_->bulk().factor_bytes() == 0) {
+    // Once per run: the bulk operator at the first iterate (the undisturbed flow varies across the
+    // periodic directions only through the projection's round-off).
+    EventScope ev(events().band_factor);
+    fluid_.bulk_jacobian(X_, J);
+    fourier_->set_bulk(J, true);
+    ++st.factorizations;
+    const double dev = fourier_->bulk().deviation();
+    if (dev > 1e-2)
+      throw std::invalid_argument(
+          "-coupling_solver fourier: the fluid Jacobian away from the cells differs by " +
+          std::to_string(dev) +
+          " of a row's largest entry between periodic positions (the mesh or the flow is not uniform along "
+          "the periodic directions); use -coupling_solver band or fluid");
+    CELLFSI_PETSC(PetscPrintf(fluid_.comm(),
+                              "cellfsi: Fourier bulk solver: %d wave vectors, %.1f MB of banded factors, "
+                              "operator uniform to %.2e\n",
+                              fourier_->bulk().n_modes(), fourier_->bulk().factor_bytes() / 1048576.0, dev));
+    band_marking_changed_ = true;
+  }
+  // The Newton matrix and the region's LU are refreshed as the band solver's are (a chord iteration between).
+  if (first_iteration) ++steps_since_refresh_;
+  const bool refresh =
+      first_iteration && (band_marking_changed_ || steps_since_refresh_ >= opt_.band_refresh_steps);
+  if (first_iteration) band_marking_changed_ = false;
+  if (refresh) {
+    {
+      // Only the elements around the cells are re-assembled (as for the band solver): the rest, kept in
+      // J_fixed_, is rebuilt when the cells leave the region it was assembled for; a region of most of the
+      // domain is not worth the extra matrix.
+      EventScope ev(events().jacobian);
+      const std::vector<char> active = active_elements();
+      if (region_.empty() || !contains(region_, active)) {
+        region_ = grow_elements(fluid_.patch(), active, opt_.band_margin);
+        const auto in_region = std::count(region_.begin(), region_.end(), 1);
+        if (2 * in_region > static_cast<long>(region_.size())) {
+          region_.assign(region_.size(), 1);
+          MatDestroy(&J_fixed_);
+        } else {
+          if (!J_fixed_) CELLFSI_PETSC(MatDuplicate(J, MAT_DO_NOT_COPY_VALUES, &J_fixed_));
+          fluid_.jacobian_part(X_, J_fixed_, region_, false);
+        }
+      }
+      if (J_fixed_) {
+        CELLFSI_PETSC(MatCopy(J_fixed_, J, SAME_NONZERO_PATTERN));
+        fluid_.jacobian_add_part(X_, J, region_);
+      } else {
+        fluid_.jacobian(X_, J);
+      }
+    }
+    EventScope ev(events().band_update);
+    fourier_->set_operator(J);
+    ++st.band_refreshes;
+    steps_since_refresh_ = 0;
+    if (opt_.monitor)
+      CELLFSI_PETSC(PetscPrintf(fluid_.comm(),
+                                "  Fourier solver: %d nodes differ from the bulk, region %" PetscInt_FMT
+                                " unknowns\n",
+                                fourier_->n_differing_nodes(), fourier_->n_region()));
+  }
+  EventScope ev(events().solve);
+  CELLFSI_PETSC(KSPSetOperators(fourier_ksp_, J, J));
+  CELLFSI_PETSC(KSPSolve(fourier_ksp_, F_, dX_));
+  return iterations_or_throw(fourier_ksp_);
 }
 
 int FsiCoupler::solve_fluid(CouplerStats& st) {
@@ -385,7 +505,9 @@ CouplerStats FsiCoupler::step() {
     st.iterations = it + 1;
     // Steps 5-7: K_MC, a linear solve, the update.
     try {
-      st.linear_iterations += solver_ == CouplingSolver::band ? solve_band(st, it == 0) : solve_fluid(st);
+      st.linear_iterations += solver_ == CouplingSolver::band      ? solve_band(st, it == 0)
+                              : solver_ == CouplingSolver::fourier ? solve_fourier(st, it == 0)
+                                                                   : solve_fluid(st);
     } catch (const std::invalid_argument&) {
       throw;  // bad input found by the solver (a misspelt type read at the first solve)
     } catch (const std::exception& e) {

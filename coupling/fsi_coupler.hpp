@@ -17,12 +17,17 @@
 #include "coupling/locator.hpp"
 #include "fluid/band_schur.hpp"
 #include "fluid/fluid_solver.hpp"
+#include "fluid/region_corrected_solver.hpp"
 #include "solid/solid_solver.hpp"
 
 namespace cellfsi::coupling {
 
 /// How the fluid's linear systems of the coupling loop are solved.
 enum class CouplingSolver {
+  /// `fourier` where it applies (one fluid rank, a SeqBAIJ Jacobian, a translation-invariant box periodic in
+  /// all directions but one: fourier_applicable), else `band` (which falls back to `fluid` on several ranks).
+  /// The default.
+  automatic,
   /// fluid::BandSchurSolver (one fluid rank, SeqBAIJ Jacobian): the Jacobian away from the cells is
   /// factorised once and kept while the s^h band and the immersed points stay inside the region it was built
   /// for; when the s^h marking moves only that region is re-assembled and its Schur complement factorised.
@@ -31,6 +36,12 @@ enum class CouplingSolver {
   /// The fluid's own KSP and PC (prefix fluid_, every PETSc option): the preconditioner is rebuilt every
   /// `preconditioner_lag` solves and whenever the s^h marking changes (every step while a cell moves).
   fluid,
+  /// fluid::RegionCorrectedSolver in FGMRES (prefix coupling_fourier_; one fluid rank, a box periodic in all
+  /// directions but one): the Jacobian without the cells inverted by Fourier transform once per run,
+  /// corrected
+  /// by an LU of the region around the cells, re-factorised when the band is refreshed. No global
+  /// factorisation: the solver for 3D.
+  fourier,
 };
 
 /// How the coupling loop's iterates are formed from its corrections.
@@ -53,9 +64,9 @@ struct CouplerOptions {
   // Measured on the default scene (160 x 80, 50 steps): 259 coupling iterations instead of 312, theta the
   // same to 4e-9 relative.
   Acceleration acceleration = Acceleration::anderson;
-  int acceleration_columns = 5;                  // difference pairs kept by the Anderson acceleration
-  int acceleration_reuse = 0;                    // previous steps whose pairs are kept (0: only this step's)
-  CouplingSolver solver = CouplingSolver::band;  // falls back to `fluid` on several fluid ranks
+  int acceleration_columns = 5;  // difference pairs kept by the Anderson acceleration
+  int acceleration_reuse = 0;    // previous steps whose pairs are kept (0: only this step's)
+  CouplingSolver solver = CouplingSolver::automatic;
   // Band solver. Elements around the active ones in the band region (measured: margins 2 and 6 were slower).
   int band_margin = 4;
   // Steps between factorisations of the kept (fixed) part besides those the band's motion needs (0: only
@@ -67,7 +78,17 @@ struct CouplerOptions {
   // Coupling iterations between refreshes inside a step (0: none); in between, the Newton matrix is kept (a
   // chord iteration; the residual is exact, so the answer is the same to the coupling tolerance).
   int band_schur_lag = 0;
+  // Fourier solver: relative deviation of a node's rows from the bulk operator that puts it in the corrected
+  // region, and the node layers the region is grown by.
+  double fourier_threshold = 1e-3;
+  int fourier_overlap = 0;
+  int fourier_region_solves =
+      1;  // per preconditioner application: 2 (region, bulk, region) or 1 (bulk, region)
 };
+
+/// Whether -coupling_solver fourier can run on this patch: at most one non-periodic direction, and the patch
+/// translation-invariant along the periodic ones (geometry::translation_invariant). "" if so, else why not.
+std::string fourier_inapplicable(const geometry::Patch& patch);
 
 struct CouplerStats {
   int iterations = 0, linear_iterations = 0;
@@ -113,6 +134,7 @@ class FsiCoupler {
   /// One linear solve dX = K^{-1} F of the coupling loop; returns the KSP's iterations, or throws.
   int solve_band(CouplerStats& st, bool first_iteration);
   int solve_fluid(CouplerStats& st);
+  int solve_fourier(CouplerStats& st, bool first_iteration);
   fluid::FluidSolver& fluid_;
   std::vector<solid::SolidSolver*> bodies_;
   CouplerOptions opt_;
@@ -132,6 +154,9 @@ class FsiCoupler {
   int steps_since_factor_ = 0, solves_since_schur_ = 0, steps_since_refresh_ = 0;
   bool band_marking_changed_ = true;                // the marking moved since the band was last refreshed
   std::unique_ptr<AndersonAcceleration> anderson_;  // with Acceleration::anderson
+  // Fourier solver (see CouplingSolver::fourier).
+  std::unique_ptr<fluid::RegionCorrectedSolver> fourier_;
+  KSP fourier_ksp_ = nullptr;  // FGMRES (prefix coupling_fourier_) preconditioned by fourier_
 };
 
 }  // namespace cellfsi::coupling

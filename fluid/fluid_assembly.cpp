@@ -97,7 +97,8 @@ void rows_from_blocks(int n, int bs, const double* Kb, double* K) {
 
 }  // namespace
 
-void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band, bool band_side) {
+void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band, bool band_side,
+                           bool accumulate) {
   const int D = dim_, nd = dof_;
   const double dt = opt_.dt;
   VmsParameters prm;
@@ -127,7 +128,7 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
   if (J) {
     // Dirichlet rows are zeroed after assembly; keeping their pattern lets the matrix be assembled again.
     CELLFSI_PETSC(MatSetOption(J, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
-    CELLFSI_PETSC(MatZeroEntries(J));
+    if (!accumulate) CELLFSI_PETSC(MatZeroEntries(J));
   }
 
   SeqBaijInserter direct(J, nd);  // usable only for a one-rank BAIJ Jacobian
@@ -298,10 +299,31 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
     direct.finish();
     CELLFSI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
     CELLFSI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
-    const double diagonal = in_band && band_side ? 0.0 : 1.0;
+    const double diagonal = in_band && band_side && !accumulate ? 0.0 : 1.0;
     CELLFSI_PETSC(
         MatZeroRows(J, static_cast<PetscInt>(rows.size()), rows.data(), diagonal, nullptr, nullptr));
   }
+}
+
+void FluidSolver::bulk_jacobian(Vec X, Mat J) {
+  std::vector<LocatedPoint> immersed;
+  immersed.swap(immersed_);
+  Vec S = nullptr;
+  CELLFSI_PETSC(VecDuplicate(S_, &S));
+  CELLFSI_PETSC(VecCopy(S_, S));
+  CELLFSI_PETSC(VecSet(S_, 1.0));
+  auto restore = [&] {
+    immersed.swap(immersed_);
+    VecCopy(S, S_);
+    VecDestroy(&S);
+  };
+  try {
+    assemble(X, nullptr, J);
+  } catch (...) {
+    restore();
+    throw;
+  }
+  restore();
 }
 
 PetscErrorCode fluid_residual(SNES, Vec U, Vec F, void* ctx) {

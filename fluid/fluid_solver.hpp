@@ -145,6 +145,15 @@ class FluidSolver {
   void jacobian_part(Vec X, Mat J, const std::vector<char>& in_band, bool band_side) {
     assemble(X, nullptr, J, &in_band, band_side);
   }
+  /// Adds to J the band part of K_MC (the elements `in_band` marks and every immersed point; see
+  /// jacobian_part), leaving J's Dirichlet rows unit rows: J_fixed copied into J plus this is jacobian(X, J)
+  /// with one assembly of the band's elements only.
+  void jacobian_add_part(Vec X, Mat J, const std::vector<char>& in_band) {
+    assemble(X, nullptr, J, &in_band, true, true);
+  }
+  /// K_MC of the iterate X without the cells: s^h = 1 everywhere and no immersed points (the bulk operator
+  /// of fluid/region_corrected_solver.hpp).
+  void bulk_jacobian(Vec X, Mat J);
   /// v and grad v at t_{n+alpha_f} of the iterate X at points already located in the patch (element, xi)
   /// (collective; every rank gets every value). vdot is the rate at t_{n+alpha_m}.
   std::vector<PointSample> sample_alpha(Vec X, const std::vector<geometry::Index3>& elements,
@@ -191,7 +200,9 @@ class FluidSolver {
   friend PetscErrorCode fluid_jacobian(SNES, Vec, Mat, Mat, void*);
 
   // Either of F, J may be null. With an element mask, J receives the part of K_MC described in jacobian_part.
-  void assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band = nullptr, bool band_side = true);
+  // accumulate: J's entries are added to, not replaced (its Dirichlet rows end as unit rows).
+  void assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band = nullptr, bool band_side = true,
+                bool accumulate = false);
   void apply_dirichlet_values(Vec U, double t) const;
   std::vector<PetscInt> dirichlet_rows() const;  // global PETSc indices of owned Dirichlet rows
   bool owns_element(const geometry::Index3& e) const;

@@ -1,5 +1,6 @@
 #include "geometry/patch.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -299,6 +300,31 @@ Patch transformed(const Patch& patch, const Mat3& A, const Vec3& t) {
   std::array<Vec3, 3> shifts = patch.shifts();
   for (auto& s : shifts) s = A * s;
   return Patch(patch.all_knots(), patch.physical_dim(), std::move(cps), patch.weights(), shifts);
+}
+
+bool translation_invariant(const Patch& patch, double tol) {
+  const std::vector<Vec3>& P = patch.control_points();
+  const std::vector<double>& w = patch.weights();
+  double extent = 0;
+  for (const Vec3& x : P) extent = std::max(extent, (x - P[0]).norm());
+  const double eps = tol * std::max(extent, 1e-300);
+  const int n0 = patch.n_control(0), n1 = patch.n_control(1), n2 = patch.n_control(2);
+  for (int d = 0; d < patch.param_dim(); ++d) {
+    if (!patch.knots(d).periodic()) continue;
+    const std::vector<double> b = patch.knots(d).breakpoints();
+    for (std::size_t k = 2; k < b.size(); ++k)
+      if (std::abs((b[k] - b[k - 1]) - (b[1] - b[0])) > tol * std::abs(b.back() - b.front())) return false;
+    const int n = patch.n_control(d);
+    const int stride = d == 0 ? 1 : d == 1 ? n0 : n0 * n1;
+    const Vec3 step = P[stride] - P[0];
+    for (int i = 0; i < n0 * n1 * n2; ++i) {
+      const int id = (i / stride) % n;
+      const int next = id + 1 < n ? i + stride : i - id * stride;  // wraps onto the first layer
+      const Vec3 to_next = P[next] + (id + 1 < n ? Vec3::Zero() : patch.shifts()[d]) - P[i];
+      if ((to_next - step).norm() > eps || std::abs(w[next] - w[i]) > tol * std::abs(w[i])) return false;
+    }
+  }
+  return true;
 }
 
 }  // namespace cellfsi::geometry

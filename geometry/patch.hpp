@@ -115,4 +115,10 @@ class Patch {
 /// Returns the patch with every control point mapped by x -> A x + t (exact for NURBS: affine invariance).
 Patch transformed(const Patch& patch, const Mat3& A, const Vec3& t);
 
+/// Whether the patch is the same under a shift by one element along every periodic direction: uniform
+/// knots there and control points that move by one constant vector per step (weights unchanged), so that any
+/// operator assembled on it from a flow that is uniform along those directions is translation-invariant (the
+/// paper's boxes; not the narrowing channel). tol: relative to the patch's extent.
+bool translation_invariant(const Patch& patch, double tol = 1e-12);
+
 }  // namespace cellfsi::geometry

@@ -267,6 +267,15 @@ TEST_F(CellfsiApp, CtcNarrowingSceneRunsAndReportsItsPassage) {
   EXPECT_NEAR(json_number(js, "nucleus_max_anisotropy_x").value_or(0), 0.001, 5e-5) << js;
   EXPECT_LE(json_number(js, "flow_rate_min").value_or(1), json_number(js, "flow_rate_max").value_or(0)) << js;
   EXPECT_GT(json_number(js, "flow_rate_min").value_or(0), 0.0) << js;
+  // The narrowing is not uniform along x: the automatic choice is the band solver, and the Fourier solver
+  // is refused with the reason.
+  EXPECT_EQ(json_string(js, "coupling_solver").value_or(""), "band") << js;
+  fs::remove_all(out_);
+  const RunResult refused = cellfsi({scene("ctc_narrowing.yaml"), "-fluid_elements", "96,32", "-fluid_degree",
+                                     "2", "-final_time", "5e-4", "-coupling_solver", "fourier"});
+  expect_one_clear_error(refused);
+  EXPECT_NE(refused.output.find("not uniform along its periodic directions"), std::string::npos)
+      << refused.output;
   // The narrowing's size comes from the channel options; -domain_size was silently ignored.
   fs::remove_all(out_);
   expect_one_clear_error(
@@ -298,10 +307,14 @@ TEST_F(CellfsiApp, SnesOptionsOfACoupledRunAreRejectedWithTheReason) {
   }
 }
 
-TEST_F(CellfsiApp, OptionsReadAtTheFirstSolveAreAcceptedInBothSolvers) {
-  RunResult r = cellfsi(with(
-      kDefaultCapsule, {"-coupling_band_mat_mumps_icntl_14", "40", "-coupling_band_schur_mat_mumps_icntl_14",
-                        "40", "-coupling_band_ksp_converged_reason"}));
+TEST_F(CellfsiApp, OptionsReadAtTheFirstSolveAreAcceptedInEverySolver) {
+  RunResult r =
+      cellfsi(with(kDefaultCapsule,
+                   {"-coupling_solver", "band", "-coupling_band_mat_mumps_icntl_14", "40",
+                    "-coupling_band_schur_mat_mumps_icntl_14", "40", "-coupling_band_ksp_converged_reason"}));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  r = cellfsi(with(kDefaultCapsule, {"-coupling_fourier_region_mat_mumps_icntl_14", "40",
+                                     "-coupling_fourier_ksp_converged_reason"}));
   EXPECT_EQ(r.exit_code, 0) << r.output;
   r = cellfsi(with(kDefaultCapsule, {"-coupling_solver", "fluid", "-fluid_sub_mat_mumps_icntl_14", "40",
                                      "-fluid_ksp_converged_reason"}));
@@ -309,10 +322,43 @@ TEST_F(CellfsiApp, OptionsReadAtTheFirstSolveAreAcceptedInBothSolvers) {
 }
 
 TEST_F(CellfsiApp, MisspeltFactorisationOptionIsRejectedAfterTheFirstStep) {
-  const RunResult r = cellfsi(with(kDefaultCapsule, {"-coupling_band_mat_mumps_icntll_14", "40"}));
-  EXPECT_EQ(r.exit_code, 1) << r.output;
-  EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
-  EXPECT_NE(r.output.find("coupling_band_mat_mumps_icntll_14"), std::string::npos) << r.output;
+  for (const std::vector<std::string>& o :
+       {std::vector<std::string>{"-coupling_solver", "band", "-coupling_band_mat_mumps_icntll_14", "40"},
+        std::vector<std::string>{"-coupling_fourier_region_mat_mumps_icntll_14", "40"}}) {
+    const RunResult r = cellfsi(with(kDefaultCapsule, o));
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
+    EXPECT_NE(r.output.find(o[o.size() - 2].substr(1)), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("after the first time step"), std::string::npos) << r.output;
+  }
+}
+
+TEST_F(CellfsiApp, FourierBandAndFluidSolversAgree) {
+  // Issue 13: the coupling loop's three linear solvers on the capsule (2D, 2 steps) and the 3D compound
+  // capsule (12^3, 1 step). Each linear solve stops at rtol 1e-5 on a correction that is itself below the
+  // coupling tolerance (1e-4 of the step's first), so the states agree to far below it (measured: 1e-9 in
+  // 2D, 6e-8 at 16^3 in 3D).
+  auto state = [](std::vector<std::pair<std::string, double>> row) {
+    std::erase_if(row, [](const auto& kv) {
+      return kv.first.find("iterations") != std::string::npos || kv.first == "factorizations";
+    });
+    return row;
+  };
+  const std::vector<std::vector<std::string>> cases = {
+      with({scene("capsule_shear.yaml")}, with(kCapsule, {"-final_time", "1e-3"})),
+      {scene("compound_capsule_shear_3d.yaml"), "-fluid_elements", "12,12,12", "-solid_membrane_elements",
+       "1,0,0", "-solid_nucleus_elements", "0,0,0", "-final_time", "5e-4", "-output_every", "0"}};
+  for (const auto& args : cases) {
+    ASSERT_EQ(cellfsi(args, 120).exit_code, 0) << last_output_;
+    EXPECT_EQ(json_string(summary(), "coupling_solver").value_or(""), "fourier");  // the automatic choice
+    const auto fourier = last_row(out_ / "metrics.csv");
+    for (const char* other : {"band", "fluid"}) {
+      fs::remove_all(out_);
+      ASSERT_EQ(cellfsi(with(args, {"-coupling_solver", other}), 120).exit_code, 0) << last_output_;
+      EXPECT_TRUE(rows_agree(state(fourier), state(last_row(out_ / "metrics.csv")), 1e-6, 1e-4)) << other;
+    }
+    fs::remove_all(out_);
+  }
 }
 
 TEST_F(CellfsiApp, BandSolverOptionsOnTwoFluidRanksAreRejectedWithTheReason) {

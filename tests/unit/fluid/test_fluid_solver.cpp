@@ -313,6 +313,12 @@ TEST(FluidSolver, JacobianPartsAddUpToTheJacobian) {
   EXPECT_GT(nb, 0.0);
   EXPECT_GT(nf, nb);
   EXPECT_LT(nd, 1e-13 * nb) << "|J_fixed + J_band - J| / |J_band| = " << nd / nb;
+  // The fixed part plus the band part added in place (jacobian_add_part) is the Jacobian too.
+  fs.jacobian_part(fs.solution(), Jf, mask, false);
+  fs.jacobian_add_part(fs.solution(), Jf, mask);
+  CELLFSI_PETSC(MatAXPY(Jf, -1.0, J, SAME_NONZERO_PATTERN));
+  CELLFSI_PETSC(MatNorm(Jf, NORM_FROBENIUS, &nd));
+  EXPECT_LT(nd, 1e-13 * nb) << "|J_fixed (+)= J_band - J| / |J_band| = " << nd / nb;
   // A mask of the wrong size is refused.
   EXPECT_THROW(fs.jacobian_part(fs.solution(), Jb, std::vector<char>(3, 0), true), std::invalid_argument);
   CELLFSI_PETSC(MatDestroy(&J));

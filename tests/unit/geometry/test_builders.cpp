@@ -49,6 +49,20 @@ TEST(Builders, BoxIsAffine) {
   EXPECT_EQ(b.n_elements(), 120);
 }
 
+TEST(Builders, BoxesAreTranslationInvariantAlongTheirPeriodicDirections) {
+  // The Fourier solver's precondition (coupling: fourier_inapplicable).
+  EXPECT_TRUE(translation_invariant(rectangle(2.4e-3, 1.2e-3, 12, 6, 3, {true, false})));
+  EXPECT_TRUE(translation_invariant(box(1.2e-3, 1.2e-3, 1.2e-3, 4, 5, 6, 2, {true, false, true})));
+  EXPECT_TRUE(
+      translation_invariant(rectangle(2.4e-3, 1.2e-3, 12, 6, 3, {false, false})));  // nothing to shift
+  // The narrowing's walls move along x: a shift by one element changes the map.
+  EXPECT_FALSE(translation_invariant(narrowing_channel(NarrowingChannel{}, 24, 6, 2)));
+  // One control point off the lattice.
+  Patch r = rectangle(2.4e-3, 1.2e-3, 12, 6, 3, {true, false});
+  r.control_points()[20][0] += 1e-6;
+  EXPECT_FALSE(translation_invariant(r));
+}
+
 TEST(Builders, HollowEllipseBoundariesAreExactEllipses) {
   const double a = 2e-4, b = 1e-4, h = 5e-7, angle = 1.1;
   const Vec3 c(1.2e-3, 6e-4, 0);

@@ -1,0 +1,93 @@
+#pragma once
+// A preconditioner for a Jacobian J that equals a translation-invariant bulk operator A except in a small
+// region (the cells' s^h band and immersed points): the bulk operator's exact inverse by Fourier transform
+// (fluid/fourier_bulk_solver.hpp, built once per run), corrected by a sparse LU of J restricted to the region
+// where they differ, grown by a few node layers.
+//
+// Why: the band solver (fluid/band_schur.hpp) keeps a sparse LU of the whole bulk, which in 3D costs
+// O(N^{4/3}) memory or more (32^3 quadratic: 14 GB with Debian's MUMPS), and its region's Schur complement is
+// dense between the region's border unknowns, which in 3D is a surface. Here the bulk costs O(N log N) and
+// O(N) memory, and the region's LU is a sparse matrix of the region's size; the price is a Krylov iteration,
+// since the two pieces do not add up to J^{-1}.
+//
+// One application (multiplicative Schwarz; the region's solve last, so that the s_I rows, which dominate
+// there, are satisfied exactly):
+//   x = A^{-1} r;   x += R^T J_R^{-1} R (r - J x)
+// with R the restriction to the region's unknowns (set_region_solves(2) puts a region solve first too: fewer
+// Krylov iterations, each dearer). `set_operator(J)` finds the region (nodes whose rows of J differ from A by
+// more than `threshold` of the row's largest entry of A, grown by `overlap` node layers in every direction)
+// and factorises J_R with MUMPS (options prefix given at construction + "region_").
+//
+// Measured on the 3D compound capsule at 32^3 quadratic (3 steps, one rank; docs/performance.md): the
+// region is the 3700 nodes of the s_I band and the immersed points, 14.7 k unknowns; 6 FGMRES iterations per
+// solve; the region's LU 2.5 s. Growing the region by 1 (2) layers: 22 k (31 k) unknowns, 4 (3) iterations,
+// an LU of 4.7 (9.3) s: slower overall.
+//
+// One rank (as the Fourier solver).
+#include <petscksp.h>
+
+#include <array>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "fluid/fourier_bulk_solver.hpp"
+
+namespace cellfsi::fluid {
+
+class RegionCorrectedSolver {
+ public:
+  /// n, periodic, degree, dof: the box mesh (see FourierBulkSolver).
+  RegionCorrectedSolver(std::array<int, 3> n, std::array<bool, 3> periodic, std::array<int, 3> degree,
+                        int dof, std::string prefix);
+  ~RegionCorrectedSolver();
+  RegionCorrectedSolver(const RegionCorrectedSolver&) = delete;
+  RegionCorrectedSolver& operator=(const RegionCorrectedSolver&) = delete;
+
+  /// Builds the bulk solver from the bulk operator A (J without the cells).
+  void set_bulk(Mat A, bool pin_pressure) { bulk_.build(A, pin_pressure); }
+  /// Region thresholds: relative deviation from A and growth in node layers (defaults 1e-3 and 0).
+  void set_region(double threshold, int overlap) {
+    threshold_ = threshold;
+    overlap_ = overlap;
+  }
+  /// Region solves per application: 2 (region, bulk, region) or 1 (bulk, region; the default).
+  void set_region_solves(int n) {
+    if (n != 1 && n != 2) throw std::invalid_argument("RegionCorrectedSolver: 1 or 2 region solves");
+    region_solves_ = n;
+  }
+  /// Sets J (kept by reference: J's entries must not change until the next call), finds the region and
+  /// factorises J on it.
+  void set_operator(Mat J);
+  /// x = P^{-1} r (see above).
+  void apply(Vec r, Vec x);
+
+  const FourierBulkSolver& bulk() const { return bulk_; }
+  PetscInt n_region() const { return n_region_; }  // unknowns in the region
+  /// Nodes whose rows of J differ from the bulk operator by more than the threshold (before the growth).
+  int n_differing_nodes() const { return n_differing_; }
+
+ private:
+  void region_solve(Vec r, Vec x);  // x += R^T J_R^{-1} R r
+  void release_region();
+  FourierBulkSolver bulk_;
+  std::array<int, 3> n_{}, degree_{};
+  std::array<bool, 3> periodic_{};
+  int dof_ = 1;
+  std::string prefix_;
+  double threshold_ = 1e-3;
+  int overlap_ = 0;
+  int region_solves_ = 1;
+  Mat J_ = nullptr;
+  std::vector<PetscInt> region_;  // sorted global indices
+  PetscInt n_region_ = 0;
+  int n_differing_ = 0;
+  IS is_ = nullptr;
+  Mat JR_ = nullptr;
+  KSP region_ksp_ = nullptr;
+  VecScatter to_region_ = nullptr;
+  Vec rR_ = nullptr, xR_ = nullptr, res_ = nullptr, t_ = nullptr;
+};
+
+}  // namespace cellfsi::fluid
