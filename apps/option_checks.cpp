@@ -25,6 +25,8 @@ bool maybe_unread(const std::string& name, OptionCheck when) {
   if (when == OptionCheck::before_coupling &&
       (name.rfind("coupling_band_", 0) == 0 || name.rfind("coupling_fourier_", 0) == 0))
     return true;
+  // The Fourier solver's region LU is created at the first solve.
+  if (when == OptionCheck::before_first_step && name.rfind("coupling_fourier_region_", 0) == 0) return true;
   for (const char* late : {"mat_mumps_", "mat_superlu", "mat_strumpack", "converged_reason", "ksp_view"})
     if (name.find(late) != std::string::npos) return true;
   return false;

@@ -85,6 +85,10 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
           positive())
       .integer("coupling_fourier_overlap", c.fourier_overlap,
                "Fourier solver: node layers the LU-corrected region is grown by", int_between(0, 20))
+      .flag(
+          "coupling_fourier_partial_jacobian", c.fourier_partial_jacobian,
+          "Fourier solver: re-assemble only the Jacobian around the cells, keeping the rest in a second copy "
+          "(false: one copy, the whole Jacobian at every refresh)")
       .integer("coupling_fourier_region_solves", c.fourier_region_solves,
                "Fourier solver: region LU solves per preconditioner application: 2 (region, bulk, region) or "
                "1 (bulk, region)",
@@ -268,7 +272,10 @@ void check_memory(const SceneSettings& s) {
       one && (solver == CouplingSolver::band || (solver == CouplingSolver::automatic && !fourier_box));
   const bool fourier =
       one && (solver == CouplingSolver::fourier || (solver == CouplingSolver::automatic && fourier_box));
-  const double need = (band ? 3 : fourier ? 2 : 1) * fluid_jacobian_bytes(s) / std::max(1, leaders);
+  const double need = (band                                             ? 3
+                       : fourier && s.coupling.fourier_partial_jacobian ? 2
+                                                                        : 1) *
+                      fluid_jacobian_bytes(s) / std::max(1, leaders);
   if (need <= available) return;
   std::ostringstream v, w;
   for (int d = 0; d < s.dim; ++d) v << (d ? "," : "") << s.elements[d];

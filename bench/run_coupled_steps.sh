@@ -7,8 +7,8 @@
 #   CASES="128x64:band:1:20 128x64:fluid:1:20" bench/run_coupled_steps.sh
 #
 # A case is MESH:SOLVER:RANKS:STEPS, MESH = NXxNY (2D capsule) or NXxNYxNZ (3D compound capsule, quadratic:
-# the paper's Sec. 3.6 scene at a coarser mesh), SOLVER = band or fluid (-coupling_solver; band runs on one
-# fluid rank and falls back to fluid on more). Environment:
+# the paper's Sec. 3.6 scene at a coarser mesh), SOLVER = band, fourier or fluid (-coupling_solver; band and
+# fourier run on one fluid rank, band falls back to fluid on more). Environment:
 # CASES, BUILD_DIR (default build), OUT (default docs/performance/coupled_steps.md), EXTRA (more options for
 # every run). Needs /usr/bin/time (Debian package time) and python3.
 set -uo pipefail
@@ -17,7 +17,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 BUILD_DIR="${BUILD_DIR:-build}"
 OUT="${OUT:-docs/performance/coupled_steps.md}"
-CASES="${CASES:-128x64:fluid:1:20 128x64:band:1:20 128x64:fluid:2:20 256x128:fluid:1:5 256x128:band:1:40 384x192:fluid:1:3 384x192:band:1:20 16x16x16:fluid:1:3 16x16x16:band:1:3}"
+CASES="${CASES:-128x64:band:1:20 128x64:fourier:1:20 128x64:fluid:2:20 256x128:band:1:40 256x128:fourier:1:40 384x192:band:1:20 384x192:fourier:1:20 16x16x16:fluid:1:3 16x16x16:fourier:1:3 32x32x32:fourier:1:3}"
 EXTRA="${EXTRA:-}"
 BIN="$BUILD_DIR/apps/cellfsi"
 [[ -x "$BIN" ]] || { echo "run_coupled_steps.sh: $BIN not found; build first (scripts/build.sh)" >&2; exit 1; }
@@ -71,13 +71,15 @@ EOF
   echo "STEPS steps from the initial state (the capsule turns from 90 degrees and deforms: the band moves most in"
   echo "these first steps). 3D: the paper's compound capsule (Sec. 3.6) at NX^3 quadratic elements, dt 5e-4."
   echo "Columns: s/step = wall time / steps (set-up included); MatSolve = mean time of one triangular solve pair"
-  echo "of the run (band: one fused solve, Schur step included); ratio = s/step / MatSolve; factorisations = LU of"
-  echo "the whole Jacobian (band: of its fixed part) and their mean time; s/step w/o = s/step without those"
-  echo "factorisations (the cost of a step once the band stays in its region); coupling = block iterations per"
-  echo "step; GMRES = linear iterations per coupling iteration; peak MB = max resident set size of a rank."
+  echo "of the run (band: one fused solve, Schur step included; fourier: the region's LU solve); ratio = s/step /"
+  echo "MatSolve; LU ratio = s/step / the MatSolve of the band (else fluid) row of the same mesh above, the"
+  echo "issue's unit for a solver without a global LU; factorisations = LU of the whole Jacobian (band: of its"
+  echo "fixed part; fourier: the bulk solver's set-up, once) and their mean time; s/step w/o = s/step without"
+  echo "those (the cost of a step once the band stays in its region); coupling = block iterations per step;"
+  echo "GMRES = linear iterations per coupling iteration; peak MB = max resident set size of a rank."
   echo
-  echo "| mesh | solver | ranks | steps | s/step | MatSolve s | ratio | factorisations (s each) | s/step w/o | coupling/step | GMRES/solve | band unknowns | peak MB |"
-  echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+  echo "| mesh | solver | ranks | steps | s/step | MatSolve s | ratio | LU ratio | factorisations (s each) | s/step w/o | coupling/step | GMRES/solve | band unknowns | peak MB |"
+  echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
 } > "$OUT"
 
 for c in $CASES; do
@@ -125,7 +127,8 @@ steps = s["steps"]
 wall = s["wall_time_s"]
 ms_n, ms_t = ev.get("MatSolve", (0, 0.0))
 fact = s.get("factorizations", 0)
-if solver == "band" and s.get("band_unknowns", 0) > 0:
+used = s.get("coupling_solver", solver)
+if used in ("band", "fourier") and (used == "fourier" or s.get("band_unknowns", 0) > 0):
     f_n, f_t = ev.get("FsiBandFactor", (0, 0.0))
 else:
     f_n, f_t = ev.get("MatLUFactorNum", (0, 0.0))
@@ -140,7 +143,21 @@ wo = (wall - f_t) / steps
 iterations = s.get("coupling_iterations", s.get("newton_iterations", 0))  # runs before the key was renamed
 coupling = iterations / steps
 gmres = s["linear_iterations"] / max(1, iterations)
-print(f"| {mesh} | {solver} | {ranks} | {steps} | {per:.3f} | {unit:.4f} | {per / unit:.1f} | {fact} ({f_t / max(1, f_n):.2f}) "
+# The MatSolve of this mesh's global-LU run (band, else fluid, on one rank), for the rows after it.
+units = {}
+try:
+    for line in open(work + "/units"):
+        m_, k_, u_ = line.split()
+        units[(m_, k_)] = float(u_)
+except OSError:
+    pass
+if used in ("band", "fluid") and ranks == "1" and unit == unit:
+    with open(work + "/units", "a") as f:
+        f.write(f"{mesh} {used} {unit}\n")
+lu = units.get((mesh, "band"), units.get((mesh, "fluid")))
+lu_ratio = f"{per / lu:.1f}" if lu else "-"
+label = solver if used == solver else f"{solver} → {used}"
+print(f"| {mesh} | {label} | {ranks} | {steps} | {per:.3f} | {unit:.4f} | {per / unit:.1f} | {lu_ratio} | {fact} ({f_t / max(1, f_n):.2f}) "
       f"| {wo:.3f} | {coupling:.2f} | {gmres:.2f} | {int(s.get('band_unknowns', 0))} | {max(rss) if rss else 0:.0f} |")
 PY
 )"

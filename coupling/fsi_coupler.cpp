@@ -320,7 +320,7 @@ int FsiCoupler::solve_fourier(CouplerStats& st, bool first_iteration) {
       if (region_.empty() || !contains(region_, active)) {
         region_ = grow_elements(fluid_.patch(), active, opt_.band_margin);
         const auto in_region = std::count(region_.begin(), region_.end(), 1);
-        if (2 * in_region > static_cast<long>(region_.size())) {
+        if (!opt_.fourier_partial_jacobian || 2 * in_region > static_cast<long>(region_.size())) {
           region_.assign(region_.size(), 1);
           MatDestroy(&J_fixed_);
         } else {

@@ -82,8 +82,11 @@ struct CouplerOptions {
   // region, and the node layers the region is grown by.
   double fourier_threshold = 1e-3;
   int fourier_overlap = 0;
-  int fourier_region_solves =
-      1;  // per preconditioner application: 2 (region, bulk, region) or 1 (bulk, region)
+  // Region LU solves per preconditioner application: 2 (region, bulk, region) or 1 (bulk, region).
+  int fourier_region_solves = 1;
+  // Re-assemble only the elements around the cells, the rest kept in a second copy of the Jacobian (false:
+  // the whole Jacobian at every refresh, one copy less: for meshes whose memory is tight).
+  bool fourier_partial_jacobian = true;
 };
 
 /// Whether -coupling_solver fourier can run on this patch: at most one non-periodic direction, and the patch

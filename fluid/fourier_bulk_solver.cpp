@@ -126,13 +126,19 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
     if (row_max > 0) deviation_ = std::max(deviation_, dev / row_max);
   });
   // 3. One banded system per wave vector k: A_k[(j, c), (j + dj, c2)] = sum_o a_o exp(i 2 pi k . o / n).
+  // A is real, so A_{-k} = conj(A_k): only one of each pair {k, -k} is factorised (its slot).
+  slot_.assign(n_modes_, -1);
+  int n_slots = 0;
+  for (int mode = 0; mode < n_modes_; ++mode)
+    if (mirror(mode) >= mode) slot_[mode] = n_slots++;
   const int ldab = 2 * kl_ + kl_ + 1;
-  ab_.assign(static_cast<std::size_t>(n_modes_) * ldab * m_, cplx(0, 0));
-  ipiv_.assign(static_cast<std::size_t>(n_modes_) * m_, 0);
+  ab_.assign(static_cast<std::size_t>(n_slots) * ldab * m_, cplx(0, 0));
+  ipiv_.assign(static_cast<std::size_t>(n_slots) * m_, 0);
   pinned_ = pin_pressure;
   const double two_pi = 2 * std::acos(-1.0);
   std::vector<cplx> phase(static_cast<std::size_t>(width_[0]) * width_[1] * width_[2]);
   for (int mode = 0; mode < n_modes_; ++mode) {
+    if (slot_[mode] < 0) continue;
     std::array<int, 3> k{};
     int rest = mode;
     for (int d = 0; d < 3; ++d)
@@ -152,7 +158,7 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
             }
           phase[(o0 * width_[1] + o1) * width_[2] + o2] = std::polar(1.0, angle);
         }
-    cplx* ab = &ab_[static_cast<std::size_t>(mode) * ldab * m_];
+    cplx* ab = &ab_[static_cast<std::size_t>(slot_[mode]) * ldab * m_];
     const bool pin = pin_pressure && mode == 0;
     const int pin_row = dof_ - 1;  // the pressure of the first layer
     for (int jj = 0; jj < n_across_; ++jj)
@@ -176,11 +182,23 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
       }
     if (pin) ab[(2 * kl_) + static_cast<std::size_t>(pin_row) * ldab] = 1.0;
     int info = 0;
-    zgbtrf_(&m_, &m_, &kl_, &kl_, ab, &ldab, &ipiv_[static_cast<std::size_t>(mode) * m_], &info);
+    zgbtrf_(&m_, &m_, &kl_, &kl_, ab, &ldab, &ipiv_[static_cast<std::size_t>(slot_[mode]) * m_], &info);
     if (info != 0)
       throw std::runtime_error("FourierBulkSolver: the system of wave vector " + std::to_string(mode) +
                                " is singular (LAPACK zgbtrf info " + std::to_string(info) + ")");
   }
+}
+
+int FourierBulkSolver::mirror(int mode) const {
+  int m = 0, stride = 1;
+  for (int d = 0; d < 3; ++d)
+    if (periodic_[d]) {
+      const int k = mode % n_[d];
+      mode /= n_[d];
+      m += ((n_[d] - k) % n_[d]) * stride;
+      stride *= n_[d];
+    }
+  return m;
 }
 
 void FourierBulkSolver::fft(std::vector<cplx>& z, bool inverse) const {
@@ -210,6 +228,8 @@ void FourierBulkSolver::fft(std::vector<cplx>& z, bool inverse) const {
 
 void FourierBulkSolver::solve(Vec r, Vec x) const {
   if (ab_.empty()) throw std::logic_error("FourierBulkSolver: solve before build");
+  static const PetscLogEvent event = register_log_event("cellfsi fluid", "FluidFourierSolve");
+  CELLFSI_PETSC(PetscLogEventBegin(event, 0, 0, 0, 0));
   const std::size_t N = static_cast<std::size_t>(n_nodes_) * dof_;
   std::vector<cplx> z(N);
   {
@@ -219,36 +239,42 @@ void FourierBulkSolver::solve(Vec r, Vec x) const {
     CELLFSI_PETSC(VecRestoreArrayRead(r, &ra));
   }
   fft(z, false);
-  // Node index of (periodic coordinates of the mode, across coordinate j).
   const int ldab = 3 * kl_ + 1, one = 1;
   std::vector<cplx> b(m_);
-  for (int mode = 0; mode < n_modes_; ++mode) {
-    std::array<int, 3> idx{};
-    int rest = mode;
+  // Node index of (the periodic coordinates of a mode, across coordinate j).
+  auto node_of = [&](int mode, int jj) {
+    std::array<int, 3> i{};
     for (int d = 0; d < 3; ++d)
       if (periodic_[d]) {
-        idx[d] = rest % n_[d];
-        rest /= n_[d];
+        i[d] = mode % n_[d];
+        mode /= n_[d];
       }
-    auto node_of = [&](int jj) {
-      std::array<int, 3> i = idx;
-      if (across_ >= 0) i[across_] = jj;
-      return (static_cast<std::size_t>(i[2]) * n_[1] + i[1]) * n_[0] + i[0];
-    };
+    if (across_ >= 0) i[across_] = jj;
+    return (static_cast<std::size_t>(i[2]) * n_[1] + i[1]) * n_[0] + i[0];
+  };
+  for (int mode = 0; mode < n_modes_; ++mode) {
+    const int slot = slot_[mode];
+    if (slot < 0) continue;  // solved with its mirror
     for (int jj = 0; jj < n_across_; ++jj)
-      for (int c = 0; c < dof_; ++c) b[jj * dof_ + c] = z[node_of(jj) * dof_ + c];
+      for (int c = 0; c < dof_; ++c) b[jj * dof_ + c] = z[node_of(mode, jj) * dof_ + c];
     if (pinned_ && mode == 0) b[dof_ - 1] = 0.0;
     int info = 0;
-    zgbtrs_("N", &m_, &kl_, &kl_, &one, &ab_[static_cast<std::size_t>(mode) * ldab * m_], &ldab,
-            &ipiv_[static_cast<std::size_t>(mode) * m_], b.data(), &m_, &info, 1);
+    zgbtrs_("N", &m_, &kl_, &kl_, &one, &ab_[static_cast<std::size_t>(slot) * ldab * m_], &ldab,
+            &ipiv_[static_cast<std::size_t>(slot) * m_], b.data(), &m_, &info, 1);
+    // r is real: the coefficients of -k are the conjugates of those of k.
+    const int other = mirror(mode);
     for (int jj = 0; jj < n_across_; ++jj)
-      for (int c = 0; c < dof_; ++c) z[node_of(jj) * dof_ + c] = b[jj * dof_ + c];
+      for (int c = 0; c < dof_; ++c) {
+        z[node_of(mode, jj) * dof_ + c] = b[jj * dof_ + c];
+        if (other != mode) z[node_of(other, jj) * dof_ + c] = std::conj(b[jj * dof_ + c]);
+      }
   }
   fft(z, true);
   PetscScalar* xa = nullptr;
   CELLFSI_PETSC(VecGetArray(x, &xa));
   for (std::size_t i = 0; i < N; ++i) xa[i] = z[i].real();
   CELLFSI_PETSC(VecRestoreArray(x, &xa));
+  CELLFSI_PETSC(PetscLogEventEnd(event, 0, 0, 0, 0));
 }
 
 std::vector<double> FourierBulkSolver::node_deviation(Mat J) const {

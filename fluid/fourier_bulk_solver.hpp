@@ -7,9 +7,9 @@
 // depends on the flow only through terms 1e-4 smaller than the viscous ones, and the undisturbed flows
 // depend on y only. A discrete Fourier transform in the periodic directions splits such an operator into one
 // small banded system per wave vector across the non-periodic direction (size n_y x dof, bandwidth
-// (degree + 1) dof - 1): setup is a banded LU per wave vector, a solve is two FFTs and the banded solves,
-// O(N log N) with memory O(N dof (degree + 1) dof) instead of the O(N^{4/3})-O(N^{5/3}) of a sparse LU in
-// 3D.
+// (degree + 1) dof - 1): setup is a banded LU per pair of wave vectors +-k (the operator is real), a solve is
+// two FFTs and the banded solves, O(N log N) with memory O(N dof (degree + 1) dof) instead of the
+// O(N^{4/3})-O(N^{5/3}) of a sparse LU in 3D.
 //
 // build(A): the stencil is the average of A's rows over the periodic positions (A need not be exactly
 // invariant: e.g. a state whose flow varies a little along x); `deviation()` reports the largest entry of A
@@ -59,6 +59,7 @@ class FourierBulkSolver {
   /// false if the column lies outside the stencil.
   bool offset(int row_node, int col_node, std::array<int, 3>& o, int& j, int& dj) const;
   void fft(std::vector<cplx>& z, bool inverse) const;
+  int mirror(int mode) const;  // the mode of wave vector -k
 
   std::array<int, 3> n_{}, degree_{};
   std::array<bool, 3> periodic_{};
@@ -66,7 +67,8 @@ class FourierBulkSolver {
   int n_across_ = 1, n_nodes_ = 1, n_modes_ = 1, m_ = 1, kl_ = 0;  // banded systems: size m, kl = ku
   std::array<int, 3> width_{};                                     // stencil extent per periodic direction
   std::vector<double> stencil_;                                    // averaged stencil
-  std::vector<cplx> ab_;                                           // LAPACK band storage, per mode
+  std::vector<int> slot_;  // per mode: its factors' index, or -1 (its mirror's conjugate)
+  std::vector<cplx> ab_;   // LAPACK band storage, per slot
   std::vector<int> ipiv_;
   double deviation_ = 0;
   bool pinned_ = false;
