@@ -84,7 +84,9 @@ class RegionCorrectedSolver {
   PetscInt n_region_ = 0;
   int n_differing_ = 0;
   IS is_ = nullptr;
-  Mat JR_ = nullptr;
+  Mat JR_ = nullptr;      // J on region x region
+  Mat J_rows_ = nullptr;  // J's rows of the region, every column
+  IS all_ = nullptr;
   KSP region_ksp_ = nullptr;
   VecScatter to_region_ = nullptr;
   Vec rR_ = nullptr, xR_ = nullptr, res_ = nullptr, t_ = nullptr;
