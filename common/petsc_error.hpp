@@ -66,6 +66,10 @@ inline void record_petsc_errors() { PetscPushErrorHandler(detail::record_pending
         (option.empty() ? std::string("a type") : "option " + option + " = " + value) +
         " is invalid: " + message + " (-help lists the types this PETSc has)");
   }
+  // A value PETSc (or a package's interface) checks when it applies an option, e.g. -..._mat_mumps_icntl_7 1
+  // ("Valid values are 0=AMD, 2=AMF, ..."): bad input, not a failure of the run.
+  if (code == PETSC_ERR_ARG_OUTOFRANGE && message.find("Valid values") != std::string::npos)
+    throw std::invalid_argument("a solver option's value is invalid: " + message);
   throw std::runtime_error("PETSc error " + std::to_string(code) + " at " + file + ":" +
                            std::to_string(line) + (message.empty() ? std::string() : ": " + message));
 }

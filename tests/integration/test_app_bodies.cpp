@@ -333,6 +333,15 @@ TEST_F(CellfsiApp, MisspeltFactorisationOptionIsRejectedAfterTheFirstStep) {
   }
 }
 
+TEST_F(CellfsiApp, FactorisationOptionValueRefusedAtTheFirstSolveIsBadInput) {
+  // MUMPS' interface checks ICNTL(7) when it factorises (PETSc 3.18 takes no user ordering): exit 1 with one
+  // message, as for any bad value, not a failed step.
+  const RunResult r = cellfsi(with(kDefaultCapsule, {"-coupling_fourier_region_mat_mumps_icntl_7", "1"}));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
+  EXPECT_NE(r.output.find("Valid values"), std::string::npos) << r.output;
+}
+
 TEST_F(CellfsiApp, FourierBandAndFluidSolversAgree) {
   // Issue 13: the coupling loop's three linear solvers on the capsule (2D, 2 steps) and the 3D compound
   // capsule (12^3, 1 step). Each linear solve stops at rtol 1e-5 on a correction that is itself below the
