@@ -86,7 +86,9 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
                                 std::to_string(n_nodes_ * dof_));
   const int wq = across_ >= 0 ? 2 * degree_[across_] + 1 : 1;
   stencil_.assign(static_cast<std::size_t>(m_) * width_[0] * width_[1] * width_[2] * wq * dof_, 0.0);
-  // 1. The stencil averaged over the periodic positions (n_nodes / n_across rows per (j, c)).
+  // 1. The stencil averaged over the periodic positions. A unit row (one nonzero, on the diagonal: a wall's
+  // Dirichlet row, or a pinned pressure) counts only where every row of its (j, c) is one (the walls): a
+  // single pinned row must not leak into the average of the others (the caller's region takes it).
   auto for_each_entry = [&](auto&& f) {
     for (PetscInt row = 0; row < rows; ++row) {
       PetscInt nc = 0;
@@ -97,26 +99,41 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
       CELLFSI_PETSC(MatRestoreRow(A, row, &nc, &ci, &v));
     }
   };
-  const double per_row = 1.0 / (n_nodes_ / n_across_);
+  auto unit_row = [](PetscInt row, PetscInt nc, const PetscInt* ci, const PetscScalar* v) {
+    int nonzeros = 0;
+    bool diagonal_one = false;
+    for (PetscInt k = 0; k < nc; ++k)
+      if (v[k] != 0) {
+        ++nonzeros;
+        diagonal_one = ci[k] == row && v[k] == 1.0;
+      }
+    return nonzeros == 1 && diagonal_one;
+  };
+  const std::size_t per = stencil_.size() / m_;  // stencil entries of one (j, c)
+  std::vector<double> unit_sum(stencil_.size(), 0.0);
+  std::vector<long> n_rows(m_, 0), n_unit(m_, 0);
   std::array<int, 3> o{};
   int j = 0, dj = 0;
   for_each_entry([&](PetscInt row, PetscInt nc, const PetscInt* ci, const PetscScalar* v) {
     const int node = static_cast<int>(row / dof_), c = static_cast<int>(row % dof_);
+    const bool unit = unit_row(row, nc, ci, v);
     for (PetscInt k = 0; k < nc; ++k) {
       if (!offset(node, static_cast<int>(ci[k] / dof_), o, j, dj))
         throw std::invalid_argument("FourierBulkSolver: row " + std::to_string(row) +
                                     " couples beyond the stencil");
-      stencil_[stencil_index(j, c, o, dj, static_cast<int>(ci[k] % dof_))] += v[k] * per_row;
+      (unit ? unit_sum : stencil_)[stencil_index(j, c, o, dj, static_cast<int>(ci[k] % dof_))] += v[k];
     }
+    ++(unit ? n_unit : n_rows)[across_coordinate(node) * dof_ + c];
   });
+  for (int r = 0; r < m_; ++r)
+    for (std::size_t k = r * per; k < (r + 1) * per; ++k)
+      stencil_[k] = n_rows[r] > 0 ? stencil_[k] / n_rows[r] : unit_sum[k] / std::max(1L, n_unit[r]);
   // 2. How far A is from its average.
   deviation_ = 0;
   for_each_entry([&](PetscInt row, PetscInt nc, const PetscInt* ci, const PetscScalar* v) {
     const int node = static_cast<int>(row / dof_), c = static_cast<int>(row % dof_);
     double row_max = 0, dev = 0;
-    int nonzeros = 0;
-    for (PetscInt k = 0; k < nc; ++k) nonzeros += v[k] != 0;
-    if (nonzeros == 1) return;  // a Dirichlet row (wall or pinned pressure): handled by the caller's region
+    if (unit_row(row, nc, ci, v)) return;  // a wall's or the pinned pressure's row
     for (PetscInt k = 0; k < nc; ++k) {
       offset(node, static_cast<int>(ci[k] / dof_), o, j, dj);
       row_max = std::max(row_max, std::abs(v[k]));
@@ -187,6 +204,13 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
       throw std::runtime_error("FourierBulkSolver: the system of wave vector " + std::to_string(mode) +
                                " is singular (LAPACK zgbtrf info " + std::to_string(info) + ")");
   }
+}
+
+int FourierBulkSolver::across_coordinate(int node) const {
+  if (across_ < 0) return 0;
+  int stride = 1;
+  for (int d = 0; d < across_; ++d) stride *= n_[d];
+  return (node / stride) % n_across_;
 }
 
 int FourierBulkSolver::mirror(int mode) const {
@@ -289,12 +313,6 @@ std::vector<double> FourierBulkSolver::node_deviation(Mat J) const {
   CELLFSI_PETSC(MatGetSize(J, &rows, nullptr));
   std::array<int, 3> o{};
   int j = 0, dj = 0;
-  auto across_of = [&](int node) {
-    if (across_ < 0) return 0;
-    int stride = 1;
-    for (int dd = 0; dd < across_; ++dd) stride *= n_[dd];
-    return (node / stride) % n_across_;
-  };
   // A SeqBAIJ matrix with node blocks is read block by block from its arrays (MatGetRow would expand every
   // block row: 1 s per call at 32^3 quadratic in 3D).
   PetscBool baij = PETSC_FALSE;
@@ -321,7 +339,7 @@ std::vector<double> FourierBulkSolver::node_deviation(Mat J) const {
             d[c] = std::max(d[c], std::abs(blk[c2 * dof_ + c] - avg));
           }
       }
-      const int jr = across_of(static_cast<int>(node));
+      const int jr = across_coordinate(static_cast<int>(node));
       for (int c = 0; c < dof_; ++c) {
         const double ref = row_max[jr * dof_ + c];
         dev[node] = std::max(dev[node], ref > 0 ? d[c] / ref : d[c]);
@@ -338,7 +356,7 @@ std::vector<double> FourierBulkSolver::node_deviation(Mat J) const {
     CELLFSI_PETSC(MatGetRow(J, row, &nc, &ci, &v));
     const int node = static_cast<int>(row / dof_), c = static_cast<int>(row % dof_);
     double d = 0;
-    const int jr = across_of(node);
+    const int jr = across_coordinate(node);
     for (PetscInt k = 0; k < nc; ++k) {
       const bool in = offset(node, static_cast<int>(ci[k] / dof_), o, j, dj);
       const double avg = in ? stencil_[stencil_index(j, c, o, dj, static_cast<int>(ci[k] % dof_))] : 0.0;

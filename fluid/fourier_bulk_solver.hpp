@@ -59,7 +59,8 @@ class FourierBulkSolver {
   /// false if the column lies outside the stencil.
   bool offset(int row_node, int col_node, std::array<int, 3>& o, int& j, int& dj) const;
   void fft(std::vector<cplx>& z, bool inverse) const;
-  int mirror(int mode) const;  // the mode of wave vector -k
+  int mirror(int mode) const;             // the mode of wave vector -k
+  int across_coordinate(int node) const;  // the node's index across (0 without a wall direction)
 
   std::array<int, 3> n_{}, degree_{};
   std::array<bool, 3> periodic_{};
