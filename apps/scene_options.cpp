@@ -245,7 +245,7 @@ void read_body(SceneSettings& s, const std::string& name) {
 /// A mesh the machine cannot hold is refused now, with the estimate, instead of allocating for minutes: the
 /// fluid Jacobian (three times with the band solver: its kept part, its band part and their sum), shared over
 /// the nodes of the fluid ranks, against the least memory available on any of them. Collective.
-void check_memory(const SceneSettings& s) {
+void check_memory(SceneSettings& s) {
   MPI_Comm comm = PETSC_COMM_WORLD;
   int size = 1;
   MPI_Comm_size(comm, &size);
@@ -272,6 +272,20 @@ void check_memory(const SceneSettings& s) {
       one && (solver == CouplingSolver::band || (solver == CouplingSolver::automatic && !fourier_box));
   const bool fourier =
       one && (solver == CouplingSolver::fourier || (solver == CouplingSolver::automatic && fourier_box));
+  // The Fourier solver's second copy of the Jacobian (-coupling_fourier_partial_jacobian) is dropped unless
+  // asked for when memory is short: a run peaked at 5.2-5.4 Jacobians with it (3D, 32^3 and 64^3, the rest
+  // mostly the region's LU) and 4.4 without; the paper's 64^3 with it was killed at 21.9 GB of 24.
+  PetscBool partial_given = PETSC_FALSE;
+  CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-coupling_fourier_partial_jacobian", &partial_given));
+  if (fourier && s.coupling.fourier_partial_jacobian && !partial_given &&
+      6 * fluid_jacobian_bytes(s) / std::max(1, leaders) > available) {
+    s.coupling.fourier_partial_jacobian = false;
+    CELLFSI_PETSC(
+        PetscPrintf(comm,
+                    "cellfsi: note: %.3g GB available: the Fourier solver keeps one copy of the %.3g GB "
+                    "Jacobian (-coupling_fourier_partial_jacobian false)\n",
+                    available / 1e9, fluid_jacobian_bytes(s) / 1e9));
+  }
   const double need = (band                                             ? 3
                        : fourier && s.coupling.fourier_partial_jacobian ? 2
                                                                         : 1) *
