@@ -25,7 +25,8 @@ namespace cellfsi::coupling {
 /// How the fluid's linear systems of the coupling loop are solved.
 enum class CouplingSolver {
   /// `fourier` where it applies (one fluid rank, a SeqBAIJ Jacobian, a translation-invariant box periodic in
-  /// all directions but one: fourier_applicable), else `band` (which falls back to `fluid` on several ranks).
+  /// all directions but one: fourier_inapplicable), else `band` (which falls back to `fluid` on several
+  /// ranks).
   /// The default.
   automatic,
   /// fluid::BandSchurSolver (one fluid rank, SeqBAIJ Jacobian): the Jacobian away from the cells is

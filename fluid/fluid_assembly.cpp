@@ -306,24 +306,25 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
 }
 
 void FluidSolver::bulk_jacobian(Vec X, Mat J) {
-  std::vector<LocatedPoint> immersed;
-  immersed.swap(immersed_);
+  // s^h and the immersed points are set aside and restored whatever happens (an exception included).
   Vec S = nullptr;
   CELLFSI_PETSC(VecDuplicate(S_, &S));
+  struct Restore {
+    FluidSolver& f;
+    Vec& S;
+    std::vector<LocatedPoint> immersed;
+    bool scaling_saved = false;
+    ~Restore() {
+      immersed.swap(f.immersed_);
+      if (scaling_saved) VecCopy(S, f.S_);
+      VecDestroy(&S);
+    }
+  } restore{*this, S, {}};
   CELLFSI_PETSC(VecCopy(S_, S));
+  restore.scaling_saved = true;
+  restore.immersed.swap(immersed_);
   CELLFSI_PETSC(VecSet(S_, 1.0));
-  auto restore = [&] {
-    immersed.swap(immersed_);
-    VecCopy(S, S_);
-    VecDestroy(&S);
-  };
-  try {
-    assemble(X, nullptr, J);
-  } catch (...) {
-    restore();
-    throw;
-  }
-  restore();
+  assemble(X, nullptr, J);
 }
 
 PetscErrorCode fluid_residual(SNES, Vec U, Vec F, void* ctx) {

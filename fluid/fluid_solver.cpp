@@ -346,6 +346,14 @@ void FluidSolver::setup() {
   CELLFSI_PETSC(KSPSetUp(ksp));
 }
 
+void FluidSolver::release_linear_solver() {
+  KSP ksp;
+  CELLFSI_PETSC(SNESGetKSP(snes_, &ksp));
+  PC pc;
+  CELLFSI_PETSC(KSPGetPC(ksp, &pc));
+  CELLFSI_PETSC(PCReset(pc));
+}
+
 StepStats FluidSolver::step() {
   StepStats st;
   Vec X;

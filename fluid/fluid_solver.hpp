@@ -123,6 +123,9 @@ class FluidSolver {
   /// included) has been read; optional (step() does it lazily otherwise). Call after setting the initial
   /// state.
   void setup();
+  /// Frees what setup() built in the fluid's own linear solver (e.g. ASM's subdomain copy of the Jacobian),
+  /// for a coupled run that solves with another solver; a later solve sets it up again.
+  void release_linear_solver();
   /// Advances one time step.
   StepStats step();
   double time() const { return time_; }

@@ -15,8 +15,8 @@
 // invariant: e.g. a state whose flow varies a little along x); `deviation()` reports the largest entry of A
 // minus that average, relative to the largest entry of its row. Wave vector 0 of a box with a constant
 // pressure null space (every wall direction no-slip, no outflow) is singular: its first pressure unknown is
-// pinned, so the solver returns one solution of the consistent part (the caller's Krylov method projects the
-// constant out).
+// pinned, so the solver returns one solution of the consistent part, with an arbitrary pressure constant (the
+// fluid shifts its pressure to one gauge after each step).
 //
 // One rank; the matrix in the DMDA's natural ordering (node-major, direction 0 fastest, dof-minor), which
 // is its global ordering on one rank.
@@ -42,11 +42,14 @@ class FourierBulkSolver {
   /// x = A_avg^{-1} r (r, x: sequential vectors of the matrix's size).
   void solve(Vec r, Vec x) const;
 
-  /// Largest |A_ij - A_avg,ij| / max_j |A_ij| over the rows of the last build().
+  /// Largest |A_ij - A_avg,ij| / max_j |A_ij| over the rows of the last build() (unit rows, i.e. walls and a
+  /// pinned pressure, skipped).
   double deviation() const { return deviation_; }
   /// Per node: the largest |J_ij - A_avg,ij| / max_j |A_avg,ij| of its rows (J: same size, natural
   /// ordering; entries outside the stencil count in full).
   std::vector<double> node_deviation(Mat J) const;
+  /// Whether build() has completed (a failed build leaves it false).
+  bool built() const { return built_; }
   /// Bytes held by the factors.
   std::size_t factor_bytes() const { return ab_.size() * sizeof(std::complex<double>); }
   int n_modes() const { return n_modes_; }
@@ -72,7 +75,7 @@ class FourierBulkSolver {
   std::vector<cplx> ab_;   // LAPACK band storage, per slot
   std::vector<int> ipiv_;
   double deviation_ = 0;
-  bool pinned_ = false;
+  bool pinned_ = false, built_ = false;
 };
 
 }  // namespace cellfsi::fluid

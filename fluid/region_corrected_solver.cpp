@@ -78,12 +78,11 @@ void RegionCorrectedSolver::set_operator(Mat J) {
   for (int i = 0; i < n_nodes; ++i)
     if (grown[i])
       for (int c = 0; c < dof_; ++c) region.push_back(static_cast<PetscInt>(i) * dof_ + c);
-  if (region != region_) {
-    release_region();
-    region_ = std::move(region);
-    n_region_ = static_cast<PetscInt>(region_.size());
+  if (region != region_ || (n_region_ > 0 && !JR_)) {
+    release_region();  // (also after a build that failed half-way)
+    n_region_ = static_cast<PetscInt>(region.size());
     if (n_region_ == 0) return;
-    CELLFSI_PETSC(ISCreateGeneral(PETSC_COMM_SELF, n_region_, region_.data(), PETSC_COPY_VALUES, &is_));
+    CELLFSI_PETSC(ISCreateGeneral(PETSC_COMM_SELF, n_region_, region.data(), PETSC_COPY_VALUES, &is_));
     CELLFSI_PETSC(ISSetBlockSize(is_, dof_));
     CELLFSI_PETSC(MatCreateSubMatrix(J, is_, is_, MAT_INITIAL_MATRIX, &JR_));
     PetscInt n_all = 0;
@@ -102,6 +101,7 @@ void RegionCorrectedSolver::set_operator(Mat J) {
     CELLFSI_PETSC(PCSetType(pc, PCLU));
     CELLFSI_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
     CELLFSI_PETSC(KSPSetFromOptions(region_ksp_));
+    region_ = std::move(region);
   } else if (n_region_ > 0) {
     CELLFSI_PETSC(MatCreateSubMatrix(J, is_, is_, MAT_REUSE_MATRIX, &JR_));
     CELLFSI_PETSC(MatCreateSubMatrix(J, is_, all_, MAT_REUSE_MATRIX, &J_rows_));
