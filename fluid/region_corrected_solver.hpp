@@ -20,8 +20,8 @@
 //
 // Measured on the 3D compound capsule at 32^3 quadratic (3 steps, one rank; docs/performance.md): the
 // region is the 3700 nodes of the s_I band and the immersed points, 14.7 k unknowns; 6 FGMRES iterations per
-// solve; the region's LU 2.5 s. Growing the region by 1 (2) layers: 22 k (31 k) unknowns, 4 (3) iterations,
-// an LU of 4.7 (9.3) s: slower overall.
+// solve; the region's LU 2.5 s. Growing the region by 1 layer: 22 k unknowns, 4 iterations, an LU of 4.7 s;
+// by 2 layers with two region solves per application: 31 k unknowns, 3 iterations, 9.3 s: slower overall.
 //
 // One rank (as the Fourier solver).
 #include <petscksp.h>
