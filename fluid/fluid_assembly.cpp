@@ -250,17 +250,27 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
   // Immersed-solid points (paper Eq. (10)) in this rank's elements.
   static const PetscLogEvent immersed_event = register_log_event("cellfsi fluid", "FluidImmersed");
   CELLFSI_PETSC(PetscLogEventBegin(immersed_event, 0, 0, 0, 0));
-  for (const LocatedPoint& ip : immersed_) {
-    if (in_band && !band_side) break;
-    physical_point(patch_, ip.element, ip.xi, 2, bv, mv, pp);
-    const int n = gather(pp.first);
-    if (direct.usable()) direct.prepare(n, lnode.data());
-    Re.assign(n * nd, 0.0);
-    if (J) Ke.assign(static_cast<size_t>(n * nd) * n * nd, 0.0);
-    const PointBasis pb{pp.n, pp.N.data(), pp.dN.data(), pp.lapN.data()};
-    fields(pb, pp.G, pf);
-    if (F) immersed_residual(prm, pb, pf, ip.data, Re.data());
-    if (J) immersed_tangent(prm, pb, pf, ts, ip.data, Ke.data());
+  // The points of one element (immersed_ is sorted by element) are summed and added to F and J once: on
+  // several ranks each addition to rows of another rank is stashed until the assembly (measured: the 3D
+  // compound capsule at 16^3 on 2 ranks, 9.8 GB and 20 s per Jacobian when added point by point).
+  for (std::size_t i = 0; i < immersed_.size() && !(in_band && !band_side);) {
+    const Index3 element = immersed_[i].element;
+    int n = 0;
+    for (bool first_point = true; i < immersed_.size() && immersed_[i].element == element; ++i) {
+      const LocatedPoint& ip = immersed_[i];
+      physical_point(patch_, ip.element, ip.xi, 2, bv, mv, pp);
+      if (first_point) {
+        n = gather(pp.first);
+        if (direct.usable()) direct.prepare(n, lnode.data());
+        Re.assign(n * nd, 0.0);
+        if (J) Ke.assign(static_cast<size_t>(n * nd) * n * nd, 0.0);
+        first_point = false;
+      }
+      const PointBasis pb{pp.n, pp.N.data(), pp.dN.data(), pp.lapN.data()};
+      fields(pb, pp.G, pf);
+      if (F) immersed_residual(prm, pb, pf, ip.data, Re.data());
+      if (J) immersed_tangent(prm, pb, pf, ts, ip.data, Ke.data());
+    }
     scatter(n, false);
   }
   CELLFSI_PETSC(PetscLogEventEnd(immersed_event, 0, 0, 0, 0));

@@ -5,6 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 
 #include "common/petsc_error.hpp"
 #include "fluid/point_evaluation.hpp"
@@ -329,6 +330,15 @@ void FluidSolver::set_immersed_points(const std::vector<ImmersedPointData>& poin
     }
     if (owns_element(r.element)) immersed_.push_back({r.element, r.xi, ip.data});
   }
+  sort_immersed_points();
+}
+
+void FluidSolver::sort_immersed_points() {
+  // By element (z, y, x), as the assembly sums each element's points before adding them to the matrix.
+  std::stable_sort(immersed_.begin(), immersed_.end(), [](const LocatedPoint& a, const LocatedPoint& b) {
+    return std::tie(a.element[2], a.element[1], a.element[0]) <
+           std::tie(b.element[2], b.element[1], b.element[0]);
+  });
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -432,6 +442,7 @@ void FluidSolver::set_immersed_points(const std::vector<Index3>& elements, const
   immersed_.clear();
   for (size_t i = 0; i < data.size(); ++i)
     if (owns_element(elements[i])) immersed_.push_back({elements[i], xi[i], data[i]});
+  sort_immersed_points();
 }
 
 std::vector<PointSample> FluidSolver::sample_alpha(Vec X, const std::vector<Index3>& elements,

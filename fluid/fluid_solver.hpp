@@ -238,7 +238,8 @@ class FluidSolver {
     geometry::Param xi;
     ImmersedPoint data;
   };
-  std::vector<LocatedPoint> immersed_;
+  std::vector<LocatedPoint> immersed_;  // sorted by element
+  void sort_immersed_points();
 };
 
 }  // namespace cellfsi::fluid

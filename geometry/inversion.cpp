@@ -20,6 +20,7 @@ PointInverter::PointInverter(const Patch& patch, InversionOptions options)
   Vec3 lo, hi;
   patch.bounding_box(lo, hi);
   scale_ = (hi - lo).norm();
+  centre_ = 0.5 * (lo + hi);
   element_centres_.resize(patch.n_elements());
   BasisValues bv;
   MapValues mv;
@@ -50,9 +51,7 @@ Vec3 nearest_image(const Patch& patch, const Vec3& y, const Vec3& near) {
 }  // namespace
 
 InversionResult PointInverter::invert(const Vec3& x_in) const {
-  Vec3 lo, hi;
-  patch_.bounding_box(lo, hi);
-  const Vec3 x = nearest_image(patch_, x_in, 0.5 * (lo + hi));
+  const Vec3 x = nearest_image(patch_, x_in, centre_);
   int best = 0;
   double best_d = std::numeric_limits<double>::infinity();
   for (int e = 0; e < static_cast<int>(element_centres_.size()); ++e) {

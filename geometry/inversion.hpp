@@ -45,6 +45,7 @@ class PointInverter {
   const Patch& patch_;
   InversionOptions options_;
   double scale_ = 1;
+  Vec3 centre_ = Vec3::Zero();  // of the patch's bounding box (the patch does not change)
   std::vector<Vec3> element_centres_;
 };
 
