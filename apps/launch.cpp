@@ -223,10 +223,12 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       n_steps, settings.dt, n_steps * settings.dt, settings.output_dir.c_str()));
   if (scene.coupler() && scene.coupler()->solver() == coupling::CouplingSolver::fluid &&
       settings.coupling.solver != coupling::CouplingSolver::fluid)
-    CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
-                              "cellfsi: note: the band and Fourier solvers need one fluid rank and a BAIJ "
-                              "Jacobian; on %d rank(s) the coupling loop uses -coupling_solver fluid\n",
-                              size));
+    CELLFSI_PETSC(
+        PetscPrintf(PETSC_COMM_WORLD,
+                    "cellfsi: note: the band solver needs one fluid rank and a BAIJ Jacobian, the Fourier "
+                    "solver a BAIJ Jacobian and a box uniform along its periodic directions; on %d "
+                    "rank(s) the coupling loop uses -coupling_solver fluid\n",
+                    size));
   // A coupled run's iterations are the coupling loop's block iterations, not Newton iterations.
   out.set_iteration_kind(scene.coupler() ? "coupling" : "newton");
   long newton = resume.newton, linear = resume.linear, factorizations = resume.factorizations;

@@ -76,7 +76,9 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
           "Jacobian away from the cells factorised once, the "
           "band around them re-solved exactly; one fluid rank), fluid (the fluid's KSP, -fluid_ options) or "
           "fourier (FGMRES: the Jacobian without the cells inverted by FFT, corrected by an LU of the region "
-          "around them; one fluid rank, a box periodic in all directions but one)",
+          "around them; any number of fluid ranks, a BAIJ Jacobian, a box uniform and periodic in all "
+          "directions "
+          "but one)",
           kSolvers)
       .real(
           "coupling_fourier_threshold", c.fourier_threshold,

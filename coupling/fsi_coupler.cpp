@@ -4,6 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include <petscdmda.h>
+
 #include "common/petsc_error.hpp"
 #include "coupling/band_region.hpp"
 #include "coupling/interface_marking.hpp"
@@ -102,15 +104,17 @@ FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver
   solver_ = opt_.solver;
   int fluid_ranks = 1;
   MPI_Comm_size(fluid.comm(), &fluid_ranks);
-  // The band solver needs one fluid rank and a SeqBAIJ Jacobian (see the header).
-  PetscBool baij = PETSC_FALSE;
-  CELLFSI_PETSC(
-      PetscObjectTypeCompare(reinterpret_cast<PetscObject>(fluid.jacobian_matrix()), MATSEQBAIJ, &baij));
+  // The band solver needs one fluid rank and a SeqBAIJ Jacobian, the Fourier solver a BAIJ one (see the
+  // header).
+  PetscBool seq_baij = PETSC_FALSE, mpi_baij = PETSC_FALSE;
+  const auto jacobian = reinterpret_cast<PetscObject>(fluid.jacobian_matrix());
+  CELLFSI_PETSC(PetscObjectTypeCompare(jacobian, MATSEQBAIJ, &seq_baij));
+  CELLFSI_PETSC(PetscObjectTypeCompare(jacobian, MATMPIBAIJ, &mpi_baij));
+  const bool baij = seq_baij || mpi_baij;
   if (solver_ == CouplingSolver::automatic)
-    solver_ = fluid_ranks == 1 && baij && fourier_inapplicable(fluid.patch()).empty()
-                  ? CouplingSolver::fourier
-                  : CouplingSolver::band;
-  if (solver_ == CouplingSolver::band && (fluid_ranks > 1 || !baij)) solver_ = CouplingSolver::fluid;
+    solver_ =
+        baij && fourier_inapplicable(fluid.patch()).empty() ? CouplingSolver::fourier : CouplingSolver::band;
+  if (solver_ == CouplingSolver::band && (fluid_ranks > 1 || !seq_baij)) solver_ = CouplingSolver::fluid;
   if (solver_ == CouplingSolver::band) {
     if (opt_.band_margin < 0) throw std::invalid_argument("band margin must be >= 0");
     CELLFSI_PETSC(MatDuplicate(fluid.jacobian_matrix(), MAT_DO_NOT_COPY_VALUES, &J_fixed_));
@@ -132,8 +136,11 @@ FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver
   }
   if (solver_ == CouplingSolver::fourier) {
     const geometry::Patch& patch = fluid.patch();
-    if (fluid_ranks > 1)
-      throw std::invalid_argument("the Fourier solver (-coupling_solver fourier) runs on one fluid rank");
+    if (!baij)
+      throw std::invalid_argument(
+          "the Fourier solver (-coupling_solver fourier) needs a BAIJ fluid Jacobian "
+          "(-fluid_mat_type_jacobian "
+          "baij)");
     const std::string why = fourier_inapplicable(patch);
     if (!why.empty()) throw std::invalid_argument("-coupling_solver fourier does not apply: " + why);
     std::array<int, 3> n{1, 1, 1}, degree{0, 0, 0};
@@ -145,8 +152,10 @@ FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver
     }
     if (!(opt_.fourier_threshold > 0)) throw std::invalid_argument("Fourier threshold must be > 0");
     if (opt_.fourier_overlap < 0) throw std::invalid_argument("Fourier overlap must be >= 0");
+    AO natural = nullptr;  // the DMDA's natural ordering -> its global ordering
+    CELLFSI_PETSC(DMDAGetAO(fluid.dm(), &natural));
     fourier_ = std::make_unique<fluid::RegionCorrectedSolver>(n, periodic, degree, fluid.dim() + 1,
-                                                              "coupling_fourier_");
+                                                              "coupling_fourier_", fluid.comm(), natural);
     fourier_->set_region(opt_.fourier_threshold, opt_.fourier_overlap);
     fourier_->set_region_solves(opt_.fourier_region_solves);
     CELLFSI_PETSC(KSPCreate(fluid.comm(), &fourier_ksp_));

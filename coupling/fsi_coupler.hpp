@@ -24,24 +24,22 @@ namespace cellfsi::coupling {
 
 /// How the fluid's linear systems of the coupling loop are solved.
 enum class CouplingSolver {
-  /// `fourier` where it applies (one fluid rank, a SeqBAIJ Jacobian, a translation-invariant box periodic in
-  /// all directions but one: fourier_inapplicable), else `band` (which falls back to `fluid` on several
-  /// ranks).
-  /// The default.
+  /// `fourier` where it applies (a BAIJ Jacobian, a translation-invariant box periodic in all directions but
+  /// one: fourier_inapplicable; any number of fluid ranks), else `band` (which falls back to `fluid` on
+  /// several ranks). The default.
   automatic,
   /// fluid::BandSchurSolver (one fluid rank, SeqBAIJ Jacobian): the Jacobian away from the cells is
   /// factorised once and kept while the s^h band and the immersed points stay inside the region it was built
   /// for; when the s^h marking moves only that region is re-assembled and its Schur complement factorised.
-  /// Default on one fluid rank.
+  /// The default on one fluid rank where `fourier` does not apply (the narrowing channel).
   band,
   /// The fluid's own KSP and PC (prefix fluid_, every PETSc option): the preconditioner is rebuilt every
   /// `preconditioner_lag` solves and whenever the s^h marking changes (every step while a cell moves).
   fluid,
-  /// fluid::RegionCorrectedSolver in FGMRES (prefix coupling_fourier_; one fluid rank, a box periodic in all
-  /// directions but one): the Jacobian without the cells inverted by Fourier transform once per run,
-  /// corrected
-  /// by an LU of the region around the cells, re-factorised when the band is refreshed. No global
-  /// factorisation: the solver for 3D.
+  /// fluid::RegionCorrectedSolver in FGMRES (prefix coupling_fourier_; a BAIJ Jacobian, a box periodic in
+  /// all directions but one; any number of fluid ranks): the Jacobian without the cells inverted by Fourier
+  /// transform once per run, corrected by an LU of the region around the cells, re-factorised when the band
+  /// is refreshed. No global factorisation: the solver for 3D and for several ranks.
   fourier,
 };
 

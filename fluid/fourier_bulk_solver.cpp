@@ -21,7 +21,7 @@ void zgbtrs_(const char* trans, const int* n, const int* kl, const int* ku, cons
 namespace cellfsi::fluid {
 
 FourierBulkSolver::FourierBulkSolver(std::array<int, 3> n, std::array<bool, 3> periodic,
-                                     std::array<int, 3> degree, int dof)
+                                     std::array<int, 3> degree, int dof, MPI_Comm comm, AO natural)
     : n_(n), degree_(degree), periodic_(periodic), dof_(dof) {
   if (dof < 1) throw std::invalid_argument("FourierBulkSolver: dof must be >= 1");
   for (int d = 0; d < 3; ++d) {
@@ -42,6 +42,69 @@ FourierBulkSolver::FourierBulkSolver(std::array<int, 3> n, std::array<bool, 3> p
   n_across_ = across_ >= 0 ? n_[across_] : 1;
   m_ = n_across_ * dof_;
   kl_ = across_ >= 0 ? std::min(m_ - 1, (degree_[across_] + 1) * dof_ - 1) : m_ - 1;
+  // The real operator's systems of k and -k are conjugate: one of each pair is factorised (its slot).
+  slot_.assign(n_modes_, -1);
+  slot_mode_.clear();
+  for (int mode = 0; mode < n_modes_; ++mode)
+    if (mirror(mode) >= mode) {
+      slot_[mode] = static_cast<int>(slot_mode_.size());
+      slot_mode_.push_back(mode);
+    }
+  n_slots_ = static_cast<int>(slot_mode_.size());
+  // Ranks: node maps, this rank's layers (the lines layout) and the transposes' counts.
+  comm_ = comm;
+  MPI_Comm_rank(comm_, &rank_);
+  MPI_Comm_size(comm_, &size_);
+  if (natural) {
+    std::vector<PetscInt> idx(n_nodes_);
+    for (int i = 0; i < n_nodes_; ++i) idx[i] = static_cast<PetscInt>(i) * dof_;
+    CELLFSI_PETSC(AOApplicationToPetsc(natural, n_nodes_, idx.data()));
+    to_global_.resize(n_nodes_);
+    to_natural_.assign(n_nodes_, -1);
+    for (int i = 0; i < n_nodes_; ++i) {
+      to_global_[i] = static_cast<int>(idx[i] / dof_);
+      if (idx[i] % dof_ != 0 || to_global_[i] < 0 || to_global_[i] >= n_nodes_ ||
+          to_natural_[to_global_[i]] >= 0)
+        throw std::invalid_argument("FourierBulkSolver: the ordering does not map nodes to nodes");
+      to_natural_[to_global_[i]] = i;
+    }
+  }
+  j0_ = first_layer(rank_);
+  j1_ = first_layer(rank_ + 1);
+  slab_ = n_;
+  if (across_ >= 0)
+    slab_[across_] = j1_ - j0_;
+  else if (j1_ == j0_)
+    slab_ = {0, 0, 0};  // no wall direction: one rank holds the single "layer"
+  send_counts_.assign(size_, 0);
+  recv_counts_.assign(size_, 0);
+  send_offsets_.assign(size_, 0);
+  recv_offsets_.assign(size_, 0);
+  const int my_slots = first_slot(rank_ + 1) - first_slot(rank_);
+  for (int q = 0; q < size_; ++q) {
+    send_counts_[q] = 2 * (first_slot(q + 1) - first_slot(q)) * (j1_ - j0_) * dof_;
+    recv_counts_[q] = 2 * my_slots * (first_layer(q + 1) - first_layer(q)) * dof_;
+    if (q > 0) {
+      send_offsets_[q] = send_offsets_[q - 1] + send_counts_[q - 1];
+      recv_offsets_[q] = recv_offsets_[q - 1] + recv_counts_[q - 1];
+    }
+  }
+}
+
+FourierBulkSolver::~FourierBulkSolver() {
+  VecScatterDestroy(&to_slab_);
+  VecDestroy(&slab_vec_);
+}
+
+std::size_t FourierBulkSolver::slab_node(int mode, int jl) const {
+  std::array<int, 3> i{};
+  for (int d = 0; d < 3; ++d)
+    if (periodic_[d]) {
+      i[d] = mode % n_[d];
+      mode /= n_[d];
+    }
+  if (across_ >= 0) i[across_] = jl;
+  return (static_cast<std::size_t>(i[2]) * slab_[1] + i[1]) * slab_[0] + i[0];
 }
 
 long FourierBulkSolver::stencil_index(int j, int c, const std::array<int, 3>& o, int dj, int c2) const {
@@ -80,26 +143,34 @@ bool FourierBulkSolver::offset(int row_node, int col_node, std::array<int, 3>& o
 
 void FourierBulkSolver::build(Mat A, bool pin_pressure) {
   built_ = false;
-  PetscInt rows = 0, cols = 0;
+  PetscInt rows = 0, cols = 0, row_begin = 0, row_end = 0;
   CELLFSI_PETSC(MatGetSize(A, &rows, &cols));
   if (rows != static_cast<PetscInt>(n_nodes_) * dof_ || cols != rows)
     throw std::invalid_argument("FourierBulkSolver: the matrix has " + std::to_string(rows) + " rows, not " +
                                 std::to_string(n_nodes_ * dof_));
+  CELLFSI_PETSC(MatGetOwnershipRange(A, &row_begin, &row_end));
   const int wq = across_ >= 0 ? 2 * degree_[across_] + 1 : 1;
   stencil_.assign(static_cast<std::size_t>(m_) * width_[0] * width_[1] * width_[2] * wq * dof_, 0.0);
-  // 1. The stencil averaged over the periodic positions (n_nodes / n_across rows per (j, c)). A pinned
-  // pressure row (-fluid_pressure_null_space false) is averaged in too: its layer's average then carries 1/N
-  // of the pin, every node of that layer differs from the bulk operator and the caller's region takes the
-  // layer (measured: capsule 64 x 32, 5 steps, theta as the band solver's to 1e-11). Keeping the pin out of
-  // the average changed only round-off, yet turned the rigid-disk example (tests/external), whose residual is
-  // partly outside the range of its singular Jacobian, from converging to 500 iterations at step 9.
+  // 1. The stencil averaged over the periodic positions (n_nodes / n_across rows per (j, c)); each rank adds
+  // its own rows. A pinned pressure row (-fluid_pressure_null_space false) is averaged in too: its layer's
+  // average then carries 1/N of the pin, every node of that layer differs from the bulk operator and the
+  // caller's region takes the layer (measured: capsule 64 x 32, 5 steps, theta as the band solver's to
+  // 1e-11). Keeping the pin out of the average changed only round-off, yet turned the rigid-disk example
+  // (tests/external), whose residual is partly outside the range of its singular Jacobian, from converging to
+  // 500 iterations at step 9. Rows and columns are visited in the natural ordering.
+  std::vector<PetscInt> natural_cols;
   auto for_each_entry = [&](auto&& f) {
-    for (PetscInt row = 0; row < rows; ++row) {
+    for (PetscInt row = row_begin; row < row_end; ++row) {
       PetscInt nc = 0;
       const PetscInt* ci = nullptr;
       const PetscScalar* v = nullptr;
       CELLFSI_PETSC(MatGetRow(A, row, &nc, &ci, &v));
-      f(row, nc, ci, v);
+      natural_cols.resize(nc);
+      for (PetscInt k = 0; k < nc; ++k)
+        natural_cols[k] =
+            static_cast<PetscInt>(natural_node(static_cast<int>(ci[k] / dof_))) * dof_ + ci[k] % dof_;
+      f(static_cast<PetscInt>(natural_node(static_cast<int>(row / dof_))) * dof_ + row % dof_, nc,
+        natural_cols.data(), v);
       CELLFSI_PETSC(MatRestoreRow(A, row, &nc, &ci, &v));
     }
   };
@@ -116,19 +187,26 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
   const double per_row = 1.0 / (n_nodes_ / n_across_);
   std::array<int, 3> o{};
   int j = 0, dj = 0;
-  std::vector<char> has_unit(m_, 0);  // classes (j, c) with a unit row
+  std::vector<int> has_unit(m_, 0);  // classes (j, c) with a unit row
+  long beyond = -1;                  // a row that couples beyond the stencil
   for_each_entry([&](PetscInt row, PetscInt nc, const PetscInt* ci, const PetscScalar* v) {
     const int node = static_cast<int>(row / dof_), c = static_cast<int>(row % dof_);
     if (unit_row(row, nc, ci, v)) has_unit[across_coordinate(node) * dof_ + c] = 1;
     for (PetscInt k = 0; k < nc; ++k) {
       if (!offset(node, static_cast<int>(ci[k] / dof_), o, j, dj)) {
-        if (v[k] == 0) continue;  // the matrix's pattern is the largest degree's in every direction
-        throw std::invalid_argument("FourierBulkSolver: row " + std::to_string(row) +
-                                    " couples beyond the stencil");
+        if (v[k] != 0) beyond = row;  // (zeros: the matrix's pattern is the largest degree's everywhere)
+        continue;
       }
       stencil_[stencil_index(j, c, o, dj, static_cast<int>(ci[k] % dof_))] += v[k] * per_row;
     }
   });
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &beyond, 1, MPI_LONG, MPI_MAX, comm_));
+  if (beyond >= 0)
+    throw std::invalid_argument("FourierBulkSolver: row " + std::to_string(beyond) +
+                                " (natural ordering) couples beyond the stencil");
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, stencil_.data(), static_cast<int>(stencil_.size()), MPI_DOUBLE,
+                              MPI_SUM, comm_));
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, has_unit.data(), m_, MPI_INT, MPI_MAX, comm_));
   // 2. How far A is from its average.
   deviation_ = 0;
   for_each_entry([&](PetscInt row, PetscInt nc, const PetscInt* ci, const PetscScalar* v) {
@@ -145,20 +223,18 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
     }
     if (row_max > 0) deviation_ = std::max(deviation_, dev / row_max);
   });
-  // 3. One banded system per wave vector k: A_k[(j, c), (j + dj, c2)] = sum_o a_o exp(i 2 pi k . o / n).
-  // A is real, so A_{-k} = conj(A_k): only one of each pair {k, -k} is factorised (its slot).
-  slot_.assign(n_modes_, -1);
-  int n_slots = 0;
-  for (int mode = 0; mode < n_modes_; ++mode)
-    if (mirror(mode) >= mode) slot_[mode] = n_slots++;
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &deviation_, 1, MPI_DOUBLE, MPI_MAX, comm_));
+  // 3. One banded system per slot of this rank: A_k[(j, c), (j + dj, c2)] = sum_o a_o exp(i 2 pi k . o / n).
+  const int s0 = first_slot(rank_), s1 = first_slot(rank_ + 1);
   const int ldab = 2 * kl_ + kl_ + 1;
-  ab_.assign(static_cast<std::size_t>(n_slots) * ldab * m_, cplx(0, 0));
-  ipiv_.assign(static_cast<std::size_t>(n_slots) * m_, 0);
+  ab_.assign(static_cast<std::size_t>(s1 - s0) * ldab * m_, cplx(0, 0));
+  ipiv_.assign(static_cast<std::size_t>(s1 - s0) * m_, 0);
   pinned_ = pin_pressure;
   const double two_pi = 2 * std::acos(-1.0);
   std::vector<cplx> phase(static_cast<std::size_t>(width_[0]) * width_[1] * width_[2]);
-  for (int mode = 0; mode < n_modes_; ++mode) {
-    if (slot_[mode] < 0) continue;
+  int singular = -1;
+  for (int slot = s0; slot < s1 && singular < 0; ++slot) {
+    const int mode = slot_mode_[slot];
     std::array<int, 3> k{};
     int rest = mode;
     for (int d = 0; d < 3; ++d)
@@ -178,7 +254,7 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
             }
           phase[(o0 * width_[1] + o1) * width_[2] + o2] = std::polar(1.0, angle);
         }
-    cplx* ab = &ab_[static_cast<std::size_t>(slot_[mode]) * ldab * m_];
+    cplx* ab = &ab_[static_cast<std::size_t>(slot - s0) * ldab * m_];
     const bool pin = pin_pressure && mode == 0;
     const int pin_row = dof_ - 1;  // the pressure of the first layer
     for (int jj = 0; jj < n_across_; ++jj)
@@ -202,11 +278,13 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
       }
     if (pin) ab[(2 * kl_) + static_cast<std::size_t>(pin_row) * ldab] = 1.0;
     int info = 0;
-    zgbtrf_(&m_, &m_, &kl_, &kl_, ab, &ldab, &ipiv_[static_cast<std::size_t>(slot_[mode]) * m_], &info);
-    if (info != 0)
-      throw std::runtime_error("FourierBulkSolver: the system of wave vector " + std::to_string(mode) +
-                               " is singular (LAPACK zgbtrf info " + std::to_string(info) + ")");
+    zgbtrf_(&m_, &m_, &kl_, &kl_, ab, &ldab, &ipiv_[static_cast<std::size_t>(slot - s0) * m_], &info);
+    if (info != 0) singular = mode;
   }
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &singular, 1, MPI_INT, MPI_MAX, comm_));
+  if (singular >= 0)
+    throw std::runtime_error("FourierBulkSolver: the system of wave vector " + std::to_string(singular) +
+                             " is singular (LAPACK zgbtrf)");
   built_ = true;
 }
 
@@ -229,28 +307,30 @@ int FourierBulkSolver::mirror(int mode) const {
   return m;
 }
 
-void FourierBulkSolver::fft(std::vector<cplx>& z, bool inverse) const {
+void FourierBulkSolver::fft(std::vector<cplx>& z, bool inverse, const std::array<int, 3>& nl) const {
+  if (z.empty()) return;
   Eigen::FFT<double> engine;
   std::vector<cplx> line, out;
-  int stride = dof_;
+  const std::size_t total = z.size();
+  std::size_t stride = dof_;
   for (int d = 0; d < 3; ++d) {
     if (periodic_[d]) {
-      const int n = n_[d];
+      const int n = nl[d];
       line.resize(n);
       out.resize(n);
-      const int outer = n_nodes_ * dof_ / (stride * n);
-      for (int a = 0; a < outer; ++a)
-        for (int b = 0; b < stride; ++b) {
-          const std::size_t base = static_cast<std::size_t>(a) * stride * n + b;
-          for (int i = 0; i < n; ++i) line[i] = z[base + static_cast<std::size_t>(i) * stride];
+      const std::size_t outer = total / (stride * n);
+      for (std::size_t a = 0; a < outer; ++a)
+        for (std::size_t b = 0; b < stride; ++b) {
+          const std::size_t base = a * stride * n + b;
+          for (int i = 0; i < n; ++i) line[i] = z[base + i * stride];
           if (inverse)
             engine.inv(out, line);
           else
             engine.fwd(out, line);
-          for (int i = 0; i < n; ++i) z[base + static_cast<std::size_t>(i) * stride] = out[i];
+          for (int i = 0; i < n; ++i) z[base + i * stride] = out[i];
         }
     }
-    stride *= n_[d];
+    stride *= nl[d];
   }
 }
 
@@ -258,50 +338,91 @@ void FourierBulkSolver::solve(Vec r, Vec x) const {
   if (!built_) throw std::logic_error("FourierBulkSolver: solve before a completed build");
   static const PetscLogEvent event = register_log_event("cellfsi fluid", "FluidFourierSolve");
   CELLFSI_PETSC(PetscLogEventBegin(event, 0, 0, 0, 0));
-  const std::size_t N = static_cast<std::size_t>(n_nodes_) * dof_;
-  std::vector<cplx> z(N);
+  const std::size_t slab_nodes = static_cast<std::size_t>(slab_[0]) * slab_[1] * slab_[2];
+  const int layers = j1_ - j0_;
+  if (!to_slab_) {
+    // The slab's unknowns (node-major in the slab's own lexicographic order) in r's global ordering.
+    std::vector<PetscInt> idx(slab_nodes * dof_);
+    for (std::size_t s = 0; s < slab_nodes; ++s) {
+      std::array<int, 3> i{static_cast<int>(s % slab_[0]), static_cast<int>((s / slab_[0]) % slab_[1]),
+                           static_cast<int>(s / (static_cast<std::size_t>(slab_[0]) * slab_[1]))};
+      if (across_ >= 0) i[across_] += j0_;
+      const int g = global_node((i[2] * n_[1] + i[1]) * n_[0] + i[0]);
+      for (int c = 0; c < dof_; ++c) idx[s * dof_ + c] = static_cast<PetscInt>(g) * dof_ + c;
+    }
+    IS is;
+    CELLFSI_PETSC(ISCreateGeneral(PETSC_COMM_SELF, static_cast<PetscInt>(idx.size()), idx.data(),
+                                  PETSC_COPY_VALUES, &is));
+    CELLFSI_PETSC(VecCreateSeq(PETSC_COMM_SELF, static_cast<PetscInt>(idx.size()), &slab_vec_));
+    const PetscErrorCode ierr = VecScatterCreate(r, is, slab_vec_, nullptr, &to_slab_);
+    ISDestroy(&is);
+    CELLFSI_PETSC(ierr);
+  }
+  // 1. Lines: the slab of r, transformed along the periodic directions.
+  CELLFSI_PETSC(VecScatterBegin(to_slab_, r, slab_vec_, INSERT_VALUES, SCATTER_FORWARD));
+  CELLFSI_PETSC(VecScatterEnd(to_slab_, r, slab_vec_, INSERT_VALUES, SCATTER_FORWARD));
+  std::vector<cplx> z(slab_nodes * dof_);
   {
-    const PetscScalar* ra = nullptr;
-    CELLFSI_PETSC(VecGetArrayRead(r, &ra));
-    for (std::size_t i = 0; i < N; ++i) z[i] = ra[i];
-    CELLFSI_PETSC(VecRestoreArrayRead(r, &ra));
+    const PetscScalar* a = nullptr;
+    CELLFSI_PETSC(VecGetArrayRead(slab_vec_, &a));
+    for (std::size_t i = 0; i < z.size(); ++i) z[i] = a[i];
+    CELLFSI_PETSC(VecRestoreArrayRead(slab_vec_, &a));
   }
-  fft(z, false);
+  fft(z, false, slab_);
+  // 2. To modes: rank q receives its slots' coefficients of this rank's layers.
+  const int s0 = first_slot(rank_), s1 = first_slot(rank_ + 1);
+  std::vector<cplx> send(static_cast<std::size_t>(n_slots_) * layers * dof_);
+  std::size_t k = 0;
+  for (int slot = 0; slot < n_slots_; ++slot)  // in rank order: the slots of rank q are contiguous
+    for (int jl = 0; jl < layers; ++jl)
+      for (int c = 0; c < dof_; ++c) send[k++] = z[slab_node(slot_mode_[slot], jl) * dof_ + c];
+  std::vector<cplx> b(static_cast<std::size_t>(s1 - s0) * m_);
+  std::vector<cplx> recv(b.size());
+  CELLFSI_PETSC(MPI_Alltoallv(send.data(), send_counts_.data(), send_offsets_.data(), MPI_DOUBLE, recv.data(),
+                              recv_counts_.data(), recv_offsets_.data(), MPI_DOUBLE, comm_));
+  k = 0;
+  for (int p = 0; p < size_; ++p)
+    for (int slot = s0; slot < s1; ++slot)
+      for (int jj = first_layer(p); jj < first_layer(p + 1); ++jj)
+        for (int c = 0; c < dof_; ++c)
+          b[static_cast<std::size_t>(slot - s0) * m_ + jj * dof_ + c] = recv[k++];
+  // 3. The banded solves of this rank's slots.
   const int ldab = 3 * kl_ + 1, one = 1;
-  std::vector<cplx> b(m_);
-  // Node index of (the periodic coordinates of a mode, across coordinate j).
-  auto node_of = [&](int mode, int jj) {
-    std::array<int, 3> i{};
-    for (int d = 0; d < 3; ++d)
-      if (periodic_[d]) {
-        i[d] = mode % n_[d];
-        mode /= n_[d];
-      }
-    if (across_ >= 0) i[across_] = jj;
-    return (static_cast<std::size_t>(i[2]) * n_[1] + i[1]) * n_[0] + i[0];
-  };
-  for (int mode = 0; mode < n_modes_; ++mode) {
-    const int slot = slot_[mode];
-    if (slot < 0) continue;  // solved with its mirror
-    for (int jj = 0; jj < n_across_; ++jj)
-      for (int c = 0; c < dof_; ++c) b[jj * dof_ + c] = z[node_of(mode, jj) * dof_ + c];
-    if (pinned_ && mode == 0) b[dof_ - 1] = 0.0;
+  for (int slot = s0; slot < s1; ++slot) {
+    cplx* bs = &b[static_cast<std::size_t>(slot - s0) * m_];
+    if (pinned_ && slot_mode_[slot] == 0) bs[dof_ - 1] = 0.0;
     int info = 0;
-    zgbtrs_("N", &m_, &kl_, &kl_, &one, &ab_[static_cast<std::size_t>(slot) * ldab * m_], &ldab,
-            &ipiv_[static_cast<std::size_t>(slot) * m_], b.data(), &m_, &info, 1);
-    // r is real: the coefficients of -k are the conjugates of those of k.
-    const int other = mirror(mode);
-    for (int jj = 0; jj < n_across_; ++jj)
+    zgbtrs_("N", &m_, &kl_, &kl_, &one, &ab_[static_cast<std::size_t>(slot - s0) * ldab * m_], &ldab,
+            &ipiv_[static_cast<std::size_t>(slot - s0) * m_], bs, &m_, &info, 1);
+  }
+  // 4. Back to lines (the reverse exchange), the mirrors' coefficients by conjugation (r is real).
+  k = 0;
+  for (int p = 0; p < size_; ++p)
+    for (int slot = s0; slot < s1; ++slot)
+      for (int jj = first_layer(p); jj < first_layer(p + 1); ++jj)
+        for (int c = 0; c < dof_; ++c)
+          recv[k++] = b[static_cast<std::size_t>(slot - s0) * m_ + jj * dof_ + c];
+  CELLFSI_PETSC(MPI_Alltoallv(recv.data(), recv_counts_.data(), recv_offsets_.data(), MPI_DOUBLE, send.data(),
+                              send_counts_.data(), send_offsets_.data(), MPI_DOUBLE, comm_));
+  k = 0;
+  for (int slot = 0; slot < n_slots_; ++slot) {
+    const int mode = slot_mode_[slot], other = mirror(mode);
+    for (int jl = 0; jl < layers; ++jl)
       for (int c = 0; c < dof_; ++c) {
-        z[node_of(mode, jj) * dof_ + c] = b[jj * dof_ + c];
-        if (other != mode) z[node_of(other, jj) * dof_ + c] = std::conj(b[jj * dof_ + c]);
+        const cplx v = send[k++];
+        z[slab_node(mode, jl) * dof_ + c] = v;
+        if (other != mode) z[slab_node(other, jl) * dof_ + c] = std::conj(v);
       }
   }
-  fft(z, true);
-  PetscScalar* xa = nullptr;
-  CELLFSI_PETSC(VecGetArray(x, &xa));
-  for (std::size_t i = 0; i < N; ++i) xa[i] = z[i].real();
-  CELLFSI_PETSC(VecRestoreArray(x, &xa));
+  fft(z, true, slab_);
+  {
+    PetscScalar* a = nullptr;
+    CELLFSI_PETSC(VecGetArray(slab_vec_, &a));
+    for (std::size_t i = 0; i < z.size(); ++i) a[i] = z[i].real();
+    CELLFSI_PETSC(VecRestoreArray(slab_vec_, &a));
+  }
+  CELLFSI_PETSC(VecScatterBegin(to_slab_, slab_vec_, x, INSERT_VALUES, SCATTER_REVERSE));
+  CELLFSI_PETSC(VecScatterEnd(to_slab_, slab_vec_, x, INSERT_VALUES, SCATTER_REVERSE));
   CELLFSI_PETSC(PetscLogEventEnd(event, 0, 0, 0, 0));
 }
 
@@ -313,63 +434,86 @@ std::vector<double> FourierBulkSolver::node_deviation(Mat J) const {
   std::vector<double> row_max(m_, 0.0);
   for (int r = 0; r < m_; ++r)
     for (std::size_t k = 0; k < per; ++k) row_max[r] = std::max(row_max[r], std::abs(stencil_[r * per + k]));
-  PetscInt rows = 0;
-  CELLFSI_PETSC(MatGetSize(J, &rows, nullptr));
+  PetscInt row_begin = 0, row_end = 0;
+  CELLFSI_PETSC(MatGetOwnershipRange(J, &row_begin, &row_end));
   std::array<int, 3> o{};
   int j = 0, dj = 0;
-  // A SeqBAIJ matrix with node blocks is read block by block from its arrays (MatGetRow would expand every
-  // block row: 1 s per call at 32^3 quadratic in 3D).
-  PetscBool baij = PETSC_FALSE;
-  CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(J), MATSEQBAIJ, &baij));
+  // A BAIJ matrix with node blocks is read block by block from its arrays (MatGetRow would expand every block
+  // row: 1 s per call at 32^3 quadratic in 3D); on several ranks from its diagonal and off-diagonal parts.
+  PetscBool seq = PETSC_FALSE, mpi = PETSC_FALSE;
+  CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(J), MATSEQBAIJ, &seq));
+  CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(J), MATMPIBAIJ, &mpi));
   PetscInt bs = 1;
   CELLFSI_PETSC(MatGetBlockSize(J, &bs));
-  if (baij && bs == dof_) {
-    PetscInt nb = 0;
-    const PetscInt *ia = nullptr, *ja = nullptr;
-    PetscBool done = PETSC_FALSE;
-    CELLFSI_PETSC(MatGetRowIJ(J, 0, PETSC_FALSE, PETSC_TRUE, &nb, &ia, &ja, &done));
-    if (!done) throw std::runtime_error("FourierBulkSolver: the matrix gives no block structure");
-    PetscScalar* a = nullptr;
-    CELLFSI_PETSC(MatSeqBAIJGetArray(J, &a));
+  if ((seq || mpi) && bs == dof_) {
+    Mat parts[2] = {J, nullptr};
+    const PetscInt* colmap = nullptr;  // off-diagonal part's block columns -> global block columns
+    PetscInt col_begin = 0, col_end = 0;
+    if (mpi) {
+      CELLFSI_PETSC(MatMPIBAIJGetSeqBAIJ(J, &parts[0], &parts[1], &colmap));
+      CELLFSI_PETSC(MatGetOwnershipRangeColumn(J, &col_begin, &col_end));
+    }
+    struct Blocks {
+      PetscInt nb = 0;
+      const PetscInt *ia = nullptr, *ja = nullptr;
+      PetscScalar* a = nullptr;
+    } blocks[2];
+    for (int q = 0; q < (mpi ? 2 : 1); ++q) {
+      PetscBool done = PETSC_FALSE;
+      CELLFSI_PETSC(MatGetRowIJ(parts[q], 0, PETSC_FALSE, PETSC_TRUE, &blocks[q].nb, &blocks[q].ia,
+                                &blocks[q].ja, &done));
+      if (!done) throw std::runtime_error("FourierBulkSolver: the matrix gives no block structure");
+      CELLFSI_PETSC(MatSeqBAIJGetArray(parts[q], &blocks[q].a));
+    }
     std::vector<double> d(dof_);
-    for (PetscInt node = 0; node < nb; ++node) {
+    for (PetscInt local = 0; local < blocks[0].nb; ++local) {
+      const int node = natural_node(static_cast<int>(row_begin / dof_ + local));
       std::fill(d.begin(), d.end(), 0.0);
-      for (PetscInt k = ia[node]; k < ia[node + 1]; ++k) {
-        const bool in = offset(static_cast<int>(node), static_cast<int>(ja[k]), o, j, dj);
-        const PetscScalar* blk = a + static_cast<std::size_t>(k) * dof_ * dof_;  // column-major
-        for (int c2 = 0; c2 < dof_; ++c2)
-          for (int c = 0; c < dof_; ++c) {
-            const double avg = in ? stencil_[stencil_index(j, c, o, dj, c2)] : 0.0;
-            d[c] = std::max(d[c], std::abs(blk[c2 * dof_ + c] - avg));
-          }
+      for (int q = 0; q < (mpi ? 2 : 1); ++q) {
+        const Blocks& m = blocks[q];
+        for (PetscInt k = m.ia[local]; k < m.ia[local + 1]; ++k) {
+          const PetscInt col_block = q == 0 ? col_begin / dof_ + m.ja[k] : colmap[m.ja[k]];
+          const bool in = offset(node, natural_node(static_cast<int>(col_block)), o, j, dj);
+          const PetscScalar* blk = m.a + static_cast<std::size_t>(k) * dof_ * dof_;  // column-major
+          for (int c2 = 0; c2 < dof_; ++c2)
+            for (int c = 0; c < dof_; ++c) {
+              const double avg = in ? stencil_[stencil_index(j, c, o, dj, c2)] : 0.0;
+              d[c] = std::max(d[c], std::abs(blk[c2 * dof_ + c] - avg));
+            }
+        }
       }
-      const int jr = across_coordinate(static_cast<int>(node));
+      const int jr = across_coordinate(node);
       for (int c = 0; c < dof_; ++c) {
         const double ref = row_max[jr * dof_ + c];
         dev[node] = std::max(dev[node], ref > 0 ? d[c] / ref : d[c]);
       }
     }
-    CELLFSI_PETSC(MatSeqBAIJRestoreArray(J, &a));
-    CELLFSI_PETSC(MatRestoreRowIJ(J, 0, PETSC_FALSE, PETSC_TRUE, &nb, &ia, &ja, &done));
-    return dev;
-  }
-  for (PetscInt row = 0; row < rows; ++row) {
-    PetscInt nc = 0;
-    const PetscInt* ci = nullptr;
-    const PetscScalar* v = nullptr;
-    CELLFSI_PETSC(MatGetRow(J, row, &nc, &ci, &v));
-    const int node = static_cast<int>(row / dof_), c = static_cast<int>(row % dof_);
-    double d = 0;
-    const int jr = across_coordinate(node);
-    for (PetscInt k = 0; k < nc; ++k) {
-      const bool in = offset(node, static_cast<int>(ci[k] / dof_), o, j, dj);
-      const double avg = in ? stencil_[stencil_index(j, c, o, dj, static_cast<int>(ci[k] % dof_))] : 0.0;
-      d = std::max(d, std::abs(v[k] - avg));
+    for (int q = 0; q < (mpi ? 2 : 1); ++q) {
+      PetscBool done = PETSC_FALSE;
+      CELLFSI_PETSC(MatSeqBAIJRestoreArray(parts[q], &blocks[q].a));
+      CELLFSI_PETSC(MatRestoreRowIJ(parts[q], 0, PETSC_FALSE, PETSC_TRUE, &blocks[q].nb, &blocks[q].ia,
+                                    &blocks[q].ja, &done));
     }
-    CELLFSI_PETSC(MatRestoreRow(J, row, &nc, &ci, &v));
-    const double ref = row_max[jr * dof_ + c];
-    dev[node] = std::max(dev[node], ref > 0 ? d / ref : d);
+  } else {
+    for (PetscInt row = row_begin; row < row_end; ++row) {
+      PetscInt nc = 0;
+      const PetscInt* ci = nullptr;
+      const PetscScalar* v = nullptr;
+      CELLFSI_PETSC(MatGetRow(J, row, &nc, &ci, &v));
+      const int node = natural_node(static_cast<int>(row / dof_)), c = static_cast<int>(row % dof_);
+      double d = 0;
+      const int jr = across_coordinate(node);
+      for (PetscInt k = 0; k < nc; ++k) {
+        const bool in = offset(node, natural_node(static_cast<int>(ci[k] / dof_)), o, j, dj);
+        const double avg = in ? stencil_[stencil_index(j, c, o, dj, static_cast<int>(ci[k] % dof_))] : 0.0;
+        d = std::max(d, std::abs(v[k] - avg));
+      }
+      CELLFSI_PETSC(MatRestoreRow(J, row, &nc, &ci, &v));
+      const double ref = row_max[jr * dof_ + c];
+      dev[node] = std::max(dev[node], ref > 0 ? d / ref : d);
+    }
   }
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, dev.data(), n_nodes_, MPI_DOUBLE, MPI_MAX, comm_));
   return dev;
 }
 

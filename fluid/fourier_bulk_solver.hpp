@@ -18,8 +18,15 @@
 // pinned, so the solver returns one solution of the consistent part, with an arbitrary pressure constant (the
 // fluid shifts its pressure to one gauge after each step).
 //
-// One rank; the matrix in the DMDA's natural ordering (node-major, direction 0 fastest, dof-minor), which
-// is its global ordering on one rank.
+// Ranks: the solver runs on the matrix's communicator. The DMDA's natural ordering (node-major, direction 0
+// fastest, dof-minor) defines the nodes; `natural` (the DMDA's AO, DMDAGetAO) maps it to the matrix's and the
+// vectors' global ordering (none: the two are the same, as on one rank). A solve moves the data twice between
+// two layouts: "lines", where a rank holds a slab of layers across (all periodic positions of its layers j,
+// so the FFTs are local), and "modes", where a rank holds every layer of its share of the wave vectors (so
+// the banded solves are local); each move is one MPI_Alltoallv of N / ranks values per rank. The set-up
+// factorises only a rank's own wave vectors. Measured on the capsule at 256 x 128 cubic
+// (docs/performance.md).
+#include <petscao.h>
 #include <petscmat.h>
 
 #include <array>
@@ -33,24 +40,38 @@ class FourierBulkSolver {
   /// n: control points per direction (1 for unused ones); periodic: per direction; dof: unknowns per node;
   /// degree: stencil half-width per direction (the spline degree). At most one direction may be non-periodic
   /// (with n > 1). Throws std::invalid_argument otherwise.
-  FourierBulkSolver(std::array<int, 3> n, std::array<bool, 3> periodic, std::array<int, 3> degree, int dof);
+  /// comm: the matrix's communicator; natural: the DMDA's AO (natural to global ordering; null: the same).
+  FourierBulkSolver(std::array<int, 3> n, std::array<bool, 3> periodic, std::array<int, 3> degree, int dof,
+                    MPI_Comm comm = PETSC_COMM_SELF, AO natural = nullptr);
+  ~FourierBulkSolver();
+  FourierBulkSolver(const FourierBulkSolver&) = delete;
+  FourierBulkSolver& operator=(const FourierBulkSolver&) = delete;
 
   /// Averages A over the periodic positions and factorises every wave vector's banded system. pin_pressure:
   /// the wave-0 system is singular in the last dof (the constant pressure) and gets its first such unknown
-  /// pinned.
+  /// pinned. Collective.
   void build(Mat A, bool pin_pressure);
-  /// x = A_avg^{-1} r (r, x: sequential vectors of the matrix's size).
+  /// x = A_avg^{-1} r (r, x: vectors of the matrix's layout). Collective.
   void solve(Vec r, Vec x) const;
 
   /// Largest |A_ij - A_avg,ij| / max_j |A_ij| over the rows of the last build() (unit rows, i.e. walls and a
   /// pinned pressure, skipped).
   double deviation() const { return deviation_; }
   /// Per node: the largest |J_ij - A_avg,ij| / max_j |A_avg,ij| of its rows (J: same size, natural
-  /// ordering; entries outside the stencil count in full).
+  /// ordering; entries outside the stencil count in full), by natural node index, on every rank.
+  /// Collective.
   std::vector<double> node_deviation(Mat J) const;
+  /// A node's index in the global (PETSc) ordering, and back.
+  int global_node(int natural_node) const {
+    return to_global_.empty() ? natural_node : to_global_[natural_node];
+  }
+  int natural_node(int global_node) const {
+    return to_natural_.empty() ? global_node : to_natural_[global_node];
+  }
+  int n_nodes() const { return n_nodes_; }
   /// Whether build() has completed (a failed build leaves it false).
   bool built() const { return built_; }
-  /// Bytes held by the factors.
+  /// Bytes held by this rank's factors.
   std::size_t factor_bytes() const { return ab_.size() * sizeof(std::complex<double>); }
   int n_modes() const { return n_modes_; }
 
@@ -61,7 +82,12 @@ class FourierBulkSolver {
   /// Node's coordinates and the stencil offset between two nodes (wrapped in the periodic directions);
   /// false if the column lies outside the stencil.
   bool offset(int row_node, int col_node, std::array<int, 3>& o, int& j, int& dj) const;
-  void fft(std::vector<cplx>& z, bool inverse) const;
+  /// FFTs along the periodic directions of a box of nl[d] nodes (the local slab).
+  void fft(std::vector<cplx>& z, bool inverse, const std::array<int, 3>& nl) const;
+  /// Index in the local slab of the node with the periodic coordinates of `mode` and local layer jl.
+  std::size_t slab_node(int mode, int jl) const;
+  int first_layer(int rank) const { return static_cast<int>(static_cast<long>(rank) * n_across_ / size_); }
+  int first_slot(int rank) const { return static_cast<int>(static_cast<long>(rank) * n_slots_ / size_); }
   int mirror(int mode) const;             // the mode of wave vector -k
   int across_coordinate(int node) const;  // the node's index across (0 without a wall direction)
 
@@ -71,9 +97,20 @@ class FourierBulkSolver {
   int n_across_ = 1, n_nodes_ = 1, n_modes_ = 1, m_ = 1, kl_ = 0;  // banded systems: size m, kl = ku
   std::array<int, 3> width_{};                                     // stencil extent per periodic direction
   std::vector<double> stencil_;                                    // averaged stencil
-  std::vector<int> slot_;  // per mode: its factors' index, or -1 (its mirror's conjugate)
-  std::vector<cplx> ab_;   // LAPACK band storage, per slot
+  std::vector<int> slot_;  // per mode: its slot (an index among the factorised modes), or -1 (its mirror)
+  std::vector<int> slot_mode_;  // per slot: its mode
+  int n_slots_ = 0;
+  std::vector<cplx> ab_;  // LAPACK band storage, per slot of this rank
   std::vector<int> ipiv_;
+  // Ranks.
+  MPI_Comm comm_ = PETSC_COMM_SELF;
+  int rank_ = 0, size_ = 1;
+  std::vector<int> to_global_, to_natural_;  // node maps (empty: the identity)
+  std::array<int, 3> slab_{};                // this rank's slab: n_ with its own layers across
+  int j0_ = 0, j1_ = 0;                      // its layers
+  std::vector<int> send_counts_, send_offsets_, recv_counts_, recv_offsets_;  // lines -> modes, in doubles
+  mutable VecScatter to_slab_ = nullptr;                                      // global vector -> slab
+  mutable Vec slab_vec_ = nullptr;
   double deviation_ = 0;
   bool pinned_ = false, built_ = false;
 };

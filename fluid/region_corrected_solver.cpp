@@ -8,13 +8,15 @@
 namespace cellfsi::fluid {
 
 RegionCorrectedSolver::RegionCorrectedSolver(std::array<int, 3> n, std::array<bool, 3> periodic,
-                                             std::array<int, 3> degree, int dof, std::string prefix)
-    : bulk_(n, periodic, degree, dof),
+                                             std::array<int, 3> degree, int dof, std::string prefix,
+                                             MPI_Comm comm, AO natural)
+    : bulk_(n, periodic, degree, dof, comm, natural),
       n_(n),
       degree_(degree),
       periodic_(periodic),
       dof_(dof),
-      prefix_(std::move(prefix)) {}
+      prefix_(std::move(prefix)),
+      comm_(comm) {}
 
 RegionCorrectedSolver::~RegionCorrectedSolver() {
   release_region();
@@ -74,26 +76,36 @@ void RegionCorrectedSolver::set_operator(Mat J) {
           grown[wx + n_[0] * (wy + n_[1] * wz)] = 1;
         }
   }
-  std::vector<PetscInt> region;
+  std::vector<int> region;
   for (int i = 0; i < n_nodes; ++i)
-    if (grown[i])
-      for (int c = 0; c < dof_; ++c) region.push_back(static_cast<PetscInt>(i) * dof_ + c);
-  if (region != region_ || (n_region_ > 0 && !JR_)) {
+    if (grown[i]) region.push_back(i);
+  if (region != region_ || (!region.empty() && !JR_)) {
     release_region();  // (also after a build that failed half-way)
-    n_region_ = static_cast<PetscInt>(region.size());
+    n_region_ = static_cast<PetscInt>(region.size()) * dof_;
     if (n_region_ == 0) return;
-    CELLFSI_PETSC(ISCreateGeneral(PETSC_COMM_SELF, n_region_, region.data(), PETSC_COPY_VALUES, &is_));
+    // This rank's rows of the region, in the global ordering.
+    PetscInt row_begin = 0, row_end = 0;
+    CELLFSI_PETSC(MatGetOwnershipRange(J, &row_begin, &row_end));
+    std::vector<PetscInt> rows;
+    for (int node : region) {
+      const PetscInt g = static_cast<PetscInt>(bulk_.global_node(node)) * dof_;
+      if (g >= row_begin && g < row_end)
+        for (int c = 0; c < dof_; ++c) rows.push_back(g + c);
+    }
+    std::sort(rows.begin(), rows.end());
+    const auto n_rows = static_cast<PetscInt>(rows.size());
+    CELLFSI_PETSC(ISCreateGeneral(comm_, n_rows, rows.data(), PETSC_COPY_VALUES, &is_));
     CELLFSI_PETSC(ISSetBlockSize(is_, dof_));
     CELLFSI_PETSC(MatCreateSubMatrix(J, is_, is_, MAT_INITIAL_MATRIX, &JR_));
-    PetscInt n_all = 0;
-    CELLFSI_PETSC(MatGetSize(J, &n_all, nullptr));
-    CELLFSI_PETSC(ISCreateStride(PETSC_COMM_SELF, n_all, 0, 1, &all_));
+    CELLFSI_PETSC(ISCreateStride(comm_, row_end - row_begin, row_begin, 1, &all_));
     CELLFSI_PETSC(ISSetBlockSize(all_, dof_));
     CELLFSI_PETSC(MatCreateSubMatrix(J, is_, all_, MAT_INITIAL_MATRIX, &J_rows_));
-    CELLFSI_PETSC(VecCreateSeq(PETSC_COMM_SELF, n_region_, &rR_));
+    CELLFSI_PETSC(VecCreate(comm_, &rR_));
+    CELLFSI_PETSC(VecSetSizes(rR_, n_rows, PETSC_DECIDE));
+    CELLFSI_PETSC(VecSetType(rR_, VECSTANDARD));
     CELLFSI_PETSC(VecDuplicate(rR_, &xR_));
     CELLFSI_PETSC(VecScatterCreate(res_, is_, rR_, nullptr, &to_region_));
-    CELLFSI_PETSC(KSPCreate(PETSC_COMM_SELF, &region_ksp_));
+    CELLFSI_PETSC(KSPCreate(comm_, &region_ksp_));
     CELLFSI_PETSC(KSPSetOptionsPrefix(region_ksp_, (prefix_ + "region_").c_str()));
     CELLFSI_PETSC(KSPSetType(region_ksp_, KSPPREONLY));
     PC pc;
@@ -103,8 +115,17 @@ void RegionCorrectedSolver::set_operator(Mat J) {
     CELLFSI_PETSC(KSPSetFromOptions(region_ksp_));
     region_ = std::move(region);
   } else if (n_region_ > 0) {
-    CELLFSI_PETSC(MatCreateSubMatrix(J, is_, is_, MAT_REUSE_MATRIX, &JR_));
-    CELLFSI_PETSC(MatCreateSubMatrix(J, is_, all_, MAT_REUSE_MATRIX, &J_rows_));
+    PetscMPIInt size = 1;
+    CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
+    // PETSc 3.18 refuses to refill an MPIBAIJ submatrix of the same index sets ("Previous matrix must be same
+    // size/layout as request", measured): on several ranks the submatrices are extracted anew.
+    const MatReuse reuse = size == 1 ? MAT_REUSE_MATRIX : MAT_INITIAL_MATRIX;
+    if (size > 1) {
+      MatDestroy(&JR_);
+      MatDestroy(&J_rows_);
+    }
+    CELLFSI_PETSC(MatCreateSubMatrix(J, is_, is_, reuse, &JR_));
+    CELLFSI_PETSC(MatCreateSubMatrix(J, is_, all_, reuse, &J_rows_));
   }
   if (n_region_ == 0) return;
   CELLFSI_PETSC(KSPSetOperators(region_ksp_, JR_, JR_));

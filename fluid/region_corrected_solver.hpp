@@ -23,7 +23,8 @@
 // solve; the region's LU 2.5 s. Growing the region by 1 layer: 22 k unknowns, 4 iterations, an LU of 4.7 s;
 // by 2 layers with two region solves per application: 31 k unknowns, 3 iterations, 9.3 s: slower overall.
 //
-// One rank (as the Fourier solver).
+// Ranks: as the Fourier solver (the matrix's communicator, the DMDA's AO for the natural node numbering);
+// every rank finds the same region, takes the rows it owns, and the region's LU is MUMPS on all ranks.
 #include <petscksp.h>
 
 #include <array>
@@ -39,8 +40,9 @@ namespace cellfsi::fluid {
 class RegionCorrectedSolver {
  public:
   /// n, periodic, degree, dof: the box mesh (see FourierBulkSolver).
+  /// comm, natural: see FourierBulkSolver.
   RegionCorrectedSolver(std::array<int, 3> n, std::array<bool, 3> periodic, std::array<int, 3> degree,
-                        int dof, std::string prefix);
+                        int dof, std::string prefix, MPI_Comm comm = PETSC_COMM_SELF, AO natural = nullptr);
   ~RegionCorrectedSolver();
   RegionCorrectedSolver(const RegionCorrectedSolver&) = delete;
   RegionCorrectedSolver& operator=(const RegionCorrectedSolver&) = delete;
@@ -58,9 +60,9 @@ class RegionCorrectedSolver {
     region_solves_ = n;
   }
   /// Sets J (kept by reference: J's entries must not change until the next call), finds the region and
-  /// factorises J on it.
+  /// factorises J on it. Collective.
   void set_operator(Mat J);
-  /// x = P^{-1} r (see above).
+  /// x = P^{-1} r (see above). Collective.
   void apply(Vec r, Vec x);
 
   const FourierBulkSolver& bulk() const { return bulk_; }
@@ -76,11 +78,12 @@ class RegionCorrectedSolver {
   std::array<bool, 3> periodic_{};
   int dof_ = 1;
   std::string prefix_;
+  MPI_Comm comm_ = PETSC_COMM_SELF;
   double threshold_ = 1e-3;
   int overlap_ = 0;
   int region_solves_ = 1;
   Mat J_ = nullptr;
-  std::vector<PetscInt> region_;  // sorted global indices
+  std::vector<int> region_;  // the region's nodes (natural numbering, sorted; the same on every rank)
   PetscInt n_region_ = 0;
   int n_differing_ = 0;
   IS is_ = nullptr;
