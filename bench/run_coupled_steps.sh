@@ -7,8 +7,8 @@
 #   CASES="128x64:band:1:20 128x64:fluid:1:20" bench/run_coupled_steps.sh
 #
 # A case is MESH:SOLVER:RANKS:STEPS, MESH = NXxNY (2D capsule) or NXxNYxNZ (3D compound capsule, quadratic:
-# the paper's Sec. 3.6 scene at a coarser mesh), SOLVER = band, fourier or fluid (-coupling_solver; band and
-# fourier run on one fluid rank, band falls back to fluid on more). Environment:
+# the paper's Sec. 3.6 scene at a coarser mesh), SOLVER = band, fourier or fluid (-coupling_solver; band runs
+# on one fluid rank and falls back to fluid on more; fourier runs on any number). Environment:
 # CASES, BUILD_DIR (default build), OUT (default docs/performance/coupled_steps.md), EXTRA (more options for
 # every run). Needs /usr/bin/time (Debian package time) and python3.
 set -uo pipefail
