@@ -269,11 +269,14 @@ void check_memory(SceneSettings& s) {
   for (int d = 0; d < s.dim; ++d) walls += !s.periodic[d];
   const bool fourier_box = s.domain != "narrowing" && walls <= 1;
   const CouplingSolver solver = s.coupling.solver;
-  const bool one = !s.bodies.empty() && size == 1;
-  const bool band =
-      one && (solver == CouplingSolver::band || (solver == CouplingSolver::automatic && !fourier_box));
-  const bool fourier =
-      one && (solver == CouplingSolver::fourier || (solver == CouplingSolver::automatic && fourier_box));
+  char type[16] = "baij";  // -fluid_mat_type_jacobian: both solvers need BAIJ (else the fluid's KSP is used)
+  CELLFSI_PETSC(
+      PetscOptionsGetString(nullptr, nullptr, "-fluid_mat_type_jacobian", type, sizeof type, nullptr));
+  const bool baij = std::string(type) == "baij", cells = !s.bodies.empty();
+  const bool band = cells && baij && size == 1 &&
+                    (solver == CouplingSolver::band || (solver == CouplingSolver::automatic && !fourier_box));
+  const bool fourier = cells && baij && fourier_box &&
+                       (solver == CouplingSolver::fourier || solver == CouplingSolver::automatic);
   // The Fourier solver's second copy of the Jacobian (-coupling_fourier_partial_jacobian) is dropped unless
   // asked for when memory is short: a run peaked at 5.2-5.4 Jacobians with it (3D, 32^3 and 64^3, the rest
   // mostly the region's LU) and 4.4 without; the paper's 64^3 with it was killed at 21.9 GB of 24.

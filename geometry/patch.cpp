@@ -311,6 +311,8 @@ bool translation_invariant(const Patch& patch, double tol) {
   const int n0 = patch.n_control(0), n1 = patch.n_control(1), n2 = patch.n_control(2);
   for (int d = 0; d < patch.param_dim(); ++d) {
     if (!patch.knots(d).periodic()) continue;
+    // (Breakpoints, not multiplicities, are compared: periodic knot vectors are only built uniform with
+    // simple knots, KnotVector::periodic_uniform.)
     const std::vector<double> b = patch.knots(d).breakpoints();
     for (std::size_t k = 2; k < b.size(); ++k)
       if (std::abs((b[k] - b[k - 1]) - (b[1] - b[0])) > tol * std::abs(b.back() - b.front())) return false;
