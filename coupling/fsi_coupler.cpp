@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include <petscdmda.h>
@@ -115,26 +116,7 @@ FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver
     solver_ =
         baij && fourier_inapplicable(fluid.patch()).empty() ? CouplingSolver::fourier : CouplingSolver::band;
   if (solver_ == CouplingSolver::band && (fluid_ranks > 1 || !seq_baij)) solver_ = CouplingSolver::fluid;
-  if (solver_ == CouplingSolver::band) {
-    if (opt_.band_margin < 0) throw std::invalid_argument("band margin must be >= 0");
-    CELLFSI_PETSC(MatDuplicate(fluid.jacobian_matrix(), MAT_DO_NOT_COPY_VALUES, &J_fixed_));
-    CELLFSI_PETSC(MatDuplicate(fluid.jacobian_matrix(), MAT_DO_NOT_COPY_VALUES, &J_band_));
-    CELLFSI_PETSC(KSPCreate(fluid.comm(), &band_ksp_));
-    CELLFSI_PETSC(KSPSetOptionsPrefix(band_ksp_, "coupling_band_"));
-    // The preconditioner is the exact inverse of the operator (both are K_fixed + K_band): one FGMRES
-    // iteration, which costs one application and one product (GMRES would apply the preconditioner twice).
-    // The fluid's linear tolerance, so that the two solvers' answers agree to it; a residual already at the
-    // coupling loop's round-off level (fluid_atol) is not solved for (see the Fourier solver below).
-    CELLFSI_PETSC(KSPSetType(band_ksp_, KSPFGMRES));
-    CELLFSI_PETSC(KSPSetTolerances(band_ksp_, 1e-5, opt_.fluid_atol, PETSC_DEFAULT, PETSC_DEFAULT));
-    PC pc;
-    CELLFSI_PETSC(KSPGetPC(band_ksp_, &pc));
-    CELLFSI_PETSC(PCSetType(pc, PCSHELL));
-    CELLFSI_PETSC(PCShellSetContext(pc, &band_));
-    CELLFSI_PETSC(PCShellSetApply(pc, shell_apply<fluid::BandSchurSolver, &fluid::BandSchurSolver::solve>));
-    CELLFSI_PETSC(PCShellSetName(pc, "cellfsi band Schur complement (fluid/band_schur.hpp)"));
-    CELLFSI_PETSC(KSPSetFromOptions(band_ksp_));
-  }
+  if (solver_ == CouplingSolver::band) setup_band();
   if (solver_ == CouplingSolver::fourier) {
     const geometry::Patch& patch = fluid.patch();
     if (!baij)
@@ -178,6 +160,27 @@ FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver
     CELLFSI_PETSC(PCShellSetName(pc, "cellfsi Fourier bulk + region LU (fluid/region_corrected_solver.hpp)"));
     CELLFSI_PETSC(KSPSetFromOptions(fourier_ksp_));
   }
+}
+
+void FsiCoupler::setup_band() {
+  if (opt_.band_margin < 0) throw std::invalid_argument("band margin must be >= 0");
+  CELLFSI_PETSC(MatDuplicate(fluid_.jacobian_matrix(), MAT_DO_NOT_COPY_VALUES, &J_fixed_));
+  CELLFSI_PETSC(MatDuplicate(fluid_.jacobian_matrix(), MAT_DO_NOT_COPY_VALUES, &J_band_));
+  CELLFSI_PETSC(KSPCreate(fluid_.comm(), &band_ksp_));
+  CELLFSI_PETSC(KSPSetOptionsPrefix(band_ksp_, "coupling_band_"));
+  // The preconditioner is the exact inverse of the operator (both are K_fixed + K_band): one FGMRES
+  // iteration, which costs one application and one product (GMRES would apply the preconditioner twice).
+  // The fluid's linear tolerance, so that the two solvers' answers agree to it; a residual already at the
+  // coupling loop's round-off level (fluid_atol) is not solved for (see the Fourier solver's set-up).
+  CELLFSI_PETSC(KSPSetType(band_ksp_, KSPFGMRES));
+  CELLFSI_PETSC(KSPSetTolerances(band_ksp_, 1e-5, opt_.fluid_atol, PETSC_DEFAULT, PETSC_DEFAULT));
+  PC pc;
+  CELLFSI_PETSC(KSPGetPC(band_ksp_, &pc));
+  CELLFSI_PETSC(PCSetType(pc, PCSHELL));
+  CELLFSI_PETSC(PCShellSetContext(pc, &band_));
+  CELLFSI_PETSC(PCShellSetApply(pc, shell_apply<fluid::BandSchurSolver, &fluid::BandSchurSolver::solve>));
+  CELLFSI_PETSC(PCShellSetName(pc, "cellfsi band Schur complement (fluid/band_schur.hpp)"));
+  CELLFSI_PETSC(KSPSetFromOptions(band_ksp_));
 }
 
 FsiCoupler::~FsiCoupler() {
@@ -308,12 +311,32 @@ int FsiCoupler::solve_fourier(CouplerStats& st, bool first_iteration) {
     fourier_->set_bulk(J, true);
     ++st.factorizations;
     const double dev = fourier_->bulk().deviation();
-    if (dev > 1e-2)
-      throw std::invalid_argument(
-          "-coupling_solver fourier: the fluid Jacobian away from the cells differs by " +
-          std::to_string(dev) +
-          " of a row's largest entry between periodic positions (the mesh or the flow is not uniform along "
-          "the periodic directions); use -coupling_solver band or fluid");
+    if (dev > opt_.fourier_uniformity) {
+      char amount[32];
+      std::snprintf(amount, sizeof amount, "%.2e", dev);
+      const std::string why = std::string("the fluid Jacobian away from the cells differs by ") + amount +
+                              " of a row's largest entry between periodic positions (the mesh or the flow is "
+                              "not uniform along the periodic directions)";
+      if (opt_.solver == CouplingSolver::fourier)
+        throw std::invalid_argument("-coupling_solver fourier: " + why +
+                                    "; use -coupling_solver band or fluid");
+      // Chosen by auto: the band solver where it runs (one fluid rank, SeqBAIJ), else the fluid's KSP.
+      fourier_.reset();
+      KSPDestroy(&fourier_ksp_);
+      MatDestroy(&J_fixed_);
+      region_.clear();
+      int ranks = 1;
+      MPI_Comm_size(fluid_.comm(), &ranks);
+      PetscBool seq_baij = PETSC_FALSE;
+      CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(J), MATSEQBAIJ, &seq_baij));
+      solver_ = ranks == 1 && seq_baij ? CouplingSolver::band : CouplingSolver::fluid;
+      if (solver_ == CouplingSolver::band) setup_band();
+      band_marking_changed_ = marking_changed_ = true;
+      CELLFSI_PETSC(PetscPrintf(fluid_.comm(),
+                                "cellfsi: note: %s; the coupling loop uses -coupling_solver %s\n",
+                                why.c_str(), solver_ == CouplingSolver::band ? "band" : "fluid"));
+      return solver_ == CouplingSolver::band ? solve_band(st, first_iteration) : solve_fluid(st);
+    }
     CELLFSI_PETSC(PetscPrintf(fluid_.comm(),
                               "cellfsi: Fourier bulk solver: %d wave vectors, %.1f MB of banded factors, "
                               "operator uniform to %.2e\n",

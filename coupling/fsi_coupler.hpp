@@ -86,6 +86,10 @@ struct CouplerOptions {
   // Re-assemble only the elements around the cells, the rest kept in a second copy of the Jacobian (false:
   // the whole Jacobian at every refresh, one copy less: for meshes whose memory is tight).
   bool fourier_partial_jacobian = true;
+  // The bulk operator's largest relative deviation between periodic positions above which the Fourier solver
+  // does not run (the flow or mesh is not uniform along x): `auto` then takes the band solver (or the fluid's
+  // KSP on several ranks), `fourier` is refused.
+  double fourier_uniformity = 1e-2;
 };
 
 /// Whether -coupling_solver fourier can run on this patch: at most one non-periodic direction, and the patch
@@ -128,6 +132,7 @@ class FsiCoupler {
   void update_immersed(bool mark);  // mark: also rebuild s^h from the interface points
   /// Band solver: the fallback to the fluid's solver, freeing the band solver's matrices.
   void use_fluid_solver();
+  void setup_band();  // the band solver's matrices and KSP
   /// Band solver: elements with s^h != 1 or an immersed point.
   std::vector<char> active_elements() const;
   /// Band solver: (re)builds the region and the factorisation of the fixed part if there is none yet, the
