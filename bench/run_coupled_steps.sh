@@ -17,7 +17,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 BUILD_DIR="${BUILD_DIR:-build}"
 OUT="${OUT:-docs/performance/coupled_steps.md}"
-CASES="${CASES:-128x64:band:1:20 128x64:fourier:1:20 128x64:fluid:2:20 256x128:band:1:40 256x128:fourier:1:40 384x192:band:1:20 384x192:fourier:1:20 16x16x16:fluid:1:3 16x16x16:fourier:1:3 32x32x32:fourier:1:3}"
+CASES="${CASES:-128x64:band:1:20 128x64:fourier:1:20 128x64:fourier:2:20 128x64:fluid:2:20 256x128:band:1:40 256x128:fourier:1:40 256x128:fourier:2:40 384x192:band:1:20 384x192:fourier:1:20 16x16x16:fluid:1:3 16x16x16:fourier:1:3 32x32x32:fourier:1:3 32x32x32:fourier:2:3}"
 EXTRA="${EXTRA:-}"
 BIN="$BUILD_DIR/apps/cellfsi"
 [[ -x "$BIN" ]] || { echo "run_coupled_steps.sh: $BIN not found; build first (scripts/build.sh)" >&2; exit 1; }
