@@ -136,6 +136,7 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
   vtkDoubleArray* pre = array("pressure", 1);
   vtkDoubleArray* vor = array("vorticity", D == 2 ? 1 : 3);
   vtkDoubleArray* shv = array("s_h", 1);
+  vtkDoubleArray* dvg = array("divergence", 1);  // of the velocity: the discrete incompressibility error
   vtkDoubleArray* dis = undisturbed_ ? array("velocity_disturbance", 3) : nullptr;
   BasisValues bv;
   MapValues mv;
@@ -165,6 +166,7 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
         vel->SetTuple3(id, l.v[0], l.v[1], l.v[2]);
         pre->SetValue(id, rho * l.scalar);
         shv->SetValue(id, s_h);
+        dvg->SetValue(id, l.grad_v.trace());
         if (dis) {
           const geometry::Vec3 dv = l.v - undisturbed_(l.x);
           dis->SetTuple3(id, dv[0], dv[1], dv[2]);
