@@ -10,18 +10,24 @@ against the plasma's parabola.
 Options: --mesh NXxNY  --degree P (3)  --dt S  --final-time S  --average-from S  --counts N,N,...  --jobs N (1)
   --runs DIR (out/rheology)  --build DIR (build)  --table FILE (docs/validation/channel_rheology.md)
   --figure FILE (docs/figures/channel_rheology.png)  --report (no runs)  --extra "OPTIONS" (to every run)
-A run whose summary.json says "completed" is not run again; exit code 3 when a run did not complete. The figure
-needs python3-matplotlib (scripts/install-deps.sh; Debian's /usr/bin/python3)."""
+  --results FILE (docs/validation/data/channel_rheology_<mesh>_p<degree>.json)
+A run whose summary.json says "completed" is not run again; exit code 3 when a run did not complete. Each completed
+run's metrics and time-averaged profile are also kept in the results file (by cell count, with the date and commit
+they were recorded at), so that the table and figure can be regenerated when the run folders are gone (they are
+not in the repository) and counts run in different sessions come together. The figure needs python3-matplotlib
+(scripts/install-deps.sh; Debian's /usr/bin/python3)."""
 import argparse
 import concurrent.futures
 import csv
+import datetime
 import json
 import os
 import shlex
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_common import ROOT, fmt, provenance, pyplot, run_one, save_figure, write_table  # noqa: E402
+from bench_common import (ROOT, commit_of_head, fmt, provenance, pyplot, run_one, save_figure,  # noqa: E402
+                          write_table)
 
 # The channel of scenes/rbc_channel.yaml (CGS): the plasma's parabola u(y) = f / (2 mu) y (H - y).
 HEIGHT, FORCE, VISCOSITY = 0.001, 1666.66, 0.012
@@ -36,36 +42,60 @@ def runs_of(args):
             for n in (int(c) for c in args.counts.split(","))]
 
 
+KEPT = ("status", "steps", "wall_time_s", "H_t", "H_d", "zeta", "eta", "h_cf", "v_cells", "v_mean")
+
+
+def load_results(path):
+    if not os.path.isfile(path):
+        return {}
+    with open(path) as f:
+        return json.load(f)
+
+
 def collect(args):
-    rows = []
+    """The rows of the requested counts: from a run's folder when it is there (and then kept in the results file),
+    otherwise from the results file."""
+    results = load_results(args.results)
     for tag, _, _ in runs_of(args):
         path = os.path.join(args.runs, tag, "summary.json")
         if not os.path.isfile(path):
             continue
         with open(path) as f:
             s = json.load(f)
-        s["_tag"], s["_count"] = tag, int(tag.rsplit("_", 1)[1])
-        s["_max_r_A"] = max((abs(v) for k, v in s.items() if k.endswith("_max_abs_r_A") and v is not None),
-                            default=None)
+        row = {k: s.get(k) for k in KEPT}
+        row["max_abs_r_A"] = max((abs(v) for k, v in s.items() if k.endswith("_max_abs_r_A") and v is not None),
+                                 default=None)
         prof = os.path.join(args.runs, tag, "profile_mean.csv")
         if os.path.isfile(prof):
             with open(prof) as f:
-                s["_profile"] = [(float(r["y"]), float(r["vx"])) for r in csv.DictReader(f)]
-        rows.append(s)
-    return sorted(rows, key=lambda s: s["_count"])
+                row["profile"] = [(float(r["y"]), float(r["vx"])) for r in csv.DictReader(f)]
+        row["recorded"] = f"{datetime.datetime.utcnow():%Y-%m-%d} git {commit_of_head()} from {path}"
+        count = tag.rsplit("_", 1)[1]
+        if row["status"] == "completed" or count not in results:
+            results[count] = row
+    if results:
+        os.makedirs(os.path.dirname(args.results) or ".", exist_ok=True)
+        with open(args.results, "w") as f:
+            json.dump(dict(sorted(results.items(), key=lambda kv: int(kv[0]))), f, indent=1)
+    rows = []
+    for n in (int(c) for c in args.counts.split(",")):
+        if str(n) in results:
+            rows.append(dict(results[str(n)], _count=n))
+    return rows
 
 
 def write_rheology_table(args, rows, command):
-    lines = [provenance(args, command), "",
+    lines = [provenance(args, command) + f" Every row is kept in `{os.path.relpath(args.results, ROOT)}`; "
+             "'recorded' says when and from where.", "",
              "| cells | H_t | H_d | zeta = v_m / v_RBCs | eta = v_P / v_m | h_cf um | v_RBCs cm/s | v_m cm/s |"
-             " max abs r_A | steps | wall s | status |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             " max abs r_A | steps | wall s | status | recorded |", "|" + "---|" * 13]
     for s in rows:
         h = s.get("h_cf")
         lines.append(f"| {s['_count']} | {fmt(s.get('H_t'), '.4f')} | {fmt(s.get('H_d'), '.4f')} |"
                      f" {fmt(s.get('zeta'), '.4f')} | {fmt(s.get('eta'), '.4f')} |"
                      f" {fmt(h * 1e4 if h is not None else None, '.3f')} | {fmt(s.get('v_cells'), '.5f')} |"
-                     f" {fmt(s.get('v_mean'), '.5f')} | {fmt(s.get('_max_r_A'), '.2e')} | {s.get('steps')} |"
-                     f" {fmt(s.get('wall_time_s'), '.0f')} | {s.get('status')} |")
+                     f" {fmt(s.get('v_mean'), '.5f')} | {fmt(s.get('max_abs_r_A'), '.2e')} | {s.get('steps')} |"
+                     f" {fmt(s.get('wall_time_s'), '.0f')} | {s.get('status')} | {s.get('recorded', '-')} |")
     lines.append("")
     lines.append(f"Plasma alone: v_P = f H^2 / (12 mu) = {FORCE * HEIGHT ** 2 / (12 * VISCOSITY):.5f} cm/s "
                  "(analytic; the code reproduces it to 2.2e-7, docs/performance.md).")
@@ -93,8 +123,8 @@ def write_figure(args, rows):
     ys = [HEIGHT * i / 64 for i in range(65)]
     ax.plot([y * 1e4 for y in ys], [FORCE / (2 * VISCOSITY) * y * (HEIGHT - y) for y in ys], "k--", label="plasma")
     for s in done:
-        if "_profile" in s:
-            p = s["_profile"]
+        if s.get("profile"):
+            p = s["profile"]
             ax.plot([y * 1e4 for y, _ in p], [v for _, v in p], label=f"H_t = {s['H_t']:.3f}")
     ax.set_xlabel("y (um)")
     ax.set_ylabel("time-averaged vx (cm/s)")
@@ -119,8 +149,12 @@ def main():
     p.add_argument("--table", default=os.path.join(ROOT, "docs", "validation", "channel_rheology.md"))
     p.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "channel_rheology.png"))
     p.add_argument("--extra", default="")
+    p.add_argument("--results", default=None)
     p.add_argument("--report", action="store_true")
     args = p.parse_args()
+    if args.results is None:
+        args.results = os.path.join(ROOT, "docs", "validation", "data",
+                                    f"channel_rheology_{args.mesh}_p{args.degree}.json")
     if "x" not in args.mesh:
         p.error(f"--mesh {args.mesh} is invalid; valid: NXxNY, e.g. 96x32")
     exe = os.path.join(args.build, "apps", "cellfsi")
