@@ -1,54 +1,122 @@
 #!/usr/bin/env python3
-"""A CTC through the channel narrowing (paper Sec. 4.4, Fig. 10): the flow rate through the throat, the cell's
-and the nucleus's centroid x and shape anisotropy against time, with the throat marked, from a run's
-metrics.csv and summary.json.
+"""A CTC through the channel narrowing (paper Sec. 4.4, Fig. 10): the flow rate through the throat and the cell's
+and the nucleus's centroid x against time, with the throat's entry and exit marked, from one or several runs'
+metrics.csv and summary.json (several runs, e.g. two meshes, are drawn over each other), and a markdown table of
+the passage metrics with one column per run.
 
-    python3 bench/plot_ctc_passage.py out/ctc/192x64 [--figure docs/figures/ctc_passage.png]
+    python3 bench/plot_ctc_passage.py out/ctc/384x128 [out/ctc/192x64 ...] [--figure docs/figures/ctc_passage.png]
+        [--table FILE]
 
-The run: cellfsi scenes/ctc_narrowing.yaml ... -output_dir DIR (docs/validation.md gives the one used). Needs
-python3-matplotlib (scripts/install-deps.sh; Debian's /usr/bin/python3)."""
+The runs: cellfsi scenes/ctc_narrowing.yaml ... -output_dir DIR (docs/validation.md gives the ones used). The
+developed flow rate is the first sample after 5 viscous times of the channel (H^2 / nu = 1.7e-3 s: the start-up
+overshoot is over). Needs python3-matplotlib (scripts/install-deps.sh; Debian's /usr/bin/python3)."""
 import argparse
 import csv
 import json
 import os
+import shlex
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_common import ROOT, pyplot, save_figure  # noqa: E402
+from bench_common import ROOT, commit_of_head, fmt, pyplot, save_figure, write_table  # noqa: E402
+
+DEVELOPED = 1.7e-3  # s: 5 viscous times H^2 / nu of the scene's channel
+
+
+def load(run):
+    with open(os.path.join(run, "metrics.csv")) as f:
+        rows = list(csv.DictReader(f))
+    with open(os.path.join(run, "summary.json")) as f:
+        summary = json.load(f)
+    if not rows:
+        sys.exit(f"plot_ctc_passage: {run}/metrics.csv has no steps")
+    return rows, summary
+
+
+def passage_rows(run, rows, s):
+    """(quantity, value) pairs of one run's passage."""
+    t = [float(r["time"]) for r in rows]
+    q = [float(r["flow_rate"]) for r in rows]
+    start = next((i for i, ti in enumerate(t) if ti >= DEVELOPED), 0)
+    q0 = q[start]
+    i_min = min(range(start, len(q)), key=q.__getitem__)
+    out = [("steps, final time, wall", f"{s.get('steps')}, {t[-1]:g} s, {fmt(s.get('wall_time_s'), '.0f')} s"
+            f" ({s.get('ranks')} rank(s), {s.get('status')})")]
+    for body in ("membrane", "nucleus"):
+        t_in, t_out = s.get(body + "_throat_entry_time"), s.get(body + "_throat_exit_time")
+        transit = s.get(body + "_throat_transit_time")
+        out.append((f"{body}: throat entry / exit / transit (s)",
+                    f"{fmt(t_in, '.4f')} / {fmt(t_out, '.4f')} / {fmt(transit, '.4f')}"))
+    out.append(("flow rate developed (1e-6 cm^2/s, at t)", f"{q0 * 1e6:.2f} at {t[start]:.4f} s"))
+    out.append(("flow rate minimum (change against developed)",
+                f"{q[i_min] * 1e6:.2f} at {t[i_min]:.4f} s ({(q[i_min] / q0 - 1) * 100:+.1f} %)"))
+    out.append(("flow rate at the end", f"{q[-1] * 1e6:.2f} at {t[-1]:.4f} s ({(q[-1] / q0 - 1) * 100:+.1f} %)"))
+    for body in ("membrane", "nucleus"):
+        x = s.get(body + "_max_anisotropy_x")
+        out.append((f"{body}: largest anisotropy (at t, centroid x)",
+                    f"{fmt(s.get(body + '_max_anisotropy'), '.3f')} at "
+                    f"{fmt(s.get(body + '_max_anisotropy_time'), '.4f')} s, "
+                    f"{fmt(x * 1e4 if x is not None else None, '.1f')} um"))
+    for body in ("membrane", "nucleus"):
+        y = max(abs(float(r[body + "_centroid_y"]) - float(rows[0][body + "_centroid_y"])) for r in rows)
+        out.append((f"{body}: largest lateral drift of the centroid (cm)", f"{y:.1e}"))
+    for body in ("membrane", "nucleus"):
+        out.append((f"{body}: r_A at the end / largest abs r_A / largest abs r_P",
+                    f"{fmt(s.get(body + '_r_A'), '.1e')} / {fmt(s.get(body + '_max_abs_r_A'), '.1e')} / "
+                    f"{fmt(s.get(body + '_max_abs_r_P'), '.2e')}"))
+    return out
 
 
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("run")
+    p.add_argument("runs", nargs="+")
     p.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "ctc_passage.png"))
+    p.add_argument("--table", default=None)
     args = p.parse_args()
+    for run in args.runs:
+        for name in ("metrics.csv", "summary.json"):
+            if not os.path.isfile(os.path.join(run, name)):
+                sys.exit(f"plot_ctc_passage: {run} has no {name}: give the -output_dir of a ctc_narrowing run")
+    data = [(run, *load(run)) for run in args.runs]
+    if args.table:
+        table = [[q for q, _ in passage_rows(*data[0])]] + [[v for _, v in passage_rows(*d)] for d in data]
+        command = "bench/plot_ctc_passage.py " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+        lines = [f"Generated by `{command}`, git {commit_of_head()}; each run's command is in its summary.json.",
+                 "", "| quantity | " + " | ".join(os.path.basename(os.path.normpath(r)) for r in args.runs) + " |",
+                 "|---|" + "---|" * len(args.runs)]
+        lines += ["| " + " | ".join(col[i] for col in table) + " |" for i in range(len(table[0]))]
+        write_table(args.table, lines)
     plt = pyplot("plot_ctc_passage")
     if plt is None:
         sys.exit(1)
-    with open(os.path.join(args.run, "metrics.csv")) as f:
-        rows = list(csv.DictReader(f))
-    with open(os.path.join(args.run, "summary.json")) as f:
-        s = json.load(f)
-    t = [float(r["time"]) for r in rows]
     fig, axes = plt.subplots(1, 2, figsize=(11, 3.8))
-    axes[0].plot(t, [float(r["flow_rate"]) * 1e6 for r in rows], color="k")
+    styles = ["-", "--", ":", "-."]
+    for k, (run, rows, s) in enumerate(data):
+        ls, name = styles[k % len(styles)], os.path.basename(os.path.normpath(run))
+        t = [float(r["time"]) for r in rows]
+        axes[0].plot(t, [float(r["flow_rate"]) * 1e6 for r in rows], color="k", ls=ls, label=name)
+        for body, colour in (("membrane", "tab:blue"), ("nucleus", "tab:red")):
+            axes[1].plot(t, [float(r[body + "_centroid_x"]) * 1e4 for r in rows], color=colour, ls=ls,
+                         label=f"{body} x, {name}")
+            if k == 0:
+                for tt in (s.get(body + "_throat_entry_time"), s.get(body + "_throat_exit_time")):
+                    if tt is not None:
+                        for ax in axes:
+                            ax.axvline(tt, color=colour, lw=0.6, ls="--")
     axes[0].set_ylabel("flow rate through the throat (1e-6 cm^2/s)")
-    for body, colour in (("membrane", "tab:blue"), ("nucleus", "tab:red")):
-        axes[1].plot(t, [float(r[body + "_centroid_x"]) * 1e4 for r in rows], color=colour, label=f"{body} x")
-        t_in, t_out = s.get(body + "_throat_entry_time"), s.get(body + "_throat_exit_time")
-        for ax in axes:
-            for tt in (t_in, t_out):
-                if tt is not None:
-                    ax.axvline(tt, color=colour, lw=0.6, ls="--")
+    developed = [float(r["flow_rate"]) * 1e6 for _, rows, _ in data for r in rows if float(r["time"]) >= DEVELOPED]
+    if developed:  # the start-up overshoot of the first steps off the scale
+        axes[0].set_ylim(min(developed) * 0.95, max(developed) * 1.05)
     axes[1].set_ylabel("centroid x (um); dashed: throat entry and exit")
-    axes[1].legend(fontsize=8)
     for ax in axes:
         ax.set_xlabel("t (s)")
         ax.grid(True, lw=0.3)
-    fig.suptitle(f"CTC through the narrowing: flow rate min {s.get('flow_rate_min', 0) * 1e6:.2f} at "
-                 f"t = {s.get('flow_rate_min_time', 0):.3f} s; nucleus most deformed (anisotropy "
-                 f"{s.get('nucleus_max_anisotropy', 0):.2f}) at x = {s.get('nucleus_max_anisotropy_x', 0) * 1e4:.1f} um",
-                 fontsize=9)
+        ax.legend(fontsize=7)
+    _, _, s = data[0]
+    x = s.get("nucleus_max_anisotropy_x")
+    fig.suptitle(f"CTC through the narrowing ({os.path.basename(os.path.normpath(data[0][0]))}): nucleus most "
+                 f"deformed (anisotropy {fmt(s.get('nucleus_max_anisotropy'), '.2f')}) at x = "
+                 f"{fmt(x * 1e4 if x is not None else None, '.1f')} um", fontsize=9)
     save_figure(fig, args.figure, "plot_ctc_passage")
 
 
