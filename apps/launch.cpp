@@ -263,8 +263,8 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       linear += st.linear_iterations;
       factorizations += st.factorizations;
       if (k == resume.step + 1)
-        reject_unknown_options(scene.coupler() && scene.coupler()->solver() == coupling::CouplingSolver::fluid
-                                   ? OptionCheck::after_first_step_fluid
+        reject_unknown_options(scene.coupler() && scene.coupler()->fell_back()
+                                   ? OptionCheck::after_fallback
                                    : OptionCheck::after_first_step);
       if (!st.converged) {
         const std::string why = iteration + " diverged (" + st.reason + ") in step " + std::to_string(k) +

@@ -19,9 +19,11 @@ namespace {
 /// the first solve.
 bool maybe_unread(const std::string& name, OptionCheck when) {
   if (when == OptionCheck::after_first_step) return false;
-  // The band solver fell back to the fluid's in the first step (its region held most of the domain, which
-  // the run reported): its factorisation options were never read.
-  if (when == OptionCheck::after_first_step_fluid) return name.rfind("coupling_band_", 0) == 0;
+  // The first step replaced the solver (reported on the console): the band solver's region held most of
+  // the domain, or the Fourier solver chosen by auto found the operator not uniform. The replaced solver's
+  // options were checked against it before the first step and never read.
+  if (when == OptionCheck::after_fallback)
+    return name.rfind("coupling_band_", 0) == 0 || name.rfind("coupling_fourier_", 0) == 0;
   if (when == OptionCheck::before_coupling &&
       (name.rfind("coupling_band_", 0) == 0 || name.rfind("coupling_fourier_", 0) == 0))
     return true;

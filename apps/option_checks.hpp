@@ -10,8 +10,9 @@
 namespace cellfsi::app {
 
 /// When the unknown-option check runs: before the coupling loop exists, once it is set up, after the first
-/// step.
-enum class OptionCheck { before_coupling, before_first_step, after_first_step, after_first_step_fluid };
+/// step (after_fallback: after a first step in which the coupling loop replaced its solver, see
+/// coupling::FsiCoupler::fell_back(), so that the options of the one it replaced were never read).
+enum class OptionCheck { before_coupling, before_first_step, after_first_step, after_fallback };
 
 /// Fails on options nobody read (a misspelt key must not be silently ignored), skipping those PETSc may read
 /// later than `when`.

@@ -195,6 +195,7 @@ FsiCoupler::~FsiCoupler() {
 
 void FsiCoupler::use_fluid_solver() {
   solver_ = CouplingSolver::fluid;
+  fell_back_ = true;
   band_.release();
   MatDestroy(&J_fixed_);
   MatDestroy(&J_band_);
@@ -311,7 +312,7 @@ int FsiCoupler::solve_fourier(CouplerStats& st, bool first_iteration) {
     fourier_->set_bulk(J, true);
     ++st.factorizations;
     const double dev = fourier_->bulk().deviation();
-    if (dev > opt_.fourier_uniformity) {
+    if (!(dev <= opt_.fourier_uniformity)) {  // NaN (a broken operator) counts as not uniform
       char amount[32];
       std::snprintf(amount, sizeof amount, "%.2e", dev);
       const std::string why = std::string("the fluid Jacobian away from the cells differs by ") + amount +
@@ -321,12 +322,14 @@ int FsiCoupler::solve_fourier(CouplerStats& st, bool first_iteration) {
         throw std::invalid_argument("-coupling_solver fourier: " + why +
                                     "; use -coupling_solver band or fluid");
       // Chosen by auto: the band solver where it runs (one fluid rank, SeqBAIJ), else the fluid's KSP.
+      // The KSP first: its shell preconditioner points into fourier_.
+      CELLFSI_PETSC(KSPDestroy(&fourier_ksp_));
       fourier_.reset();
-      KSPDestroy(&fourier_ksp_);
-      MatDestroy(&J_fixed_);
+      CELLFSI_PETSC(MatDestroy(&J_fixed_));
       region_.clear();
+      fell_back_ = true;
       int ranks = 1;
-      MPI_Comm_size(fluid_.comm(), &ranks);
+      CELLFSI_PETSC(MPI_Comm_size(fluid_.comm(), &ranks));
       PetscBool seq_baij = PETSC_FALSE;
       CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(J), MATSEQBAIJ, &seq_baij));
       solver_ = ranks == 1 && seq_baij ? CouplingSolver::band : CouplingSolver::fluid;
@@ -337,10 +340,12 @@ int FsiCoupler::solve_fourier(CouplerStats& st, bool first_iteration) {
                                 why.c_str(), solver_ == CouplingSolver::band ? "band" : "fluid"));
       return solver_ == CouplingSolver::band ? solve_band(st, first_iteration) : solve_fluid(st);
     }
+    double factor_mb = fourier_->bulk().factor_bytes() / 1048576.0;  // this rank's; summed over the ranks
+    CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &factor_mb, 1, MPI_DOUBLE, MPI_SUM, fluid_.comm()));
     CELLFSI_PETSC(PetscPrintf(fluid_.comm(),
                               "cellfsi: Fourier bulk solver: %d wave vectors, %.1f MB of banded factors, "
                               "operator uniform to %.2e\n",
-                              fourier_->bulk().n_modes(), fourier_->bulk().factor_bytes() / 1048576.0, dev));
+                              fourier_->bulk().n_modes(), factor_mb, dev));
     band_marking_changed_ = true;
   }
   // The Newton matrix and the region's LU are refreshed as the band solver's are (a chord iteration between).

@@ -26,7 +26,8 @@ namespace cellfsi::coupling {
 enum class CouplingSolver {
   /// `fourier` where it applies (a BAIJ Jacobian, a translation-invariant box periodic in all directions but
   /// one: fourier_inapplicable; any number of fluid ranks), else `band` (which falls back to `fluid` on
-  /// several ranks). The default.
+  /// several ranks). If the Jacobian away from the cells assembled in the first step is not uniform along
+  /// the periodic directions after all (fourier_uniformity), `band` or `fluid` from then on. The default.
   automatic,
   /// fluid::BandSchurSolver (one fluid rank, SeqBAIJ Jacobian): the Jacobian away from the cells is
   /// factorised once and kept while the s^h band and the immersed points stay inside the region it was built
@@ -88,7 +89,8 @@ struct CouplerOptions {
   bool fourier_partial_jacobian = true;
   // The bulk operator's largest relative deviation between periodic positions above which the Fourier solver
   // does not run (the flow or mesh is not uniform along x): `auto` then takes the band solver (or the fluid's
-  // KSP on several ranks), `fourier` is refused.
+  // KSP on several ranks), `fourier` is refused. No option sets it: the meshes it guards are uniform to
+  // round-off (about 1e-13) or not uniform at all (the narrowing channel: order 1).
   double fourier_uniformity = 1e-2;
 };
 
@@ -123,8 +125,14 @@ class FsiCoupler {
   /// One time step of the coupled problem.
   CouplerStats step();
   /// The solver in use (CouplingSolver::fluid when `band` was asked for but cannot run: several fluid ranks,
-  /// a non-BAIJ Jacobian, or a band region holding most of the domain).
+  /// a non-BAIJ Jacobian, or a band region holding most of the domain). It can change in the first step:
+  /// `band` falls back to `fluid` when its region holds most of the domain, and `fourier` chosen by `auto`
+  /// falls back to `band` or `fluid` when the Jacobian away from the cells is not uniform along the periodic
+  /// directions (both reported on the console); fell_back() then says so.
   CouplingSolver solver() const { return solver_; }
+  /// Whether the first step replaced the solver chosen at set-up (the options of the solver it replaced were
+  /// then never read).
+  bool fell_back() const { return fell_back_; }
   /// Unknowns of the current band (0 before the first step or with CouplingSolver::fluid).
   PetscInt band_unknowns() const { return band_.n_band(); }
 
@@ -154,6 +162,7 @@ class FsiCoupler {
   bool marking_changed_ = true;
   // Band solver (see CouplingSolver::band).
   CouplingSolver solver_ = CouplingSolver::band;
+  bool fell_back_ = false;  // see fell_back()
   fluid::BandSchurSolver band_;
   Mat J_fixed_ = nullptr, J_band_ = nullptr;  // the two parts of K_MC; their sum goes into the fluid's matrix
   KSP band_ksp_ = nullptr;                    // FGMRES (prefix coupling_band_) preconditioned by band_

@@ -323,9 +323,9 @@ void FluidSolver::bulk_jacobian(Vec X, Mat J) {
     FluidSolver& f;
     Vec& S;
     std::vector<LocatedPoint> immersed;
-    bool scaling_saved = false;
+    bool scaling_saved = false, immersed_saved = false;
     ~Restore() {
-      immersed.swap(f.immersed_);
+      if (immersed_saved) immersed.swap(f.immersed_);
       if (scaling_saved) VecCopy(S, f.S_);
       VecDestroy(&S);
     }
@@ -333,6 +333,7 @@ void FluidSolver::bulk_jacobian(Vec X, Mat J) {
   CELLFSI_PETSC(VecCopy(S_, S));
   restore.scaling_saved = true;
   restore.immersed.swap(immersed_);
+  restore.immersed_saved = true;
   CELLFSI_PETSC(VecSet(S_, 1.0));
   assemble(X, nullptr, J);
 }

@@ -356,6 +356,7 @@ void FourierBulkSolver::solve(Vec r, Vec x) const {
     CELLFSI_PETSC(VecCreateSeq(PETSC_COMM_SELF, static_cast<PetscInt>(idx.size()), &slab_vec_));
     const PetscErrorCode ierr = VecScatterCreate(r, is, slab_vec_, nullptr, &to_slab_);
     ISDestroy(&is);
+    if (ierr) VecDestroy(&slab_vec_);  // the next solve creates both again
     CELLFSI_PETSC(ierr);
   }
   // 1. Lines: the slab of r, transformed along the periodic directions.
@@ -394,6 +395,8 @@ void FourierBulkSolver::solve(Vec r, Vec x) const {
     int info = 0;
     zgbtrs_("N", &m_, &kl_, &kl_, &one, &ab_[static_cast<std::size_t>(slot - s0) * ldab * m_], &ldab,
             &ipiv_[static_cast<std::size_t>(slot - s0) * m_], bs, &m_, &info, 1);
+    if (info != 0)
+      throw std::logic_error("FourierBulkSolver::solve: zgbtrs rejected argument " + std::to_string(-info));
   }
   // 4. Back to lines (the reverse exchange), the mirrors' coefficients by conjugation (r is real).
   k = 0;
@@ -427,6 +430,7 @@ void FourierBulkSolver::solve(Vec r, Vec x) const {
 }
 
 std::vector<double> FourierBulkSolver::node_deviation(Mat J) const {
+  if (!built_) throw std::logic_error("FourierBulkSolver::node_deviation before a completed build()");
   std::vector<double> dev(n_nodes_, 0.0);
   // The largest averaged entry of each (j, c) row.
   const int wq = across_ >= 0 ? 2 * degree_[across_] + 1 : 1;

@@ -54,12 +54,13 @@ class FourierBulkSolver {
   /// x = A_avg^{-1} r (r, x: vectors of the matrix's layout). Collective.
   void solve(Vec r, Vec x) const;
 
-  /// Largest |A_ij - A_avg,ij| / max_j |A_ij| over the rows of the last build() (unit rows, i.e. walls and a
-  /// pinned pressure, skipped).
+  /// Largest |A_ij - A_avg,ij| / max_j |A_ij| over the rows of the last build(). Rows of a (layer, component)
+  /// class of which any row is a unit row (walls, a pinned pressure) are skipped, the whole class: its
+  /// average mixes unit and assembled rows.
   double deviation() const { return deviation_; }
-  /// Per node: the largest |J_ij - A_avg,ij| / max_j |A_avg,ij| of its rows (J: same size, natural
-  /// ordering; entries outside the stencil count in full), by natural node index, on every rank.
-  /// Collective.
+  /// Per node: the largest |J_ij - A_avg,ij| / max_j |A_avg,ij| of its rows (J: the matrix build() took, in
+  /// its PETSc global ordering; entries outside the stencil count in full), by natural node index, on every
+  /// rank. Only after build(). Collective.
   std::vector<double> node_deviation(Mat J) const;
   /// A node's index in the global (PETSc) ordering, and back.
   int global_node(int natural_node) const {

@@ -132,11 +132,16 @@ void RegionCorrectedSolver::set_operator(Mat J) {
   CELLFSI_PETSC(KSPSetUp(region_ksp_));
   PC pc;
   CELLFSI_PETSC(KSPGetPC(region_ksp_, &pc));
+  // This rank's reason, and whether any rank failed: every rank throws, or none does (one alone would leave
+  // the others waiting in the next collective call).
   PCFailedReason reason = PC_NOERROR;
-  CELLFSI_PETSC(PCGetFailedReason(pc, &reason));
-  if (reason != PC_NOERROR)
-    throw std::runtime_error("RegionCorrectedSolver: the LU factorisation of the region (" +
-                             std::to_string(n_region_) + " unknowns) failed: " + PCFailedReasons[reason]);
+  CELLFSI_PETSC(PCGetFailedReasonRank(pc, &reason));
+  int failed = reason != PC_NOERROR;
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &failed, 1, MPI_INT, MPI_MAX, comm_));
+  if (failed)
+    throw std::runtime_error(
+        "RegionCorrectedSolver: the LU factorisation of the region (" + std::to_string(n_region_) +
+        " unknowns) failed: " + (reason != PC_NOERROR ? PCFailedReasons[reason] : "on another rank"));
 }
 
 void RegionCorrectedSolver::region_solve(Vec r, Vec x) {

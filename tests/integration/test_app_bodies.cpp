@@ -321,6 +321,15 @@ TEST_F(CellfsiApp, OptionsReadAtTheFirstSolveAreAcceptedInEverySolver) {
   EXPECT_EQ(r.exit_code, 0) << r.output;
 }
 
+TEST_F(CellfsiApp, OptionsOfTheSolverReplacedInTheFirstStepAreAccepted) {
+  // A band region of the whole domain (margin 40 elements at 48 x 24) hands the loop to the fluid's solver in
+  // the first step: the band's factorisation options were checked before it and are never read.
+  const RunResult r = cellfsi(with(kDefaultCapsule, {"-coupling_solver", "band", "-coupling_band_margin",
+                                                     "40", "-coupling_band_mat_mumps_icntl_14", "40"}));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("the coupling loop uses -coupling_solver fluid"), std::string::npos) << r.output;
+}
+
 TEST_F(CellfsiApp, MisspeltFactorisationOptionIsRejectedAfterTheFirstStep) {
   for (const std::vector<std::string>& o :
        {std::vector<std::string>{"-coupling_solver", "band", "-coupling_band_mat_mumps_icntll_14", "40"},
