@@ -10,7 +10,7 @@ against the plasma's parabola.
 Options: --mesh NXxNY  --degree P (3)  --dt S  --final-time S  --average-from S  --counts N,N,...  --jobs N (1)
   --runs DIR (out/rheology)  --build DIR (build)  --table FILE (docs/validation/channel_rheology.md)
   --figure FILE (docs/figures/channel_rheology.png)  --report (no runs)  --extra "OPTIONS" (to every run)
-  --results FILE (docs/validation/data/channel_rheology_<mesh>_p<degree>.json)
+  --results FILE (docs/validation/data/channel_rheology_<mesh>_p<degree>[_<extra options>].json)
 A run whose summary.json says "completed" is not run again; exit code 3 when a run did not complete. Each completed
 run's metrics and time-averaged profile are also kept in the results file (by cell count, with the date and commit
 they were recorded at), so that the table and figure can be regenerated when the run folders are gone (they are
@@ -22,6 +22,7 @@ import csv
 import datetime
 import json
 import os
+import re
 import shlex
 import sys
 
@@ -69,7 +70,8 @@ def collect(args):
         if os.path.isfile(prof):
             with open(prof) as f:
                 row["profile"] = [(float(r["y"]), float(r["vx"])) for r in csv.DictReader(f)]
-        row["recorded"] = f"{datetime.datetime.utcnow():%Y-%m-%d} git {commit_of_head()} from {path}"
+        row["recorded"] = (f"{datetime.datetime.utcnow():%Y-%m-%d} (git {commit_of_head()}) from "
+                           f"{os.path.relpath(path, ROOT)}, run with git {str(s.get('commit', '?'))[:7]}")
         count = tag.rsplit("_", 1)[1]
         if row["status"] == "completed" or count not in results:
             results[count] = row
@@ -152,9 +154,11 @@ def main():
     p.add_argument("--results", default=None)
     p.add_argument("--report", action="store_true")
     args = p.parse_args()
-    if args.results is None:
+    if args.results is None:  # runs with --extra options are kept apart from the default's
+        extra = re.sub(r"[^A-Za-z0-9.+-]+", "_", re.sub(r"(^|\s)-+", r"\1", args.extra.strip())).strip("_")
         args.results = os.path.join(ROOT, "docs", "validation", "data",
-                                    f"channel_rheology_{args.mesh}_p{args.degree}.json")
+                                    f"channel_rheology_{args.mesh}_p{args.degree}" + (f"_{extra}" if extra else "")
+                                    + ".json")
     if "x" not in args.mesh:
         p.error(f"--mesh {args.mesh} is invalid; valid: NXxNY, e.g. 96x32")
     exe = os.path.join(args.build, "apps", "cellfsi")
