@@ -46,6 +46,32 @@ def runs_of(args):
 KEPT = ("status", "steps", "wall_time_s", "H_t", "H_d", "zeta", "eta", "h_cf", "v_cells", "v_mean")
 
 
+def option_of(command_line, name):
+    """The value of -name on a run's command line (summary.json's command_line), as a float; None if absent."""
+    words = shlex.split(command_line or "")
+    for i, w in enumerate(words[:-1]):
+        if w == "-" + name:
+            try:
+                return float(words[i + 1])
+            except ValueError:
+                return None
+    return None
+
+
+def area_row(s):
+    """From a run's summary.json: its status, size and cost and the cells' area change (mean of the final |r_A|
+    and the largest |r_A| of any cell over the run; a failed run has the last step's values only)."""
+    final = [abs(v) for k, v in s.items() if k.endswith("_r_A") and not k.endswith("max_abs_r_A") and v is not None]
+    peak = [abs(v) for k, v in s.items() if k.endswith("_max_abs_r_A") and v is not None] or final
+    its = s.get("coupling_iterations", s.get("newton_iterations"))
+    return {"status": s.get("status"), "steps": s.get("steps"), "wall_time_s": s.get("wall_time_s"),
+            "dt": option_of(s.get("command_line"), "dt"),
+            "final_time": option_of(s.get("command_line"), "final_time"),
+            "commit": str(s.get("commit", "?"))[:7], "mean_abs_r_A": sum(final) / len(final) if final else None,
+            "max_abs_r_A": max(peak, default=None),
+            "coupling_per_step": its / max(1, s.get("steps") or 1) if its is not None else None}
+
+
 def load_results(path):
     if not os.path.isfile(path):
         return {}
@@ -63,9 +89,7 @@ def collect(args):
             continue
         with open(path) as f:
             s = json.load(f)
-        row = {k: s.get(k) for k in KEPT}
-        row["max_abs_r_A"] = max((abs(v) for k, v in s.items() if k.endswith("_max_abs_r_A") and v is not None),
-                                 default=None)
+        row = dict(area_row(s), **{k: s.get(k) for k in KEPT})
         prof = os.path.join(args.runs, tag, "profile_mean.csv")
         if os.path.isfile(prof):
             with open(prof) as f:
