@@ -160,6 +160,10 @@ RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& s
       // A restart: the columns must be this run's (checked before anything is touched); the rows up to the
       // checkpoint's step stay (those after it, written before the run stopped, go), and the run appends.
       std::ifstream in(dir_ + "/metrics.csv");
+      if (!in)
+        throw std::invalid_argument("option -restart is invalid here: '" + dir_ +
+                                    "' has a checkpoint but no metrics.csv (the rows before the checkpoint "
+                                    "would be lost); restore it, or run without -restart");
       std::string line, kept;
       std::vector<std::string> existing;
       if (std::getline(in, line)) {

@@ -113,6 +113,12 @@ TEST_F(CellfsiApp, RestartWithOtherOptionsOrWithoutACheckpointIsRefused) {
   EXPECT_NE(last_output_.find("option -final_time = 0.001 is invalid with -restart"), std::string::npos)
       << last_output_;
   EXPECT_EQ(read_text(out_ / "metrics.csv"), csv) << "a refused restart leaves the run's files alone";
+  // A checkpoint without the metrics.csv it continues (copied alone to another folder) is refused by name.
+  std::filesystem::rename(out_ / "metrics.csv", out_ / "metrics.kept");
+  expect_one_clear_error(cellfsi(with(args, {"-final_time", "2e-3", "-restart"})));
+  EXPECT_NE(last_output_.find("has a checkpoint but no metrics.csv"), std::string::npos) << last_output_;
+  EXPECT_TRUE(std::filesystem::is_directory(out_ / "checkpoint"));
+  EXPECT_FALSE(std::filesystem::exists(out_ / "metrics.csv"));
 }
 
 TEST_F(CellfsiApp, SplitJobRestartsItsRemoteBodies) {
