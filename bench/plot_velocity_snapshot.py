@@ -3,10 +3,10 @@
 (shear flows with cells), the magnitude of the velocity minus the undisturbed shear, with the bodies' outlines, from
 the fluid and solid series (fluid.pvd, solid.pvd; one .vts per output or, from several ranks, a .pvts).
 
-    python3 bench/plot_velocity_snapshot.py RUN [--time T] [--figure docs/figures/shear_velocity.png]
+    python3 bench/plot_velocity_snapshot.py RUN [--time T[,T2,...]] [--figure docs/figures/shear_velocity.png]
 
---time picks the output nearest T (default: the last). Needs python3-vtk9 and python3-matplotlib
-(scripts/install-deps.sh; Debian's /usr/bin/python3)."""
+--time picks the output nearest T (default: the last); several times give a panel (or a row of panels) each.
+Needs python3-vtk9 and python3-matplotlib (scripts/install-deps.sh; Debian's /usr/bin/python3)."""
 import argparse
 import os
 import sys
@@ -40,44 +40,14 @@ def read_grid(path):
     return xyz, arrays
 
 
-def main():
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("run")
-    p.add_argument("--time", type=float, default=None)
-    p.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "shear_velocity.png"))
-    p.add_argument("--reversed", action="store_true",
-                   help="outline where the flow runs against the mean flow (v_x < 0: recirculation) and print "
-                        "its area")
-    args = p.parse_args()
-    try:
-        import numpy as np
-        import vtk  # noqa: F401
-    except ImportError:
-        print("plot_velocity_snapshot: needs python3-vtk9 and python3-numpy (scripts/install-deps.sh)",
-              file=sys.stderr)
-        sys.exit(1)
-    plt = pyplot("plot_velocity_snapshot")
-    if plt is None:
-        sys.exit(1)
-    fluid = series(os.path.join(args.run, "fluid.pvd"))
-    if not fluid:
-        sys.exit(f"plot_velocity_snapshot: {args.run}/fluid.pvd lists no output (run with -output_every N)")
-    pick = fluid[-1] if args.time is None else min(fluid, key=lambda e: abs(e[0] - args.time))
+def draw(np, fig, axes, panels, args, pick, solids, label_time):
+    """One output's panels: the fields' magnitudes with the bodies' outlines (and the reversed flow)."""
     t = pick[0]
     xyz, arrays = read_grid(os.path.join(args.run, pick[1]))
     x, y = xyz[..., 0] * 1e4, xyz[..., 1] * 1e4  # um
-    panels = [("velocity", "|v| (cm/s)")]
-    if "velocity_disturbance" in arrays:
-        panels.append(("velocity_disturbance", "|v - v_shear| (cm/s)"))
-    outlines = []
-    solid_pvd = os.path.join(args.run, "solid.pvd")
-    if os.path.isfile(solid_pvd):
-        for time, f, _ in series(solid_pvd):
-            if abs(time - t) <= 1e-9 * max(1.0, abs(t)):
-                sxyz, _ = read_grid(os.path.join(args.run, f))
-                outlines.append(sxyz)
-    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.2), squeeze=False)
-    for ax, (name, label) in zip(axes[0], panels):
+    outlines = [read_grid(os.path.join(args.run, f))[0] for time, f, _ in solids
+                if abs(time - t) <= 1e-9 * max(1.0, abs(t))]
+    for ax, (name, label) in zip(axes, panels):
         mag = np.linalg.norm(arrays[name], axis=-1)
         m = ax.pcolormesh(x, y, mag, shading="gouraud", cmap="viridis")
         fig.colorbar(m, ax=ax, label=label, shrink=0.85)
@@ -100,6 +70,50 @@ def main():
         ax.set_aspect("equal")
         ax.set_xlabel("x (um)")
         ax.set_ylabel("y (um)")
+        if label_time:
+            ax.set_title(f"t = {t:g} s", fontsize=9)
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("run")
+    p.add_argument("--time", default=None, help="T or T1,T2,... (one row of panels per time)")
+    p.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "shear_velocity.png"))
+    p.add_argument("--reversed", action="store_true",
+                   help="outline where the flow runs against the mean flow (v_x < 0: recirculation) and print "
+                        "its area")
+    args = p.parse_args()
+    try:
+        import numpy as np
+        import vtk  # noqa: F401
+    except ImportError:
+        print("plot_velocity_snapshot: needs python3-vtk9 and python3-numpy (scripts/install-deps.sh)",
+              file=sys.stderr)
+        sys.exit(1)
+    plt = pyplot("plot_velocity_snapshot")
+    if plt is None:
+        sys.exit(1)
+    fluid = series(os.path.join(args.run, "fluid.pvd"))
+    if not fluid:
+        sys.exit(f"plot_velocity_snapshot: {args.run}/fluid.pvd lists no output (run with -output_every N)")
+    picks = [fluid[-1]] if args.time is None else \
+        [min(fluid, key=lambda e: abs(e[0] - float(t))) for t in args.time.split(",")]
+    solid_pvd = os.path.join(args.run, "solid.pvd")
+    solids = series(solid_pvd) if os.path.isfile(solid_pvd) else []
+    first = read_grid(os.path.join(args.run, picks[0][1]))[1]
+    panels = [("velocity", "|v| (cm/s)")]
+    if "velocity_disturbance" in first:
+        panels.append(("velocity_disturbance", "|v - v_shear| (cm/s)"))
+    # One row of panels per time; with one panel per time, two times per row.
+    per_row = 2 if len(panels) == 1 and len(picks) > 1 else 1
+    rows = (len(picks) + per_row - 1) // per_row
+    cols = per_row * len(panels)
+    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 3.2 * rows), squeeze=False)
+    flat = [ax for row in axes for ax in row]
+    for i, pick in enumerate(picks):
+        draw(np, fig, flat[i * len(panels):(i + 1) * len(panels)], panels, args, pick, solids, len(picks) > 1)
+    for ax in flat[len(picks) * len(panels):]:
+        ax.set_visible(False)
     opts = {}
     if os.path.isfile(os.path.join(args.run, "options.yaml")):
         with open(os.path.join(args.run, "options.yaml")) as f:
@@ -109,8 +123,8 @@ def main():
         import json
         with open(os.path.join(args.run, "summary.json")) as f:
             name = json.load(f).get("scene", name)
-    fig.suptitle(f"{name}, {opts.get('fluid_elements', '?').replace(',', ' x ')} elements, at t = {t:g} s",
-                 fontsize=10)
+    when = "" if len(picks) > 1 else f", at t = {picks[0][0]:g} s"
+    fig.suptitle(f"{name}, {opts.get('fluid_elements', '?').replace(',', ' x ')} elements{when}", fontsize=10)
     save_figure(fig, args.figure, "plot_velocity_snapshot")
 
 
