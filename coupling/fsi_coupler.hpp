@@ -130,8 +130,8 @@ class FsiCoupler {
   /// falls back to `band` or `fluid` when the Jacobian away from the cells is not uniform along the periodic
   /// directions (both reported on the console); fell_back() then says so.
   CouplingSolver solver() const { return solver_; }
-  /// Whether the first step replaced the solver chosen at set-up (the options of the solver it replaced were
-  /// then never read).
+  /// Whether a step (in practice the first) replaced the solver chosen at set-up (the options of the solver
+  /// it replaced were then never read).
   bool fell_back() const { return fell_back_; }
   /// Unknowns of the current band (0 before the first step or with CouplingSolver::fluid).
   PetscInt band_unknowns() const { return band_.n_band(); }

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -207,9 +208,13 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
   CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, stencil_.data(), static_cast<int>(stencil_.size()), MPI_DOUBLE,
                               MPI_SUM, comm_));
   CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, has_unit.data(), m_, MPI_INT, MPI_MAX, comm_));
-  // 2. How far A is from its average.
+  // 2. How far A is from its average. A non-finite entry makes the deviation NaN (std::max would skip it),
+  // which no caller takes for uniform.
   deviation_ = 0;
+  int non_finite = 0;
   for_each_entry([&](PetscInt row, PetscInt nc, const PetscInt* ci, const PetscScalar* v) {
+    for (PetscInt k = 0; k < nc; ++k)
+      if (!std::isfinite(v[k])) non_finite = 1;
     const int node = static_cast<int>(row / dof_), c = static_cast<int>(row % dof_);
     double row_max = 0, dev = 0;
     // The walls' rows, and the layer of a pinned pressure (its class's average carries 1/N of the pin; the
@@ -224,6 +229,10 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
     if (row_max > 0) deviation_ = std::max(deviation_, dev / row_max);
   });
   CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &deviation_, 1, MPI_DOUBLE, MPI_MAX, comm_));
+  for (double a : stencil_)
+    if (!std::isfinite(a)) non_finite = 1;
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &non_finite, 1, MPI_INT, MPI_MAX, comm_));
+  if (non_finite) deviation_ = std::numeric_limits<double>::quiet_NaN();
   // 3. One banded system per slot of this rank: A_k[(j, c), (j + dj, c2)] = sum_o a_o exp(i 2 pi k . o / n).
   const int s0 = first_slot(rank_), s1 = first_slot(rank_ + 1);
   const int ldab = 2 * kl_ + kl_ + 1;
@@ -389,14 +398,19 @@ void FourierBulkSolver::solve(Vec r, Vec x) const {
           b[static_cast<std::size_t>(slot - s0) * m_ + jj * dof_ + c] = recv[k++];
   // 3. The banded solves of this rank's slots.
   const int ldab = 3 * kl_ + 1, one = 1;
-  for (int slot = s0; slot < s1; ++slot) {
+  int rejected = 0;  // the first argument zgbtrs rejected, on any rank (a rank may have no slots)
+  for (int slot = s0; slot < s1 && rejected == 0; ++slot) {
     cplx* bs = &b[static_cast<std::size_t>(slot - s0) * m_];
     if (pinned_ && slot_mode_[slot] == 0) bs[dof_ - 1] = 0.0;
     int info = 0;
     zgbtrs_("N", &m_, &kl_, &kl_, &one, &ab_[static_cast<std::size_t>(slot - s0) * ldab * m_], &ldab,
             &ipiv_[static_cast<std::size_t>(slot - s0) * m_], bs, &m_, &info, 1);
-    if (info != 0)
-      throw std::logic_error("FourierBulkSolver::solve: zgbtrs rejected argument " + std::to_string(-info));
+    rejected = -info;
+  }
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &rejected, 1, MPI_INT, MPI_MAX, comm_));
+  if (rejected != 0) {
+    CELLFSI_PETSC(PetscLogEventEnd(event, 0, 0, 0, 0));
+    throw std::logic_error("FourierBulkSolver::solve: zgbtrs rejected argument " + std::to_string(rejected));
   }
   // 4. Back to lines (the reverse exchange), the mirrors' coefficients by conjugation (r is real).
   k = 0;

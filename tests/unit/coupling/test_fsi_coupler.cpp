@@ -90,6 +90,7 @@ namespace {
 struct CapsuleRun {
   std::vector<double> fluid, membrane;
   int iterations = 0, linear_iterations = 0, factorizations = 0, band_refreshes = 0;
+  bool fell_back = false;  // FsiCoupler::fell_back() at the end
 };
 
 CapsuleRun run_capsule(coupling::CouplingSolver solver, int steps, int band_refresh_steps = 10,
@@ -116,6 +117,7 @@ CapsuleRun run_capsule(coupling::CouplingSolver solver, int steps, int band_refr
     r.band_refreshes += st.band_refreshes;
   }
   if (used) *used = fsi.solver();
+  r.fell_back = fsi.fell_back();
   r.fluid = fluid.gather_to_zero(fluid.solution());
   const geometry::Patch current = membrane.current_patch();
   for (const auto& p : current.control_points())
@@ -185,11 +187,13 @@ TEST(FsiCoupler, AutoFallsBackToTheBandSolverWhereTheBulkIsNotUniform) {
   CouplingSolver used = CouplingSolver::automatic;
   const CapsuleRun fallback = run_capsule(CouplingSolver::automatic, 2, 10, 1e-17, &used);
   EXPECT_EQ(used, CouplingSolver::band);
+  EXPECT_TRUE(fallback.fell_back);
   const CapsuleRun band = run_capsule(CouplingSolver::band, 2);
+  EXPECT_FALSE(band.fell_back);
   EXPECT_EQ(relative_difference(band.fluid, fallback.fluid), 0.0);
   EXPECT_EQ(relative_difference(band.membrane, fallback.membrane), 0.0);
   EXPECT_THROW(run_capsule(CouplingSolver::fourier, 1, 10, 1e-17), std::invalid_argument);
   // With the default bound the Fourier solver runs.
-  run_capsule(CouplingSolver::automatic, 1, 10, 1e-2, &used);
+  EXPECT_FALSE(run_capsule(CouplingSolver::automatic, 1, 10, 1e-2, &used).fell_back);
   EXPECT_EQ(used, CouplingSolver::fourier);
 }

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "common/petsc_error.hpp"
@@ -130,6 +131,17 @@ TEST(FourierBulkSolver, InvertsRandomTranslationInvariantOperators) {
     EXPECT_LT(*std::max_element(dev.begin(), dev.end()), 1e-14);
     s.build(A, false);
     EXPECT_GT(s.deviation(), 1e-2);
+    // A NaN entry (a broken operator) makes the deviation NaN, whether or not LAPACK then sees a singular
+    // system.
+    CELLFSI_PETSC(MatSetValue(A, 5 * c.dof + 1, 5 * c.dof + 1, std::numeric_limits<double>::quiet_NaN(),
+                              INSERT_VALUES));
+    CELLFSI_PETSC(MatAssemblyBegin(A, MAT_FINAL_ASSEMBLY));
+    CELLFSI_PETSC(MatAssemblyEnd(A, MAT_FINAL_ASSEMBLY));
+    try {
+      s.build(A, false);
+    } catch (const std::runtime_error&) {
+    }
+    EXPECT_TRUE(std::isnan(s.deviation()));
     VecDestroy(&r);
     VecDestroy(&x);
     MatDestroy(&A);
