@@ -266,7 +266,8 @@ void RunOutput::write_summary(const std::string& status, int steps, long newton,
   js["commit"] = build_commit();
   js["command_line"] = shell_words(command_line_);
   js["started_utc"] = started_;
-  js["wall_time_s"] = elapsed();
+  js["wall_time_s"] = elapsed();  // this invocation's: after a -restart, from resumed_from_step on
+  if (resumed_) js["resumed_from_step"] = first_step_;
   js["steps"] = steps;
   js[iteration_kind_ + "_iterations"] = newton;
   js["linear_iterations"] = linear;

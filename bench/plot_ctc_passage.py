@@ -40,8 +40,9 @@ def passage_rows(run, rows, s):
     start = next((i for i, ti in enumerate(t) if ti >= DEVELOPED), 0)
     q0 = q[start]
     i_min = min(range(start, len(q)), key=q.__getitem__)
+    part = f", steps after {s['resumed_from_step']} (a restart)" if s.get("resumed_from_step") is not None else ""
     out = [("steps, final time, wall", f"{s.get('steps')}, {t[-1]:g} s, {fmt(s.get('wall_time_s'), '.0f')} s"
-            f" ({s.get('ranks')} rank(s), {s.get('status')})")]
+            f" ({s.get('ranks')} rank(s){part}, {s.get('status')})")]
     for body in ("membrane", "nucleus"):
         t_in, t_out = s.get(body + "_throat_entry_time"), s.get(body + "_throat_exit_time")
         transit = s.get(body + "_throat_transit_time")

@@ -28,6 +28,10 @@ TEST_F(CellfsiApp, RestartContinuesTheRunAsIfItHadNotStopped) {
   EXPECT_TRUE(rows_agree(metrics_only(straight), metrics_only(last_row(out_ / "metrics.csv")), 1e-6, 1e-2));
   const std::string js = summary();
   EXPECT_EQ(json_number(js, "steps"), 8) << js;
+  // wall_time_s is this invocation's; the step it resumed from says so (absent from a run that did not
+  // resume).
+  EXPECT_EQ(json_number(js, "resumed_from_step"), 4) << js;
+  EXPECT_FALSE(json_number(straight_js, "resumed_from_step").has_value()) << straight_js;
   for (const char* key : {"membrane_theta_deg", "membrane_omega_tt", "membrane_omega_tu"})
     EXPECT_NEAR(json_number(js, key).value_or(0), json_number(straight_js, key).value_or(1),
                 1e-6 * std::abs(json_number(straight_js, key).value_or(1)))
