@@ -4,6 +4,7 @@
 import datetime
 import json
 import os
+import re
 import shlex
 import subprocess
 import sys
@@ -26,6 +27,48 @@ def run_one(args, tag, scene, options):
         log.flush()
         rc = subprocess.call(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
     return tag, f"exit {rc}"
+
+
+def option_values(words):
+    """-name -> its last value (None for a flag) among command-line words, as PETSc reads them."""
+    values, name = {}, None
+    for w in words:
+        if re.fullmatch(r"-[A-Za-z_]\w*", w):
+            name = w[1:]
+            values[name] = None
+        elif name is not None:
+            values[name] = w
+            name = None
+    return values
+
+
+def same_value(a, b):
+    try:
+        return float(a) == float(b)
+    except (TypeError, ValueError):
+        return a == b
+
+
+def check_kept_runs(tool, args, runs):
+    """Exits (code 1) when a completed run that run_one would keep was made with other values of the options
+    it would be run with now (a folder of another sweep or s_I), naming the folder and the options."""
+    bad = []
+    for tag, _, options in runs:
+        summary = os.path.join(args.runs, tag, "summary.json")
+        if not os.path.isfile(summary):
+            continue
+        with open(summary) as f:
+            js = json.load(f)
+        if js.get("status") != "completed":
+            continue
+        ran = option_values(shlex.split(js.get("command_line") or ""))
+        differ = [f"-{k} {v} (the run: {ran[k] if k in ran else 'not set'})"
+                  for k, v in option_values(options).items() if not same_value(ran.get(k), v)]
+        if differ:
+            bad.append(f"{os.path.join(args.runs, tag)}: {', '.join(differ)}")
+    if bad:
+        sys.exit(f"{tool}: completed runs in --runs {args.runs} were made with other options than asked; use "
+                 "another --runs folder or delete them:\n  " + "\n  ".join(bad))
 
 
 def fmt(x, f):

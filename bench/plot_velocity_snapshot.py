@@ -96,13 +96,16 @@ def main():
     fluid = series(os.path.join(args.run, "fluid.pvd"))
     if not fluid:
         sys.exit(f"plot_velocity_snapshot: {args.run}/fluid.pvd lists no output (run with -output_every N)")
-    picks = [fluid[-1]] if args.time is None else \
-        [min(fluid, key=lambda e: abs(e[0] - float(t))) for t in args.time.split(",")]
+    times = [] if args.time is None else [t.strip() for t in args.time.split(",") if t.strip()]
+    try:
+        picks = [min(fluid, key=lambda e: abs(e[0] - float(t))) for t in times] or [fluid[-1]]
+    except ValueError:
+        sys.exit(f"plot_velocity_snapshot: --time {args.time} is invalid; valid: a time or times T1,T2,... in s")
     solid_pvd = os.path.join(args.run, "solid.pvd")
     solids = series(solid_pvd) if os.path.isfile(solid_pvd) else []
-    first = read_grid(os.path.join(args.run, picks[0][1]))[1]
     panels = [("velocity", "|v| (cm/s)")]
-    if "velocity_disturbance" in first:
+    # The disturbance's panel only when every chosen output has it.
+    if all("velocity_disturbance" in read_grid(os.path.join(args.run, pick[1]))[1] for pick in picks):
         panels.append(("velocity_disturbance", "|v - v_shear| (cm/s)"))
     # One row of panels per time; with one panel per time, two times per row.
     per_row = 2 if len(panels) == 1 and len(picks) > 1 else 1

@@ -15,7 +15,7 @@ import json
 import os
 import sys
 
-from bench_common import ROOT, fmt, provenance, run_one, write_table
+from bench_common import ROOT, check_kept_runs, fmt, provenance, run_one, write_table
 
 # tag: (what differs, cellfsi options)
 CASES = [
@@ -55,10 +55,12 @@ def main():
     args = p.parse_args()
     args.jobs = 1
     os.makedirs(args.runs, exist_ok=True)
+    runs = [(tag, "capsule_channel_migration.yaml", merged(BASE + ["-final_time", str(args.final_time)], options))
+            for tag, _, options in CASES]
+    check_kept_runs("run_area_error_study", args, runs)
     if not args.report:
-        for tag, _, options in CASES:
-            print(*run_one(args, tag, "capsule_channel_migration.yaml",
-                           merged(BASE + ["-final_time", str(args.final_time)], options)), flush=True)
+        for run in runs:
+            print(*run_one(args, *run), flush=True)
     T = args.final_time
     lines = [f"| case | r_A(t = {T / 2:g} s) | r_A(t = {T:g} s) | steps | wall s |", "|---|---|---|---|---|"]
     missing = False

@@ -27,8 +27,8 @@ import shlex
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_common import (ROOT, commit_of_head, fmt, provenance, pyplot, run_one, save_figure,  # noqa: E402
-                          write_table)
+from bench_common import (ROOT, check_kept_runs, commit_of_head, fmt, option_values, provenance,  # noqa: E402
+                          pyplot, run_one, save_figure, write_table)
 
 # The channel of scenes/rbc_channel.yaml (CGS): the plasma's parabola u(y) = f / (2 mu) y (H - y).
 HEIGHT, FORCE, VISCOSITY = 0.001, 1666.66, 0.012
@@ -48,14 +48,11 @@ KEPT = ("status", "steps", "wall_time_s", "H_t", "H_d", "zeta", "eta", "h_cf", "
 
 def option_of(command_line, name):
     """The value of -name on a run's command line (summary.json's command_line), as a float; None if absent."""
-    words = shlex.split(command_line or "")
-    for i, w in enumerate(words[:-1]):
-        if w == "-" + name:
-            try:
-                return float(words[i + 1])
-            except ValueError:
-                return None
-    return None
+    value = option_values(shlex.split(command_line or "")).get(name)  # the last one, as PETSc reads it
+    try:
+        return float(value) if value is not None else None
+    except ValueError:
+        return None
 
 
 def area_row(s):
@@ -190,6 +187,7 @@ def main():
         sys.exit(f"run_channel_rheology: {exe} not found; build first (scripts/build.sh)")
     os.makedirs(args.runs, exist_ok=True)
     command = "bench/run_channel_rheology.py " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+    check_kept_runs("run_channel_rheology", args, runs_of(args))
     if not args.report:
         with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
             for tag, how in pool.map(lambda r: run_one(args, *r), runs_of(args)):

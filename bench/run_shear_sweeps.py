@@ -22,7 +22,8 @@ import shlex
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_common import ROOT, fmt, provenance, pyplot, run_one, save_figure, write_table  # noqa: E402
+from bench_common import (ROOT, check_kept_runs, fmt, provenance, pyplot, run_one, save_figure,  # noqa: E402
+                          write_table)
 
 SWEEPS = {
     # name: scene, default values [cm], the option a value sets, the x quantity of the figure
@@ -164,6 +165,7 @@ def main():
         sys.exit(f"run_shear_sweeps: {exe} not found; build first (scripts/build.sh)")
     os.makedirs(args.runs, exist_ok=True)
     command = "bench/run_shear_sweeps.py " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+    check_kept_runs("run_shear_sweeps", args, runs_of(args))
     if not args.report:
         with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
             for tag, how in pool.map(lambda r: run_one(args, *r), runs_of(args)):
