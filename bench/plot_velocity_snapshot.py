@@ -40,10 +40,10 @@ def read_grid(path):
     return xyz, arrays
 
 
-def draw(np, fig, axes, panels, args, pick, solids, label_time):
-    """One output's panels: the fields' magnitudes with the bodies' outlines (and the reversed flow)."""
+def draw(np, fig, axes, panels, args, pick, grid, solids, label_time):
+    """One output's panels (grid: its read_grid) with the bodies' outlines (and the reversed flow)."""
     t = pick[0]
-    xyz, arrays = read_grid(os.path.join(args.run, pick[1]))
+    xyz, arrays = grid
     x, y = xyz[..., 0] * 1e4, xyz[..., 1] * 1e4  # um
     outlines = [read_grid(os.path.join(args.run, f))[0] for time, f, _ in solids
                 if abs(time - t) <= 1e-9 * max(1.0, abs(t))]
@@ -104,8 +104,9 @@ def main():
     solid_pvd = os.path.join(args.run, "solid.pvd")
     solids = series(solid_pvd) if os.path.isfile(solid_pvd) else []
     panels = [("velocity", "|v| (cm/s)")]
+    grids = [read_grid(os.path.join(args.run, pick[1])) for pick in picks]
     # The disturbance's panel only when every chosen output has it.
-    if all("velocity_disturbance" in read_grid(os.path.join(args.run, pick[1]))[1] for pick in picks):
+    if all("velocity_disturbance" in arrays for _, arrays in grids):
         panels.append(("velocity_disturbance", "|v - v_shear| (cm/s)"))
     # One row of panels per time; with one panel per time, two times per row.
     per_row = 2 if len(panels) == 1 and len(picks) > 1 else 1
@@ -113,8 +114,9 @@ def main():
     cols = per_row * len(panels)
     fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 3.2 * rows), squeeze=False)
     flat = [ax for row in axes for ax in row]
-    for i, pick in enumerate(picks):
-        draw(np, fig, flat[i * len(panels):(i + 1) * len(panels)], panels, args, pick, solids, len(picks) > 1)
+    for i, (pick, grid) in enumerate(zip(picks, grids)):
+        draw(np, fig, flat[i * len(panels):(i + 1) * len(panels)], panels, args, pick, grid, solids,
+             len(picks) > 1)
     for ax in flat[len(picks) * len(panels):]:
         ax.set_visible(False)
     opts = {}

@@ -229,8 +229,6 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
     if (row_max > 0) deviation_ = std::max(deviation_, dev / row_max);
   });
   CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &deviation_, 1, MPI_DOUBLE, MPI_MAX, comm_));
-  for (double a : stencil_)
-    if (!std::isfinite(a)) non_finite = 1;
   CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &non_finite, 1, MPI_INT, MPI_MAX, comm_));
   if (non_finite) deviation_ = std::numeric_limits<double>::quiet_NaN();
   // 3. One banded system per slot of this rank: A_k[(j, c), (j + dj, c2)] = sum_o a_o exp(i 2 pi k . o / n).
