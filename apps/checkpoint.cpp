@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "apps/run_output.hpp"
+#include "common/file_io.hpp"
 #include "common/petsc_error.hpp"
 
 namespace cellfsi::app {
@@ -86,24 +87,38 @@ std::vector<std::string> conflicting_options(const std::string& saved, const std
 }
 
 void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c, Vec U, Vec Udot) {
-  int rank = 0;
-  MPI_Comm_rank(comm, &rank);
   const fs::path next = fs::path(dir) / "checkpoint.new", cur = fs::path(dir) / "checkpoint",
                  old = fs::path(dir) / "checkpoint.old";
-  int ok = 1;
-  if (rank == 0) {
+  on_rank_zero(comm, [&] {
     std::error_code ec;
     fs::remove_all(next, ec);
     fs::create_directories(next, ec);
-    ok = !ec;
+    if (ec) throw_write_error(next.string(), ec.message());
+  });
+  // Every failure below leaves the previous checkpoint as it was (only checkpoint.new is touched) and is
+  // reported on every rank, naming the file.
+  const fs::path fluid_file = next / "fluid.petsc";
+  PetscViewer v = binary_viewer(comm, fluid_file, FILE_MODE_WRITE);
+  PetscErrorCode ierr = VecView(U, v);
+  if (!ierr) ierr = VecView(Udot, v);
+  // Closing flushes the buffered data: its failure is a failed write too.
+  const PetscErrorCode close_ierr = PetscViewerDestroy(&v);
+  int failed = ierr || close_ierr ? 1 : 0;
+  MPI_Allreduce(MPI_IN_PLACE, &failed, 1, MPI_INT, MPI_MAX, comm);
+  if (failed) {
+    const std::string petsc_message = detail::pending_petsc_message();
+    detail::pending_petsc_message().clear();
+    on_rank_zero(comm, [&] {
+      // PETSc names no reason for a short write ("Error writing to file total size ..."): find it.
+      std::string reason = write_failure_reason(fluid_file.string());
+      if (reason.empty()) reason = petsc_message.empty() ? "the PETSc binary viewer failed" : petsc_message;
+      std::error_code ec;
+      fs::remove_all(next, ec);
+      throw_write_error(fluid_file.string(), reason);
+    });
   }
-  MPI_Bcast(&ok, 1, MPI_INT, 0, comm);
-  if (!ok) throw std::runtime_error("cannot create '" + next.string() + "'");
-  PetscViewer v = binary_viewer(comm, next / "fluid.petsc", FILE_MODE_WRITE);
-  CELLFSI_PETSC(VecView(U, v));
-  CELLFSI_PETSC(VecView(Udot, v));
-  CELLFSI_PETSC(PetscViewerDestroy(&v));
-  if (rank == 0) {
+  on_rank_zero(comm, [&] {
+    sync_file(fluid_file.string());
     nlohmann::ordered_json js;
     js["format"] = "cellfsi checkpoint 1";
     js["step"] = c.step;
@@ -119,16 +134,26 @@ void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c
     js["fluid_series"] = series_json(c.fluid_series);
     js["solid_series"] = series_json(c.solid_series);
     js["solid_writes"] = c.solid_writes;
-    write_atomically((next / "state.json").string(), js.dump() + "\n");
+    try {
+      write_file_atomically((next / "state.json").string(), js.dump() + "\n");
+    } catch (const WriteError&) {
+      std::error_code ec;
+      fs::remove_all(next, ec);
+      throw;
+    }
     // The new checkpoint replaces the previous one; between the two renames the previous one is
     // checkpoint.old, which read_checkpoint falls back on.
     std::error_code ec;
     fs::remove_all(old, ec);
-    if (fs::exists(cur)) fs::rename(cur, old);
-    fs::rename(next, cur);
+    if (fs::exists(cur)) {
+      fs::rename(cur, old, ec);
+      if (ec) throw_write_error(cur.string(), "cannot rename it to checkpoint.old: " + ec.message());
+    }
+    fs::rename(next, cur, ec);
+    if (ec) throw_write_error(cur.string(), "cannot rename checkpoint.new to it: " + ec.message());
+    sync_folder(dir);
     fs::remove_all(old, ec);
-  }
-  MPI_Barrier(comm);
+  });
 }
 
 Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, Vec U, Vec Udot) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <csignal>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -22,6 +23,7 @@
 #include "apps/run_output.hpp"
 #include "apps/scene.hpp"
 #include "apps/scene_file.hpp"
+#include "common/file_io.hpp"
 #include "common/petsc_error.hpp"
 #include "coupling/remote_solid.hpp"
 #include "fluid/fluid_output.hpp"
@@ -47,8 +49,9 @@ std::string default_scene_path() {
 /// Mailbox per rank for shared-memory exchange [bytes] (payloads above it go as messages).
 constexpr std::size_t kMailboxBytes = 8u << 20;
 
-// The command line as the user gave it (summary.json records it).
+// The command line as the user gave it (summary.json records it) and the scene file read (empty: none).
 std::vector<std::string> g_command_line;
+std::string g_scene_file;
 
 void print_error(const std::string& message) {
   PetscFPrintf(PETSC_COMM_WORLD, PETSC_STDERR, "cellfsi: error: %s\n", message.c_str());
@@ -132,7 +135,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   const int n_steps = static_cast<int>(std::ceil(settings.final_time / settings.dt - 1e-9));
   // The folder is this run's from here on (before a restart reads its checkpoint: another run may be writing
   // one).
-  FolderLock lock(PETSC_COMM_WORLD, settings.output_dir);
+  FolderLock lock(PETSC_COMM_WORLD, settings.output_dir, settings.output_dir_adopt);
   // A restart: the checkpoint must come from a run with the same options (but the final time and the output
   // intervals); the scene then takes its state.
   Checkpoint resume;
@@ -182,7 +185,8 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   std::vector<std::string> columns{"step", "time", iterations_key, "linear_iterations"};
   if (scene.coupler()) columns.emplace_back("factorizations");
   for (const auto& kv : scene.metrics()) columns.push_back(kv.first);
-  RunOutput out(PETSC_COMM_WORLD, settings.output_dir, settings.name, columns, g_command_line,
+  RunOutput out(PETSC_COMM_WORLD, settings.output_dir, settings.name, columns,
+                given_options_yaml(g_scene_file, g_command_line, settings.name), g_command_line,
                 settings.restart ? resume.step : -1);
   out.set_first_step(resume.step);
   std::unique_ptr<fluid::FluidSeriesWriter> series;
@@ -256,8 +260,20 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
                               "cellfsi: restarting from the checkpoint at t = %g s (step %d)\n", resume.time,
                               resume.step));
   const std::string iteration = bodies.empty() ? "Newton" : "the coupling iteration";
+  // The summary of a failed run. If it cannot be written either (the full disk that failed the run), the
+  // previous summary.json stays and the returned note says so, for the message.
+  auto summary_of_failure = [&](const std::string& status) -> std::string {
+    try {
+      out.summary(status, done, newton, linear, last);
+      return {};
+    } catch (const std::exception& e) {
+      return std::string("; summary.json not updated: ") + e.what();
+    }
+  };
+  int current_step = resume.step + 1;  // the step being computed or written, for a failure's message
   try {
     for (int k = resume.step + 1; k <= n_steps; ++k) {
+      current_step = k;
       const SceneStep st = scene.step();
       newton += st.iterations;
       linear += st.linear_iterations;
@@ -269,8 +285,8 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       if (!st.converged) {
         const std::string why = iteration + " diverged (" + st.reason + ") in step " + std::to_string(k) +
                                 " at t = " + std::to_string(k * settings.dt) + " s";
-        out.summary("failed: " + why, done, newton, linear, last);
-        print_error(why + "; output so far is in " + settings.output_dir);
+        const std::string note = summary_of_failure("failed: " + why);
+        print_error(why + "; output so far is in " + settings.output_dir + note);
         return 2;
       }
       done = k;
@@ -308,14 +324,16 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     }
   } catch (const std::invalid_argument& e) {
     // Bad input found once the solvers read their options (after the first step): exit 1, as before a run.
-    out.summary(std::string("failed: ") + e.what(), done, newton, linear, last);
+    const std::string note = summary_of_failure(std::string("failed: ") + e.what());
+    if (!note.empty()) throw std::invalid_argument(e.what() + note);
     throw;
   } catch (const std::exception& e) {
     // Whatever stopped the run mid-way, the summary says so next to the output written so far, and where.
     char where[96];
-    std::snprintf(where, sizeof where, " in step %d at t = %g s", done + 1, (done + 1) * settings.dt);
-    out.summary(std::string("failed: ") + e.what() + where, done, newton, linear, last);
-    throw std::runtime_error(e.what() + std::string(where) + "; output so far is in " + settings.output_dir);
+    std::snprintf(where, sizeof where, " in step %d at t = %g s", current_step, current_step * settings.dt);
+    const std::string note = summary_of_failure(std::string("failed: ") + e.what() + where);
+    throw std::runtime_error(e.what() + std::string(where) + "; output so far is in " + settings.output_dir +
+                             note);
   }
   std::vector<std::pair<std::string, double>> final_metrics = scene.summary_metrics();
   if (scene.coupler()) {
@@ -346,7 +364,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   for (size_t i = 0; i < sec.points.size(); ++i)
     csv << sec.points[i][0] << "," << sec.points[i][1] << "," << sec.points[i][2] << "," << sec.velocity[i][0]
         << "," << sec.velocity[i][1] << "," << sec.velocity[i][2] << "\n";
-  if (rank == 0) write_atomically(settings.output_dir + "/profile.csv", csv.str());
+  if (rank == 0) write_file_atomically(settings.output_dir + "/profile.csv", csv.str());
   // Channel flows: the same profile averaged over the metrics' window.
   if (const fluid::SectionData mean = scene.mean_profile(); !mean.points.empty() && rank == 0) {
     std::ostringstream m;
@@ -354,7 +372,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     for (size_t i = 0; i < mean.points.size(); ++i)
       m << mean.points[i][0] << "," << mean.points[i][1] << "," << mean.points[i][2] << ","
         << mean.velocity[i][0] << "," << mean.velocity[i][1] << "," << mean.velocity[i][2] << "\n";
-    write_atomically(settings.output_dir + "/profile_mean.csv", m.str());
+    write_file_atomically(settings.output_dir + "/profile_mean.csv", m.str());
   }
   CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
                             "cellfsi: completed %d steps in %.2f s; summary in %s/summary.json\n", n_steps,
@@ -464,6 +482,7 @@ int launch(int argc, char** argv, Role role) {
   }
   if (args.size() > 1 && args[1][0] != '-') {
     scene_file = args[1];
+    g_scene_file = scene_file;
     scene_name = std::filesystem::path(scene_file).stem().string();
     args[1] = "-options_file_yaml";
     args.insert(args.begin() + 2, scene_file);
@@ -481,6 +500,7 @@ int launch(int argc, char** argv, Role role) {
           args[0] + " SCENE.yaml [options]";
     }
     if (!scene_file.empty()) args.insert(args.begin() + 1, {"-options_file_yaml", scene_file});
+    g_scene_file = scene_file;
   }
 
   MPI_Init(&argc, &argv);
@@ -566,6 +586,9 @@ int launch(int argc, char** argv, Role role) {
     int local_rank = 0;
     MPI_Comm_rank(PETSC_COMM_WORLD, &local_rank);
     install_stop_handlers(color == 0 && local_rank == 0);  // replaces PETSc's handlers for these signals
+    // A file-size limit (ulimit -f) makes a write fail with EFBIG, reported like a full disk, instead of
+    // killing the process by SIGXFSZ with nothing saved.
+    std::signal(SIGXFSZ, SIG_IGN);
     try {
       status = color == 1 ? run_solid(scene_name, inter, hs) : run_fluid(scene_name, inter, hs);
     } catch (const std::invalid_argument& e) {

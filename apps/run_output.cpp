@@ -13,25 +13,16 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
+#include <fstream>
 #include <iomanip>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
 
 #include "apps/build_info.hpp"
+#include "common/file_io.hpp"
 
 namespace cellfsi::app {
-
-void write_atomically(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream os(tmp);
-    if (!os) throw std::runtime_error("cannot open '" + tmp + "' for writing");
-    os << text;
-    if (!os) throw std::runtime_error("error writing '" + tmp + "'");
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error("cannot rename '" + tmp + "'");
-}
 
 std::string effective_options_yaml() {
   char* all = nullptr;
@@ -60,11 +51,74 @@ std::string effective_options_yaml() {
 
 namespace {
 
+/// The file that marks a folder as cellfsi's own (claim_folder).
+constexpr const char* kOwnerMark = ".cellfsi-output";
+
 /// A file of the fluid or solid series: fluid_NNNNNN.vts, its parallel form fluid_NNNNNN.pvts with pieces
 /// fluid_NNNNNN_pRRRR.vts, solid_BODY_NNNNNN.vts.
 bool is_series_file(const std::string& name) {
   const std::string ext = std::filesystem::path(name).extension().string();
   return (name.rfind("fluid_", 0) == 0 || name.rfind("solid_", 0) == 0) && (ext == ".vts" || ext == ".pvts");
+}
+
+/// The names cellfsi writes in an output folder (a file's temporary ".tmp" form included).
+bool is_cellfsi_output(std::string name) {
+  if (name.size() > 4 && name.compare(name.size() - 4, 4, ".tmp") == 0) name.resize(name.size() - 4);
+  static const char* const kFiles[] = {"options.yaml", "metrics.csv", "summary.json", "profile.csv",
+                                       "profile_mean.csv", "fluid.pvd", "solid.pvd", "checkpoint",
+                                       "checkpoint.new", "checkpoint.old", kOwnerMark, ".cellfsi.lock"};
+  for (const char* f : kFiles)
+    if (name == f) return true;
+  return is_series_file(name);
+}
+
+/// Whether cellfsi made DIR: its mark, or the lock file that cellfsi versions before the mark left in
+/// every output folder.
+bool owned_by_cellfsi(const std::filesystem::path& dir) {
+  std::error_code ec;
+  return std::filesystem::exists(dir / kOwnerMark, ec) || std::filesystem::exists(dir / ".cellfsi.lock", ec);
+}
+
+/// Makes DIR this run's output folder: creates it (and marks it) if missing; takes an empty folder; refuses
+/// a non-empty folder cellfsi did not make, unless `adopt`, and then still refuses one that holds files of
+/// the names cellfsi writes (they would be replaced or deleted). Throws std::invalid_argument naming the
+/// option.
+void claim_folder(const std::string& dir, bool adopt) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const std::string bad = "option -output_dir = '" + dir + "' is invalid: ";
+  const bool existed = fs::exists(dir, ec);
+  if (existed && !fs::is_directory(dir, ec)) throw std::invalid_argument(bad + "it is a file, not a folder");
+  if (!existed) {
+    fs::create_directories(dir, ec);
+    if (ec || !fs::is_directory(dir))
+      throw std::invalid_argument(bad + "it cannot be created: " + ec.message());
+  } else if (!owned_by_cellfsi(dir)) {
+    std::vector<std::string> names, clashes;
+    for (const auto& entry : fs::directory_iterator(dir, ec)) {
+      names.push_back(entry.path().filename().string());
+      if (is_cellfsi_output(names.back())) clashes.push_back(names.back());
+    }
+    if (ec) throw std::invalid_argument(bad + "it cannot be read: " + ec.message());
+    auto listed = [](const std::vector<std::string>& v) {
+      std::string l;
+      for (size_t i = 0; i < v.size() && i < 5; ++i) l += (i ? ", " : "") + v[i];
+      return v.size() > 5 ? l + ", ... (" + std::to_string(v.size()) + " in all)" : l;
+    };
+    if (!names.empty() && !adopt)
+      throw std::invalid_argument(
+          bad + "the folder is not empty and was not made by cellfsi (it holds " + listed(names) +
+          "); cellfsi would replace or delete files in it. Choose a new or empty folder, or give "
+          "-output_dir_adopt to write into it beside its files");
+    if (!clashes.empty())
+      throw std::invalid_argument(bad + "it holds files of the names cellfsi writes (" + listed(clashes) +
+                                  "), which -output_dir_adopt does not replace; move them or choose "
+                                  "another folder");
+  }
+  if (!owned_by_cellfsi(dir))
+    write_file_atomically((fs::path(dir) / kOwnerMark).string(),
+                          "This folder is a cellfsi output folder: cellfsi may replace the files it writes "
+                          "here (options.yaml, metrics.csv, summary.json, the .pvd series, checkpoint/).\n");
 }
 
 /// Locks DIR/.cellfsi.lock (flock: released by the kernel when the process ends, however it ends) and
@@ -125,13 +179,9 @@ std::string utc_now() {
 
 }  // namespace
 
-FolderLock::FolderLock(MPI_Comm comm, const std::string& dir) {
+FolderLock::FolderLock(MPI_Comm comm, const std::string& dir, bool adopt) {
   on_rank_zero(comm, [&] {
-    std::error_code ec;
-    std::filesystem::create_directories(dir, ec);
-    if (ec || !std::filesystem::is_directory(dir))
-      throw std::invalid_argument("option -output_dir = '" + dir +
-                                  "' is invalid: it cannot be created: " + ec.message());
+    claim_folder(dir, adopt);
     std::string why;
     fd_ = lock_folder(dir, why);
     if (fd_ < 0) throw std::invalid_argument("option -output_dir = '" + dir + "' is invalid: " + why);
@@ -143,8 +193,8 @@ FolderLock::~FolderLock() {
 }
 
 RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& scene,
-                     const std::vector<std::string>& columns, std::vector<std::string> command_line,
-                     int resume_step)
+                     const std::vector<std::string>& columns, const std::string& options_yaml,
+                     std::vector<std::string> command_line, int resume_step)
     : comm_(comm),
       dir_(dir),
       scene_(scene),
@@ -156,10 +206,13 @@ RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& s
   MPI_Comm_size(comm, &size_);
   resumed_ = resume_step >= 0;
   on_rank_zero(comm, [&] {
+    const std::string csv_path = dir_ + "/metrics.csv";
     if (resumed_) {
       // A restart: the columns must be this run's (checked before anything is touched); the rows up to the
       // checkpoint's step stay (those after it, written before the run stopped, go), and the run appends.
-      std::ifstream in(dir_ + "/metrics.csv");
+      // The previous summary.json stays until this run writes its own: a restart that cannot write (a full
+      // disk) must not cost the summary of the run it continues.
+      std::ifstream in(csv_path);
       if (!in)
         throw std::invalid_argument("option -restart is invalid here: '" + dir_ +
                                     "' has a checkpoint but no metrics.csv (the rows before the checkpoint "
@@ -179,34 +232,33 @@ RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& s
         if (step >= 1 && step <= resume_step && line.find(',') != std::string::npos) kept += line + "\n";
       }
       in.close();
-      std::error_code ec;
-      for (const char* f : {"/summary.json", "/profile.csv", "/profile_mean.csv"})
-        std::filesystem::remove(dir_ + f, ec);
-      write_atomically(dir_ + "/metrics.csv", kept);
-      write_atomically(dir_ + "/options.yaml", effective_options_yaml());
-      csv_.open(dir_ + "/metrics.csv", std::ios::app);
-      if (!csv_) throw std::runtime_error("cannot write '" + dir_ + "/metrics.csv'");
-      return;
+      write_file_atomically(csv_path, kept);
+      write_file_atomically(dir_ + "/options.yaml", options_yaml);
+    } else {
+      // A previous run's results (and its checkpoint, which -restart would otherwise resume) in this folder
+      // would be mistaken for this run's: remove them first. Only names cellfsi writes, in a folder cellfsi
+      // owns (FolderLock).
+      for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
+        const std::string name = entry.path().filename().string();
+        if (name == "summary.json" || name == "fluid.pvd" || name == "solid.pvd" || name == "profile.csv" ||
+            name == "profile_mean.csv" || is_series_file(name))
+          std::filesystem::remove(entry.path());
+        if (name == "checkpoint" || name == "checkpoint.new" || name == "checkpoint.old")
+          std::filesystem::remove_all(entry.path());
+      }
+      write_file_atomically(dir_ + "/options.yaml", options_yaml);
+      // The header now: a run that fails in its first step leaves the columns, not an empty file.
+      std::string header;
+      for (size_t i = 0; i < columns_.size(); ++i) header += (i ? "," : "") + columns_[i];
+      write_file_atomically(csv_path, header + "\n");
     }
-    // A previous run's results (and its checkpoint, which -restart would otherwise resume) in this folder
-    // would be mistaken for this run's: remove them first.
-    for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
-      const std::string name = entry.path().filename().string();
-      const bool series = is_series_file(name);
-      if (name == "summary.json" || name == "fluid.pvd" || name == "solid.pvd" || name == "profile.csv" ||
-          name == "profile_mean.csv" || series)
-        std::filesystem::remove(entry.path());
-      if (name == "checkpoint" || name == "checkpoint.new" || name == "checkpoint.old")
-        std::filesystem::remove_all(entry.path());
-    }
-    write_atomically(dir_ + "/options.yaml", effective_options_yaml());
-    csv_.open(dir_ + "/metrics.csv", std::ios::trunc);
-    if (!csv_) throw std::runtime_error("cannot write '" + dir_ + "/metrics.csv'");
-    // The header now: a run that fails in its first step leaves the columns, not an empty file.
-    for (size_t i = 0; i < columns_.size(); ++i) csv_ << (i ? "," : "") << columns_[i];
-    csv_ << "\n";
-    csv_.flush();
+    csv_fd_ = ::open(csv_path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
+    if (csv_fd_ < 0) throw_write_error(csv_path, std::strerror(errno));
   });
+}
+
+RunOutput::~RunOutput() {
+  if (csv_fd_ >= 0) ::close(csv_fd_);
 }
 
 void RunOutput::remove_series_except(const std::vector<std::string>& keep) const {
@@ -232,9 +284,20 @@ void RunOutput::metrics_row(const std::vector<std::pair<std::string, double>>& r
   if (row.size() != columns_.size())
     throw std::logic_error("metrics.csv: a row of " + std::to_string(row.size()) + " values for " +
                            std::to_string(columns_.size()) + " columns");
-  for (size_t i = 0; i < row.size(); ++i) csv_ << (i ? "," : "") << std::setprecision(12) << row[i].second;
-  csv_ << "\n";
-  csv_.flush();
+  std::ostringstream line;
+  line << std::setprecision(12);
+  for (size_t i = 0; i < row.size(); ++i) line << (i ? "," : "") << row[i].second;
+  line << "\n";
+  // A row is written whole or not at all: a failed write (a full disk, a file-size limit) is cut back to
+  // the previous row's end, so metrics.csv never ends in half a row, and reported naming the file.
+  const std::string text = line.str();
+  const off_t end = ::lseek(csv_fd_, 0, SEEK_END);
+  if (const int err = write_all(csv_fd_, text.data(), text.size()); err != 0) {
+    if (end >= 0 && ::ftruncate(csv_fd_, end) != 0) {
+      // The partial row stays; a restart drops rows it cannot read.
+    }
+    throw_write_error(dir_ + "/metrics.csv", std::strerror(err));
+  }
 }
 
 void RunOutput::progress(int step, int n_steps, double t, int newton, int linear, bool force) {
@@ -279,7 +342,7 @@ void RunOutput::write_summary(const std::string& status, int steps, long newton,
       js[k] = nullptr;
   }
   for (const auto& [k, v] : text) js[k] = v;
-  write_atomically(dir_ + "/summary.json", js.dump(2) + "\n");
+  write_file_atomically(dir_ + "/summary.json", js.dump(2) + "\n");
 }
 
 }  // namespace cellfsi::app

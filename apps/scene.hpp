@@ -54,6 +54,7 @@ struct SceneSettings {
   int checkpoint_every = 100;  // write DIR/checkpoint every N steps (0: only at the end and when interrupted)
   bool restart = false;        // continue the run in output_dir from its checkpoint
   std::string output_dir;      // default out/<name>
+  bool output_dir_adopt = false;  // write into a non-empty folder cellfsi did not make (apps/run_output.hpp)
   double dt = 5e-4;            // time step [s] (-dt)
   std::vector<BodySettings> bodies;
   coupling::CouplerOptions coupling;

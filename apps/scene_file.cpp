@@ -2,8 +2,10 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cctype>
 #include <map>
 #include <stdexcept>
+#include <utility>
 
 namespace cellfsi::app {
 
@@ -29,16 +31,30 @@ void check_unique_keys(const std::string& path, const YAML::Node& node, const st
   }
 }
 
-/// The line of every option the file sets (flattened names, without '-').
-void option_lines(const YAML::Node& node, const std::string& prefix, std::map<std::string, int>& out) {
+/// Calls visit(name, value node) for every option the file sets (flattened names, without '-'), in the
+/// file's order.
+template <class Visit>
+void for_each_option(const YAML::Node& node, const std::string& prefix, Visit&& visit) {
   if (!node.IsMap()) return;
   for (auto it = node.begin(); it != node.end(); ++it) {
     const std::string name = prefix + it->first.Scalar();
     if (it->second.IsMap())
-      option_lines(it->second, name + "_", out);
+      for_each_option(it->second, name + "_", visit);
     else
-      out[name] = it->first.Mark().line + 1;
+      visit(name, it->first, it->second);
   }
+}
+
+/// The line of every option the file sets (flattened names, without '-').
+void option_lines(const YAML::Node& node, std::map<std::string, int>& out) {
+  for_each_option(node, "", [&](const std::string& name, const YAML::Node& key, const YAML::Node&) {
+    out[name] = key.Mark().line + 1;
+  });
+}
+
+/// An option name on the command line: '-' and a letter (a value may be a negative number).
+bool is_option_word(const std::string& w) {
+  return w.size() > 1 && w[0] == '-' && std::isalpha(static_cast<unsigned char>(w[1]));
 }
 
 }  // namespace
@@ -53,7 +69,7 @@ std::string with_scene_file_line(const std::string& message, const std::string& 
     if (arg == "-" + name) return message;  // the command line's value
   std::map<std::string, int> lines;
   try {
-    option_lines(YAML::LoadFile(path), "", lines);
+    option_lines(YAML::LoadFile(path), lines);
   } catch (const YAML::Exception&) {
     return message;
   }
@@ -80,6 +96,54 @@ void check_scene_file(const std::string& path) {
     throw std::invalid_argument(where(path, root.Mark()) + ": the top level must be a map of options " +
                                 "(key: value), not " + (root.IsSequence() ? "a list" : "a single value"));
   check_unique_keys(path, root, "");
+}
+
+std::string given_options_yaml(const std::string& path, const std::vector<std::string>& command_line,
+                               const std::string& scene_name) {
+  // In order of first appearance; a later source replaces the value in place.
+  std::vector<std::pair<std::string, std::string>> options;
+  auto set = [&options](const std::string& name, const std::string& value) {
+    static const char* const kNotRecorded[] = {"restart", "help", "solid_ranks"};
+    for (const char* k : kNotRecorded)
+      if (name == k) return;
+    for (auto& [k, v] : options)
+      if (k == name) {
+        v = value;
+        return;
+      }
+    options.emplace_back(name, value);
+  };
+  if (!path.empty()) {
+    for_each_option(YAML::LoadFile(path), "", [&](const std::string& name, const YAML::Node&,
+                                                  const YAML::Node& value) {
+      // A list is read by PETSc as its items joined by commas.
+      std::string text;
+      if (value.IsSequence())
+        for (std::size_t i = 0; i < value.size(); ++i) text += (i ? "," : "") + value[i].as<std::string>();
+      else if (!value.IsNull())
+        text = value.as<std::string>();
+      set(name, text);
+    });
+  }
+  // The command line: after argv[0] and the scene file (a first argument that is not an option).
+  std::size_t i = command_line.size() > 1 && !is_option_word(command_line[1]) ? 2 : 1;
+  for (; i < command_line.size(); ++i) {
+    if (!is_option_word(command_line[i])) continue;
+    const bool has_value = i + 1 < command_line.size() && !is_option_word(command_line[i + 1]);
+    set(command_line[i].substr(1), has_value ? command_line[i + 1] : std::string());
+    if (has_value) ++i;
+  }
+  bool named = false;
+  for (const auto& kv : options) named = named || kv.first == "scene";
+  if (!named) options.emplace_back("scene", scene_name);
+
+  YAML::Emitter out;
+  out << YAML::Comment("the options this run was given (scene file, then command line); run it again with: "
+                       "cellfsi options.yaml [-output_dir DIR]")
+      << YAML::Newline << YAML::BeginMap;
+  for (const auto& [k, v] : options) out << YAML::Key << k << YAML::Value << v;
+  out << YAML::EndMap;
+  return std::string(out.c_str()) + "\n";
 }
 
 }  // namespace cellfsi::app

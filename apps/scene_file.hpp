@@ -18,4 +18,13 @@ void check_scene_file(const std::string& path);
 std::string with_scene_file_line(const std::string& message, const std::string& path,
                                  const std::vector<std::string>& command_line);
 
+/// options.yaml: the options a run was given, re-runnable as `cellfsi DIR/options.yaml`. The scene file's
+/// options (`path`; nested keys joined by '_', as PETSc reads them) overridden by the command line's
+/// (`command_line`: the arguments as given, argv[0] first, the scene file maybe second), in that order;
+/// without the defaults the program sets itself, -restart, -help and the launch option -solid_ranks; with
+/// `scene: NAME` when neither gave it, so a re-run keeps the scene's name. Written by yaml-cpp's emitter:
+/// values with spaces, newlines or control characters are quoted and come back as they were.
+std::string given_options_yaml(const std::string& path, const std::vector<std::string>& command_line,
+                               const std::string& scene_name);
+
 }  // namespace cellfsi::app

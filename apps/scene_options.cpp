@@ -368,7 +368,10 @@ SceneSettings SceneSettings::from_options(const std::string& default_name, bool 
                at_least(0, "(0: only at the end and when interrupted)"))
       .flag("restart", s.restart,
             "Continue the run in the output folder from its checkpoint (same options; -final_time may grow)")
-      .text("output_dir", s.output_dir, "Output folder (default out/<scene>)");
+      .text("output_dir", s.output_dir, "Output folder (default out/<scene>)")
+      .flag("output_dir_adopt", s.output_dir_adopt,
+            "Write into an existing non-empty folder that cellfsi did not make (no file of the names cellfsi "
+            "writes may be in it; cellfsi then marks it as its own)");
   t.read();
   if (s.name.empty()) t.bad("scene", "''", "a non-empty name");
   if (s.domain == "box" && s.dim != 3) t.bad("domain", "box", "box needs -dim 3");

@@ -15,6 +15,7 @@
 #include <vtkStructuredGrid.h>
 #include <vtkXMLStructuredGridWriter.h>
 
+#include "common/file_io.hpp"
 #include "common/petsc_error.hpp"
 #include "fluid/point_evaluation.hpp"
 #include "geometry/quadrature.hpp"
@@ -31,13 +32,9 @@ namespace {
 
 /// A VTK file written under a temporary name and renamed: a run killed mid-write leaves no truncated file.
 void write_atomically(vtkStructuredGrid* grid, const std::string& path) {
-  const std::string tmp = path + ".tmp";
   vtkNew<vtkXMLStructuredGridWriter> writer;
-  writer->SetFileName(tmp.c_str());
   writer->SetInputData(grid);
-  if (writer->Write() != 1 || writer->GetErrorCode() != 0)
-    throw std::runtime_error("cannot write VTK file '" + tmp + "'");
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error("cannot rename '" + tmp + "'");
+  geometry::write_vtk_atomically(writer, path);
 }
 
 /// The .pvts index of a series step: the whole sample grid and each rank's piece (extent, file).
@@ -62,13 +59,7 @@ void write_pvts(const std::string& path, const int whole[6], const std::vector<s
   for (size_t i = 0; i < files.size(); ++i)
     os << "    <Piece Extent=\"" << extent(extents[i].data()) << "\" Source=\"" << files[i] << "\"/>\n";
   os << "  </PStructuredGrid>\n</VTKFile>\n";
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp);
-    f << os.str();
-    if (!f) throw std::runtime_error("cannot write '" + tmp + "'");
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error("cannot rename '" + tmp + "'");
+  write_file_atomically(path, os.str(), false);
 }
 
 }  // namespace

@@ -2,8 +2,8 @@
 
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <iomanip>
+#include <sstream>
 #include <stdexcept>
 
 #include <vtkCellArray.h>
@@ -16,26 +16,11 @@
 #include <vtkXMLPolyDataWriter.h>
 #include <vtkXMLStructuredGridWriter.h>
 
+#include "common/file_io.hpp"
+
 namespace cellfsi::geometry {
 
 namespace {
-
-/// VTK reports some failures (e.g. a missing directory) only through the error code, and prints them; the
-/// directory is checked first so the user gets one clear message. The file is written under a temporary name
-/// and renamed, so a process killed mid-write leaves no truncated file behind.
-template <class Writer>
-void write_or_throw(Writer& writer, const std::string& path) {
-  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
-  if (!parent.empty() && !std::filesystem::is_directory(parent))
-    throw std::runtime_error("cannot write '" + path + "': directory '" + parent.string() +
-                             "' does not exist");
-  const std::string tmp = path + ".tmp";
-  writer->SetFileName(tmp.c_str());
-  if (writer->Write() != 1 || writer->GetErrorCode() != 0)
-    throw std::runtime_error("cannot write VTK file '" + path + "'");
-  if (std::rename(tmp.c_str(), path.c_str()) != 0)
-    throw std::runtime_error("cannot rename '" + tmp + "' to '" + path + "'");
-}
 
 void check_samples(int s) {
   if (s < 1)
@@ -44,6 +29,21 @@ void check_samples(int s) {
 }
 
 }  // namespace
+
+void write_vtk_atomically(vtkXMLWriter* writer, const std::string& path) {
+  // VTK's file output can fail with no reason recorded (a full disk ends as a failed pipeline request, after
+  // a printed traceback): the writer fills a string, and the file is written from it with every write
+  // checked. The string costs one file's size, briefly.
+  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  if (!parent.empty() && !std::filesystem::is_directory(parent))
+    throw_write_error(path, "folder '" + parent.string() + "' does not exist");
+  writer->WriteToOutputStringOn();
+  if (writer->Write() != 1 || writer->GetErrorCode() != 0)
+    throw_write_error(path, "the VTK writer failed (error code " + std::to_string(writer->GetErrorCode()) + ")");
+  const std::string text = writer->GetOutputString();
+  writer->WriteToOutputStringOff();
+  write_file_atomically(path, text, false);
+}
 
 std::vector<double> sample_values(const KnotVector& kv, int s) {
   std::vector<double> u;
@@ -120,7 +120,7 @@ void write_patch_vts(const Patch& patch, const std::string& path, int samples_pe
 
   vtkNew<vtkXMLStructuredGridWriter> writer;
   writer->SetInputData(grid);
-  write_or_throw(writer, path);
+  write_vtk_atomically(writer, path);
 }
 
 void write_patch_elements_vtp(const Patch& patch, const std::string& path, int samples_per_element) {
@@ -168,28 +168,22 @@ void write_patch_elements_vtp(const Patch& patch, const std::string& path, int s
   poly->SetLines(lines);
   vtkNew<vtkXMLPolyDataWriter> writer;
   writer->SetInputData(poly);
-  write_or_throw(writer, path);
+  write_vtk_atomically(writer, path);
 }
 
 void write_pvd(const std::string& path, const std::vector<PvdEntry>& entries) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream os(tmp);
-    if (!os) throw std::runtime_error("cannot open '" + tmp + "' for writing");
-    os << "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" "
-          "byte_order=\"LittleEndian\">\n"
-       << "  <Collection>\n"
-       << std::setprecision(17);
-    for (const auto& e : entries) {
-      os << "    <DataSet timestep=\"" << e.time << "\" part=\"" << e.part << "\"";
-      if (!e.name.empty()) os << " name=\"" << e.name << "\"";
-      os << " file=\"" << e.file << "\"/>\n";
-    }
-    os << "  </Collection>\n</VTKFile>\n";
-    if (!os) throw std::runtime_error("error writing '" + tmp + "'");
+  std::ostringstream os;
+  os << "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" "
+        "byte_order=\"LittleEndian\">\n"
+     << "  <Collection>\n"
+     << std::setprecision(17);
+  for (const auto& e : entries) {
+    os << "    <DataSet timestep=\"" << e.time << "\" part=\"" << e.part << "\"";
+    if (!e.name.empty()) os << " name=\"" << e.name << "\"";
+    os << " file=\"" << e.file << "\"/>\n";
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0)
-    throw std::runtime_error("cannot rename '" + tmp + "' to '" + path + "'");
+  os << "  </Collection>\n</VTKFile>\n";
+  write_file_atomically(path, os.str(), false);
 }
 
 }  // namespace cellfsi::geometry

@@ -6,6 +6,8 @@
 
 #include "geometry/patch.hpp"
 
+class vtkXMLWriter;
+
 namespace cellfsi::geometry {
 
 /// Parametric sample values of one direction: every element split into `samples_per_element` equal intervals,
@@ -39,7 +41,12 @@ struct PvdEntry {
   int part = 0;
   std::string name;  // shown by ParaView as the block name when non-empty
 };
-/// Writes a .pvd collection (atomically: to a temporary file renamed over `path`).
+/// Runs `writer` (its input set) into path atomically: to path + ".tmp", renamed over path once complete.
+/// On failure (a missing folder, a full disk, a file-size limit) the temporary file is removed, path is left
+/// as it was, and cellfsi::WriteError names path and the system's reason.
+void write_vtk_atomically(vtkXMLWriter* writer, const std::string& path);
+
+/// Writes a .pvd collection (atomically: to a temporary file renamed over `path`; WriteError on failure).
 void write_pvd(const std::string& path, const std::vector<PvdEntry>& entries);
 
 }  // namespace cellfsi::geometry

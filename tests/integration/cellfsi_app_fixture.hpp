@@ -14,6 +14,7 @@
 #include <poll.h>
 #include <signal.h>
 #include <sys/file.h>
+#include <sys/resource.h>
 #include <sys/types.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -56,8 +57,11 @@ struct RunResult {
 /// MPI/BLAS environment of the test suite. After `timeout_s` the whole process group gets SIGTERM (mpiexec
 /// forwards it to its ranks), then SIGKILL, so a hanging run fails the test instead of blocking the suite.
 /// `during`, if given, is called with the child's pid about every 50 ms while it runs (e.g. to signal it).
+/// `file_size_limit` (bytes), if given: no file the child writes may grow past it (RLIMIT_FSIZE, with SIGXFSZ
+/// ignored, so a write beyond it fails with EFBIG as on a full disk).
 inline RunResult run_process(const std::vector<std::string>& argv, double timeout_s = 60,
-                             const std::function<void(pid_t)>& during = {}) {
+                             const std::function<void(pid_t)>& during = {},
+                             std::optional<rlim_t> file_size_limit = std::nullopt) {
   // The child inherits these (this test process is single-threaded, so setenv is safe here).
   setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
   setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
@@ -86,6 +90,15 @@ inline RunResult run_process(const std::vector<std::string>& argv, double timeou
     close(fd[1]);
     const int devnull = open("/dev/null", O_RDONLY);
     if (devnull >= 0) dup2(devnull, STDIN_FILENO);
+    if (file_size_limit) {
+      // MPI's start-up writes shared-memory files that the limit would cut (PMIx's data store, the shared-
+      // memory transport): a one-rank run needs neither.
+      setenv("PMIX_MCA_gds", "hash", 1);
+      setenv("OMPI_MCA_btl", "self", 1);
+      const rlimit limit{*file_size_limit, *file_size_limit};
+      setrlimit(RLIMIT_FSIZE, &limit);
+      signal(SIGXFSZ, SIG_IGN);  // an ignored signal stays ignored across exec
+    }
     execv(args[0], args.data());
     const std::string msg = std::string("execv ") + args[0] + ": " + std::strerror(errno) + "\n";
     if (write(STDERR_FILENO, msg.data(), msg.size()) < 0) _exit(127);
@@ -270,7 +283,7 @@ class CellfsiApp : public ::testing::Test {
     args.insert(args.begin(), CELLFSI_EXE);
     args.push_back("-output_dir");
     args.push_back(out_.string());
-    RunResult r = run_process(args, timeout_s, during);
+    RunResult r = run_process(args, timeout_s, during, file_size_limit_);
     last_output_ = r.output;
     return r;
   }
@@ -304,6 +317,7 @@ class CellfsiApp : public ::testing::Test {
 
   fs::path root_, out_;
   mutable std::string last_output_;
+  std::optional<rlim_t> file_size_limit_;  // cellfsi(): see run_process
 };
 
 /// True for an option name ("-dt"), false for a value ("-1", "2e-3", "scene.yaml").

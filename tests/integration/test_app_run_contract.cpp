@@ -235,8 +235,10 @@ TEST_F(CellfsiApp, OutputFolderInUseIsRefusedAndLeftIntact) {
 }
 
 TEST_F(CellfsiApp, ReusedFolderLosesThePreviousRunsSolidSeries) {
-  // Issue 10: a capsule run's solid series stayed behind when the next run in the folder wrote none.
+  // Issue 10: a capsule run's solid series stayed behind when the next run in the folder wrote none. The
+  // folder is an earlier run's (marked as cellfsi's, as every run marks its folder).
   fs::create_directories(out_);
+  { std::ofstream(out_ / ".cellfsi-output") << "cellfsi"; }
   for (const char* f : {"solid.pvd", "solid_membrane_000007.vts", "fluid_000003.vts", "fluid.pvd"})
     std::ofstream(out_ / f) << "old";
   { std::ofstream(out_ / "notes.txt") << "mine"; }
