@@ -65,8 +65,24 @@ void print_failure(const std::string& message) {
     std::fprintf(stderr, "cellfsi: error (rank %d): %s\n", rank, message.c_str());
 }
 
+/// A stop request during the set-up (apps/interrupt.hpp): the message, and the exit code 128 + sig.
+int stopped_during_set_up(int sig) {
+  CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
+                            "cellfsi: stopped by %s during set-up, before the first step; nothing written\n",
+                            signal_name(sig).c_str()));
+  return 128 + sig;
+}
+
 /// The fluid side (and, without a solid group, the bodies too).
 int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
+  // A stop request during the set-up (3D meshes take minutes) is honoured at the end of each of its phases
+  // instead of after the set-up and a whole first step; a solid side still waiting at the handshake stops
+  // too.
+  auto set_up_stop = [&hs]() {
+    const int sig = agreed_stop_signal(PETSC_COMM_WORLD);
+    if (sig != 0) hs.agree(-sig);
+    return sig;
+  };
   const std::vector<std::string> user_options = option_names();
   const SceneSettings settings = SceneSettings::from_options(default_name);
   PetscBool help = PETSC_FALSE;
@@ -76,10 +92,15 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     hs.agree(1);
     return 0;
   }
+  if (const int sig = set_up_stop()) return stopped_during_set_up(sig);
   check_bodies(settings, scene.fluid().patch());
+  if (const int sig = set_up_stop()) return stopped_during_set_up(sig);
   scene.fluid().setup();
   reject_unknown_options(OptionCheck::before_coupling);
-  if (hs.agree(2, effective_options_yaml()) != 2)
+  if (const int sig = set_up_stop()) return stopped_during_set_up(sig);
+  if (const int other = hs.agree(2, effective_options_yaml()); other < 0)
+    return stopped_during_set_up(-other);  // the solid side was stopped during its set-up
+  else if (other != 2)
     throw std::invalid_argument("the solid side stopped at start-up (see its message)");
   if (hs.split())
     if (const std::string diff = body_option_differences(effective_options_yaml(), hs.remote_options());
@@ -124,6 +145,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   if (scene.coupler() && scene.coupler()->solver() != coupling::CouplingSolver::fluid)
     scene.fluid().release_linear_solver();
   reject_unknown_options(OptionCheck::before_first_step);
+  if (const int sig = agreed_stop_signal(PETSC_COMM_WORLD)) return stopped_during_set_up(sig);
 
   int size = 1, rank = 0, solid_ranks = 0;
   MPI_Comm_size(PETSC_COMM_WORLD, &size);
@@ -256,6 +278,16 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
                               "cellfsi: restarting from the checkpoint at t = %g s (step %d)\n", resume.time,
                               resume.step));
   const std::string iteration = bodies.empty() ? "Newton" : "the coupling iteration";
+  // The last look before the steps: the folder is this run's now, so the summary says where it stopped.
+  if (const int sig = agreed_stop_signal(PETSC_COMM_WORLD)) {
+    char where[96];
+    std::snprintf(where, sizeof where, " during set-up, before step %d of %d", resume.step + 1, n_steps);
+    out.summary("interrupted: " + signal_name(sig) + where, done, newton, linear, {});
+    CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "cellfsi: stopped by %s%s; summary in %s/summary.json\n",
+                              signal_name(sig).c_str(), where, settings.output_dir.c_str()));
+    return 128 + sig;
+  }
+  mark_time_stepping();
   try {
     for (int k = resume.step + 1; k <= n_steps; ++k) {
       const SceneStep st = scene.step();
@@ -287,7 +319,8 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       if (written) write_series();
       if (settings.checkpoint_every > 0 && k % settings.checkpoint_every == 0 && k < n_steps)
         write_checkpoint_now(k);
-      // A stop request (SIGINT, SIGTERM, SIGUSR1; apps/interrupt.hpp) ends the run after this step.
+      // A stop request (SIGINT, SIGTERM, SIGHUP, SIGUSR1, SIGPIPE; apps/interrupt.hpp) ends the run after
+      // this step.
       if (const int sig = agreed_stop_signal(PETSC_COMM_WORLD); sig != 0 && k < n_steps) {
         if (series && !written) write_series();  // the state the run stopped at
         write_checkpoint_now(k);
@@ -368,7 +401,7 @@ int run_solid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   std::string error;
   std::vector<std::unique_ptr<solid::NurbsSolid>> owned;
   std::vector<solid::SolidSolver*> mine;
-  int state = 2;
+  int state = 2;  // the Handshake's states
   try {
     const SceneSettings settings = SceneSettings::from_options(default_name, false);
     PetscBool help = PETSC_FALSE;
@@ -388,7 +421,10 @@ int run_solid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     error = e.what();
     state = 0;
   }
+  // A stop request during this side's set-up stops both sides (the fluid side says so).
+  if (const int sig = agreed_stop_signal(PETSC_COMM_WORLD); sig != 0 && state != 1) state = -sig;
   const int fluid_state = hs.agree(state, state == 2 ? effective_options_yaml() : std::string());
+  if (std::min(state, fluid_state) < 0) return 128 - std::min(state, fluid_state);
   // The same check as the fluid side's, which reports it.
   if (state == 2 && fluid_state == 2 &&
       !body_option_differences(hs.remote_options(), effective_options_yaml()).empty())
@@ -406,6 +442,7 @@ int run_solid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
 }  // namespace
 
 int launch(int argc, char** argv, Role role) {
+  record_ignored_signals();  // before MPI and PETSc install handlers over the dispositions the process got
   // Arguments: a scene file first is read as PETSc options before the command line, which therefore wins;
   // -solid_ranks B (launch option, command line only) splits the job.
   std::vector<std::string> args(argv, argv + argc);

@@ -17,7 +17,7 @@ enum class Role {
 };
 
 /// main() of the three executables: MPI and PETSc start-up, the split, the run, exit codes (0 done, 1 bad
-/// input, 2 failed mid-way).
+/// input, 2 failed mid-way, 128 + S stopped by signal S: apps/interrupt.hpp).
 int launch(int argc, char** argv, Role role);
 
 }  // namespace cellfsi::app
