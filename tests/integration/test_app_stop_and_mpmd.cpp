@@ -138,26 +138,20 @@ TEST_F(CellfsiApp, ClosedStandardOutputStopsTheRunCleanly) {
 /// What a stop during the set-up leaves: the exit code, the messages, no step; a summary.json only if the
 /// run got as far as making its output folder its own (then saying so).
 void expect_stopped_during_set_up(const RunResult& r, int sig, const fs::path& out) {
+  const std::string signal = sig == SIGUSR1 ? "SIGUSR1" : "SIGTERM";
   ASSERT_FALSE(r.timed_out) << r.output;
   EXPECT_EQ(r.exit_code, 128 + sig) << r.output;
   EXPECT_NE(r.output.find("cellfsi: stop requested during set-up; stopping"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("finishing the current step"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("cellfsi: stopped by " + std::string(sig == SIGUSR1 ? "SIGUSR1" : "SIGTERM") +
-                          " during set-up"),
-            std::string::npos)
-      << r.output;
+  EXPECT_NE(r.output.find("cellfsi: stopped by " + signal + " during set-up"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("step 1/"), std::string::npos) << "no step may run:\n" << r.output;
   EXPECT_EQ(count(r.output, "PETSC ERROR"), 0u) << r.output;
   EXPECT_EQ(read_csv(out / "metrics.csv").rows.size(), 0u);
   EXPECT_FALSE(fs::exists(out / "checkpoint"));
-  if (fs::exists(out / "summary.json"))
-    EXPECT_EQ(
-        json_string(read_text(out / "summary.json"), "status")
-            .value_or("")
-            .rfind("interrupted: " + std::string(sig == SIGUSR1 ? "SIGUSR1" : "SIGTERM") + " during set-up",
-                   0),
-        0u)
-        << read_text(out / "summary.json");
+  if (fs::exists(out / "summary.json")) {
+    const std::string status = json_string(read_text(out / "summary.json"), "status").value_or("");
+    EXPECT_EQ(status.rfind("interrupted: " + signal + " during set-up", 0), 0u) << status;
+  }
 }
 
 // The capsule at 192 x 96: its set-up after the stop handlers are installed (measured 0.5 s) is long enough
