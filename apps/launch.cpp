@@ -103,11 +103,11 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   else if (other != 2)
     throw std::invalid_argument("the solid side stopped at start-up (see its message)");
   if (hs.split())
-    if (const std::string diff = body_option_differences(effective_options_yaml(), hs.remote_options());
+    if (const std::string diff = split_option_differences(effective_options_yaml(), hs.remote_options());
         !diff.empty())
       throw std::invalid_argument(
-          "the fluid and the solid side were given different options for the bodies (fluid side -> solid "
-          "side: " +
+          "the fluid and the solid side were given different options (fluid side -> "
+          "solid side: " +
           diff + "); give both executables the same scene and options");
 
   std::vector<std::unique_ptr<solid::NurbsSolid>> owned;
@@ -427,7 +427,7 @@ int run_solid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   if (std::min(state, fluid_state) < 0) return 128 - std::min(state, fluid_state);
   // The same check as the fluid side's, which reports it.
   if (state == 2 && fluid_state == 2 &&
-      !body_option_differences(hs.remote_options(), effective_options_yaml()).empty())
+      !split_option_differences(hs.remote_options(), effective_options_yaml()).empty())
     return 1;
   if (state == 0) {
     if (fluid_state == 2) print_error(error);
@@ -533,6 +533,27 @@ int launch(int argc, char** argv, Role role) {
   // have one (-solid_ranks given to cellfsi-solid, its scene file missing), and the other must not wait for
   // it. The lowest rank with an error prints it.
   std::string early_error = bad_launch ? launch_error : std::string();
+  // First what the job is made of, which every rank learns: cellfsi mixed with cellfsi-fluid or -solid, or
+  // cellfsi processes given different -solid_ranks, would split the job differently on each side and each
+  // would wait for the other forever.
+  {
+    int job[5] = {role == Role::combined, role == Role::fluid, role == Role::solid, solid_ranks,
+                  -solid_ranks};
+    MPI_Allreduce(MPI_IN_PLACE, job, 5, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    if (job[0] && (job[1] || job[2])) {
+      std::string names = "cellfsi";
+      if (job[1]) names += job[2] ? ", cellfsi-fluid" : " and cellfsi-fluid";
+      if (job[2]) names += " and cellfsi-solid";
+      early_error = names +
+                    " were started in one job; valid: cellfsi alone (mpirun -np N cellfsi SCENE.yaml "
+                    "[-solid_ranks B]) or cellfsi-fluid with cellfsi-solid (mpirun -np A cellfsi-fluid "
+                    "SCENE.yaml : -np B cellfsi-solid SCENE.yaml)";
+    } else if (job[0] && job[3] != -job[4]) {
+      early_error = "option -solid_ranks differs between the cellfsi processes of the job (" +
+                    std::to_string(-job[4]) + " and " + std::to_string(job[3]) +
+                    "); valid: one value for the whole job (mpirun -np N cellfsi SCENE.yaml -solid_ranks B)";
+    }
+  }
   if (early_error.empty() && !scene_file.empty() && !std::filesystem::is_regular_file(scene_file))
     early_error = "scene file '" + scene_file + "' not found (expected a .yaml scene, see scenes/)";
   if (early_error.empty() && !scene_file.empty()) {

@@ -1,5 +1,8 @@
 // Integration tests (cellfsi_app_fixture.hpp), issue 24: a run stopped by SIGHUP, a closed standard output
-// (SIGPIPE) or a stop request during its set-up keeps what it did; nohup still works.
+// (SIGPIPE) or a stop request during its set-up keeps what it did; nohup still works; MPMD jobs that mix the
+// executables or give the two sides different options are refused instead of hanging or running wrongly.
+#include <tuple>
+
 #include "cellfsi_app_fixture.hpp"
 
 using namespace cellfsi_app_test;
@@ -180,6 +183,42 @@ TEST_F(CellfsiApp, MpmdStopDuringSetUpEndsBothSides) {
                                     sent = true;
                                   });
   expect_stopped_during_set_up(r, SIGUSR1, out_);
+}
+
+TEST_F(CellfsiApp, MpmdJobMixingTheCombinedExecutableIsRefused) {
+  // Issue 24: `mpirun -np 1 cellfsi S : -np 1 cellfsi-solid S` hung forever (each side split the job its own
+  // way and waited for the other). Both sides now stop, one message, exit 1.
+  const std::vector<std::string> args = with({scene("capsule_shear.yaml")}, kCapsule);
+  const std::vector<std::tuple<std::string, std::string, std::string>> jobs = {
+      {CELLFSI_EXE, CELLFSI_SOLID_EXE, "cellfsi and cellfsi-solid"},
+      {CELLFSI_FLUID_EXE, CELLFSI_EXE, "cellfsi and cellfsi-fluid"}};
+  for (const auto& [a, b, names] : jobs) {
+    const RunResult r = run_process(two_executables(a, args, b, args, out_), 30);
+    expect_one_clear_error(r);
+    EXPECT_NE(r.output.find("cellfsi: error: " + names + " were started in one job; valid: cellfsi alone"),
+              std::string::npos)
+        << r.output;
+    EXPECT_TRUE(nothing_written());
+  }
+}
+
+TEST_F(CellfsiApp, MpmdSidesWithDifferentTimeSteppingAreRefused) {
+  // Issue 24: a -dt or -final_time given to the solid side alone was silently ignored (the fluid side leads
+  // the steps). Refused like the bodies' options: one message naming the option and both values.
+  const std::vector<std::string> args = with({scene("capsule_shear.yaml")}, kCapsule);
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"-dt", "1e-3"}, "dt: 0.0005 -> 1e-3"}, {{"-final_time", "2e-3"}, "final_time: 1e-3 -> 2e-3"}};
+  for (const auto& [solid_only, expected] : cases) {
+    const RunResult r = run_process(
+        two_executables(CELLFSI_FLUID_EXE, args, CELLFSI_SOLID_EXE, with(args, solid_only), out_), 30);
+    expect_one_clear_error(r);
+    EXPECT_NE(r.output.find("the fluid and the solid side were given different options (fluid side -> solid "
+                            "side: " +
+                            expected + ")"),
+              std::string::npos)
+        << r.output;
+    EXPECT_TRUE(nothing_written());
+  }
 }
 
 }  // namespace
