@@ -202,6 +202,21 @@ TEST_F(CellfsiApp, MpmdJobMixingTheCombinedExecutableIsRefused) {
   }
 }
 
+TEST_F(CellfsiApp, MpmdCellfsiProcessesWithDifferentSolidRanksAreRefused) {
+  // `mpirun -np 1 cellfsi S -solid_ranks 1 : -np 1 cellfsi S` hung the same way (one process split the job,
+  // the other did not).
+  const std::vector<std::string> args = with({scene("capsule_shear.yaml")}, kCapsule);
+  const RunResult r = run_process(two_executables(CELLFSI_EXE, with(args, {"-solid_ranks", "1"}), CELLFSI_EXE,
+                                                  with(args, {"-output_dir", out_.string()}), out_),
+                                  30);
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("cellfsi: error: option -solid_ranks differs between the cellfsi processes of the "
+                          "job (0 and 1)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
 TEST_F(CellfsiApp, MpmdSidesWithDifferentTimeSteppingAreRefused) {
   // Issue 24: a -dt or -final_time given to the solid side alone was silently ignored (the fluid side leads
   // the steps). Refused like the bodies' options: one message naming the option and both values.
