@@ -8,7 +8,8 @@
 namespace cellfsi::app {
 
 /// Start-up agreement between the fluid and the solid group: each side reports 2 (ready), 1 (stop quietly:
-/// -help) or 0 (bad input, already reported by that side); both learn the other's state. Once only.
+/// -help), 0 (bad input, already reported by that side) or -S (stopped by signal S during its set-up; the
+/// fluid side reports it); both learn the other's state. Once only.
 class Handshake {
  public:
   explicit Handshake(MPI_Comm inter) : inter_(inter) {}

@@ -68,8 +68,24 @@ void print_failure(const std::string& message) {
     std::fprintf(stderr, "cellfsi: error (rank %d): %s\n", rank, message.c_str());
 }
 
+/// A stop request during the set-up (apps/interrupt.hpp): the message, and the exit code 128 + sig.
+int stopped_during_set_up(int sig) {
+  CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
+                            "cellfsi: stopped by %s during set-up, before the first step; nothing written\n",
+                            signal_name(sig).c_str()));
+  return 128 + sig;
+}
+
 /// The fluid side (and, without a solid group, the bodies too).
 int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
+  // A stop request during the set-up (3D meshes take minutes) is honoured at the end of each of its phases
+  // instead of after the set-up and a whole first step; a solid side still waiting at the handshake stops
+  // too.
+  auto set_up_stop = [&hs]() {
+    const int sig = agreed_stop_signal(PETSC_COMM_WORLD);
+    if (sig != 0) hs.agree(-sig);
+    return sig;
+  };
   const std::vector<std::string> user_options = option_names();
   const SceneSettings settings = SceneSettings::from_options(default_name);
   PetscBool help = PETSC_FALSE;
@@ -79,17 +95,22 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     hs.agree(1);
     return 0;
   }
+  if (const int sig = set_up_stop()) return stopped_during_set_up(sig);
   check_bodies(settings, scene.fluid().patch());
+  if (const int sig = set_up_stop()) return stopped_during_set_up(sig);
   scene.fluid().setup();
   reject_unknown_options(OptionCheck::before_coupling);
-  if (hs.agree(2, effective_options_yaml()) != 2)
+  if (const int sig = set_up_stop()) return stopped_during_set_up(sig);
+  if (const int other = hs.agree(2, effective_options_yaml()); other < 0)
+    return stopped_during_set_up(-other);  // the solid side was stopped during its set-up
+  else if (other != 2)
     throw std::invalid_argument("the solid side stopped at start-up (see its message)");
   if (hs.split())
-    if (const std::string diff = body_option_differences(effective_options_yaml(), hs.remote_options());
+    if (const std::string diff = split_option_differences(effective_options_yaml(), hs.remote_options());
         !diff.empty())
       throw std::invalid_argument(
-          "the fluid and the solid side were given different options for the bodies (fluid side -> solid "
-          "side: " +
+          "the fluid and the solid side were given different options (fluid side -> "
+          "solid side: " +
           diff + "); give both executables the same scene and options");
 
   std::vector<std::unique_ptr<solid::NurbsSolid>> owned;
@@ -127,6 +148,7 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   if (scene.coupler() && scene.coupler()->solver() != coupling::CouplingSolver::fluid)
     scene.fluid().release_linear_solver();
   reject_unknown_options(OptionCheck::before_first_step);
+  if (const int sig = agreed_stop_signal(PETSC_COMM_WORLD)) return stopped_during_set_up(sig);
 
   int size = 1, rank = 0, solid_ranks = 0;
   MPI_Comm_size(PETSC_COMM_WORLD, &size);
@@ -260,6 +282,16 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
                               "cellfsi: restarting from the checkpoint at t = %g s (step %d)\n", resume.time,
                               resume.step));
   const std::string iteration = bodies.empty() ? "Newton" : "the coupling iteration";
+  // The last look before the steps: the folder is this run's now, so the summary says where it stopped.
+  if (const int sig = agreed_stop_signal(PETSC_COMM_WORLD)) {
+    char where[96];
+    std::snprintf(where, sizeof where, " during set-up, before step %d of %d", resume.step + 1, n_steps);
+    out.summary("interrupted: " + signal_name(sig) + where, done, newton, linear, {});
+    CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "cellfsi: stopped by %s%s; summary in %s/summary.json\n",
+                              signal_name(sig).c_str(), where, settings.output_dir.c_str()));
+    return 128 + sig;
+  }
+  mark_time_stepping();
   // The summary of a failed run. If it cannot be written either (the full disk that failed the run), the
   // previous summary.json stays and the returned note says so, for the message.
   auto summary_of_failure = [&](const std::string& status) -> std::string {
@@ -303,7 +335,8 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
       if (written) write_series();
       if (settings.checkpoint_every > 0 && k % settings.checkpoint_every == 0 && k < n_steps)
         write_checkpoint_now(k);
-      // A stop request (SIGINT, SIGTERM, SIGUSR1; apps/interrupt.hpp) ends the run after this step.
+      // A stop request (SIGINT, SIGTERM, SIGHUP, SIGUSR1, SIGPIPE; apps/interrupt.hpp) ends the run after
+      // this step.
       if (const int sig = agreed_stop_signal(PETSC_COMM_WORLD); sig != 0 && k < n_steps) {
         if (series && !written) write_series();  // the state the run stopped at
         write_checkpoint_now(k);
@@ -355,24 +388,33 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
                                           : used == coupling::CouplingSolver::band  ? "band"
                                                                                     : "fluid");
   }
-  out.summary("completed", done, newton, linear, final_metrics, words);
-  write_checkpoint_now(n_steps);  // a later run may go on from here (-restart with a later -final_time)
-  // The velocity profile across the domain at x = mid-length (section xi_0 = 1/2), as CSV.
-  const fluid::SectionData sec = fluid::section(scene.fluid(), 0.5, 65);
-  std::ostringstream csv;
-  csv << std::setprecision(12) << "x,y,z,vx,vy,vz\n";
-  for (size_t i = 0; i < sec.points.size(); ++i)
-    csv << sec.points[i][0] << "," << sec.points[i][1] << "," << sec.points[i][2] << "," << sec.velocity[i][0]
-        << "," << sec.velocity[i][1] << "," << sec.velocity[i][2] << "\n";
-  if (rank == 0) write_file_atomically(settings.output_dir + "/profile.csv", csv.str());
-  // Channel flows: the same profile averaged over the metrics' window.
-  if (const fluid::SectionData mean = scene.mean_profile(); !mean.points.empty() && rank == 0) {
-    std::ostringstream m;
-    m << std::setprecision(12) << "x,y,z,vx,vy,vz\n";
-    for (size_t i = 0; i < mean.points.size(); ++i)
-      m << mean.points[i][0] << "," << mean.points[i][1] << "," << mean.points[i][2] << ","
-        << mean.velocity[i][0] << "," << mean.velocity[i][1] << "," << mean.velocity[i][2] << "\n";
-    write_file_atomically(settings.output_dir + "/profile_mean.csv", m.str());
+  // The velocity profile across the domain at x = mid-length (section xi_0 = 1/2), as CSV; for channel
+  // flows also averaged over the metrics' window.
+  auto profile_csv = [](const fluid::SectionData& sec) {
+    std::ostringstream csv;
+    csv << std::setprecision(12) << "x,y,z,vx,vy,vz\n";
+    for (size_t i = 0; i < sec.points.size(); ++i)
+      csv << sec.points[i][0] << "," << sec.points[i][1] << "," << sec.points[i][2] << ","
+          << sec.velocity[i][0] << "," << sec.velocity[i][1] << "," << sec.velocity[i][2] << "\n";
+    return csv.str();
+  };
+  const fluid::SectionData sec = fluid::section(scene.fluid(), 0.5, 65), mean = scene.mean_profile();
+  // The final checkpoint (a later run may go on from it: -restart with a later -final_time) and the
+  // profiles, then "completed": a summary that says so is written last.
+  try {
+    write_checkpoint_now(n_steps);
+    on_rank_zero(PETSC_COMM_WORLD, [&] {
+      write_file_atomically(settings.output_dir + "/profile.csv", profile_csv(sec));
+      if (!mean.points.empty())
+        write_file_atomically(settings.output_dir + "/profile_mean.csv", profile_csv(mean));
+    });
+    out.summary("completed", done, newton, linear, final_metrics, words);
+  } catch (const std::exception& e) {
+    char where[96];
+    std::snprintf(where, sizeof where, " after the last step (%d) at t = %g s", n_steps, n_steps * settings.dt);
+    const std::string note = summary_of_failure(std::string("failed: ") + e.what() + where);
+    throw std::runtime_error(e.what() + std::string(where) + "; output so far is in " + settings.output_dir +
+                             note);
   }
   CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
                             "cellfsi: completed %d steps in %.2f s; summary in %s/summary.json\n", n_steps,
@@ -386,7 +428,7 @@ int run_solid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   std::string error;
   std::vector<std::unique_ptr<solid::NurbsSolid>> owned;
   std::vector<solid::SolidSolver*> mine;
-  int state = 2;
+  int state = 2;  // the Handshake's states
   try {
     const SceneSettings settings = SceneSettings::from_options(default_name, false);
     PetscBool help = PETSC_FALSE;
@@ -406,10 +448,13 @@ int run_solid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     error = e.what();
     state = 0;
   }
+  // A stop request during this side's set-up stops both sides (the fluid side says so).
+  if (const int sig = agreed_stop_signal(PETSC_COMM_WORLD); sig != 0 && state != 1) state = -sig;
   const int fluid_state = hs.agree(state, state == 2 ? effective_options_yaml() : std::string());
+  if (std::min(state, fluid_state) < 0) return 128 - std::min(state, fluid_state);
   // The same check as the fluid side's, which reports it.
   if (state == 2 && fluid_state == 2 &&
-      !body_option_differences(hs.remote_options(), effective_options_yaml()).empty())
+      !split_option_differences(hs.remote_options(), effective_options_yaml()).empty())
     return 1;
   if (state == 0) {
     if (fluid_state == 2) print_error(error);
@@ -424,6 +469,7 @@ int run_solid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
 }  // namespace
 
 int launch(int argc, char** argv, Role role) {
+  record_ignored_signals();  // before MPI and PETSc install handlers over the dispositions the process got
   // Arguments: a scene file first is read as PETSc options before the command line, which therefore wins;
   // -solid_ranks B (launch option, command line only) splits the job.
   std::vector<std::string> args(argv, argv + argc);
@@ -516,6 +562,27 @@ int launch(int argc, char** argv, Role role) {
   // have one (-solid_ranks given to cellfsi-solid, its scene file missing), and the other must not wait for
   // it. The lowest rank with an error prints it.
   std::string early_error = bad_launch ? launch_error : std::string();
+  // First what the job is made of, which every rank learns: cellfsi mixed with cellfsi-fluid or -solid, or
+  // cellfsi processes given different -solid_ranks, would split the job differently on each side and each
+  // would wait for the other forever.
+  {
+    int job[5] = {role == Role::combined, role == Role::fluid, role == Role::solid, solid_ranks,
+                  -solid_ranks};
+    MPI_Allreduce(MPI_IN_PLACE, job, 5, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    if (job[0] && (job[1] || job[2])) {
+      std::string names = "cellfsi";
+      if (job[1]) names += job[2] ? ", cellfsi-fluid" : " and cellfsi-fluid";
+      if (job[2]) names += " and cellfsi-solid";
+      early_error = names +
+                    " were started in one job; valid: cellfsi alone (mpirun -np N cellfsi SCENE.yaml "
+                    "[-solid_ranks B]) or cellfsi-fluid with cellfsi-solid (mpirun -np A cellfsi-fluid "
+                    "SCENE.yaml : -np B cellfsi-solid SCENE.yaml)";
+    } else if (job[0] && job[3] != -job[4]) {
+      early_error = "option -solid_ranks differs between the cellfsi processes of the job (" +
+                    std::to_string(-job[4]) + " and " + std::to_string(job[3]) +
+                    "); valid: one value for the whole job (mpirun -np N cellfsi SCENE.yaml -solid_ranks B)";
+    }
+  }
   if (early_error.empty() && !scene_file.empty() && !std::filesystem::is_regular_file(scene_file))
     early_error = "scene file '" + scene_file + "' not found (expected a .yaml scene, see scenes/)";
   if (early_error.empty() && !scene_file.empty()) {

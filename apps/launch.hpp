@@ -17,7 +17,8 @@ enum class Role {
 };
 
 /// main() of the three executables: MPI and PETSc start-up, the split, the run, exit codes (0 done, 1 bad
-/// input, 2 failed mid-way).
+/// input, 2 failed mid-way, 128 + S stopped by signal S: apps/interrupt.hpp). A job must be made of cellfsi
+/// alone or of cellfsi-fluid with cellfsi-solid; any other mix is refused at start-up.
 int launch(int argc, char** argv, Role role);
 
 }  // namespace cellfsi::app

@@ -113,11 +113,8 @@ void reject_inapplicable_solver_options(const std::vector<std::string>& user_opt
   }
 }
 
-/// In a split job (two executables, or -solid_ranks), the options that shape the bodies must be the same on
-/// both sides: the solid side builds and steps the bodies from its own. Those are the -solid_* options and
-/// the domain and mesh the bodies are checked against. Returns the differences ("name: fluid side -> solid
-/// side"), the same list on both sides.
-std::string body_option_differences(const std::string& fluid_side, const std::string& solid_side) {
+/// See option_checks.hpp.
+std::string split_option_differences(const std::string& fluid_side, const std::string& solid_side) {
   auto map = [](const std::string& text) {
     std::map<std::string, std::string> m;
     std::istringstream in(text);
@@ -128,7 +125,8 @@ std::string body_option_differences(const std::string& fluid_side, const std::st
       const bool shapes_bodies = key.rfind("solid_", 0) == 0 || key.rfind("domain", 0) == 0 ||
                                  key.rfind("channel_", 0) == 0 || key == "dim" || key == "fluid_elements" ||
                                  key == "fluid_degree" || key == "coupling_max_mesh_ratio";
-      if (shapes_bodies && key != "solid_ranks") m[key] = line.substr(colon + 2);
+      const bool time_stepping = key == "dt" || key == "final_time";
+      if ((shapes_bodies || time_stepping) && key != "solid_ranks") m[key] = line.substr(colon + 2);
     }
     return m;
   };

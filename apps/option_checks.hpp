@@ -1,7 +1,7 @@
 #pragma once
 // Checks of the options a run was given, beyond each option table's own: options nobody read (misspelt),
 // solver options that would be silently ignored, and (in a job of two executables) differences between the
-// two sides' options that shape the bodies.
+// two sides' options that shape the bodies or the time stepping.
 #include <string>
 #include <vector>
 
@@ -27,10 +27,11 @@ std::vector<std::string> option_names();
 void reject_inapplicable_solver_options(const std::vector<std::string>& user_options,
                                         coupling::CouplingSolver solver);
 
-/// In a split job (two executables, or -solid_ranks), the options that shape the bodies must be the same on
-/// both sides: the solid side builds and steps the bodies from its own. Those are the -solid_* options and
-/// the domain and mesh the bodies are checked against. Returns the differences ("name: fluid side -> solid
-/// side"), the same list on both sides.
-std::string body_option_differences(const std::string& fluid_side, const std::string& solid_side);
+/// In a split job (two executables, or -solid_ranks), the options both sides read must be the same on both:
+/// the solid side builds and steps the bodies from its own, and a time step or final time given to it alone
+/// would be silently ignored (the fluid side leads the steps). Those are the -solid_* options, the domain and
+/// mesh the bodies are checked against, -dt and -final_time. Returns the differences ("name: fluid side ->
+/// solid side"), the same list on both sides.
+std::string split_option_differences(const std::string& fluid_side, const std::string& solid_side);
 
 }  // namespace cellfsi::app

@@ -315,8 +315,7 @@ TEST_F(CellfsiApp, MpmdSidesWithDifferentBodyOptionsAreRefused) {
     EXPECT_FALSE(r.timed_out) << r.output;
     EXPECT_NE(r.exit_code, 0) << r.output;
     EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
-    EXPECT_NE(r.output.find("different options for the bodies (fluid side -> solid side: " +
-                            solid_only[0].substr(1)),
+    EXPECT_NE(r.output.find("different options (fluid side -> solid side: " + solid_only[0].substr(1)),
               std::string::npos)
         << r.output;
     EXPECT_TRUE(nothing_written());

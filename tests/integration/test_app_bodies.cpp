@@ -401,8 +401,10 @@ TEST_F(CellfsiApp, OneAndTwoFluidRanksAgree) {
   const auto two = last_row(out_ / "metrics.csv");
   // The same solver on both: the partition changes only the order of sums (the averaged stencil's, the
   // products'), so the iterations are the same and the state agrees to round-off amplified by the linear
-  // solves (measured: 1e-14 at 64 x 32 over 10 steps); r_A, a difference of areas, against a floor.
-  EXPECT_TRUE(rows_agree(one, two, 1e-9, 1e-9));
+  // solves (measured: 1e-14 at 64 x 32 over 10 steps); r_A, a difference of areas, against a floor: its
+  // round-off is absolute (measured 6.5e-14 on r_A = -5.47e-5 between two 2-rank runs on a loaded machine,
+  // 1.2e-9 relative), so values below 1e-3 are compared to 1e-12 absolute.
+  EXPECT_TRUE(rows_agree(one, two, 1e-9, 1e-3));
   // The fluid's KSP (ASM) on 2 ranks: the state agrees to well below the coupling tolerance (the linear
   // solves stop at rtol 1e-5).
   auto state = [](std::vector<std::pair<std::string, double>> row) {
