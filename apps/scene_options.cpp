@@ -30,6 +30,11 @@ const std::vector<std::string> kMarkings{"support", "central"};
 const std::vector<std::string> kAccelerations{"none", "anderson"};
 const std::vector<std::string> kShapes{"hollow_ellipse", "ellipse", "rbc", "hollow_ellipsoid", "ellipsoid"};
 const std::vector<std::string> kArrangements{"even", "staggered", "random"};
+constexpr double kMaxInterfaceScaling = 1e12;  // s_I
+constexpr double kMaxOriginOverSize = 1e6;     // |domain origin| / domain extent
+// G [dyn/cm^2]: cells are 1e1 ... 1e5, rubber 1e7; the capsule at 48 x 24, dt 5e-4 ran at 1e9, its coupling
+// diverged at 1e10 and its membrane inverted at 1e11.
+constexpr double kMaxShearModulus = 1e8;
 
 /// The coupling's options (and the scene's body list, averaging window and mesh-ratio limit).
 void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
@@ -49,7 +54,9 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
   OptionTable t("cellfsi immersed bodies and coupling");
   t.texts("solid_bodies", names, "Names of the immersed bodies, e.g. membrane,nucleus", 64)
       .real("s_interface", c.s_interface, "s_I: s^h on the basis functions at interfaces (paper 3.3)",
-            {[](const double& v) { return v >= 1; }, ">= 1"})
+            between(1, kMaxInterfaceScaling, "",
+                    "(the studies use 1e6 ... 1e11; a larger s_I outweighs the rest of the Jacobian by more "
+                    "than its LU resolves in double precision: 1e300 failed the factorisation)"))
       .text("s_interface_marking", marking,
             "Functions given s_I: support (every function nonzero on an element the interface crosses) or "
             "central (only those whose support it crosses in an inner element)",
@@ -115,6 +122,11 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
       .real("metrics_average_from", s.metrics_average_from,
             "Start of the metrics' averaging window [s] (default: half the final time)");
   t.read();
+  // A negative value is the default's marker; given, it (or nan) would silently mean the default.
+  if (t.given("metrics_average_from") && !(s.metrics_average_from >= 0))
+    t.bad("metrics_average_from", option_value_text(s.metrics_average_from),
+          "0 <= time < -final_time = " + option_value_text(s.final_time) +
+              " s (leave it out for the default, half the final time)");
   if (s.metrics_average_from >= s.final_time)
     t.bad("metrics_average_from", option_value_text(s.metrics_average_from),
           "less than -final_time = " + option_value_text(s.final_time) + " s");
@@ -153,8 +165,10 @@ void read_body(SceneSettings& s, const std::string& name) {
                 dim, at_least(0, "(0: automatic)"))
       .integer("degree", b.degree, "Lagrangian degree, 2..4",
                {[](const long long& v) { return v >= 2 && v <= 4; }, "2, 3 or 4"})
-      .real("shear_modulus", b.shear_modulus, "G [dyn/cm^2]", positive("[dyn/cm^2]"))
-      .real("density", b.density, "rho_2 [g/cm^3]", positive("[g/cm^3]"))
+      .real("shear_modulus", b.shear_modulus, "G [dyn/cm^2]",
+            material(1e-6, kMaxShearModulus, "[dyn/cm^2]",
+                     "stiffer than any cell, and a stiffer body needs a far smaller -dt"))
+      .real("density", b.density, "rho_2 [g/cm^3]", material(1e-6, 1e3, "[g/cm^3]"))
       .integer("count", count,
                "Copies of the body (NAME_1 ... NAME_N) spread evenly along x, the periodic flow direction; "
                "-center gives the row's y (and z)",
@@ -392,6 +406,19 @@ SceneSettings SceneSettings::from_options(const std::string& default_name, bool 
     s.size = {s.channel.length, s.channel.height};
     s.origin = Vec3(0, -s.channel.height / 2, 0);
   }
+  // Far from the origin the coordinates keep too few digits to tell the mesh's points apart (1e10,1e10 for
+  // a 0.0024 cm box ended in "det F = -nan"); a million domain lengths out, a 64th of the domain still
+  // holds about eight of a coordinate's sixteen digits.
+  for (int d = 0; d < D; ++d)
+    if (!(std::abs(s.origin[d]) <= kMaxOriginOverSize * s.size[d])) {
+      const char axis = "xyz"[d];
+      std::ostringstream v, w;
+      for (int e = 0; e < D; ++e) v << (e ? "," : "") << s.origin[e];
+      w << "|" << axis << "| <= " << kMaxOriginOverSize << " x the domain's extent (" << s.size[d]
+        << " cm along " << axis
+        << "): farther out the coordinates lose the digits that tell the mesh's points apart";
+      t.bad("domain_origin", v.str(), w.str());
+    }
   for (int d = 0; d < 3; ++d) s.elements[d] = d < D ? elements[d] : 1;
   for (int d = 0; d < D; ++d)
     if (s.periodic[d] && s.elements[d] < s.degree)
@@ -404,6 +431,15 @@ SceneSettings SceneSettings::from_options(const std::string& default_name, bool 
   if (!(s.final_time / s.dt <= 1e9))
     t.bad("dt", option_value_text(s.dt),
           "at least -final_time / 1e9 = " + option_value_text(s.final_time / 1e9) + " s (at most 1e9 steps)");
+  // The run takes whole steps: a final time between two of them ran on to the next with no word
+  // (-final_time 0.005 -dt 0.004 ended at t = 0.008).
+  const double steps = s.final_time / s.dt;
+  if (std::abs(steps - std::round(steps)) > 1e-6) {
+    std::ostringstream w;
+    w << "a whole number of steps of -dt = " << s.dt << " s, e.g. " << std::floor(steps) * s.dt << " or "
+      << std::ceil(steps) * s.dt << " s (or a -dt that divides it)";
+    t.bad("final_time", option_value_text(s.final_time), w.str());
+  }
   if (s.output_dir.empty()) s.output_dir = "out/" + s.name;
 
   std::vector<std::string> names;

@@ -20,7 +20,9 @@ TEST_F(CellfsiApp, NegativeViscosityIsRejected) {
   expect_one_clear_error(r);
   EXPECT_NE(r.output.find("-fluid_viscosity"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("-1"), std::string::npos) << "the message names the value:\n" << r.output;
-  EXPECT_NE(r.output.find("> 0"), std::string::npos) << "the message names the valid range:\n" << r.output;
+  EXPECT_NE(r.output.find("1e-08 ... 1e+06 [g/(cm s)]"), std::string::npos)
+      << "the message names the valid range:\n"
+      << r.output;
   EXPECT_TRUE(nothing_written());
 }
 
@@ -77,6 +79,46 @@ TEST_F(CellfsiApp, StepCountsThatDoNotFitAndMissingValuesAreRejected) {
     const RunResult r = cellfsi(with(with({scene("shear.yaml")}, kTiny), opts));
     expect_one_clear_error(r);
     EXPECT_NE(r.output.find(why), std::string::npos) << r.output;
+    EXPECT_TRUE(nothing_written());
+  }
+}
+
+TEST_F(CellfsiApp, ValuesThatAreNumbersButNotInputAreRejected) {
+  // Issue 24: each ran, or failed later with a reason that named no option: s_I = inf or 1e300 as
+  // FACTOR_OUTMEMORY, denormal or huge material constants (G = 1e-310 "completed" as steady), an averaging
+  // window from nan or -5 (silently the default), an origin whose coordinates lose the mesh ("det F = -nan"),
+  // a final time between two steps (run on to the next with no word).
+  const std::vector<std::string> tiny = with({scene("shear.yaml")}, kTiny);
+  const std::vector<std::string> capsule = with({scene("capsule_shear.yaml")}, kCapsule);
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {with(capsule, {"-s_interface", "inf"}), "option -s_interface = inf is invalid; valid: 1 ... 1e+12 ("},
+      {with(capsule, {"-s_interface", "1e300"}),
+       "option -s_interface = 1e+300 is invalid; valid: 1 ... 1e+12"},
+      {with(capsule, {"-solid_membrane_shear_modulus", "1e-310"}),
+       "option -solid_membrane_shear_modulus = 1e-310 is invalid; valid: 1e-06 ... 1e+08 [dyn/cm^2] (a "
+       "material constant in CGS units; stiffer than any cell"},
+      {with(capsule, {"-solid_membrane_shear_modulus", "1e11"}),
+       "option -solid_membrane_shear_modulus = 1e+11 is invalid"},
+      {with(capsule, {"-solid_membrane_shear_modulus", "1e300"}),
+       "option -solid_membrane_shear_modulus = 1e+300 is invalid"},
+      {with(capsule, {"-solid_membrane_density", "1e300"}),
+       "option -solid_membrane_density = 1e+300 is invalid"},
+      {with(tiny, {"-fluid_viscosity", "1e-310"}),
+       "option -fluid_viscosity = 1e-310 is invalid; valid: 1e-08 ... 1e+06 [g/(cm s)]"},
+      {with(tiny, {"-fluid_density", "1e-310"}), "option -fluid_density = 1e-310 is invalid"},
+      {with(tiny, {"-fluid_density", "1e300"}), "option -fluid_density = 1e+300 is invalid"},
+      {with(capsule, {"-metrics_average_from", "nan"}),
+       "option -metrics_average_from = nan is invalid; valid: 0 <="},
+      {with(capsule, {"-metrics_average_from", "-5"}), "option -metrics_average_from = -5 is invalid"},
+      {with(tiny, {"-domain_origin", "1e10,1e10"}),
+       "option -domain_origin = 1e+10,1e+10 is invalid; valid: |x| <= 1e+06 x the domain's extent"},
+      {with(tiny, {"-final_time", "0.005", "-dt", "0.004"}),
+       "option -final_time = 0.005 is invalid; valid: a whole number of steps of -dt = 0.004 s, e.g. 0.004 "
+       "or "
+       "0.008 s"}};
+  for (const auto& [args, message] : cases) {
+    expect_one_clear_error(cellfsi(args, 20));
+    EXPECT_NE(last_output_.find(message), std::string::npos) << last_output_;
     EXPECT_TRUE(nothing_written());
   }
 }
@@ -147,7 +189,9 @@ TEST_F(CellfsiApp, BadValueInSceneFileNamesFileAndLine) {
   std::ofstream(file) << "dim: 2\nflow: shear\nfluid:\n  viscosity: 0.012\n  density: -2\n";
   RunResult r = cellfsi(with({file.string()}, kTiny));
   expect_one_clear_error(r);
-  EXPECT_NE(r.output.find("option -fluid_density = -2 is invalid; valid: > 0 [g/cm^3] (scene file '" +
+  EXPECT_NE(r.output.find("option -fluid_density = -2 is invalid; valid: 1e-06 ... 1000 [g/cm^3] (a material "
+                          "constant in CGS units; far outside these bounds the solver's products of it leave "
+                          "double precision) (scene file '" +
                           file.string() + "', line 5)"),
             std::string::npos)
       << r.output;
