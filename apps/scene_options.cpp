@@ -35,6 +35,10 @@ constexpr double kMaxOriginOverSize = 1e6;     // |domain origin| / domain exten
 // G [dyn/cm^2]: cells are 1e1 ... 1e5, rubber 1e7; the capsule at 48 x 24, dt 5e-4 ran at 1e9, its coupling
 // diverged at 1e10 and its membrane inverted at 1e11.
 constexpr double kMaxShearModulus = 1e8;
+// Bytes per Lagrangian element of degree 2 (body_bytes): a run's peak resident memory grew by 8.0 kB per
+// element of a 2D body (a ring of 4000 -> 40000 elements, a filled ellipse of 4000 -> 36000) and by 24.5 kB
+// per element of a 3D membrane (768 -> 6912).
+constexpr double kBodyBytesPerElement2d = 8e3, kBodyBytesPerElement3d = 24e3;
 
 /// The coupling's options (and the scene's body list, averaging window and mesh-ratio limit).
 void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
@@ -135,6 +139,50 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
   c.acceleration = enum_of<coupling::Acceleration>(acceleration, kAccelerations);
 }
 
+/// The least MemAvailable over the ranks of comm (collective); 1e300 where it is unknown (no check).
+double least_available_memory(MPI_Comm comm) {
+  double available = available_memory_bytes();
+  if (!(available > 0)) available = 1e300;
+  MPI_Allreduce(MPI_IN_PLACE, &available, 1, MPI_DOUBLE, MPI_MIN, comm);
+  return available;
+}
+
+/// Bytes a run holds for a body of these element counts (its NurbsSolid: collocation matrix and LU, states,
+/// quadrature data; its placement checks and coupling data), measured per element at degree 2 and scaled
+/// with the (p + 1)^d basis functions an element's points couple with.
+double body_bytes(const BodySettings& b, int dim, const std::array<int, 3>& n) {
+  double elements = 1;
+  for (int d = 0; d < dim; ++d) elements *= n[d];
+  const double per_element = dim == 2 ? kBodyBytesPerElement2d : kBodyBytesPerElement3d;
+  return elements * per_element * std::pow((b.degree + 1) / 3.0, dim);
+}
+
+/// Bodies the machine cannot hold are refused before any is built (a membrane of 1 x 1e8 elements allocated
+/// for 25 s, then failed with std::bad_alloc): the bodies listed so far and `count` copies of `b`, against
+/// the least memory available on any rank. A lower bound: in one process every fluid rank holds a copy.
+/// Collective.
+void check_body_memory(const SceneSettings& s, const BodySettings& b, int count, const std::string& pre) {
+  double need = 0;
+  for (const BodySettings& o : s.bodies) need += body_bytes(o, s.dim, body_element_counts(s, o));
+  const std::array<int, 3> n = body_element_counts(s, b);
+  const double own = count * body_bytes(b, s.dim, n);
+  need += own;
+  const double available = least_available_memory(PETSC_COMM_WORLD);
+  if (need <= available) return;
+  std::ostringstream given, used, w;
+  for (int d = 0; d < s.dim; ++d) {
+    given << (d ? "," : "") << b.elements[d];
+    used << (d ? " x " : "") << n[d];
+  }
+  const bool automatic =
+      std::find(b.elements.begin(), b.elements.begin() + s.dim, 0) != b.elements.begin() + s.dim;
+  w << std::setprecision(3) << "fewer elements: the bodies need at least " << need / 1e9 << " GB (body '"
+    << b.name << "'" << (count > 1 ? " and its copies" : "") << ": " << own / 1e9 << " GB for " << used.str()
+    << " elements" << (automatic ? ", where 0 asks for elements slightly smaller than the fluid's" : "")
+    << ") and " << available / 1e9 << " GB are available";
+  bad_option(pre + "elements", given.str(), w.str());
+}
+
 /// One body's options (-solid_NAME_*), and its copies when -solid_NAME_count > 1.
 void read_body(SceneSettings& s, const std::string& name) {
   const int D = s.dim;
@@ -217,6 +265,7 @@ void read_body(SceneSettings& s, const std::string& name) {
   if (D == 3 && elements[1] % 2)
     t.bad("elements", std::to_string(elements[1]), "an even number of polar elements");
   for (int d = 0; d < 3; ++d) b.elements[d] = d < D ? elements[d] : 1;
+  check_body_memory(s, b, count, pre);
   if (count == 1) {
     // A row's options without a row would do nothing.
     if (arrangement != kArrangements[0])
@@ -265,9 +314,7 @@ void check_memory(SceneSettings& s) {
   MPI_Comm comm = PETSC_COMM_WORLD;
   int size = 1;
   MPI_Comm_size(comm, &size);
-  double available = available_memory_bytes();
-  if (!(available > 0)) available = 1e300;  // unknown: no check
-  MPI_Allreduce(MPI_IN_PLACE, &available, 1, MPI_DOUBLE, MPI_MIN, comm);
+  const double available = least_available_memory(comm);
   MPI_Comm node = MPI_COMM_NULL;
   MPI_Comm_split_type(comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node);
   int node_rank = 0, leaders = 0;

@@ -150,6 +150,42 @@ TEST_F(CellfsiApp, MeshTooLargeForTheMachineIsRejectedWithAnEstimate) {
   EXPECT_TRUE(nothing_written());
 }
 
+TEST_F(CellfsiApp, BodiesTooLargeForTheMachineAreRejectedWithAnEstimate) {
+  // Issue 24: a membrane of 1 x 1e8 elements allocated for 25 s, then failed with std::bad_alloc; a throat of
+  // 1e-5 cm gave the CTC's nucleus automatic elements of the throat's size (52 million at 384 x 128), which
+  // were built and located point by point past 20 GB. Each is refused at once (8 kB per element: 800 GB and
+  // 420 GB, more than any one machine has).
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {with({scene("capsule_shear.yaml")}, with(kCapsule, {"-solid_membrane_elements", "1,100000000"})),
+       "option -solid_membrane_elements = 1,100000000 is invalid; valid: fewer elements: the bodies need at "
+       "least 800 GB (body 'membrane': 800 GB for 1 x 100000000 elements) and "},
+      {{scene("ctc_narrowing.yaml"), "-channel_throat_height", "1e-5", "-solid_membrane_elements", "1,0",
+        "-solid_nucleus_elements", "0,0"},
+       "option -solid_nucleus_elements = 0,0 is invalid; valid: fewer elements: the bodies need at least "}};
+  for (const auto& [args, message] : cases) {
+    expect_one_clear_error(cellfsi(args, 10));
+    EXPECT_NE(last_output_.find(message), std::string::npos) << last_output_;
+    EXPECT_NE(last_output_.find(" GB are available"), std::string::npos) << last_output_;
+    EXPECT_TRUE(nothing_written());
+  }
+}
+
+TEST_F(CellfsiApp, NarrowThroatIsRefusedByTheMeshRatioBeforeItsPointsAreLocated) {
+  // Issue 24: a throat of 5e-5 cm gives the nucleus automatic elements of the throat's size (133 thousand at
+  // 96 x 32), every point of which was located (16 s) before the membrane's mesh ratio, which refuses the
+  // case, was checked. The cheap checks of every body now come first: refused within the time limit.
+  expect_one_clear_error(
+      cellfsi({scene("ctc_narrowing.yaml"), "-channel_throat_height", "5e-5", "-fluid_elements", "96,32",
+               "-solid_bodies", "nucleus,membrane", "-solid_nucleus_elements", "0,0"},
+              8));
+  EXPECT_NE(
+      last_output_.find("option -solid_membrane_elements = 1,768 is invalid; valid: Lagrangian elements "
+                        "no larger than 1 x the fluid's"),
+      std::string::npos)
+      << last_output_;
+  EXPECT_TRUE(nothing_written());
+}
+
 TEST_F(CellfsiApp, SceneFileAfterOptionsOrTwiceIsRejected) {
   // Issue 10: a scene file after options ran the default scene instead; a second one was ignored.
   for (const auto& args :
