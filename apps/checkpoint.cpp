@@ -2,6 +2,7 @@
 
 #include <petscviewer.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -77,12 +78,13 @@ std::vector<std::string> conflicting_options(const std::string& saved, const std
     if (may_change(k)) continue;
     const auto it = b.find(k);
     if (it == b.end())
-      out.push_back(k + ": " + v + " -> (not given)");
+      out.push_back("-" + k + ": checkpoint " + v + ", this run (not given)");
     else if (it->second != v)
-      out.push_back(k + ": " + v + " -> " + it->second);
+      out.push_back("-" + k + ": checkpoint " + v + ", this run " + it->second);
   }
   for (const auto& [k, v] : b)
-    if (!may_change(k) && a.find(k) == a.end()) out.push_back(k + ": (not given) -> " + v);
+    if (!may_change(k) && a.find(k) == a.end())
+      out.push_back("-" + k + ": checkpoint (not given), this run " + v);
   return out;
 }
 
@@ -156,14 +158,46 @@ void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c
   });
 }
 
-Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, Vec U, Vec Udot) {
-  fs::path at = fs::path(dir) / "checkpoint";
-  if (!fs::exists(at / "state.json") && fs::exists(fs::path(dir) / "checkpoint.old" / "state.json"))
-    at = fs::path(dir) / "checkpoint.old";
-  if (!fs::exists(at / "state.json") || !fs::exists(at / "fluid.petsc"))
+namespace {
+
+/// The checkpoint folder of DIR: checkpoint/, or checkpoint.old/ when a run stopped between replacing one by
+/// the other; empty if there is none.
+fs::path checkpoint_folder(const std::string& dir) {
+  for (const char* name : {"checkpoint", "checkpoint.old"}) {
+    const fs::path at = fs::path(dir) / name;
+    std::error_code ec;
+    if (fs::exists(at / "state.json", ec) && fs::exists(at / "fluid.petsc", ec)) return at;
+  }
+  return {};
+}
+
+/// Whether every entry of a vector is finite (collective).
+bool all_finite(Vec v) {
+  const PetscScalar* a = nullptr;
+  PetscInt n = 0;
+  CELLFSI_PETSC(VecGetLocalSize(v, &n));
+  CELLFSI_PETSC(VecGetArrayRead(v, &a));
+  int finite = 1;
+  for (PetscInt i = 0; i < n && finite; ++i) finite = std::isfinite(PetscRealPart(a[i]));
+  CELLFSI_PETSC(VecRestoreArrayRead(v, &a));
+  MPI_Allreduce(MPI_IN_PLACE, &finite, 1, MPI_INT, MPI_MIN,
+                PetscObjectComm(reinterpret_cast<PetscObject>(v)));
+  return finite == 1;
+}
+
+}  // namespace
+
+void require_checkpoint(const std::string& dir) {
+  if (checkpoint_folder(dir).empty())
     throw std::invalid_argument("option -restart is invalid here: '" + dir +
                                 "' holds no checkpoint (a run writes DIR/checkpoint every -checkpoint_every "
                                 "steps, at its end and when it is interrupted)");
+}
+
+Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, const std::string& options, Vec U,
+                           Vec Udot) {
+  require_checkpoint(dir);
+  const fs::path at = checkpoint_folder(dir);
   Checkpoint c;
   try {
     std::ifstream in(at / "state.json");
@@ -186,6 +220,17 @@ Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, Vec U, Vec Udo
     throw std::invalid_argument("checkpoint '" + (at / "state.json").string() +
                                 "' cannot be read: " + e.what());
   }
+  // Before the fluid state: a state of another mesh would otherwise be refused as not fitting, naming no
+  // option.
+  if (const std::vector<std::string> conflicts = conflicting_options(c.options, options);
+      !conflicts.empty()) {
+    std::string list;
+    for (const std::string& k : conflicts) list += (list.empty() ? "" : "; ") + k;
+    throw std::invalid_argument("option -restart is invalid here: the checkpoint in '" + dir +
+                                "' was written with other options (" + list +
+                                "); a restart may change only -final_time, -output_every, "
+                                "-checkpoint_every, -metrics_average_from and monitors");
+  }
   PetscViewer v = binary_viewer(comm, at / "fluid.petsc", FILE_MODE_READ);
   // A file of another size is an input error, reported once below (no PETSc traceback).
   PetscPushErrorHandler(PetscReturnErrorHandler, nullptr);
@@ -196,6 +241,12 @@ Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, Vec U, Vec Udo
   if (e1 || e2)
     throw std::invalid_argument("checkpoint '" + (at / "fluid.petsc").string() +
                                 "' does not fit this fluid mesh (or is damaged)");
+  // A damaged state would otherwise run on as NaN until the first step fails, far from its cause.
+  if (!all_finite(U) || !all_finite(Udot))
+    throw std::invalid_argument("option -restart is invalid here: the fluid state in '" +
+                                (at / "fluid.petsc").string() +
+                                "' holds NaN or infinite values (the checkpoint is damaged); run without "
+                                "-restart");
   return c;
 }
 

@@ -27,12 +27,19 @@ struct Checkpoint {
 
 /// Writes DIR/checkpoint: collective over comm (the fluid vectors); rank 0 writes the rest and renames.
 void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c, Vec U, Vec Udot);
+/// Throws std::invalid_argument (option -restart) unless DIR holds a checkpoint. Touches nothing: a refused
+/// restart must not leave a folder or a lock file behind.
+void require_checkpoint(const std::string& dir);
 /// Reads DIR/checkpoint (collective); U and Udot, vectors of the fluid's DMDA, receive the fluid state.
-/// Throws std::invalid_argument naming the folder when there is no checkpoint or it cannot be read.
-Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, Vec U, Vec Udot);
-/// The options (as "name: saved -> current") whose values differ between two options.yaml texts, leaving out
-/// those a restart may change: final_time, restart, output_every, checkpoint_every, output_dir,
-/// metrics_average_from, and monitors, viewers and -help.
+/// Throws std::invalid_argument naming the folder when there is no checkpoint or it cannot be read, naming
+/// the options when the checkpoint was written with options other than `options` (this run's options.yaml
+/// text; checked before the fluid state is loaded, so another mesh is named as such), and when the fluid
+/// state holds a NaN or an infinity.
+Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, const std::string& options, Vec U,
+                           Vec Udot);
+/// The options (as "-name: checkpoint SAVED, this run CURRENT") whose values differ between two options.yaml
+/// texts, leaving out those a restart may change: final_time, restart, output_every, checkpoint_every,
+/// output_dir, metrics_average_from, and monitors, viewers and -help.
 std::vector<std::string> conflicting_options(const std::string& saved, const std::string& current);
 
 }  // namespace cellfsi::app

@@ -155,6 +155,8 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
   if (exchange) solid_ranks = exchange->remote_size();
   const int n_steps = static_cast<int>(std::ceil(settings.final_time / settings.dt - 1e-9));
+  // A restart without a checkpoint is refused before the lock would create the folder and its lock file.
+  if (settings.restart) on_rank_zero(PETSC_COMM_WORLD, [&] { require_checkpoint(settings.output_dir); });
   // The folder is this run's from here on (before a restart reads its checkpoint: another run may be writing
   // one).
   FolderLock lock(PETSC_COMM_WORLD, settings.output_dir, settings.output_dir_adopt);
@@ -166,17 +168,8 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     CELLFSI_PETSC(DMCreateGlobalVector(scene.fluid().dm(), &U));
     CELLFSI_PETSC(VecDuplicate(U, &Udot));
     try {
-      resume = read_checkpoint(PETSC_COMM_WORLD, settings.output_dir, U, Udot);
-      const std::vector<std::string> conflicts =
-          conflicting_options(resume.options, effective_options_yaml());
-      if (!conflicts.empty()) {
-        std::string list;
-        for (const std::string& c : conflicts) list += (list.empty() ? "" : "; ") + c;
-        throw std::invalid_argument("option -restart is invalid here: the checkpoint in '" +
-                                    settings.output_dir + "' was written with other options (" + list +
-                                    "); a restart may change only -final_time, -output_every, "
-                                    "-checkpoint_every, -metrics_average_from and monitors");
-      }
+      // The same options (but the final time and the output intervals): checked before the state is read.
+      resume = read_checkpoint(PETSC_COMM_WORLD, settings.output_dir, effective_options_yaml(), U, Udot);
       std::vector<std::string> names;
       for (const solid::SolidSolver* b : scene.bodies()) names.push_back(b->name());
       if (names != resume.body_names)

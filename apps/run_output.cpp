@@ -168,6 +168,16 @@ std::string shell_words(const std::vector<std::string>& args) {
   return line;
 }
 
+/// A restart's metrics.csv lacks the rows of steps first..last (before the checkpoint's step): continuing
+/// would leave a gap in it.
+[[noreturn]] void throw_missing_rows(const std::string& dir, long first, long last, int checkpoint_step) {
+  const std::string rows = first == last ? "row " + std::to_string(first)
+                                         : "rows " + std::to_string(first) + ".." + std::to_string(last);
+  throw std::invalid_argument("option -restart is invalid here: metrics.csv in '" + dir + "' lacks " + rows +
+                              " (rows 1.." + std::to_string(checkpoint_step) +
+                              " precede the checkpoint); restore it or run without -restart");
+}
+
 std::string utc_now() {
   const std::time_t t = std::time(nullptr);
   std::tm tm{};
@@ -227,10 +237,15 @@ RunOutput::RunOutput(MPI_Comm comm, const std::string& dir, const std::string& s
       if (existing != columns_)
         throw std::invalid_argument("option -restart is invalid here: metrics.csv in '" + dir_ +
                                     "' has other columns than this run writes (written by another version?)");
+      long next = 1;  // the step the next kept row must have: rows lost before the checkpoint leave a gap
       while (std::getline(in, line)) {
         const long step = std::strtol(line.c_str(), nullptr, 10);
-        if (step >= 1 && step <= resume_step && line.find(',') != std::string::npos) kept += line + "\n";
+        if (step < 1 || step > resume_step || line.find(',') == std::string::npos) continue;
+        if (step > next) throw_missing_rows(dir_, next, step - 1, resume_step);
+        next = std::max(next, step + 1);
+        kept += line + "\n";
       }
+      if (next <= resume_step) throw_missing_rows(dir_, next, resume_step, resume_step);
       in.close();
       write_file_atomically(csv_path, kept);
       write_file_atomically(dir_ + "/options.yaml", options_yaml);

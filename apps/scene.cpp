@@ -69,7 +69,7 @@ geometry::Patch make_body(const SceneSettings& s, const BodySettings& b, const s
 
 }  // namespace
 
-geometry::Patch build_body_patch(const SceneSettings& s, const BodySettings& b) {
+std::array<int, 3> body_element_counts(const SceneSettings& s, const BodySettings& b) {
   // Automatic counts: elements slightly smaller (0.9) than the smallest fluid element (paper Sec. 3.4),
   // scaled from a trial mesh (element size ~ 1 / count).
   const double target = 0.9 * std::min(1.0, s.max_mesh_ratio) * fluid_element_size(s);
@@ -81,22 +81,31 @@ geometry::Patch build_body_patch(const SceneSettings& s, const BodySettings& b) 
   if (D == 3) trial[1] = 8;
   bool any_auto = false;
   for (int d = 0; d < D; ++d) any_auto = any_auto || n[d] == 0;
-  if (any_auto) {
-    const geometry::Patch t = make_body(s, b, trial);
-    for (int d = 0; d < D; ++d) {
-      if (n[d] != 0) continue;
-      // Largest extent along direction d of the trial mesh (measured as the Remark 3 check measures it).
-      double ext = 0, e3[3];
-      for (int e = 0; e < t.n_elements(); ++e) {
-        coupling::element_extents(t, e, e3);
-        ext = std::max(ext, e3[d]);
-      }
-      int m = std::max(d == 0 ? 2 : 4, static_cast<int>(std::ceil(trial[d] * ext / target)));
-      const int step = d == 0 ? 1 : (D == 3 && d == 1 ? 2 : mult);
-      n[d] = (m + step - 1) / step * step;
+  if (!any_auto) return n;
+  // The trial's element sizes do not depend on where it is: drawn at the origin, not at the domain's centre
+  // (which would build the fluid patch).
+  BodySettings at_origin = b;
+  if (!std::isfinite(at_origin.center[0])) at_origin.center = Vec3::Zero();
+  const geometry::Patch t = make_body(s, at_origin, trial);
+  for (int d = 0; d < D; ++d) {
+    if (n[d] != 0) continue;
+    // Largest extent along direction d of the trial mesh (measured as the Remark 3 check measures it).
+    double ext = 0, e3[3];
+    for (int e = 0; e < t.n_elements(); ++e) {
+      coupling::element_extents(t, e, e3);
+      ext = std::max(ext, e3[d]);
     }
+    // Capped where int ends (a throat far narrower than the cell asks for billions): the memory check
+    // refuses such a count with its estimate.
+    const double m = std::min(std::max(d == 0 ? 2.0 : 4.0, std::ceil(trial[d] * ext / target)), 1e9);
+    const int step = d == 0 ? 1 : (D == 3 && d == 1 ? 2 : mult);
+    n[d] = (static_cast<int>(m) + step - 1) / step * step;
   }
-  return make_body(s, b, n);
+  return n;
+}
+
+geometry::Patch build_body_patch(const SceneSettings& s, const BodySettings& b) {
+  return make_body(s, b, body_element_counts(s, b));
 }
 
 std::vector<std::unique_ptr<solid::NurbsSolid>> build_bodies(const SceneSettings& s) {
@@ -110,7 +119,9 @@ std::vector<std::unique_ptr<solid::NurbsSolid>> build_bodies(const SceneSettings
 
 void check_bodies(const SceneSettings& s, const geometry::Patch& domain) {
   if (s.bodies.empty()) return;
-  const coupling::Locator locator(domain);
+  // The cheap checks of every body (its centre, its mesh against the fluid's) come before the costly ones
+  // (its points located in the fluid mesh, the overlaps): a mesh the ratio refuses must not first be
+  // located point by point.
   std::vector<coupling::BodyPlacement> placed;
   Vec3 lo, hi;
   domain.bounding_box(lo, hi);
@@ -127,7 +138,6 @@ void check_bodies(const SceneSettings& s, const geometry::Patch& domain) {
         bad_option("solid_" + b.name + "_center", v.str(), w.str());
       }
     coupling::BodyPlacement pl{b.name, build_body_patch(s, b), b.membrane()};
-    coupling::check_inside(locator, pl);
     const coupling::Resolution r = coupling::resolution(domain, pl);
     if (r.ratio() > s.max_mesh_ratio) {
       std::ostringstream os;
@@ -152,6 +162,8 @@ void check_bodies(const SceneSettings& s, const geometry::Patch& domain) {
     }
     placed.push_back(std::move(pl));
   }
+  const coupling::Locator locator(domain);
+  for (const coupling::BodyPlacement& pl : placed) coupling::check_inside(locator, pl);
   coupling::check_no_overlap(placed);
 }
 

@@ -74,6 +74,9 @@ double available_memory_bytes();
 
 /// The Eulerian patch of a scene.
 geometry::Patch build_domain(const SceneSettings& s);
+/// A body's Lagrangian element counts per direction: those given, and where 0, slightly smaller than the
+/// fluid's elements (found on a small trial mesh, without building the body).
+std::array<int, 3> body_element_counts(const SceneSettings& s, const BodySettings& b);
 /// The reference patch of a body (elements from the fluid mesh where not given).
 geometry::Patch build_body_patch(const SceneSettings& s, const BodySettings& b);
 /// The scene's bodies as NurbsSolid (the solid side of a run).

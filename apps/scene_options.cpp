@@ -30,6 +30,15 @@ const std::vector<std::string> kMarkings{"support", "central"};
 const std::vector<std::string> kAccelerations{"none", "anderson"};
 const std::vector<std::string> kShapes{"hollow_ellipse", "ellipse", "rbc", "hollow_ellipsoid", "ellipsoid"};
 const std::vector<std::string> kArrangements{"even", "staggered", "random"};
+constexpr double kMaxInterfaceScaling = 1e12;  // s_I
+constexpr double kMaxOriginOverSize = 1e6;     // |domain origin| / domain extent
+// G [dyn/cm^2]: cells are 1e1 ... 1e5, rubber 1e7; the capsule at 48 x 24, dt 5e-4 ran at 1e9, its coupling
+// diverged at 1e10 and its membrane inverted at 1e11.
+constexpr double kMaxShearModulus = 1e8;
+// Bytes per Lagrangian element of degree 2 (body_bytes): a run's peak resident memory grew by 8.0 kB per
+// element of a 2D body (a ring of 4000 -> 40000 elements, a filled ellipse of 4000 -> 36000) and by 24.5 kB
+// per element of a 3D membrane (768 -> 6912).
+constexpr double kBodyBytesPerElement2d = 8e3, kBodyBytesPerElement3d = 24e3;
 
 /// The coupling's options (and the scene's body list, averaging window and mesh-ratio limit).
 void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
@@ -49,7 +58,9 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
   OptionTable t("cellfsi immersed bodies and coupling");
   t.texts("solid_bodies", names, "Names of the immersed bodies, e.g. membrane,nucleus", 64)
       .real("s_interface", c.s_interface, "s_I: s^h on the basis functions at interfaces (paper 3.3)",
-            {[](const double& v) { return v >= 1; }, ">= 1"})
+            between(1, kMaxInterfaceScaling, "",
+                    "(the studies use 1e6 ... 1e11; a larger s_I outweighs the rest of the Jacobian by more "
+                    "than its LU resolves in double precision: 1e300 failed the factorisation)"))
       .text("s_interface_marking", marking,
             "Functions given s_I: support (every function nonzero on an element the interface crosses) or "
             "central (only those whose support it crosses in an inner element)",
@@ -115,12 +126,61 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
       .real("metrics_average_from", s.metrics_average_from,
             "Start of the metrics' averaging window [s] (default: half the final time)");
   t.read();
+  // A negative value is the default's marker; given, it (or nan) would silently mean the default.
+  if (t.given("metrics_average_from") && !(s.metrics_average_from >= 0))
+    t.bad("metrics_average_from", option_value_text(s.metrics_average_from),
+          "0 <= time < -final_time = " + option_value_text(s.final_time) +
+              " s (leave it out for the default, half the final time)");
   if (s.metrics_average_from >= s.final_time)
     t.bad("metrics_average_from", option_value_text(s.metrics_average_from),
           "less than -final_time = " + option_value_text(s.final_time) + " s");
   c.solver = enum_of<coupling::CouplingSolver>(solver, kSolvers);
   c.marking = enum_of<coupling::Marking>(marking, kMarkings);
   c.acceleration = enum_of<coupling::Acceleration>(acceleration, kAccelerations);
+}
+
+/// The least MemAvailable over the ranks of comm (collective); 1e300 where it is unknown (no check).
+double least_available_memory(MPI_Comm comm) {
+  double available = available_memory_bytes();
+  if (!(available > 0)) available = 1e300;
+  MPI_Allreduce(MPI_IN_PLACE, &available, 1, MPI_DOUBLE, MPI_MIN, comm);
+  return available;
+}
+
+/// Bytes a run holds for a body of these element counts (its NurbsSolid: collocation matrix and LU, states,
+/// quadrature data; its placement checks and coupling data), measured per element at degree 2 and scaled
+/// with the (p + 1)^d basis functions an element's points couple with.
+double body_bytes(const BodySettings& b, int dim, const std::array<int, 3>& n) {
+  double elements = 1;
+  for (int d = 0; d < dim; ++d) elements *= n[d];
+  const double per_element = dim == 2 ? kBodyBytesPerElement2d : kBodyBytesPerElement3d;
+  return elements * per_element * std::pow((b.degree + 1) / 3.0, dim);
+}
+
+/// Bodies the machine cannot hold are refused before any is built (a membrane of 1 x 1e8 elements allocated
+/// for 25 s, then failed with std::bad_alloc): the bodies listed so far and `count` copies of `b`, against
+/// the least memory available on any rank. A lower bound: in one process every fluid rank holds a copy.
+/// Collective.
+void check_body_memory(const SceneSettings& s, const BodySettings& b, int count, const std::string& pre) {
+  double need = 0;
+  for (const BodySettings& o : s.bodies) need += body_bytes(o, s.dim, body_element_counts(s, o));
+  const std::array<int, 3> n = body_element_counts(s, b);
+  const double own = count * body_bytes(b, s.dim, n);
+  need += own;
+  const double available = least_available_memory(PETSC_COMM_WORLD);
+  if (need <= available) return;
+  std::ostringstream given, used, w;
+  for (int d = 0; d < s.dim; ++d) {
+    given << (d ? "," : "") << b.elements[d];
+    used << (d ? " x " : "") << n[d];
+  }
+  const bool automatic =
+      std::find(b.elements.begin(), b.elements.begin() + s.dim, 0) != b.elements.begin() + s.dim;
+  w << std::setprecision(3) << "fewer elements: the bodies need at least " << need / 1e9 << " GB (body '"
+    << b.name << "'" << (count > 1 ? " and its copies" : "") << ": " << own / 1e9 << " GB for " << used.str()
+    << " elements" << (automatic ? ", where 0 asks for elements slightly smaller than the fluid's" : "")
+    << ") and " << available / 1e9 << " GB are available";
+  bad_option(pre + "elements", given.str(), w.str());
 }
 
 /// One body's options (-solid_NAME_*), and its copies when -solid_NAME_count > 1.
@@ -153,8 +213,10 @@ void read_body(SceneSettings& s, const std::string& name) {
                 dim, at_least(0, "(0: automatic)"))
       .integer("degree", b.degree, "Lagrangian degree, 2..4",
                {[](const long long& v) { return v >= 2 && v <= 4; }, "2, 3 or 4"})
-      .real("shear_modulus", b.shear_modulus, "G [dyn/cm^2]", positive("[dyn/cm^2]"))
-      .real("density", b.density, "rho_2 [g/cm^3]", positive("[g/cm^3]"))
+      .real("shear_modulus", b.shear_modulus, "G [dyn/cm^2]",
+            material(1e-6, kMaxShearModulus, "[dyn/cm^2]",
+                     "stiffer than any cell, and a stiffer body needs a far smaller -dt"))
+      .real("density", b.density, "rho_2 [g/cm^3]", material(1e-6, 1e3, "[g/cm^3]"))
       .integer("count", count,
                "Copies of the body (NAME_1 ... NAME_N) spread evenly along x, the periodic flow direction; "
                "-center gives the row's y (and z)",
@@ -203,6 +265,7 @@ void read_body(SceneSettings& s, const std::string& name) {
   if (D == 3 && elements[1] % 2)
     t.bad("elements", std::to_string(elements[1]), "an even number of polar elements");
   for (int d = 0; d < 3; ++d) b.elements[d] = d < D ? elements[d] : 1;
+  check_body_memory(s, b, count, pre);
   if (count == 1) {
     // A row's options without a row would do nothing.
     if (arrangement != kArrangements[0])
@@ -251,9 +314,7 @@ void check_memory(SceneSettings& s) {
   MPI_Comm comm = PETSC_COMM_WORLD;
   int size = 1;
   MPI_Comm_size(comm, &size);
-  double available = available_memory_bytes();
-  if (!(available > 0)) available = 1e300;  // unknown: no check
-  MPI_Allreduce(MPI_IN_PLACE, &available, 1, MPI_DOUBLE, MPI_MIN, comm);
+  const double available = least_available_memory(comm);
   MPI_Comm node = MPI_COMM_NULL;
   MPI_Comm_split_type(comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node);
   int node_rank = 0, leaders = 0;
@@ -395,6 +456,19 @@ SceneSettings SceneSettings::from_options(const std::string& default_name, bool 
     s.size = {s.channel.length, s.channel.height};
     s.origin = Vec3(0, -s.channel.height / 2, 0);
   }
+  // Far from the origin the coordinates keep too few digits to tell the mesh's points apart (1e10,1e10 for
+  // a 0.0024 cm box ended in "det F = -nan"); a million domain lengths out, a 64th of the domain still
+  // holds about eight of a coordinate's sixteen digits.
+  for (int d = 0; d < D; ++d)
+    if (!(std::abs(s.origin[d]) <= kMaxOriginOverSize * s.size[d])) {
+      const char axis = "xyz"[d];
+      std::ostringstream v, w;
+      for (int e = 0; e < D; ++e) v << (e ? "," : "") << s.origin[e];
+      w << "|" << axis << "| <= " << kMaxOriginOverSize << " x the domain's extent (" << s.size[d]
+        << " cm along " << axis
+        << "): farther out the coordinates lose the digits that tell the mesh's points apart";
+      t.bad("domain_origin", v.str(), w.str());
+    }
   for (int d = 0; d < 3; ++d) s.elements[d] = d < D ? elements[d] : 1;
   for (int d = 0; d < D; ++d)
     if (s.periodic[d] && s.elements[d] < s.degree)
@@ -407,6 +481,15 @@ SceneSettings SceneSettings::from_options(const std::string& default_name, bool 
   if (!(s.final_time / s.dt <= 1e9))
     t.bad("dt", option_value_text(s.dt),
           "at least -final_time / 1e9 = " + option_value_text(s.final_time / 1e9) + " s (at most 1e9 steps)");
+  // The run takes whole steps: a final time between two of them ran on to the next with no word
+  // (-final_time 0.005 -dt 0.004 ended at t = 0.008).
+  const double steps = s.final_time / s.dt;
+  if (std::abs(steps - std::round(steps)) > 1e-6) {
+    std::ostringstream w;
+    w << "a whole number of steps of -dt = " << s.dt << " s, e.g. " << std::floor(steps) * s.dt << " or "
+      << std::ceil(steps) * s.dt << " s (or a -dt that divides it)";
+    t.bad("final_time", option_value_text(s.final_time), w.str());
+  }
   if (s.output_dir.empty()) s.output_dir = "out/" + s.name;
 
   std::vector<std::string> names;

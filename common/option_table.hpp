@@ -56,10 +56,23 @@ inline Valid<double> non_negative(const std::string& unit = "") {
 inline Valid<double> finite(const std::string& unit = "") {
   return {[](const double& v) { return std::isfinite(v); }, with_unit("a finite number", unit)};
 }
-/// lo <= v <= hi.
-inline Valid<double> between(double lo, double hi, const std::string& unit = "") {
+/// lo <= v <= hi (note: added to the message, e.g. why the bounds are where they are).
+inline Valid<double> between(double lo, double hi, const std::string& unit = "",
+                             const std::string& note = "") {
   return {[lo, hi](const double& v) { return v >= lo && v <= hi; },
-          with_unit(option_value_text(lo) + " ... " + option_value_text(hi), unit)};
+          with_unit(with_unit(option_value_text(lo) + " ... " + option_value_text(hi), unit), note)};
+}
+/// A material constant (a density, a viscosity, a modulus) in CGS units: lo <= v <= hi, bounds far outside
+/// any cell or liquid, with the reason in the message (`why`, or the default's). A positive value that is
+/// only a number, not a material, ran: G = 1e-310 (a denormal) "completed" as a steady cell, a density of
+/// 1e300 ended in a NaN residual that named no option.
+inline Valid<double> material(double lo, double hi, const std::string& unit, const std::string& why = "") {
+  return between(
+      lo, hi, unit,
+      "(a material constant in CGS units; " +
+          (why.empty() ? "far outside these bounds the solver's products of it leave double precision"
+                       : why) +
+          ")");
 }
 /// v >= lo (note: added to the message, e.g. "(0: never)").
 inline Valid<long long> at_least(long long lo, const std::string& note = "") {

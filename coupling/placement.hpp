@@ -16,7 +16,8 @@ struct BodyPlacement {
   bool membrane = false;
 };
 
-/// Every sampled point of the body (4 per element and direction) must lie in the fluid domain.
+/// The body must lie in the fluid domain: its faces across direction 0 sampled 4 times per element along
+/// the other directions (the domains are convex across their walls, so the boundary decides).
 void check_inside(const Locator& locator, const BodyPlacement& body);
 
 /// The solid regions of two bodies must not intersect (a nucleus inside a membrane's cavity is fine). 2D: an

@@ -19,8 +19,8 @@ Vec3 as_vec(const std::vector<double>& v) {
 void declare(OptionTable& t, FluidOptions& o, int dim, std::vector<double>& force,
              std::vector<std::vector<double>>& walls) {
   const auto count = [dim] { return dim; };
-  t.real("density", o.density, "rho_1 [g/cm^3]", positive("[g/cm^3]"))
-      .real("viscosity", o.viscosity, "mu [g/(cm s)]", positive("[g/(cm s)]"))
+  t.real("density", o.density, "rho_1 [g/cm^3]", material(1e-6, 1e3, "[g/cm^3]"))
+      .real("viscosity", o.viscosity, "mu [g/(cm s)]", material(1e-8, 1e6, "[g/(cm s)]"))
       .reals("body_force", force, "Body force per volume fx,fy[,fz] [dyn/cm^3]", count, finite("[dyn/cm^3]"))
       .flag("stokes", o.stokes, "Drop convection (Stokes flow)")
       .real("rho_inf", o.rho_inf, "Generalized-alpha spectral radius at infinity, [0, 1]", between(0, 1))

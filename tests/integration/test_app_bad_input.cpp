@@ -20,7 +20,9 @@ TEST_F(CellfsiApp, NegativeViscosityIsRejected) {
   expect_one_clear_error(r);
   EXPECT_NE(r.output.find("-fluid_viscosity"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("-1"), std::string::npos) << "the message names the value:\n" << r.output;
-  EXPECT_NE(r.output.find("> 0"), std::string::npos) << "the message names the valid range:\n" << r.output;
+  EXPECT_NE(r.output.find("1e-08 ... 1e+06 [g/(cm s)]"), std::string::npos)
+      << "the message names the valid range:\n"
+      << r.output;
   EXPECT_TRUE(nothing_written());
 }
 
@@ -81,6 +83,46 @@ TEST_F(CellfsiApp, StepCountsThatDoNotFitAndMissingValuesAreRejected) {
   }
 }
 
+TEST_F(CellfsiApp, ValuesThatAreNumbersButNotInputAreRejected) {
+  // Issue 24: each ran, or failed later with a reason that named no option: s_I = inf or 1e300 as
+  // FACTOR_OUTMEMORY, denormal or huge material constants (G = 1e-310 "completed" as steady), an averaging
+  // window from nan or -5 (silently the default), an origin whose coordinates lose the mesh ("det F = -nan"),
+  // a final time between two steps (run on to the next with no word).
+  const std::vector<std::string> tiny = with({scene("shear.yaml")}, kTiny);
+  const std::vector<std::string> capsule = with({scene("capsule_shear.yaml")}, kCapsule);
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {with(capsule, {"-s_interface", "inf"}), "option -s_interface = inf is invalid; valid: 1 ... 1e+12 ("},
+      {with(capsule, {"-s_interface", "1e300"}),
+       "option -s_interface = 1e+300 is invalid; valid: 1 ... 1e+12"},
+      {with(capsule, {"-solid_membrane_shear_modulus", "1e-310"}),
+       "option -solid_membrane_shear_modulus = 1e-310 is invalid; valid: 1e-06 ... 1e+08 [dyn/cm^2] (a "
+       "material constant in CGS units; stiffer than any cell"},
+      {with(capsule, {"-solid_membrane_shear_modulus", "1e11"}),
+       "option -solid_membrane_shear_modulus = 1e+11 is invalid"},
+      {with(capsule, {"-solid_membrane_shear_modulus", "1e300"}),
+       "option -solid_membrane_shear_modulus = 1e+300 is invalid"},
+      {with(capsule, {"-solid_membrane_density", "1e300"}),
+       "option -solid_membrane_density = 1e+300 is invalid"},
+      {with(tiny, {"-fluid_viscosity", "1e-310"}),
+       "option -fluid_viscosity = 1e-310 is invalid; valid: 1e-08 ... 1e+06 [g/(cm s)]"},
+      {with(tiny, {"-fluid_density", "1e-310"}), "option -fluid_density = 1e-310 is invalid"},
+      {with(tiny, {"-fluid_density", "1e300"}), "option -fluid_density = 1e+300 is invalid"},
+      {with(capsule, {"-metrics_average_from", "nan"}),
+       "option -metrics_average_from = nan is invalid; valid: 0 <="},
+      {with(capsule, {"-metrics_average_from", "-5"}), "option -metrics_average_from = -5 is invalid"},
+      {with(tiny, {"-domain_origin", "1e10,1e10"}),
+       "option -domain_origin = 1e+10,1e+10 is invalid; valid: |x| <= 1e+06 x the domain's extent"},
+      {with(tiny, {"-final_time", "0.005", "-dt", "0.004"}),
+       "option -final_time = 0.005 is invalid; valid: a whole number of steps of -dt = 0.004 s, e.g. 0.004 "
+       "or "
+       "0.008 s"}};
+  for (const auto& [args, message] : cases) {
+    expect_one_clear_error(cellfsi(args, 20));
+    EXPECT_NE(last_output_.find(message), std::string::npos) << last_output_;
+    EXPECT_TRUE(nothing_written());
+  }
+}
+
 TEST_F(CellfsiApp, MisspeltPetscTypesAreRejectedByName) {
   // Issue 10: a misspelt type gave a 40-line PETSc traceback and exit 2 (59 for a PC type).
   const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
@@ -103,6 +145,42 @@ TEST_F(CellfsiApp, MeshTooLargeForTheMachineIsRejectedWithAnEstimate) {
   EXPECT_NE(
       last_output_.find("option -fluid_elements = 100000,100000 is invalid; valid: fewer elements: a run "
                         "needs at least 3.53e+04 GB per node (the fluid Jacobian;"),
+      std::string::npos)
+      << last_output_;
+  EXPECT_TRUE(nothing_written());
+}
+
+TEST_F(CellfsiApp, BodiesTooLargeForTheMachineAreRejectedWithAnEstimate) {
+  // Issue 24: a membrane of 1 x 1e8 elements allocated for 25 s, then failed with std::bad_alloc; a throat of
+  // 1e-5 cm gave the CTC's nucleus automatic elements of the throat's size (52 million at 384 x 128), which
+  // were built and located point by point past 20 GB. Each is refused at once (8 kB per element: 800 GB and
+  // 420 GB, more than any one machine has).
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {with({scene("capsule_shear.yaml")}, with(kCapsule, {"-solid_membrane_elements", "1,100000000"})),
+       "option -solid_membrane_elements = 1,100000000 is invalid; valid: fewer elements: the bodies need at "
+       "least 800 GB (body 'membrane': 800 GB for 1 x 100000000 elements) and "},
+      {{scene("ctc_narrowing.yaml"), "-channel_throat_height", "1e-5", "-solid_membrane_elements", "1,0",
+        "-solid_nucleus_elements", "0,0"},
+       "option -solid_nucleus_elements = 0,0 is invalid; valid: fewer elements: the bodies need at least "}};
+  for (const auto& [args, message] : cases) {
+    expect_one_clear_error(cellfsi(args, 10));
+    EXPECT_NE(last_output_.find(message), std::string::npos) << last_output_;
+    EXPECT_NE(last_output_.find(" GB are available"), std::string::npos) << last_output_;
+    EXPECT_TRUE(nothing_written());
+  }
+}
+
+TEST_F(CellfsiApp, NarrowThroatIsRefusedByTheMeshRatioBeforeItsPointsAreLocated) {
+  // Issue 24: a throat of 5e-5 cm gives the nucleus automatic elements of the throat's size (133 thousand at
+  // 96 x 32), every point of which was located (16 s) before the membrane's mesh ratio, which refuses the
+  // case, was checked. The cheap checks of every body now come first: refused within the time limit.
+  expect_one_clear_error(
+      cellfsi({scene("ctc_narrowing.yaml"), "-channel_throat_height", "5e-5", "-fluid_elements", "96,32",
+               "-solid_bodies", "nucleus,membrane", "-solid_nucleus_elements", "0,0"},
+              8));
+  EXPECT_NE(
+      last_output_.find("option -solid_membrane_elements = 1,768 is invalid; valid: Lagrangian elements "
+                        "no larger than 1 x the fluid's"),
       std::string::npos)
       << last_output_;
   EXPECT_TRUE(nothing_written());
@@ -147,7 +225,9 @@ TEST_F(CellfsiApp, BadValueInSceneFileNamesFileAndLine) {
   std::ofstream(file) << "dim: 2\nflow: shear\nfluid:\n  viscosity: 0.012\n  density: -2\n";
   RunResult r = cellfsi(with({file.string()}, kTiny));
   expect_one_clear_error(r);
-  EXPECT_NE(r.output.find("option -fluid_density = -2 is invalid; valid: > 0 [g/cm^3] (scene file '" +
+  EXPECT_NE(r.output.find("option -fluid_density = -2 is invalid; valid: 1e-06 ... 1000 [g/cm^3] (a material "
+                          "constant in CGS units; far outside these bounds the solver's products of it leave "
+                          "double precision) (scene file '" +
                           file.string() + "', line 5)"),
             std::string::npos)
       << r.output;

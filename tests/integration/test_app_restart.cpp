@@ -111,7 +111,8 @@ TEST_F(CellfsiApp, RestartWithOtherOptionsOrWithoutACheckpointIsRefused) {
   ASSERT_EQ(cellfsi(args).exit_code, 0) << last_output_;
   const std::string csv = read_text(out_ / "metrics.csv");
   expect_one_clear_error(cellfsi(with(args, {"-final_time", "2e-3", "-dt", "2.5e-4", "-restart"})));
-  EXPECT_NE(last_output_.find("was written with other options (dt: 5e-4 -> 2.5e-4)"), std::string::npos)
+  EXPECT_NE(last_output_.find("was written with other options (-dt: checkpoint 5e-4, this run 2.5e-4)"),
+            std::string::npos)
       << last_output_;
   expect_one_clear_error(cellfsi(with(args, {"-restart"})));
   EXPECT_NE(last_output_.find("option -final_time = 0.001 is invalid with -restart"), std::string::npos)
@@ -138,6 +139,65 @@ TEST_F(CellfsiApp, SplitJobRestartsItsRemoteBodies) {
       << last_output_;
   EXPECT_EQ(csv_steps(out_ / "metrics.csv"), one_to(4));
   EXPECT_TRUE(rows_agree(metrics_only(straight), metrics_only(last_row(out_ / "metrics.csv")), 1e-6, 1e-2));
+}
+
+TEST_F(CellfsiApp, RefusedRestartCreatesNothing) {
+  // Issue 24: a -restart without a checkpoint made the folder and left a lock file in it.
+  const std::vector<std::string> args = with({scene("shear.yaml"), "-restart"}, kTiny);
+  expect_one_clear_error(cellfsi(args));
+  EXPECT_NE(last_output_.find("holds no checkpoint"), std::string::npos) << last_output_;
+  EXPECT_FALSE(fs::exists(out_)) << "a refused restart made the folder";
+  fs::create_directory(out_);
+  expect_one_clear_error(cellfsi(args));
+  EXPECT_TRUE(nothing_written()) << "a refused restart left a lock file";
+}
+
+TEST_F(CellfsiApp, RestartWithRowsMissingFromMetricsIsRefused) {
+  // Issue 24: a restart carried on after metrics.csv had lost rows before the checkpoint, leaving a gap.
+  const std::vector<std::string> args = with({scene("shear.yaml")}, with(kTiny, {"-final_time", "2e-3"}));
+  ASSERT_EQ(cellfsi(args).exit_code, 0) << last_output_;  // 4 steps, the checkpoint after step 4
+  const fs::path csv = out_ / "metrics.csv";
+  const std::vector<std::string> rows = lines(read_text(csv));
+  ASSERT_EQ(rows.size(), 5u);
+  const std::vector<std::pair<std::vector<std::size_t>, std::string>> cases = {
+      {{2},
+       "metrics.csv in '" + out_.string() + "' lacks row 2 (rows 1..4 precede the checkpoint); restore it"},
+      {{3, 4}, "lacks rows 3..4 (rows 1..4 precede the checkpoint)"}};
+  for (const auto& [lost, why] : cases) {
+    std::string damaged;
+    for (std::size_t i = 0; i < rows.size(); ++i)
+      if (std::find(lost.begin(), lost.end(), i) == lost.end()) damaged += rows[i] + "\n";
+    { std::ofstream(csv) << damaged; }
+    expect_one_clear_error(cellfsi(with(args, {"-final_time", "3e-3", "-restart"})));
+    EXPECT_NE(last_output_.find(why), std::string::npos) << last_output_;
+    EXPECT_EQ(read_text(csv), damaged) << "a refused restart leaves metrics.csv alone";
+  }
+}
+
+TEST_F(CellfsiApp, RestartFromAFluidStateWithNaNsIsRefused) {
+  // Issue 24: the fluid state was loaded unchecked; the run went on from NaNs.
+  const std::vector<std::string> args = with({scene("shear.yaml")}, kTiny);
+  ASSERT_EQ(cellfsi(args).exit_code, 0) << last_output_;
+  {
+    // PETSc binary: class id and length (two 4-byte integers), then big-endian doubles; the sixth is a NaN.
+    std::fstream f(out_ / "checkpoint" / "fluid.petsc", std::ios::in | std::ios::out | std::ios::binary);
+    const unsigned char nan[8] = {0x7f, 0xf8, 0, 0, 0, 0, 0, 0};
+    f.seekp(8 + 5 * 8);
+    f.write(reinterpret_cast<const char*>(nan), 8);
+    ASSERT_TRUE(f.good());
+  }
+  expect_one_clear_error(cellfsi(with(args, {"-final_time", "2e-3", "-restart"})));
+  EXPECT_NE(last_output_.find("fluid.petsc' holds NaN or infinite values"), std::string::npos)
+      << last_output_;
+}
+
+TEST_F(CellfsiApp, RestartOnAnotherMeshNamesTheOption) {
+  // Issue 24: it said the checkpoint "does not fit this fluid mesh (or is damaged)", naming no option.
+  const std::vector<std::string> args = with({scene("shear.yaml")}, kTiny);
+  ASSERT_EQ(cellfsi(args).exit_code, 0) << last_output_;
+  expect_one_clear_error(cellfsi(with(args, {"-final_time", "2e-3", "-fluid_elements", "16,8", "-restart"})));
+  EXPECT_NE(last_output_.find("(-fluid_elements: checkpoint 8,4, this run 16,8)"), std::string::npos)
+      << last_output_;
 }
 
 // Channel scenes (issue 12): RBC suspensions and their rheology, an off-centre capsule's migration.

@@ -53,6 +53,14 @@ TEST(Material, DeviatoricNeoHookeanProperties) {
   Mat3 inverted = Mat3::Identity();
   inverted(0, 0) = -1;
   EXPECT_THROW(m.second_piola(inverted, 2), std::runtime_error);
+  // The message prints det F as %g (issue 24: %f printed a 300-digit number).
+  inverted(1, 1) = 1e300;
+  try {
+    m.second_piola(inverted, 2);
+    ADD_FAILURE() << "an inverted element was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "inverted solid element: det F = -1e+300 <= 0");
+  }
 }
 
 namespace {
