@@ -1,7 +1,9 @@
 #include "apps/checkpoint.hpp"
 
+#include <petscdmda.h>
 #include <petscviewer.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -9,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
+#include <vector>
 
 #include "apps/run_output.hpp"
 #include "common/file_io.hpp"
@@ -59,9 +62,50 @@ PetscViewer binary_viewer(MPI_Comm comm, const fs::path& path, PetscFileMode mod
   return v;
 }
 
+/// A vector as a PETSc binary file holds it (VecLoad reads it back): the class id and the length as
+/// big-endian 32-bit integers, then the values as big-endian doubles, in the DMDA's natural ordering (any
+/// number of ranks can read it). Collective; the bytes on rank 0, empty elsewhere.
+std::string vec_binary_on_rank_zero(Vec v) {
+  DM dm = nullptr;
+  CELLFSI_PETSC(VecGetDM(v, &dm));
+  Vec natural = v;
+  if (dm) {
+    CELLFSI_PETSC(DMDACreateNaturalVector(dm, &natural));
+    CELLFSI_PETSC(DMDAGlobalToNaturalBegin(dm, v, INSERT_VALUES, natural));
+    CELLFSI_PETSC(DMDAGlobalToNaturalEnd(dm, v, INSERT_VALUES, natural));
+  }
+  VecScatter to_zero = nullptr;
+  Vec all = nullptr;
+  CELLFSI_PETSC(VecScatterCreateToZero(natural, &to_zero, &all));
+  CELLFSI_PETSC(VecScatterBegin(to_zero, natural, all, INSERT_VALUES, SCATTER_FORWARD));
+  CELLFSI_PETSC(VecScatterEnd(to_zero, natural, all, INSERT_VALUES, SCATTER_FORWARD));
+  PetscInt n = 0;
+  CELLFSI_PETSC(VecGetLocalSize(all, &n));
+  std::string bytes;
+  if (n > 0) {
+    PetscInt header[2] = {VEC_FILE_CLASSID, 0};
+    CELLFSI_PETSC(VecGetSize(natural, &header[1]));
+    std::vector<PetscScalar> values(static_cast<std::size_t>(n));
+    const PetscScalar* a = nullptr;
+    CELLFSI_PETSC(VecGetArrayRead(all, &a));
+    std::copy(a, a + n, values.begin());
+    CELLFSI_PETSC(VecRestoreArrayRead(all, &a));
+#if !defined(PETSC_WORDS_BIGENDIAN)
+    CELLFSI_PETSC(PetscByteSwap(header, PETSC_INT, 2));
+    CELLFSI_PETSC(PetscByteSwap(values.data(), PETSC_SCALAR, n));
+#endif
+    bytes.append(reinterpret_cast<const char*>(header), sizeof header);
+    bytes.append(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(PetscScalar));
+  }
+  CELLFSI_PETSC(VecScatterDestroy(&to_zero));
+  CELLFSI_PETSC(VecDestroy(&all));
+  if (natural != v) CELLFSI_PETSC(VecDestroy(&natural));
+  return bytes;
+}
+
 bool may_change(const std::string& key) {
   static const char* const kFree[] = {
-      "final_time",           "restart", "output_every", "checkpoint_every", "output_dir",
+      "final_time",           "restart", "output_every", "checkpoint_every", "output_dir", "output_dir_adopt",
       "metrics_average_from", "help",    "log_view",     "options_left",     "malloc_dump"};
   for (const char* k : kFree)
     if (key == k) return true;
@@ -98,29 +142,21 @@ void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c
     if (ec) throw_write_error(next.string(), ec.message());
   });
   // Every failure below leaves the previous checkpoint as it was (only checkpoint.new is touched) and is
-  // reported on every rank, naming the file.
+  // reported on every rank, naming the file. The vectors are gathered on rank 0 and written there with
+  // checked writes: through a PETSc binary viewer a failed write on rank 0 leaves the other ranks waiting
+  // inside VecView, and names no reason.
   const fs::path fluid_file = next / "fluid.petsc";
-  PetscViewer v = binary_viewer(comm, fluid_file, FILE_MODE_WRITE);
-  PetscErrorCode ierr = VecView(U, v);
-  if (!ierr) ierr = VecView(Udot, v);
-  // Closing flushes the buffered data: its failure is a failed write too.
-  const PetscErrorCode close_ierr = PetscViewerDestroy(&v);
-  int failed = ierr || close_ierr ? 1 : 0;
-  MPI_Allreduce(MPI_IN_PLACE, &failed, 1, MPI_INT, MPI_MAX, comm);
-  if (failed) {
-    const std::string petsc_message = detail::pending_petsc_message();
-    detail::pending_petsc_message().clear();
-    on_rank_zero(comm, [&] {
-      // PETSc names no reason for a short write ("Error writing to file total size ..."): find it.
-      std::string reason = write_failure_reason(fluid_file.string());
-      if (reason.empty()) reason = petsc_message.empty() ? "the PETSc binary viewer failed" : petsc_message;
+  const std::string fluid_bytes = vec_binary_on_rank_zero(U) + vec_binary_on_rank_zero(Udot);
+  on_rank_zero(comm, [&] {
+    try {
+      write_file_atomically(fluid_file.string(), fluid_bytes);
+    } catch (const WriteError&) {
       std::error_code ec;
       fs::remove_all(next, ec);
-      throw_write_error(fluid_file.string(), reason);
-    });
-  }
+      throw;
+    }
+  });
   on_rank_zero(comm, [&] {
-    sync_file(fluid_file.string());
     nlohmann::ordered_json js;
     js["format"] = "cellfsi checkpoint 1";
     js["step"] = c.step;
@@ -146,8 +182,10 @@ void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c
     // The new checkpoint replaces the previous one; between the two renames the previous one is
     // checkpoint.old, which read_checkpoint falls back on.
     std::error_code ec;
-    fs::remove_all(old, ec);
     if (fs::exists(cur)) {
+      // (Without checkpoint/, checkpoint.old is the only good one, e.g. after a restart from it: it stays
+      // until the new one is in place.)
+      fs::remove_all(old, ec);
       fs::rename(cur, old, ec);
       if (ec) throw_write_error(cur.string(), "cannot rename it to checkpoint.old: " + ec.message());
     }

@@ -211,7 +211,9 @@ int run_fluid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     if (!series) return;
     CELLFSI_PETSC(PetscLogEventBegin(output_event, 0, 0, 0, 0));
     series->write(scene.fluid());
-    if (solid_series) solid_series->write(scene.fluid().time(), scene.bodies());
+    // Every rank samples the bodies (remote ones collectively), rank 0 writes: its failure stops them all.
+    if (solid_series)
+      on_every_rank(PETSC_COMM_WORLD, [&] { solid_series->write(scene.fluid().time(), scene.bodies()); });
     CELLFSI_PETSC(PetscLogEventEnd(output_event, 0, 0, 0, 0));
   };
   if (settings.output_every > 0) {

@@ -277,7 +277,7 @@ RunOutput::~RunOutput() {
 }
 
 void RunOutput::remove_series_except(const std::vector<std::string>& keep) const {
-  if (rank_ != 0) return;
+  on_rank_zero(comm_, [&] {
   for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
     const std::string name = entry.path().filename().string();
     // A piece of a parallel file (fluid_NNNNNN_pRRRR.vts) goes with its index (fluid_NNNNNN.pvts).
@@ -288,10 +288,12 @@ void RunOutput::remove_series_except(const std::vector<std::string>& keep) const
         std::find(keep.begin(), keep.end(), owner) == keep.end())
       std::filesystem::remove(entry.path());
   }
+  });
 }
 
 void RunOutput::metrics_row(const std::vector<std::pair<std::string, double>>& row) {
-  if (rank_ != 0) return;
+  // Collective: a failed write on rank 0 must stop every rank, not leave them in the next collective call.
+  on_rank_zero(comm_, [&] {
   for (size_t i = 0; i < row.size() && i < columns_.size(); ++i)
     if (row[i].first != columns_[i])
       throw std::logic_error("metrics.csv: column " + std::to_string(i + 1) + " is '" + columns_[i] +
@@ -313,6 +315,7 @@ void RunOutput::metrics_row(const std::vector<std::pair<std::string, double>>& r
     }
     throw_write_error(dir_ + "/metrics.csv", std::strerror(err));
   }
+  });
 }
 
 void RunOutput::progress(int step, int n_steps, double t, int newton, int linear, bool force) {

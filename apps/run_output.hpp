@@ -6,6 +6,8 @@
 // instead of interleaving its files with this one's.
 #include <mpi.h>
 
+#include "common/collective.hpp"
+
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -13,11 +15,6 @@
 
 namespace cellfsi::app {
 
-/// Runs `work` on rank 0 of comm and makes its outcome collective: if it throws, every rank throws the same
-/// (std::invalid_argument stays one, anything else becomes std::runtime_error), so no rank is left waiting in
-/// a collective call that rank 0 never reaches.
-template <class Work>
-void on_rank_zero(MPI_Comm comm, Work&& work);
 
 /// The output folder locked for one run (DIR/.cellfsi.lock, flock on rank 0: released by the kernel however
 /// the process ends). Creates DIR and marks it as cellfsi's (DIR/.cellfsi-output). Collective; throws
@@ -93,30 +90,6 @@ class RunOutput {
   double start_ = 0, last_print_ = -1e9;
 };
 
-template <class Work>
-void on_rank_zero(MPI_Comm comm, Work&& work) {
-  int rank = 0;
-  MPI_Comm_rank(comm, &rank);
-  int kind = 0;  // 0 ok, 1 invalid_argument, 2 other
-  std::string message;
-  if (rank == 0) {
-    try {
-      work();
-    } catch (const std::invalid_argument& e) {
-      kind = 1, message = e.what();
-    } catch (const std::exception& e) {
-      kind = 2, message = e.what();
-    }
-  }
-  MPI_Bcast(&kind, 1, MPI_INT, 0, comm);
-  if (kind == 0) return;
-  int n = static_cast<int>(message.size());
-  MPI_Bcast(&n, 1, MPI_INT, 0, comm);
-  message.resize(static_cast<std::size_t>(n));
-  MPI_Bcast(message.data(), n, MPI_CHAR, 0, comm);
-  if (kind == 1) throw std::invalid_argument(message);
-  throw std::runtime_error(message);
-}
 
 /// The whole options database, including the defaults the program set itself, as flat "key: value" lines:
 /// what a checkpoint and the two sides of a job compare (not options.yaml: see given_options_yaml).

@@ -51,28 +51,6 @@ inline void sync_folder(const std::string& folder) {
   ::close(fd);
 }
 
-/// Why a library's write to `path` stopped short (a short write sets no errno, and a library may report no
-/// reason): one more byte appended shows the system's reason (a full disk, a file-size limit), and is then
-/// cut again. Empty if that byte can be written.
-inline std::string write_failure_reason(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
-  if (fd < 0) return std::strerror(errno);
-  const off_t end = ::lseek(fd, 0, SEEK_END);
-  const int err = write_all(fd, "", 1);
-  if (err == 0 && end >= 0) (void)::ftruncate(fd, end);
-  ::close(fd);
-  return err == 0 ? std::string() : std::string(std::strerror(err));
-}
-
-/// Flushes an existing file's data to disk (e.g. one a library wrote). Throws WriteError on failure.
-inline void sync_file(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) throw_write_error(path, std::strerror(errno));
-  const int err = ::fsync(fd) != 0 ? errno : 0;
-  ::close(fd);
-  if (err != 0 && err != EINVAL && err != EROFS) throw_write_error(path, std::strerror(err));
-}
-
 /// Renames a complete temporary file over path; on failure removes it and throws WriteError naming path.
 /// `durable`: also flushes the folder's entry, so the new file survives a crash of the machine.
 inline void replace_file(const std::string& tmp, const std::string& path, bool durable) {

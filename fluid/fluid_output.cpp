@@ -15,6 +15,7 @@
 #include <vtkStructuredGrid.h>
 #include <vtkXMLStructuredGridWriter.h>
 
+#include "common/collective.hpp"
 #include "common/file_io.hpp"
 #include "common/petsc_error.hpp"
 #include "fluid/point_evaluation.hpp"
@@ -204,7 +205,8 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
     std::vector<int> all(6 * size);
     CELLFSI_PETSC(MPI_Gather(extent, 6, MPI_INT, all.data(), 6, MPI_INT, 0, fluid.comm()));
     name = std::string(stem) + ".pvts";
-    if (rank == 0) {
+    // Rank 0 writes the index; its failure (a full disk) must stop every rank (common/collective.hpp).
+    on_rank_zero(fluid.comm(), [&] {
       int whole[6] = {0, 0, 0, 0, 0, 0};
       for (int d = 0; d < D; ++d) whole[2 * d + 1] = patch.knots(d).n_elements() * s;
       std::vector<std::array<int, 6>> extents;
@@ -219,10 +221,10 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
         files.emplace_back(f);
       }
       write_pvts((dir / name).string(), whole, extents, files, arrays);
-    }
+    });
   }
   entries_.push_back({name, fluid.time(), 0, ""});  // time is steps * dt: no accumulated round-off
-  if (rank == 0) geometry::write_pvd((dir / "fluid.pvd").string(), entries_);
+  on_rank_zero(fluid.comm(), [&] { geometry::write_pvd((dir / "fluid.pvd").string(), entries_); });
 }
 
 SectionData section(const FluidSolver& fluid, double u0, int n_profile) {

@@ -163,7 +163,7 @@ TEST_F(CellfsiApp, BodiesTooLargeForTheMachineAreRejectedWithAnEstimate) {
         "-solid_nucleus_elements", "0,0"},
        "option -solid_nucleus_elements = 0,0 is invalid; valid: fewer elements: the bodies need at least "}};
   for (const auto& [args, message] : cases) {
-    expect_one_clear_error(cellfsi(args, 10));
+    expect_one_clear_error(cellfsi(args, 12));
     EXPECT_NE(last_output_.find(message), std::string::npos) << last_output_;
     EXPECT_NE(last_output_.find(" GB are available"), std::string::npos) << last_output_;
     EXPECT_TRUE(nothing_written());
@@ -177,7 +177,7 @@ TEST_F(CellfsiApp, NarrowThroatIsRefusedByTheMeshRatioBeforeItsPointsAreLocated)
   expect_one_clear_error(
       cellfsi({scene("ctc_narrowing.yaml"), "-channel_throat_height", "5e-5", "-fluid_elements", "96,32",
                "-solid_bodies", "nucleus,membrane", "-solid_nucleus_elements", "0,0"},
-              8));
+              12));
   EXPECT_NE(
       last_output_.find("option -solid_membrane_elements = 1,768 is invalid; valid: Lagrangian elements "
                         "no larger than 1 x the fluid's"),

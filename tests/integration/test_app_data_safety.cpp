@@ -224,26 +224,33 @@ const std::vector<SceneCase> kEveryScene = {
       "-solid_nucleus_elements", "0,0", "-dt", "5e-4", "-final_time", "1e-3", "-output_every", "0"}},
 };
 
-TEST_F(CellfsiApp, OptionsYamlOfEverySceneRunsAgainToTheSameMetrics) {
+// One test per scene file (each its own ctest entry, with its own time limit).
+class OptionsYamlOfEveryScene : public CellfsiApp, public ::testing::WithParamInterface<SceneCase> {};
+
+TEST_P(OptionsYamlOfEveryScene, RunsAgainToTheSameMetrics) {
   // Before: `cellfsi DIR/options.yaml` was refused for every coupled scene ("option
   // -fluid_mat_mumps_icntl_24 does not apply": the file held defaults the program set itself).
+  const SceneCase& c = GetParam();
+  std::vector<std::string> args = c.tiny;
+  args.insert(args.begin(), scene(c.file));
+  const RunResult first = cellfsi(args, 120);
+  ASSERT_EQ(first.exit_code, 0) << first.output;
+  const fs::path again = root_ / "again";
+  const RunResult second =
+      run_process({CELLFSI_EXE, (out_ / "options.yaml").string(), "-output_dir", again.string()}, 120);
+  ASSERT_EQ(second.exit_code, 0) << second.output << "\noptions.yaml:\n" << read_text(out_ / "options.yaml");
+  EXPECT_EQ(read_text(again / "metrics.csv"), read_text(out_ / "metrics.csv"));
+  EXPECT_EQ(json_string(read_text(again / "summary.json"), "scene"), json_string(summary(), "scene"));
+}
+
+INSTANTIATE_TEST_SUITE_P(SceneFiles, OptionsYamlOfEveryScene, ::testing::ValuesIn(kEveryScene),
+                         [](const ::testing::TestParamInfo<SceneCase>& info) {
+                           return info.param.file.substr(0, info.param.file.find('.'));
+                         });
+
+TEST(SceneFiles, EverySceneFileHasAnOptionsYamlCase) {
   std::set<std::string> covered;
-  for (const SceneCase& c : kEveryScene) {
-    SCOPED_TRACE(c.file);
-    covered.insert(c.file);
-    std::vector<std::string> args = c.tiny;
-    args.insert(args.begin(), scene(c.file));
-    const RunResult first = cellfsi(args, 120);
-    ASSERT_EQ(first.exit_code, 0) << first.output;
-    const fs::path again = root_ / "again";
-    const RunResult second =
-        run_process({CELLFSI_EXE, (out_ / "options.yaml").string(), "-output_dir", again.string()}, 120);
-    ASSERT_EQ(second.exit_code, 0) << second.output << "\noptions.yaml:\n" << read_text(out_ / "options.yaml");
-    EXPECT_EQ(read_text(again / "metrics.csv"), read_text(out_ / "metrics.csv"));
-    EXPECT_EQ(json_string(read_text(again / "summary.json"), "scene"), json_string(summary(), "scene"));
-    fs::remove_all(again);
-    fs::remove_all(out_);
-  }
+  for (const SceneCase& c : kEveryScene) covered.insert(c.file);
   for (const auto& e : fs::directory_iterator(CELLFSI_SCENES))
     EXPECT_TRUE(covered.count(e.path().filename().string())) << "no case for " << e.path();
 }

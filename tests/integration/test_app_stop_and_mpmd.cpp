@@ -31,7 +31,8 @@ std::vector<pid_t> children(pid_t pid) {
 bool wait_for_stop_handlers(const std::function<std::vector<pid_t>()>& pids, std::size_t n) {
   for (int i = 0; i < 20000; ++i) {
     const std::vector<pid_t> p = pids();
-    if (p.size() >= n && std::all_of(p.begin(), p.end(), [](pid_t q) { return catches(q, SIGINT); }))
+    // SIGPIPE's handler is installed last (apps/interrupt.cpp): once it is there, all of them are.
+    if (p.size() >= n && std::all_of(p.begin(), p.end(), [](pid_t q) { return catches(q, SIGPIPE); }))
       return true;
     usleep(1000);
   }
