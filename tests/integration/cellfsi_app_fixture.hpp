@@ -92,9 +92,9 @@ inline RunResult run_process(const std::vector<std::string>& argv, double timeou
     if (devnull >= 0) dup2(devnull, STDIN_FILENO);
     if (file_size_limit) {
       // MPI's start-up writes shared-memory files that the limit would cut (PMIx's data store, the shared-
-      // memory transport): a one-rank run needs neither.
+      // memory transport): the ranks talk over loopback TCP instead.
       setenv("PMIX_MCA_gds", "hash", 1);
-      setenv("OMPI_MCA_btl", "self", 1);
+      setenv("OMPI_MCA_btl", "self,tcp", 1);
       const rlimit limit{*file_size_limit, *file_size_limit};
       setrlimit(RLIMIT_FSIZE, &limit);
       signal(SIGXFSZ, SIG_IGN);  // an ignored signal stays ignored across exec
@@ -296,7 +296,7 @@ class CellfsiApp : public ::testing::Test {
     a.insert(a.end(), args.begin(), args.end());
     a.push_back("-output_dir");
     a.push_back(out_.string());
-    RunResult r = run_process(a, timeout_s, during);
+    RunResult r = run_process(a, timeout_s, during, file_size_limit_);
     last_output_ = r.output;
     return r;
   }

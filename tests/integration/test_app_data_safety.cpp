@@ -141,6 +141,20 @@ TEST_F(CellfsiApp, MetricsWriteFailureStopsTheRunWithWholeRows) {
   EXPECT_TRUE(no_temporary_files(out_));
 }
 
+TEST_F(CellfsiApp, WriteFailureOnRankZeroStopsTwoRanks) {
+  // Rank 0 writes metrics.csv; the other rank went on into the next step's collective calls and the run hung
+  // (review of this change). Every rank now agrees on the write's outcome.
+  file_size_limit_ = 1200;
+  const RunResult r = mpi_cellfsi(2, tiny_poiseuille("2e-2"), 60);
+  ASSERT_FALSE(r.timed_out) << r.output;
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("cannot write '" + (out_ / "metrics.csv").string() + "': File too large in step"),
+            std::string::npos)
+      << r.output;
+  EXPECT_TRUE(whole_rows(out_ / "metrics.csv"));
+  EXPECT_EQ(json_string(summary(), "status").value_or("").rfind("failed: cannot write", 0), 0u) << summary();
+}
+
 TEST_F(CellfsiApp, SeriesWriteFailureNamesTheFile) {
   // Before: a VTK write that failed at close went unseen or said only "cannot write VTK file".
   ASSERT_EQ(cellfsi(with(tiny_poiseuille("1e-3"), {"-output_every", "1"})).exit_code, 0) << last_output_;
