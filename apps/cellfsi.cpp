@@ -7,7 +7,7 @@
 //   mpirun -np 3 cellfsi scenes/capsule_shear.yaml -solid_ranks 1      # 2 fluid ranks, 1 solid rank
 //   cellfsi scenes/capsule_shear.yaml -help   # every option with its default
 //
-// Writes the run contract of DESIGN.md section 4 to -output_dir (default out/<scene>): summary.json,
+// Writes the run contract of docs/design.md §4 to -output_dir (default out/<scene>): summary.json,
 // metrics.csv, options.yaml, fluid.pvd, solid.pvd. Bad input stops the run before any work with one message
 // and exit code 1; a run that fails mid-way (diverged iteration, a body leaving the domain) says why, exits
 // with code 2 and leaves its output intact.

@@ -1,5 +1,5 @@
 #pragma once
-// The three ways to run a scene, one code path (DESIGN.md section 2, run contract section 4):
+// The three ways to run a scene, one code path (docs/design.md §2, run contract §4):
 //   cellfsi SCENE.yaml                     fluid and bodies in every process (the bodies are cheap)
 //   mpirun -np A+B cellfsi SCENE.yaml -solid_ranks B
 //                                          one job, the last B ranks the solid side (communicators)

@@ -1,5 +1,5 @@
 #pragma once
-// The run contract of DESIGN.md section 4: DIR/options.yaml (effective options), DIR/metrics.csv (one row per
+// The run contract of docs/design.md §4: DIR/options.yaml (effective options), DIR/metrics.csv (one row per
 // step, named columns), DIR/summary.json (scalars and final metrics), and a progress line. Rank 0 writes;
 // every file is rewritten atomically or appended line by line, so a run that stops mid-way leaves what it
 // wrote intact. The folder is locked for the run (DIR/.cellfsi.lock, flock): a second run on it is refused

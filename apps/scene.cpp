@@ -182,7 +182,7 @@ Scene::Scene(MPI_Comm comm, const SceneSettings& settings) : s_(settings) {
   if (s_.flow == "shear") {
     if (wall_dir_ <= 0)
       throw std::invalid_argument("option -flow = shear needs a wall direction other than x");
-    // Walls move at -+ gammadot H / 2 along x, so a centred cell stays put (DESIGN.md section 3).
+    // Walls move at -+ gammadot H / 2 along x, so a centred cell stays put (docs/design.md §3).
     const double H = s_.size[wall_dir_];
     fo.wall_velocity[wall_dir_][0] = Vec3(-s_.shear_rate * H / 2, 0, 0);
     fo.wall_velocity[wall_dir_][1] = Vec3(s_.shear_rate * H / 2, 0, 0);

@@ -81,7 +81,7 @@ std::array<int, 3> body_element_counts(const SceneSettings& s, const BodySetting
 geometry::Patch build_body_patch(const SceneSettings& s, const BodySettings& b);
 /// The scene's bodies as NurbsSolid (the solid side of a run).
 std::vector<std::unique_ptr<solid::NurbsSolid>> build_bodies(const SceneSettings& s);
-/// The placement checks of DESIGN.md section 4 (inside the domain, no overlap, Lagrangian elements no larger
+/// The placement checks of docs/design.md §4 (inside the domain, no overlap, Lagrangian elements no larger
 /// than max_mesh_ratio times the Eulerian ones); throws std::invalid_argument naming the option to change.
 void check_bodies(const SceneSettings& s, const geometry::Patch& domain);
 

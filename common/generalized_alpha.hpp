@@ -1,5 +1,5 @@
 #pragma once
-// Generalized-alpha for first-order systems (Jansen, Whiting & Hulbert 2000; DESIGN.md section 3), written
+// Generalized-alpha for first-order systems (Jansen, Whiting & Hulbert 2000; docs/design.md §3), written
 // once: the parameters from the spectral radius at infinity, the rate update, and the intermediate levels at
 // which the fluid's residual is evaluated (velocity at t_{n+alpha_f}, its rate at t_{n+alpha_m}).
 // Used by the fluid (fluid/fluid_solver.cpp) and the solids (solid::TimeParameters).

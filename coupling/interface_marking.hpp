@@ -1,5 +1,5 @@
 #pragma once
-// s^h marking (DESIGN.md section 3): the Eulerian basis functions whose support contains an interface point
+// s^h marking (docs/design.md §3): the Eulerian basis functions whose support contains an interface point
 // of a solid get the control value s_I, all others 1. Rebuilt whenever the solids move.
 #include <vector>
 

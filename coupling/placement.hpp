@@ -1,6 +1,6 @@
 #pragma once
-// Checks of immersed bodies against the fluid mesh and each other, made before a run starts (DESIGN.md
-// section 4: a cell outside the domain, overlapping cells and a mesh too coarse for the cell are bad input).
+// Checks of immersed bodies against the fluid mesh and each other, made before a run starts (docs/design.md
+// §4: a cell outside the domain, overlapping cells and a mesh too coarse for the cell are bad input).
 // Each check throws std::invalid_argument with a message naming the body, what is wrong and by how much.
 #include <string>
 #include <vector>

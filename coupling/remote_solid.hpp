@@ -1,5 +1,5 @@
 #pragma once
-// Fluid and solids in different MPI processes (DESIGN.md section 2): the solid ranks own the bodies and serve
+// Fluid and solids in different MPI processes (docs/design.md §2): the solid ranks own the bodies and serve
 // requests; on the fluid ranks each body is a RemoteSolid, a SolidSolver whose calls travel to the body's
 // owner and back. FsiCoupler, the metrics and the output use it exactly like a body in their own process, so
 // both launch modes compute the same numbers (the payloads are the same doubles).

@@ -40,7 +40,7 @@ struct FluidOptions {
   double density = 1.025;    // rho_1 [g/cm^3]
   double viscosity = 0.012;  // mu [g/(cm s)]
   Vec3 body_force =
-      Vec3::Zero();      // f [dyn/cm^3], a force per unit volume (g = f / rho_1), DESIGN.md section 3
+      Vec3::Zero();      // f [dyn/cm^3], a force per unit volume (g = f / rho_1), docs/design.md section 3
   bool stokes = false;   // drop convection
   double rho_inf = 0.5;  // generalized-alpha spectral radius at infinity, in [0, 1]
   double dt = 5e-4;      // time step [s]

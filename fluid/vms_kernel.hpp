@@ -5,7 +5,7 @@
 //
 // Unknowns per basis function A: velocity v_A (dim components) then kinematic pressure p_A (pressure /
 // rho_1); a residual or tangent row/column index is A * (dim + 1) + c, c < dim velocity, c == dim pressure.
-// Time discretisation (generalized-alpha, DESIGN.md section 3): the caller evaluates the fields at
+// Time discretisation (generalized-alpha, docs/design.md §3): the caller evaluates the fields at
 // v = v_{n+alpha_f}, vdot = vdot_{n+alpha_m}, p = p_{n+1}; TangentScales carries d(field)/d(unknown at n+1).
 //
 // Residual (test functions w = N_A e_i, q = N_A), with r_M = vdot + (v.grad)v + grad p - nu lap v - g, r_C =

@@ -24,7 +24,7 @@ Patch rectangle(double lx, double ly, int nx, int ny, int degree,
 Patch box(double lx, double ly, double lz, int nx, int ny, int nz, int degree,
           std::array<bool, 3> periodic = {false, false, false}, const Vec3& origin = Vec3::Zero());
 
-/// A 2D channel periodic in x with a smooth symmetric narrowing (DESIGN.md section 3). The walls are at
+/// A 2D channel periodic in x with a smooth symmetric narrowing (docs/design.md §3). The walls are at
 /// y = +-(height / 2 - offset(x)), offset(x) = (height - throat_height) / 2 * s(x), where s is 1 over the
 /// throat, 0 far from it, and a C-infinity smooth step over the transitions. The channel spans [0, length] x
 /// [-height / 2, height / 2].
@@ -53,7 +53,7 @@ Patch hollow_ellipse(double a, double b, double h, int n_angular, int degree,
 Patch bulky_ellipse(double a, double b, int n_radial, int n_angular, int degree,
                     const Vec3& center = Vec3::Zero(), double angle = 0.0);
 
-/// Evans-Fung biconcave RBC profile (DESIGN.md section 3), unscaled, in cm: the cross-section curve
+/// Evans-Fung biconcave RBC profile (docs/design.md §3), unscaled, in cm: the cross-section curve
 /// c(t) = (R0 cos t, 1/2 sin t (C0 + C2 cos^2 t + C4 cos^4 t)), t in [0, 2 pi): full thickness T(r) at r = R0
 /// cos t.
 struct EvansFung {
@@ -62,7 +62,7 @@ struct EvansFung {
   Vec3 tangent(double t) const;  // dc/dt
   double area() const;           // exact enclosed area: R0 pi (C0/2 + C2/8 + C4/16)
 };
-/// Target area of one 2D RBC (DESIGN.md section 3: 4 RBCs give H_t = 0.1716 in a 0.003 x 0.001 cm^2 channel).
+/// Target area of one 2D RBC (docs/design.md §3: 4 RBCs give H_t = 0.1716 in a 0.003 x 0.001 cm^2 channel).
 inline constexpr double kRbcArea2d = 1.2868e-7;
 /// Biconcave RBC membrane: the Evans-Fung mid-line interpolated at the Greville points of n_angular elements
 /// of degree p (C^{p-1}), then scaled so it encloses `area`; thickness h about the mid-line along the exact

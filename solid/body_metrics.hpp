@@ -1,7 +1,7 @@
 #pragma once
-// Shape and motion measures of one immersed body over time, from its patches (paper Sec. 3.3-3.4, DESIGN.md
-// section 3). Plain functions of the geometry: they never touch a solver, so they serve every SolidSolver and
-// both launch modes.
+// Shape and motion measures of one immersed body over time, from its patches (paper Sec. 3.3-3.4,
+// docs/design.md §3). Plain functions of the geometry: they never touch a solver, so they serve every
+// SolidSolver and both launch modes.
 //
 //   r_A        relative change of the solid's own area/volume (paper Eq. (21): for a membrane the area of
 //              the thin band, the quantity that spurious mass-conservation errors change)

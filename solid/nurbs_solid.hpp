@@ -58,7 +58,7 @@ class NurbsSolid final : public SolidSolver {
 
   /// The kinematic residual at one collocation point, R = udot_{n+alpha_m} - v(x_{n+alpha_f}), as a function
   /// of the point's displacement u at t_{n+1}; and its tangent (alpha_m / (gamma dt)) I - alpha_f grad v
-  /// (DESIGN.md section 3). Pure functions, tested against finite differences.
+  /// (docs/design.md §3). Pure functions, tested against finite differences.
   static Vec3 kinematic_residual(const Vec3& u, const Vec3& u_n, const Vec3& rate_n, const TimeParameters& t,
                                  const Vec3& v);
   static Mat3 kinematic_tangent(const TimeParameters& t, const Mat3& grad_v, int dim);

@@ -20,7 +20,7 @@ namespace cellfsi::solid {
 using Vec3 = Eigen::Vector3d;
 using Mat3 = Eigen::Matrix3d;
 
-/// Generalized-alpha parameters shared with the fluid (DESIGN.md section 3).
+/// Generalized-alpha parameters shared with the fluid (docs/design.md §3).
 using TimeParameters = GeneralizedAlpha;
 
 /// The fluid velocity and its gradient at one point (grad_v(i, j) = d v_i / d x_j).

@@ -1,6 +1,6 @@
 #pragma once
 // What the integration tests of the cellfsi executable share (tests/integration/test_app_*.cpp): running a
-// subprocess, reading its output files, and the fixture. The tests: the run contract of DESIGN.md section 4,
+// subprocess, reading its output files, and the fixture. The tests: the run contract of docs/design.md §4,
 // seen from outside.
 // Each test runs `cellfsi` (or `mpiexec -np 2 cellfsi`) as a subprocess into its own fresh temporary folder
 // and checks the exit code, the printed message and the files written (summary.json, metrics.csv,

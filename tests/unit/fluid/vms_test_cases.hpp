@@ -23,7 +23,7 @@ struct Scales {
 constexpr Scales kPhysical{"physical", 1e-5, 0.1, 100.0, 0.0117, 5e-4, 1.0, 1e3, 1e3};
 constexpr Scales kBalanced{"balanced", 1.0, 1.0, 1.0, 0.1, 1.0, 1.0, 2.0, 1.0};
 
-// Generalized-alpha with rho_inf = 0.5 (DESIGN.md section 3): d v_{n+alpha_f} / d v_{n+1} = alpha_f,
+// Generalized-alpha with rho_inf = 0.5 (docs/design.md §3): d v_{n+alpha_f} / d v_{n+1} = alpha_f,
 // d vdot_{n+alpha_m} / d v_{n+1} = alpha_m / (gamma dt).
 inline TangentScales generalized_alpha_scales(double dt) {
   const double rho_inf = 0.5;

@@ -1,4 +1,4 @@
-// Measures against closed forms and the paper's values (Sec. 3.3 and 3.6, DESIGN.md section 3).
+// Measures against closed forms and the paper's values (Sec. 3.3 and 3.6, docs/design.md §3).
 #include <gtest/gtest.h>
 
 #include <numbers>
