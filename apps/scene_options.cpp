@@ -205,7 +205,7 @@ void read_body(SceneSettings& s, const std::string& name) {
             "(right-handed)",
             finite("[degrees]"))
       .reals("axis", axis, "3D: rotation axis x,y,z of -angle", nullptr, finite())
-      .real("area", b.area, "rbc: area enclosed by the mid-line [cm^2] (0: the default RBC, DESIGN.md)")
+      .real("area", b.area, "rbc: area enclosed by the mid-line [cm^2] (0: the default RBC, docs/design.md §3)")
       .real("thickness", b.thickness, "Membrane thickness h [cm]")
       .integers("elements", elements,
                 "Lagrangian elements per direction (through/around; radial,around; 0: slightly smaller than "
@@ -399,7 +399,7 @@ SceneSettings SceneSettings::from_options(const std::string& default_name, bool 
   std::vector<bool> periodic(s.periodic.begin(), s.periodic.end());
   std::vector<int> elements(s.elements.begin(), s.elements.end());
   const auto dim = [&s] { return s.dim; };
-  OptionTable t("cellfsi scene (DESIGN.md section 4; CGS units)");
+  OptionTable t("cellfsi scene (docs/design.md §4; CGS units)");
   t.text("scene", s.name, "Scene name (default: the YAML file's stem)")
       .integer("dim", s.dim, "Spatial dimension, 2 or 3",
                {[](const long long& v) { return v == 2 || v == 3; }, "2 or 3"})

@@ -20,8 +20,6 @@ cellfsi-geometry's table comes the same way.
 What is filtered, so the output depends on no path, date or machine:
 - the default of -scene is the scene file's stem (here a temporary file): written as "the scene file's stem";
 - PETSc's parse detail after a valid-values text ("(Input string nan has no integer value ...)") is cut;
-- help texts and titles that still name DESIGN.md (a file outside the repository) name docs/design.md instead:
-  "DESIGN.md section N" becomes "docs/design.md §N" (the sections keep their numbers).
 Nothing else is changed. What PETSc 3.18's -help prints as a default: for a number or a flag, the default; for
 a word, the value read (so the scenes here give no word option but -solid_NAME_shape, whose table is taken from
 the body given no shape, and -dim/-domain in 3D, whose rows are taken from the 2D scene); for a list, the values
@@ -106,11 +104,6 @@ def parse_option(line):
 
 def number(v):
     return v[:-1] if re.fullmatch(r"-?\d+\.", v) else v
-
-
-def design_links(text):
-    text = re.sub(r"DESIGN\.md section (\d+)", r"docs/design.md §\1", text)
-    return re.sub(r"DESIGN\.md", "docs/design.md", text)
 
 
 def probe(cmd_of, name, dim, cwd):
@@ -235,10 +228,10 @@ def main():
     number_ = 0
     for title, rows in sections[:2] + body_sections + sections[2:]:
         number_ += 1
-        doc += [f"## {number_}. {design_links(title)}", "", markdown(design_rows(rows)), ""]
+        doc += [f"## {number_}. {title}", "", markdown(rows), ""]
     for title, rows in geometry_tables.items():
         number_ += 1
-        doc += [f"## {number_}. {design_links(title)}", "", markdown(design_rows(rows)), ""]
+        doc += [f"## {number_}. {title}", "", markdown(rows), ""]
     doc += [FOOTER.strip(), ""]
     text = "\n".join(doc)
     if args.output:
@@ -247,9 +240,6 @@ def main():
     else:
         sys.stdout.write(text)
 
-
-def design_rows(rows):
-    return [dict(r, help=design_links(r["help"]), valid=design_links(r.get("valid", ""))) for r in rows]
 
 
 HEADER = """

@@ -103,7 +103,7 @@ TEST_F(CellfsiApp, HelpListsSceneOptions) {
   // Every table, each option with its help text and valid choices, after the program's description.
   EXPECT_EQ(r.output.find("cellfsi: cell-resolved microscale blood flow"), 0u) << r.output.substr(0, 300);
   EXPECT_NE(r.output.find("Usage: cellfsi [SCENE.yaml]"), std::string::npos) << r.output;
-  for (const char* table : {"cellfsi scene (DESIGN.md section 4; CGS units):",
+  for (const char* table : {"cellfsi scene (docs/design.md §4; CGS units):",
                             "Fluid (VMS Navier-Stokes; CGS units):", "cellfsi immersed bodies and coupling:"})
     EXPECT_NE(r.output.find(table), std::string::npos) << "-help lacks the table " << table;
   EXPECT_NE(r.output.find("Eulerian domain (rectangle, box, narrowing)"), std::string::npos) << r.output;
