@@ -278,43 +278,43 @@ RunOutput::~RunOutput() {
 
 void RunOutput::remove_series_except(const std::vector<std::string>& keep) const {
   on_rank_zero(comm_, [&] {
-  for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
-    const std::string name = entry.path().filename().string();
-    // A piece of a parallel file (fluid_NNNNNN_pRRRR.vts) goes with its index (fluid_NNNNNN.pvts).
-    const std::size_t piece = name.rfind("_p");
-    const std::string owner =
-        name.rfind("fluid_", 0) == 0 && piece != std::string::npos ? name.substr(0, piece) + ".pvts" : name;
-    if (is_series_file(name) && std::find(keep.begin(), keep.end(), name) == keep.end() &&
-        std::find(keep.begin(), keep.end(), owner) == keep.end())
-      std::filesystem::remove(entry.path());
-  }
+    for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
+      const std::string name = entry.path().filename().string();
+      // A piece of a parallel file (fluid_NNNNNN_pRRRR.vts) goes with its index (fluid_NNNNNN.pvts).
+      const std::size_t piece = name.rfind("_p");
+      const std::string owner =
+          name.rfind("fluid_", 0) == 0 && piece != std::string::npos ? name.substr(0, piece) + ".pvts" : name;
+      if (is_series_file(name) && std::find(keep.begin(), keep.end(), name) == keep.end() &&
+          std::find(keep.begin(), keep.end(), owner) == keep.end())
+        std::filesystem::remove(entry.path());
+    }
   });
 }
 
 void RunOutput::metrics_row(const std::vector<std::pair<std::string, double>>& row) {
   // Collective: a failed write on rank 0 must stop every rank, not leave them in the next collective call.
   on_rank_zero(comm_, [&] {
-  for (size_t i = 0; i < row.size() && i < columns_.size(); ++i)
-    if (row[i].first != columns_[i])
-      throw std::logic_error("metrics.csv: column " + std::to_string(i + 1) + " is '" + columns_[i] +
-                             "', the row has '" + row[i].first + "'");
-  if (row.size() != columns_.size())
-    throw std::logic_error("metrics.csv: a row of " + std::to_string(row.size()) + " values for " +
-                           std::to_string(columns_.size()) + " columns");
-  std::ostringstream line;
-  line << std::setprecision(12);
-  for (size_t i = 0; i < row.size(); ++i) line << (i ? "," : "") << row[i].second;
-  line << "\n";
-  // A row is written whole or not at all: a failed write (a full disk, a file-size limit) is cut back to
-  // the previous row's end, so metrics.csv never ends in half a row, and reported naming the file.
-  const std::string text = line.str();
-  const off_t end = ::lseek(csv_fd_, 0, SEEK_END);
-  if (const int err = write_all(csv_fd_, text.data(), text.size()); err != 0) {
-    if (end >= 0 && ::ftruncate(csv_fd_, end) != 0) {
-      // The partial row stays; a restart drops rows it cannot read.
+    for (size_t i = 0; i < row.size() && i < columns_.size(); ++i)
+      if (row[i].first != columns_[i])
+        throw std::logic_error("metrics.csv: column " + std::to_string(i + 1) + " is '" + columns_[i] +
+                               "', the row has '" + row[i].first + "'");
+    if (row.size() != columns_.size())
+      throw std::logic_error("metrics.csv: a row of " + std::to_string(row.size()) + " values for " +
+                             std::to_string(columns_.size()) + " columns");
+    std::ostringstream line;
+    line << std::setprecision(12);
+    for (size_t i = 0; i < row.size(); ++i) line << (i ? "," : "") << row[i].second;
+    line << "\n";
+    // A row is written whole or not at all: a failed write (a full disk, a file-size limit) is cut back to
+    // the previous row's end, so metrics.csv never ends in half a row, and reported naming the file.
+    const std::string text = line.str();
+    const off_t end = ::lseek(csv_fd_, 0, SEEK_END);
+    if (const int err = write_all(csv_fd_, text.data(), text.size()); err != 0) {
+      if (end >= 0 && ::ftruncate(csv_fd_, end) != 0) {
+        // The partial row stays; a restart drops rows it cannot read.
+      }
+      throw_write_error(dir_ + "/metrics.csv", std::strerror(err));
     }
-    throw_write_error(dir_ + "/metrics.csv", std::strerror(err));
-  }
   });
 }
 

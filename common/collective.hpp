@@ -13,7 +13,8 @@ namespace cellfsi {
 /// Throws on every rank of comm when `local_error` is non-empty on any rank: std::invalid_argument if
 /// `invalid_argument` on the first failing rank, std::runtime_error otherwise, with that rank's message.
 /// Collective.
-inline void throw_if_any_failed(MPI_Comm comm, const std::string& local_error, bool invalid_argument = false) {
+inline void throw_if_any_failed(MPI_Comm comm, const std::string& local_error,
+                                bool invalid_argument = false) {
   int rank = 0, size = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &size);
