@@ -214,6 +214,9 @@ struct SceneCase {
   std::string file;
   std::vector<std::string> tiny;
 };
+/// How gtest names a case in test lists (not the struct's bytes).
+void PrintTo(const SceneCase& c, std::ostream* os) { *os << c.file; }
+
 const std::vector<SceneCase> kEveryScene = {
     {"shear.yaml", kTiny},
     {"poiseuille.yaml", kTiny},
