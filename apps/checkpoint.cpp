@@ -250,7 +250,7 @@ Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, const std::str
     c.body_names = js.at("body_names").get<std::vector<std::string>>();
     c.bodies = js.at("bodies").get<std::vector<std::vector<double>>>();
     c.trackers = js.at("trackers").get<std::vector<std::vector<double>>>();
-    c.scene_metrics = js.at("scene_metrics").get<std::vector<double>>();
+    c.scene_metrics = js.at("scene_metrics");
     c.fluid_series = series_from(js.at("fluid_series"));
     c.solid_series = series_from(js.at("solid_series"));
     c.solid_writes = js.at("solid_writes").get<int>();

@@ -6,6 +6,7 @@
 // renamed.
 #include <petscvec.h>
 
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -20,7 +21,7 @@ struct Checkpoint {
   std::string options;  // options.yaml of the run that wrote it
   std::vector<std::string> body_names;
   std::vector<std::vector<double>> bodies, trackers;  // per body: SolidSolver::state, BodyTracker::state
-  std::vector<double> scene_metrics;                  // Scene::metric_state
+  nlohmann::json scene_metrics;                       // Scene::metric_state
   std::vector<geometry::PvdEntry> fluid_series, solid_series;
   int solid_writes = 0;
 };

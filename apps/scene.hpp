@@ -5,6 +5,7 @@
 // Bodies (cells): membranes (capsules) and bulky bodies (nuclei) listed by -solid_bodies, each with options
 // -solid_<name>_<key>.
 #include <array>
+#include <nlohmann/json.hpp>
 #include <functional>
 #include <memory>
 #include <string>
@@ -112,10 +113,11 @@ class Scene {
   /// A restart (after attach_bodies): the fluid state after `steps` steps, the bodies' states and records.
   void restore(Vec U, Vec Udot, int steps, const std::vector<std::vector<double>>& bodies,
                const std::vector<std::vector<double>>& trackers);
-  /// The scene's own records (suspension rheology, the time-averaged profile) as plain numbers, for a
-  /// checkpoint, and their restoration.
-  std::vector<double> metric_state() const;
-  void restore_metric_state(const std::vector<double>& state);
+  /// The scene's own records (suspension rheology, the time-averaged profile, the flow rates) as named JSON
+  /// fields, for a checkpoint, and their restoration (also from the flat list of numbers of earlier
+  /// checkpoints); damaged records are std::invalid_argument.
+  nlohmann::json metric_state() const;
+  void restore_metric_state(const nlohmann::json& state);
   /// The velocity across the channel at mid-length averaged over the metrics' window (channel flows; empty
   /// before the window or for shear): points and mean velocity.
   fluid::SectionData mean_profile() const;
@@ -133,6 +135,7 @@ class Scene {
   std::vector<std::pair<std::string, std::string>> summary_text() const;
 
  private:
+  void restore_flat_metric_state(const std::vector<double>& state);  // checkpoints before the JSON fields
   std::vector<std::pair<std::string, double>> flow_metrics();
   /// A suspension record of the current state (channel flow with membranes; see
   /// solid/suspension_metrics.hpp).

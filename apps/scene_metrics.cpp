@@ -67,34 +67,75 @@ fluid::SectionData Scene::mean_profile() const {
   return m;
 }
 
-std::vector<double> Scene::metric_state() const {
-  // [profile_count, n_points, (x y z vx vy vz) per point, flow_rate, area,
-  //  n_records, per record: time mean_velocity cell_area gap_low gap_high n_cells cell_x...]
-  std::vector<double> out{profile_from_, static_cast<double>(profile_count_),
-                          static_cast<double>(profile_sum_.points.size())};
-  for (std::size_t i = 0; i < profile_sum_.points.size(); ++i)
-    for (const geometry::Vec3* v : {&profile_sum_.points[i], &profile_sum_.velocity[i]})
-      out.insert(out.end(), v->data(), v->data() + 3);
-  out.insert(out.end(), {profile_sum_.flow_rate, profile_sum_.area, static_cast<double>(suspension_.size())});
-  for (const solid::SuspensionRecord& r : suspension_) {
-    out.insert(out.end(), {r.time, r.mean_velocity, r.cell_area, r.gap_low, r.gap_high,
-                           static_cast<double>(r.cell_x.size())});
-    out.insert(out.end(), r.cell_x.begin(), r.cell_x.end());
+nlohmann::json Scene::metric_state() const {
+  nlohmann::json profile{{"points", nlohmann::json::array()},
+                         {"velocity", nlohmann::json::array()},
+                         {"flow_rate", profile_sum_.flow_rate},
+                         {"area", profile_sum_.area}};
+  for (std::size_t i = 0; i < profile_sum_.points.size(); ++i) {
+    const Vec3 &x = profile_sum_.points[i], &v = profile_sum_.velocity[i];
+    profile["points"].push_back({x[0], x[1], x[2]});
+    profile["velocity"].push_back({v[0], v[1], v[2]});
   }
-  out.push_back(static_cast<double>(flow_rates_.size()));
-  for (const auto& [t, q] : flow_rates_) out.insert(out.end(), {t, q});
-  return out;
+  nlohmann::json suspension = nlohmann::json::array();
+  for (const solid::SuspensionRecord& r : suspension_)
+    suspension.push_back({{"time", r.time},
+                          {"mean_velocity", r.mean_velocity},
+                          {"cell_area", r.cell_area},
+                          {"gap_low", r.gap_low},
+                          {"gap_high", r.gap_high},
+                          {"cell_x", r.cell_x}});
+  nlohmann::json rates = nlohmann::json::array();
+  for (const auto& [t, q] : flow_rates_) rates.push_back({t, q});
+  return {{"profile_from", profile_from_},
+          {"profile_count", profile_count_},
+          {"profile_sum", std::move(profile)},
+          {"suspension", std::move(suspension)},
+          {"flow_rates", std::move(rates)}};
 }
 
-void Scene::restore_metric_state(const std::vector<double>& state) {
+void Scene::restore_metric_state(const nlohmann::json& state) {
+  // Checkpoints of earlier versions hold the same state as one flat list of numbers.
+  if (state.is_array()) return restore_flat_metric_state(state.get<std::vector<double>>());
+  try {
+    // The window the profile was summed over: a restart that moves it (-final_time, -metrics_average_from)
+    // has no average over the new one (the steps before the restart are gone), so profile_mean.csv is not
+    // written.
+    profile_from_ = state.at("profile_from").get<double>();
+    profile_count_ = state.at("profile_count").get<int>();
+    const nlohmann::json& p = state.at("profile_sum");
+    fluid::SectionData sum;
+    for (const auto& x : p.at("points")) sum.points.emplace_back(x.at(0), x.at(1), x.at(2));
+    for (const auto& v : p.at("velocity")) sum.velocity.emplace_back(v.at(0), v.at(1), v.at(2));
+    if (sum.points.size() != sum.velocity.size()) throw std::runtime_error("profile of unequal lengths");
+    sum.flow_rate = p.at("flow_rate").get<double>();
+    sum.area = p.at("area").get<double>();
+    std::vector<solid::SuspensionRecord> records;
+    for (const auto& j : state.at("suspension")) {
+      solid::SuspensionRecord r;
+      r.time = j.at("time"), r.mean_velocity = j.at("mean_velocity"), r.cell_area = j.at("cell_area");
+      r.gap_low = j.at("gap_low"), r.gap_high = j.at("gap_high");
+      r.cell_x = j.at("cell_x").get<std::vector<double>>();
+      records.push_back(std::move(r));
+    }
+    std::vector<std::pair<double, double>> rates;
+    for (const auto& tq : state.at("flow_rates")) rates.emplace_back(tq.at(0), tq.at(1));
+    profile_sum_ = std::move(sum);
+    suspension_ = std::move(records);
+    flow_rates_ = std::move(rates);
+  } catch (const std::exception& e) {
+    throw std::invalid_argument(std::string("option -restart: the checkpoint's scene records are damaged (") +
+                                e.what() + ")");
+  }
+}
+
+void Scene::restore_flat_metric_state(const std::vector<double>& state) {
   std::size_t k = 0;
   auto next = [&]() {
     if (k >= state.size())
       throw std::invalid_argument("option -restart: the checkpoint's scene records are damaged");
     return state[k++];
   };
-  // The window the profile was summed over: a restart that moves it (-final_time, -metrics_average_from) has
-  // no average over the new one (the steps before the restart are gone), so profile_mean.csv is not written.
   profile_from_ = next();
   profile_count_ = static_cast<int>(next());
   fluid::SectionData p;

@@ -1,4 +1,6 @@
 // Integration tests (cellfsi_app_fixture.hpp): checkpoints and restarts.
+#include <nlohmann/json.hpp>
+
 #include "cellfsi_app_fixture.hpp"
 
 using namespace cellfsi_app_test;
@@ -201,5 +203,59 @@ TEST_F(CellfsiApp, RestartOnAnotherMeshNamesTheOption) {
 }
 
 // Channel scenes (issue 12): RBC suspensions and their rheology, an off-centre capsule's migration.
+
+}  // namespace
+
+namespace {
+
+/// The scene records of a checkpoint (state.json's "scene_metrics", named JSON fields) in the flat list of
+/// numbers that checkpoints of earlier versions hold.
+nlohmann::json flat_scene_metrics(const nlohmann::json& m) {
+  std::vector<double> flat{m.at("profile_from"), m.at("profile_count")};
+  const nlohmann::json& p = m.at("profile_sum");
+  flat.push_back(static_cast<double>(p.at("points").size()));
+  for (std::size_t i = 0; i < p.at("points").size(); ++i)
+    for (const char* key : {"points", "velocity"})
+      for (int c = 0; c < 3; ++c) flat.push_back(p.at(key).at(i).at(c));
+  flat.insert(flat.end(), {p.at("flow_rate"), p.at("area"), static_cast<double>(m.at("suspension").size())});
+  for (const auto& r : m.at("suspension")) {
+    flat.insert(flat.end(), {r.at("time"), r.at("mean_velocity"), r.at("cell_area"), r.at("gap_low"),
+                             r.at("gap_high"), static_cast<double>(r.at("cell_x").size())});
+    for (const auto& x : r.at("cell_x")) flat.push_back(x);
+  }
+  flat.push_back(static_cast<double>(m.at("flow_rates").size()));
+  for (const auto& tq : m.at("flow_rates")) flat.insert(flat.end(), {tq.at(0), tq.at(1)});
+  return flat;
+}
+
+TEST_F(CellfsiApp, CheckpointOfAnEarlierVersionRestartsToTheSameAverages) {
+  // The scene's records are named JSON fields now (issue 25); a checkpoint written before, with the same
+  // records as one flat list of numbers, restarts to the same averaged profile and flow metrics as a run
+  // that did not stop.
+  const std::vector<std::string> args =
+      with(with({scene("poiseuille.yaml")}, kTiny), {"-metrics_average_from", "0", "-checkpoint_every", "0"});
+  ASSERT_EQ(cellfsi(with(args, {"-final_time", "4e-3"})).exit_code, 0) << last_output_;
+  const std::string straight_mean = read_text(out_ / "profile_mean.csv");
+  const auto straight = last_row(out_ / "metrics.csv");
+  fs::remove_all(out_);
+  ASSERT_EQ(cellfsi(with(args, {"-final_time", "2e-3"})).exit_code, 0) << last_output_;
+  const fs::path state = out_ / "checkpoint" / "state.json";
+  nlohmann::json js = nlohmann::json::parse(read_text(state));
+  ASSERT_TRUE(js.at("scene_metrics").is_object()) << js.at("scene_metrics");
+  ASSERT_FALSE(js.at("scene_metrics").at("flow_rates").empty());
+  js["scene_metrics"] = flat_scene_metrics(js.at("scene_metrics"));
+  std::ofstream(state) << js.dump() << "\n";
+  const RunResult r = cellfsi(with(args, {"-final_time", "4e-3", "-restart"}));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(rows_agree(metrics_only(straight), metrics_only(last_row(out_ / "metrics.csv")), 1e-9, 1e-9));
+  const std::vector<std::string> a = lines(straight_mean), b = lines(read_text(out_ / "profile_mean.csv"));
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 1; i < a.size(); ++i) {
+    const std::vector<std::string> x = split(a[i], ','), y = split(b[i], ',');
+    for (std::size_t c = 0; c < x.size(); ++c)
+      EXPECT_NEAR(std::stod(x[c]), std::stod(y[c]), 1e-9 * std::max(1.0, std::abs(std::stod(x[c]))))
+          << "profile_mean.csv row " << i;
+  }
+}
 
 }  // namespace
