@@ -445,10 +445,30 @@ void FluidSolver::set_immersed_points(const std::vector<Index3>& elements, const
   sort_immersed_points();
 }
 
+template <class Value, class Rate>
+std::vector<PointSample> FluidSolver::sample_local(const std::vector<Index3>& elements,
+                                                   const std::vector<Param>& xi,
+                                                   const std::vector<char>& located, Value&& value,
+                                                   Rate&& rate) const {
+  std::vector<PointSample> local(xi.size());
+  BasisValues bv;
+  MapValues mv;
+  PhysicalPoint pp;
+  std::vector<PetscInt> nodes;
+  for (size_t i = 0; i < xi.size(); ++i) {
+    if (!located[i] || !owns_element(elements[i])) continue;
+    physical_point(patch_, elements[i], xi[i], 1, bv, mv, pp);
+    element_nodes(patch_, pp, gxs_, gxm_, nodes);
+    const PointValues v = interpolate(pp, dim_, [&](int k, int c) { return value(nodes[k] * dof_ + c, c); });
+    const PointValues r = interpolate(pp, dim_, [&](int k, int c) { return rate(nodes[k] * dof_ + c, c); });
+    local[i] = {true, v.v, v.grad_v, r.v, v.scalar};
+  }
+  return local;
+}
+
 std::vector<PointSample> FluidSolver::sample_alpha(Vec X, const std::vector<Index3>& elements,
                                                    const std::vector<Param>& xi) const {
-  const int D = dim_, nd = dof_;
-  std::vector<PointSample> local(xi.size());
+  const int D = dim_;
   Vec X_loc;
   CELLFSI_PETSC(DMGetLocalVector(da_, &X_loc));
   CELLFSI_PETSC(DMGlobalToLocal(da_, X, INSERT_VALUES, X_loc));
@@ -456,25 +476,11 @@ std::vector<PointSample> FluidSolver::sample_alpha(Vec X, const std::vector<Inde
   CELLFSI_PETSC(VecGetArrayRead(X_loc, &x));
   CELLFSI_PETSC(VecGetArrayRead(Un_loc_, &un));
   CELLFSI_PETSC(VecGetArrayRead(Udotn_loc_, &udn));
-  BasisValues bv;
-  MapValues mv;
-  PhysicalPoint pp;
-  std::vector<PetscInt> nodes;
-  for (size_t i = 0; i < xi.size(); ++i) {
-    if (!owns_element(elements[i])) continue;
-    physical_point(patch_, elements[i], xi[i], 1, bv, mv, pp);
-    element_nodes(patch_, pp, gxs_, gxm_, nodes);
-    // Velocity at t_{n+alpha_f}, its rate at t_{n+alpha_m}.
-    const PointValues v = interpolate(pp, D, [&](int k, int c) {
-      const PetscInt li = nodes[k] * nd + c;
-      return c < D ? alpha_.value_alpha_f(x[li], un[li]) : 0.0;
-    });
-    const PointValues r = interpolate(pp, D, [&](int k, int c) {
-      const PetscInt li = nodes[k] * nd + c;
-      return c < D ? alpha_.rate_alpha_m(x[li], un[li], udn[li]) : 0.0;
-    });
-    local[i] = {true, v.v, v.grad_v, r.v, 0.0};
-  }
+  // Velocity at t_{n+alpha_f}, its rate at t_{n+alpha_m}; no pressure (its nodal values are taken as 0).
+  const std::vector<PointSample> local = sample_local(
+      elements, xi, std::vector<char>(xi.size(), 1),
+      [&](PetscInt li, int c) { return c < D ? alpha_.value_alpha_f(x[li], un[li]) : 0.0; },
+      [&](PetscInt li, int c) { return c < D ? alpha_.rate_alpha_m(x[li], un[li], udn[li]) : 0.0; });
   CELLFSI_PETSC(VecRestoreArrayRead(X_loc, &x));
   CELLFSI_PETSC(VecRestoreArrayRead(Un_loc_, &un));
   CELLFSI_PETSC(VecRestoreArrayRead(Udotn_loc_, &udn));
@@ -486,8 +492,16 @@ std::vector<PointSample> FluidSolver::sample_alpha(Vec X, const std::vector<Inde
 // Sampling and gathering
 
 std::vector<PointSample> FluidSolver::sample(const std::vector<Vec3>& points) const {
-  const int D = dim_, nd = dof_;
-  std::vector<PointSample> local(points.size());
+  std::vector<Index3> elements(points.size());
+  std::vector<Param> xi(points.size());
+  std::vector<char> located(points.size(), 0);
+  for (size_t i = 0; i < points.size(); ++i) {
+    const geometry::InversionResult r = inverter_.invert(points[i]);
+    if (!r.inside) continue;
+    elements[i] = r.element;
+    xi[i] = r.xi;
+    located[i] = 1;
+  }
   Vec U_loc, Ud_loc;
   CELLFSI_PETSC(DMGetLocalVector(da_, &U_loc));
   CELLFSI_PETSC(DMGetLocalVector(da_, &Ud_loc));
@@ -496,19 +510,9 @@ std::vector<PointSample> FluidSolver::sample(const std::vector<Vec3>& points) co
   const PetscScalar *u, *ud;
   CELLFSI_PETSC(VecGetArrayRead(U_loc, &u));
   CELLFSI_PETSC(VecGetArrayRead(Ud_loc, &ud));
-  BasisValues bv;
-  MapValues mv;
-  PhysicalPoint pp;
-  std::vector<PetscInt> nodes;
-  for (size_t i = 0; i < points.size(); ++i) {
-    const geometry::InversionResult r = inverter_.invert(points[i]);
-    if (!r.inside || !owns_element(r.element)) continue;
-    physical_point(patch_, r.element, r.xi, 1, bv, mv, pp);
-    element_nodes(patch_, pp, gxs_, gxm_, nodes);
-    const PointValues v = interpolate(pp, D, [&](int k, int c) { return u[nodes[k] * nd + c]; });
-    const PointValues rate = interpolate(pp, D, [&](int k, int c) { return ud[nodes[k] * nd + c]; });
-    local[i] = {true, v.v, v.grad_v, rate.v, v.scalar};
-  }
+  const std::vector<PointSample> local = sample_local(
+      elements, xi, located, [&](PetscInt li, int) { return u[li]; },
+      [&](PetscInt li, int) { return ud[li]; });
   CELLFSI_PETSC(VecRestoreArrayRead(U_loc, &u));
   CELLFSI_PETSC(VecRestoreArrayRead(Ud_loc, &ud));
   CELLFSI_PETSC(DMRestoreLocalVector(da_, &U_loc));
