@@ -23,7 +23,8 @@ std::vector<int> functions_near(const Locator& locator, const std::vector<geomet
                                 Marking marking = Marking::support);
 
 /// s_I must be at least 1 (it scales the stabilisation up at interfaces); throws std::invalid_argument
-/// otherwise. The coupling layer's one check of it (the scene options also refuse values outside their range).
+/// otherwise. The coupling layer's one check of it (the scene options also refuse values outside their
+/// range).
 void check_interface_scaling(double s_interface);
 
 /// The scaling field's control values: s_interface on `marked`, 1 elsewhere (size: the patch's control

@@ -22,15 +22,17 @@ std::string decode(const std::vector<double>& d) {
 
 // The messages' layouts: doubles per item, the same on the fluid side (RemoteSolid) and the solid side
 // (serve_solids), which pack and unpack through the functions below.
-constexpr std::size_t kVecSize = 3;   // a Vec3, or a Param
-constexpr std::size_t kMatSize = 9;   // a Mat3, row by row
+constexpr std::size_t kVecSize = 3;                       // a Vec3, or a Param
+constexpr std::size_t kMatSize = 9;                       // a Mat3, row by row
 constexpr std::size_t kSampleSize = kVecSize + kMatSize;  // VelocitySample: v, grad_v
 // QuadratureData: x, weight, stress, beta, shear_modulus.
 constexpr std::size_t kQuadratureWeight = kVecSize, kQuadratureStress = kQuadratureWeight + 1,
                       kQuadratureBeta = kQuadratureStress + kMatSize, kQuadratureShear = kQuadratureBeta + 1,
                       kQuadratureSize = kQuadratureShear + 1;
 
-void put(std::vector<double>& out, const solid::Vec3& v) { out.insert(out.end(), v.data(), v.data() + kVecSize); }
+void put(std::vector<double>& out, const solid::Vec3& v) {
+  out.insert(out.end(), v.data(), v.data() + kVecSize);
+}
 void put(std::vector<double>& out, const solid::Mat3& m) {
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) out.push_back(m(r, c));
