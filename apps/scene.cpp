@@ -88,11 +88,8 @@ std::array<int, 3> body_element_counts(const SceneSettings& s, const BodySetting
   for (int d = 0; d < D; ++d) {
     if (n[d] != 0) continue;
     // Largest extent along direction d of the trial mesh (measured as the Remark 3 check measures it).
-    double ext = 0, e3[3];
-    for (int e = 0; e < t.n_elements(); ++e) {
-      coupling::element_extents(t, e, e3);
-      ext = std::max(ext, e3[d]);
-    }
+    double ext = 0;
+    for (int e = 0; e < t.n_elements(); ++e) ext = std::max(ext, geometry::element_extents(t, e)[d]);
     // Capped where int ends (a throat far narrower than the cell asks for billions): the memory check
     // refuses such a count with its estimate.
     const double m = std::min(std::max(d == 0 ? 2.0 : 4.0, std::ceil(trial[d] * ext / target)), 1e9);

@@ -89,7 +89,7 @@ FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver
   tp_ = solid::TimeParameters::from_rho_inf(fluid.options().rho_inf, fluid.options().dt);
   if (!(opt_.tolerance > 0 && opt_.tolerance < 1))
     throw std::invalid_argument("coupler tolerance must be in (0, 1)");
-  if (!(opt_.s_interface >= 1)) throw std::invalid_argument("s_interface must be >= 1");
+  check_interface_scaling(opt_.s_interface);
   for (auto* b : bodies_)
     if (b->dim() != fluid.dim())
       throw std::invalid_argument("body '" + b->name() + "' has another dimension");

@@ -38,8 +38,12 @@ std::vector<int> functions_near(const Locator& locator, const std::vector<geomet
   return out;
 }
 
-std::vector<double> scaling_values(int n_control, const std::vector<int>& marked, double s_interface) {
+void check_interface_scaling(double s_interface) {
   if (!(s_interface >= 1)) throw std::invalid_argument("s_interface must be >= 1");
+}
+
+std::vector<double> scaling_values(int n_control, const std::vector<int>& marked, double s_interface) {
+  check_interface_scaling(s_interface);
   std::vector<double> s(n_control, 1.0);
   for (int k : marked) {
     if (k < 0 || k >= n_control) throw std::out_of_range("scaling_values: function index out of range");

@@ -22,8 +22,13 @@ enum class Marking {
 std::vector<int> functions_near(const Locator& locator, const std::vector<geometry::Vec3>& points,
                                 Marking marking = Marking::support);
 
+/// s_I must be at least 1 (it scales the stabilisation up at interfaces); throws std::invalid_argument
+/// otherwise. The coupling layer's one check of it (the scene options also refuse values outside their
+/// range).
+void check_interface_scaling(double s_interface);
+
 /// The scaling field's control values: s_interface on `marked`, 1 elsewhere (size: the patch's control
-/// points).
+/// points). s_interface is checked by check_interface_scaling.
 std::vector<double> scaling_values(int n_control, const std::vector<int>& marked, double s_interface);
 
 }  // namespace cellfsi::coupling

@@ -1,6 +1,7 @@
 #include "coupling/placement.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -11,6 +12,7 @@
 #include <CGAL/Polygon_with_holes_2.h>
 
 #include "geometry/inversion.hpp"
+#include "geometry/measures.hpp"
 #include "geometry/patch_vtk.hpp"
 #include "geometry/refine.hpp"
 
@@ -103,34 +105,15 @@ void check_no_overlap(const std::vector<BodyPlacement>& bodies) {
     }
 }
 
-void element_extents(const Patch& p, int e, double out[3]) {
-  Param lo, hi;
-  p.element_bounds(p.element_multi_index(e), lo, hi);
-  const int P = p.param_dim();
-  for (int d = 0; d < P; ++d) {
-    out[d] = 0;
-    for (int c = 0; c < (1 << P); ++c) {
-      if (c & (1 << d)) continue;
-      Param x0, x1;
-      for (int k = 0; k < 3; ++k) x0[k] = x1[k] = k < P ? ((c >> k) & 1 ? hi[k] : lo[k]) : 0.0;
-      x1[d] = hi[d];
-      x0[d] = lo[d];
-      out[d] = std::max(out[d], (p.point(x1) - p.point(x0)).norm());
-    }
-  }
-}
-
 Resolution resolution(const Patch& eulerian, const BodyPlacement& body) {
-  const auto extents = element_extents;
   Resolution r;
   r.fluid_element = 1e300;
-  double ext[3];
   for (int e = 0; e < eulerian.n_elements(); ++e) {
-    extents(eulerian, e, ext);
+    const std::array<double, 3> ext = geometry::element_extents(eulerian, e);
     for (int d = 0; d < eulerian.param_dim(); ++d) r.fluid_element = std::min(r.fluid_element, ext[d]);
   }
   for (int e = 0; e < body.patch.n_elements(); ++e) {
-    extents(body.patch, e, ext);
+    const std::array<double, 3> ext = geometry::element_extents(body.patch, e);
     for (int d = body.membrane ? 1 : 0; d < body.patch.param_dim(); ++d)
       r.solid_element = std::max(r.solid_element, ext[d]);
   }

@@ -25,10 +25,6 @@ void check_inside(const Locator& locator, const BodyPlacement& body);
 /// one body inside the other.
 void check_no_overlap(const std::vector<BodyPlacement>& bodies);
 
-/// Extent of element e of a patch along each parametric direction d: the largest distance between two of its
-/// corners that differ only in d (out[d], d < param_dim).
-void element_extents(const geometry::Patch& patch, int e, double out[3]);
-
 /// Element sizes: the largest extent of an element of the body along its interface (directions >= 1 for a
 /// membrane; every direction for a bulky body) and the smallest Eulerian element extent.
 struct Resolution {

@@ -20,7 +20,19 @@ std::string decode(const std::vector<double>& d) {
   return s;
 }
 
-void put(std::vector<double>& out, const solid::Vec3& v) { out.insert(out.end(), v.data(), v.data() + 3); }
+// The messages' layouts: doubles per item, the same on the fluid side (RemoteSolid) and the solid side
+// (serve_solids), which pack and unpack through the functions below.
+constexpr std::size_t kVecSize = 3;                       // a Vec3, or a Param
+constexpr std::size_t kMatSize = 9;                       // a Mat3, row by row
+constexpr std::size_t kSampleSize = kVecSize + kMatSize;  // VelocitySample: v, grad_v
+// QuadratureData: x, weight, stress, beta, shear_modulus.
+constexpr std::size_t kQuadratureWeight = kVecSize, kQuadratureStress = kQuadratureWeight + 1,
+                      kQuadratureBeta = kQuadratureStress + kMatSize, kQuadratureShear = kQuadratureBeta + 1,
+                      kQuadratureSize = kQuadratureShear + 1;
+
+void put(std::vector<double>& out, const solid::Vec3& v) {
+  out.insert(out.end(), v.data(), v.data() + kVecSize);
+}
 void put(std::vector<double>& out, const solid::Mat3& m) {
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) out.push_back(m(r, c));
@@ -33,15 +45,64 @@ solid::Mat3 mat(const double* p) {
   return m;
 }
 std::vector<solid::Vec3> vecs(const std::vector<double>& d) {
-  std::vector<solid::Vec3> v(d.size() / 3);
-  for (size_t i = 0; i < v.size(); ++i) v[i] = vec(&d[3 * i]);
+  std::vector<solid::Vec3> v(d.size() / kVecSize);
+  for (size_t i = 0; i < v.size(); ++i) v[i] = vec(&d[kVecSize * i]);
   return v;
 }
 std::vector<double> flat(const std::vector<solid::Vec3>& v) {
   std::vector<double> d;
-  d.reserve(3 * v.size());
+  d.reserve(kVecSize * v.size());
   for (const auto& x : v) put(d, x);
   return d;
+}
+
+void put(std::vector<double>& out, const solid::VelocitySample& s) { put(out, s.v), put(out, s.grad_v); }
+std::vector<solid::VelocitySample> unpack_samples(const std::vector<double>& d) {
+  std::vector<solid::VelocitySample> s(d.size() / kSampleSize);
+  for (size_t i = 0; i < s.size(); ++i) {
+    const double* p = &d[kSampleSize * i];
+    s[i].v = vec(p);
+    s[i].grad_v = mat(p + kVecSize);
+  }
+  return s;
+}
+
+void put(std::vector<double>& out, const solid::QuadratureData& q) {
+  put(out, q.x);
+  out.push_back(q.weight);
+  put(out, q.stress);
+  out.push_back(q.beta);
+  out.push_back(q.shear_modulus);
+}
+std::vector<solid::QuadratureData> unpack_quadrature(const std::vector<double>& d) {
+  std::vector<solid::QuadratureData> q(d.size() / kQuadratureSize);
+  for (size_t i = 0; i < q.size(); ++i) {
+    const double* p = &d[kQuadratureSize * i];
+    q[i].x = vec(p);
+    q[i].weight = p[kQuadratureWeight];
+    q[i].stress = mat(p + kQuadratureStress);
+    q[i].beta = p[kQuadratureBeta];
+    q[i].shear_modulus = p[kQuadratureShear];
+  }
+  return q;
+}
+
+std::vector<double> flat(const std::vector<geometry::Param>& xi) {
+  std::vector<double> d;
+  d.reserve(kVecSize * xi.size());
+  for (const auto& p : xi) d.insert(d.end(), p.begin(), p.end());
+  return d;
+}
+std::vector<geometry::Param> unpack_params(const std::vector<double>& d) {
+  std::vector<geometry::Param> xi(d.size() / kVecSize);
+  for (size_t i = 0; i < xi.size(); ++i) xi[i] = {d[kVecSize * i], d[kVecSize * i + 1], d[kVecSize * i + 2]};
+  return xi;
+}
+
+std::vector<solid::Mat3> unpack_mats(const std::vector<double>& d) {
+  std::vector<solid::Mat3> m(d.size() / kMatSize);
+  for (size_t i = 0; i < m.size(); ++i) m[i] = mat(&d[kMatSize * i]);
+  return m;
 }
 
 }  // namespace
@@ -187,23 +248,13 @@ std::vector<solid::Vec3> RemoteSolid::collocation_points() const {
 
 double RemoteSolid::kinematic_update(const std::vector<solid::VelocitySample>& samples) {
   std::vector<double> d;
-  d.reserve(12 * samples.size());
-  for (const auto& s : samples) put(d, s.v), put(d, s.grad_v);
+  d.reserve(kSampleSize * samples.size());
+  for (const auto& s : samples) put(d, s);
   return call(SolidOp::kinematic_update, d).at(0);
 }
 
 std::vector<solid::QuadratureData> RemoteSolid::quadrature_data(double fluid_density) const {
-  const std::vector<double> d = call(SolidOp::quadrature_data, {fluid_density});
-  std::vector<solid::QuadratureData> q(d.size() / 15);
-  for (size_t i = 0; i < q.size(); ++i) {
-    const double* p = &d[15 * i];
-    q[i].x = vec(p);
-    q[i].weight = p[3];
-    q[i].stress = mat(p + 4);
-    q[i].beta = p[13];
-    q[i].shear_modulus = p[14];
-  }
-  return q;
+  return unpack_quadrature(call(SolidOp::quadrature_data, {fluid_density}));
 }
 
 std::vector<solid::Vec3> RemoteSolid::interface_points() const {
@@ -225,12 +276,7 @@ geometry::Patch RemoteSolid::current_patch() const {
 }
 
 std::vector<solid::Mat3> RemoteSolid::cauchy_stress(const std::vector<geometry::Param>& xi) const {
-  std::vector<double> d;
-  for (const auto& p : xi) d.insert(d.end(), p.begin(), p.end());
-  const std::vector<double> r = call(SolidOp::cauchy_stress, d);
-  std::vector<solid::Mat3> s(r.size() / 9);
-  for (size_t i = 0; i < s.size(); ++i) s[i] = mat(&r[9 * i]);
-  return s;
+  return unpack_mats(call(SolidOp::cauchy_stress, flat(xi)));
 }
 
 // ------------------------------------------------------------------------------------------------ the server
@@ -261,19 +307,11 @@ void serve_solids(Exchange& ex, const std::vector<solid::SolidSolver*>& bodies) 
           out = flat(b.collocation_points());
           break;
         case SolidOp::kinematic_update: {
-          std::vector<solid::VelocitySample> s(d.size() / 12);
-          for (size_t i = 0; i < s.size(); ++i) s[i].v = vec(&d[12 * i]), s[i].grad_v = mat(&d[12 * i + 3]);
-          out = {b.kinematic_update(s)};
+          out = {b.kinematic_update(unpack_samples(d))};
           break;
         }
         case SolidOp::quadrature_data:
-          for (const auto& q : b.quadrature_data(d.at(0))) {
-            put(out, q.x);
-            out.push_back(q.weight);
-            put(out, q.stress);
-            out.push_back(q.beta);
-            out.push_back(q.shear_modulus);
-          }
+          for (const auto& q : b.quadrature_data(d.at(0))) put(out, q);
           break;
         case SolidOp::interface_points:
           out = flat(b.interface_points());
@@ -294,9 +332,7 @@ void serve_solids(Exchange& ex, const std::vector<solid::SolidSolver*>& bodies) 
           b.set_state(d);
           break;
         case SolidOp::cauchy_stress: {
-          std::vector<geometry::Param> xi(d.size() / 3);
-          for (size_t i = 0; i < xi.size(); ++i) xi[i] = {d[3 * i], d[3 * i + 1], d[3 * i + 2]};
-          for (const auto& s : b.cauchy_stress(xi)) put(out, s);
+          for (const auto& s : b.cauchy_stress(unpack_params(d))) put(out, s);
           break;
         }
         default:

@@ -1,7 +1,5 @@
 #include "fluid/band_schur.hpp"
 
-#include <petsc/private/matimpl.h>  // the fused solve: the Schur matrix's matsolve operation
-
 #ifdef __GLIBC__
 #include <malloc.h>
 #endif
@@ -230,8 +228,8 @@ void BandSchurSolver::factor_impl(Mat fixed, IS band, const std::string& prefix)
     CELLFSI_PETSC(PetscObjectCompose(reinterpret_cast<PetscObject>(S), "cellfsi_band_schur",
                                      reinterpret_cast<PetscObject>(c)));
     CELLFSI_PETSC(PetscContainerDestroy(&c));
-    S->ops->matsolve = band_schur_matsolve;
-    S->factortype = MAT_FACTOR_LU;
+    CELLFSI_PETSC(MatSetOperation(S, MATOP_MAT_SOLVE, reinterpret_cast<void (*)(void)>(band_schur_matsolve)));
+    CELLFSI_PETSC(MatSetFactorType(S, MAT_FACTOR_LU));  // MatMatSolve refuses an unfactored matrix
     CELLFSI_PETSC(MatFactorRestoreSchurComplement(F_, &S, MAT_FACTOR_SCHUR_FACTORED));
   } else {
     CELLFSI_PETSC(MatMumpsSetIcntl(F_, 26, 0));  // MatSolve: the interior problem only

@@ -19,8 +19,9 @@
 //   x_B = y. Fused (the default): one MUMPS solve with K_fixed's factors, whose forward sweep condenses the
 //   right-hand side onto B (ICNTL(26) = 1) and backward sweep expands y (ICNTL(26) = 2), with S's factors
 //   solving in between: the cost of one triangular solve pair plus one with S. PETSc 3.18 lets the user
-//   solve the Schur system only through the factor's dense Schur matrix, so its matsolve operation is pointed
-//   at S's sparse factors (petsc/private/matimpl.h; checked by the unit test). Not fused: two interior solves
+//   solve the Schur system only through the factor's dense Schur matrix, so that matrix is declared factored
+//   and its MatMatSolve operation is pointed at S's sparse factors (public API: MatSetFactorType,
+//   MatSetOperation; checked by the unit test). Not fused: two interior solves
 //   (ICNTL(26) = 0) and products with K_BI and K_IB, public API only.
 // The result is the inverse of K_fixed + K_band whatever K_band,BB is: exact to round-off with full-rank
 // factors (set_blr_tolerance(0)); by default K_fixed's factors are block low-rank with a 1e-10 threshold, so

@@ -1,6 +1,7 @@
 #include "fluid/fluid_solver.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -53,6 +54,17 @@ std::string pc_failure(PC pc) {
     default:
       return PCFailedReasons[reason];
   }
+}
+
+/// Calls f(idx, {i, j, k}) for every control point (DMDA node) this rank owns, the box of corner xs and
+/// extents xm (DMDAGetCorners), in the order of the rank's part of a global vector: idx is the node's index
+/// there (its unknowns start at idx * dof), {i, j, k} its global multi-index.
+template <class F>
+void for_each_owned_node(const PetscInt xs[3], const PetscInt xm[3], F&& f) {
+  PetscInt idx = 0;
+  for (PetscInt k = xs[2]; k < xs[2] + xm[2]; ++k)
+    for (PetscInt j = xs[1]; j < xs[1] + xm[1]; ++j)
+      for (PetscInt i = xs[0]; i < xs[0] + xm[0]; ++i, ++idx) f(idx, std::array<PetscInt, 3>{i, j, k});
 }
 
 }  // namespace
@@ -227,15 +239,12 @@ FluidSolver::~FluidSolver() {
 void FluidSolver::set_initial_velocity(const std::function<Vec3(const Vec3&)>& v0) {
   PetscScalar* u;
   CELLFSI_PETSC(VecGetArray(U_, &u));
-  PetscInt idx = 0;
-  for (PetscInt k = xs_[2]; k < xs_[2] + xm_[2]; ++k)
-    for (PetscInt j = xs_[1]; j < xs_[1] + xm_[1]; ++j)
-      for (PetscInt i = xs_[0]; i < xs_[0] + xm_[0]; ++i, ++idx) {
-        // Isoparametric: control values f(X_A) reproduce every linear f exactly.
-        const Vec3 v = v0(patch_.control_points()[patch_.control_index(i, j, k)]);
-        for (int c = 0; c < dim_; ++c) u[idx * dof_ + c] = v[c];
-        u[idx * dof_ + dim_] = 0.0;
-      }
+  for_each_owned_node(xs_, xm_, [&](PetscInt idx, const std::array<PetscInt, 3>& m) {
+    // Isoparametric: control values f(X_A) reproduce every linear f exactly.
+    const Vec3 v = v0(patch_.control_points()[patch_.control_index(m[0], m[1], m[2])]);
+    for (int c = 0; c < dim_; ++c) u[idx * dof_ + c] = v[c];
+    u[idx * dof_ + dim_] = 0.0;
+  });
   CELLFSI_PETSC(VecRestoreArray(U_, &u));
   CELLFSI_PETSC(VecSet(Udot_, 0.0));
   apply_dirichlet_values(U_, time_);
@@ -244,28 +253,23 @@ void FluidSolver::set_initial_velocity(const std::function<Vec3(const Vec3&)>& v
 void FluidSolver::set_scaling(const std::function<double(int)>& s) {
   PetscScalar* a;
   CELLFSI_PETSC(VecGetArray(S_, &a));
-  PetscInt idx = 0;
-  for (PetscInt k = xs_[2]; k < xs_[2] + xm_[2]; ++k)
-    for (PetscInt j = xs_[1]; j < xs_[1] + xm_[1]; ++j)
-      for (PetscInt i = xs_[0]; i < xs_[0] + xm_[0]; ++i, ++idx) a[idx] = s(patch_.control_index(i, j, k));
+  for_each_owned_node(xs_, xm_, [&](PetscInt idx, const std::array<PetscInt, 3>& m) {
+    a[idx] = s(patch_.control_index(m[0], m[1], m[2]));
+  });
   CELLFSI_PETSC(VecRestoreArray(S_, &a));
 }
 
 void FluidSolver::apply_dirichlet_values(Vec U, double /*t*/) const {
   PetscScalar* u;
   CELLFSI_PETSC(VecGetArray(U, &u));
-  PetscInt idx = 0;
-  for (PetscInt k = xs_[2]; k < xs_[2] + xm_[2]; ++k)
-    for (PetscInt j = xs_[1]; j < xs_[1] + xm_[1]; ++j)
-      for (PetscInt i = xs_[0]; i < xs_[0] + xm_[0]; ++i, ++idx) {
-        const PetscInt m[3] = {i, j, k};
-        for (int d = 0; d < dim_; ++d) {
-          if (patch_.knots(d).periodic()) continue;
-          for (int s = 0; s < 2; ++s)
-            if (m[d] == (s == 0 ? 0 : patch_.n_control(d) - 1))
-              for (int c = 0; c < dim_; ++c) u[idx * dof_ + c] = opt_.wall_velocity[d][s][c];
-        }
-      }
+  for_each_owned_node(xs_, xm_, [&](PetscInt idx, const std::array<PetscInt, 3>& m) {
+    for (int d = 0; d < dim_; ++d) {
+      if (patch_.knots(d).periodic()) continue;
+      for (int s = 0; s < 2; ++s)
+        if (m[d] == (s == 0 ? 0 : patch_.n_control(d) - 1))
+          for (int c = 0; c < dim_; ++c) u[idx * dof_ + c] = opt_.wall_velocity[d][s][c];
+    }
+  });
   if (pin_row_ >= 0) u[dim_] = 0.0;
   CELLFSI_PETSC(VecRestoreArray(U, &u));
 }
@@ -274,17 +278,13 @@ std::vector<PetscInt> FluidSolver::dirichlet_rows() const {
   std::vector<PetscInt> rows;
   PetscInt lo = 0;
   CELLFSI_PETSC(VecGetOwnershipRange(U_, &lo, nullptr));
-  PetscInt idx = 0;
-  for (PetscInt k = xs_[2]; k < xs_[2] + xm_[2]; ++k)
-    for (PetscInt j = xs_[1]; j < xs_[1] + xm_[1]; ++j)
-      for (PetscInt i = xs_[0]; i < xs_[0] + xm_[0]; ++i, ++idx) {
-        const PetscInt m[3] = {i, j, k};
-        bool wall = false;
-        for (int d = 0; d < dim_; ++d)
-          if (!patch_.knots(d).periodic() && (m[d] == 0 || m[d] == patch_.n_control(d) - 1)) wall = true;
-        if (wall)
-          for (int c = 0; c < dim_; ++c) rows.push_back(lo + idx * dof_ + c);
-      }
+  for_each_owned_node(xs_, xm_, [&](PetscInt idx, const std::array<PetscInt, 3>& m) {
+    bool wall = false;
+    for (int d = 0; d < dim_; ++d)
+      if (!patch_.knots(d).periodic() && (m[d] == 0 || m[d] == patch_.n_control(d) - 1)) wall = true;
+    if (wall)
+      for (int c = 0; c < dim_; ++c) rows.push_back(lo + idx * dof_ + c);
+  });
   if (pin_row_ >= 0) rows.push_back(pin_row_);
   return rows;
 }
@@ -445,10 +445,30 @@ void FluidSolver::set_immersed_points(const std::vector<Index3>& elements, const
   sort_immersed_points();
 }
 
+template <class Value, class Rate>
+std::vector<PointSample> FluidSolver::sample_local(const std::vector<Index3>& elements,
+                                                   const std::vector<Param>& xi,
+                                                   const std::vector<char>& located, Value&& value,
+                                                   Rate&& rate) const {
+  std::vector<PointSample> local(xi.size());
+  BasisValues bv;
+  MapValues mv;
+  PhysicalPoint pp;
+  std::vector<PetscInt> nodes;
+  for (size_t i = 0; i < xi.size(); ++i) {
+    if (!located[i] || !owns_element(elements[i])) continue;
+    physical_point(patch_, elements[i], xi[i], 1, bv, mv, pp);
+    element_nodes(patch_, pp, gxs_, gxm_, nodes);
+    const PointValues v = interpolate(pp, dim_, [&](int k, int c) { return value(nodes[k] * dof_ + c, c); });
+    const PointValues r = interpolate(pp, dim_, [&](int k, int c) { return rate(nodes[k] * dof_ + c, c); });
+    local[i] = {true, v.v, v.grad_v, r.v, v.scalar};
+  }
+  return local;
+}
+
 std::vector<PointSample> FluidSolver::sample_alpha(Vec X, const std::vector<Index3>& elements,
                                                    const std::vector<Param>& xi) const {
-  const int D = dim_, nd = dof_;
-  std::vector<PointSample> local(xi.size());
+  const int D = dim_;
   Vec X_loc;
   CELLFSI_PETSC(DMGetLocalVector(da_, &X_loc));
   CELLFSI_PETSC(DMGlobalToLocal(da_, X, INSERT_VALUES, X_loc));
@@ -456,25 +476,11 @@ std::vector<PointSample> FluidSolver::sample_alpha(Vec X, const std::vector<Inde
   CELLFSI_PETSC(VecGetArrayRead(X_loc, &x));
   CELLFSI_PETSC(VecGetArrayRead(Un_loc_, &un));
   CELLFSI_PETSC(VecGetArrayRead(Udotn_loc_, &udn));
-  BasisValues bv;
-  MapValues mv;
-  PhysicalPoint pp;
-  std::vector<PetscInt> nodes;
-  for (size_t i = 0; i < xi.size(); ++i) {
-    if (!owns_element(elements[i])) continue;
-    physical_point(patch_, elements[i], xi[i], 1, bv, mv, pp);
-    element_nodes(patch_, pp, gxs_, gxm_, nodes);
-    // Velocity at t_{n+alpha_f}, its rate at t_{n+alpha_m}.
-    const PointValues v = interpolate(pp, D, [&](int k, int c) {
-      const PetscInt li = nodes[k] * nd + c;
-      return c < D ? alpha_.value_alpha_f(x[li], un[li]) : 0.0;
-    });
-    const PointValues r = interpolate(pp, D, [&](int k, int c) {
-      const PetscInt li = nodes[k] * nd + c;
-      return c < D ? alpha_.rate_alpha_m(x[li], un[li], udn[li]) : 0.0;
-    });
-    local[i] = {true, v.v, v.grad_v, r.v, 0.0};
-  }
+  // Velocity at t_{n+alpha_f}, its rate at t_{n+alpha_m}; no pressure (its nodal values are taken as 0).
+  const std::vector<PointSample> local = sample_local(
+      elements, xi, std::vector<char>(xi.size(), 1),
+      [&](PetscInt li, int c) { return c < D ? alpha_.value_alpha_f(x[li], un[li]) : 0.0; },
+      [&](PetscInt li, int c) { return c < D ? alpha_.rate_alpha_m(x[li], un[li], udn[li]) : 0.0; });
   CELLFSI_PETSC(VecRestoreArrayRead(X_loc, &x));
   CELLFSI_PETSC(VecRestoreArrayRead(Un_loc_, &un));
   CELLFSI_PETSC(VecRestoreArrayRead(Udotn_loc_, &udn));
@@ -486,8 +492,16 @@ std::vector<PointSample> FluidSolver::sample_alpha(Vec X, const std::vector<Inde
 // Sampling and gathering
 
 std::vector<PointSample> FluidSolver::sample(const std::vector<Vec3>& points) const {
-  const int D = dim_, nd = dof_;
-  std::vector<PointSample> local(points.size());
+  std::vector<Index3> elements(points.size());
+  std::vector<Param> xi(points.size());
+  std::vector<char> located(points.size(), 0);
+  for (size_t i = 0; i < points.size(); ++i) {
+    const geometry::InversionResult r = inverter_.invert(points[i]);
+    if (!r.inside) continue;
+    elements[i] = r.element;
+    xi[i] = r.xi;
+    located[i] = 1;
+  }
   Vec U_loc, Ud_loc;
   CELLFSI_PETSC(DMGetLocalVector(da_, &U_loc));
   CELLFSI_PETSC(DMGetLocalVector(da_, &Ud_loc));
@@ -496,19 +510,9 @@ std::vector<PointSample> FluidSolver::sample(const std::vector<Vec3>& points) co
   const PetscScalar *u, *ud;
   CELLFSI_PETSC(VecGetArrayRead(U_loc, &u));
   CELLFSI_PETSC(VecGetArrayRead(Ud_loc, &ud));
-  BasisValues bv;
-  MapValues mv;
-  PhysicalPoint pp;
-  std::vector<PetscInt> nodes;
-  for (size_t i = 0; i < points.size(); ++i) {
-    const geometry::InversionResult r = inverter_.invert(points[i]);
-    if (!r.inside || !owns_element(r.element)) continue;
-    physical_point(patch_, r.element, r.xi, 1, bv, mv, pp);
-    element_nodes(patch_, pp, gxs_, gxm_, nodes);
-    const PointValues v = interpolate(pp, D, [&](int k, int c) { return u[nodes[k] * nd + c]; });
-    const PointValues rate = interpolate(pp, D, [&](int k, int c) { return ud[nodes[k] * nd + c]; });
-    local[i] = {true, v.v, v.grad_v, rate.v, v.scalar};
-  }
+  const std::vector<PointSample> local = sample_local(
+      elements, xi, located, [&](PetscInt li, int) { return u[li]; },
+      [&](PetscInt li, int) { return ud[li]; });
   CELLFSI_PETSC(VecRestoreArrayRead(U_loc, &u));
   CELLFSI_PETSC(VecRestoreArrayRead(Ud_loc, &ud));
   CELLFSI_PETSC(DMRestoreLocalVector(da_, &U_loc));

@@ -211,6 +211,13 @@ class FluidSolver {
   bool owns_element(const geometry::Index3& e) const;
   /// Shifts the pressure of U by a constant so that the first control value is 0 (with the null space).
   void normalize_pressure(Vec U) const;
+  /// What sample and sample_alpha share: at the points this rank's elements hold (elements[i], xi[i];
+  /// skipped where located[i] is 0), v, grad v and p from the nodal values value(li, c) and the rate from
+  /// rate(li, c) (li: the index in a local vector, c: the component). Not gathered (gather_samples).
+  template <class Value, class Rate>
+  std::vector<PointSample> sample_local(const std::vector<geometry::Index3>& elements,
+                                        const std::vector<geometry::Param>& xi,
+                                        const std::vector<char>& located, Value&& value, Rate&& rate) const;
   /// Every rank's samples (each found by the rank that owns its element) on every rank.
   std::vector<PointSample> gather_samples(const std::vector<PointSample>& local) const;
 

@@ -11,12 +11,16 @@
 #include "common/petsc_error.hpp"
 
 extern "C" {
-// LAPACK (Fortran calling convention; the trailing length is that of the character argument).
-void zgbtrf_(const int* m, const int* n, const int* kl, const int* ku, std::complex<double>* ab,
-             const int* ldab, int* ipiv, int* info);
-void zgbtrs_(const char* trans, const int* n, const int* kl, const int* ku, const int* nrhs,
-             const std::complex<double>* ab, const int* ldab, const int* ipiv, std::complex<double>* b,
-             const int* ldb, int* info, std::size_t trans_len);
+// LAPACK (Fortran calling convention; the trailing length is that of the character argument). PETSc's
+// petscblaslapack.h declares no banded LU, so these are declared here, with PETSc's BLAS integer for the
+// integer arguments (64 bits when PETSc is configured for a 64-bit-integer BLAS/LAPACK; the LAPACK CMake
+// links, find_package(LAPACK), must then be that same library).
+void zgbtrf_(const PetscBLASInt* m, const PetscBLASInt* n, const PetscBLASInt* kl, const PetscBLASInt* ku,
+             std::complex<double>* ab, const PetscBLASInt* ldab, PetscBLASInt* ipiv, PetscBLASInt* info);
+void zgbtrs_(const char* trans, const PetscBLASInt* n, const PetscBLASInt* kl, const PetscBLASInt* ku,
+             const PetscBLASInt* nrhs, const std::complex<double>* ab, const PetscBLASInt* ldab,
+             const PetscBLASInt* ipiv, std::complex<double>* b, const PetscBLASInt* ldb, PetscBLASInt* info,
+             std::size_t trans_len);
 }
 
 namespace cellfsi::fluid {
@@ -239,6 +243,10 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
   pinned_ = pin_pressure;
   const double two_pi = 2 * std::acos(-1.0);
   std::vector<cplx> phase(static_cast<std::size_t>(width_[0]) * width_[1] * width_[2]);
+  PetscBLASInt m = 0, kl = 0, ldab_blas = 0;
+  CELLFSI_PETSC(PetscBLASIntCast(m_, &m));
+  CELLFSI_PETSC(PetscBLASIntCast(kl_, &kl));
+  CELLFSI_PETSC(PetscBLASIntCast(ldab, &ldab_blas));
   int singular = -1;
   for (int slot = s0; slot < s1 && singular < 0; ++slot) {
     const int mode = slot_mode_[slot];
@@ -284,8 +292,8 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
               }
       }
     if (pin) ab[(2 * kl_) + static_cast<std::size_t>(pin_row) * ldab] = 1.0;
-    int info = 0;
-    zgbtrf_(&m_, &m_, &kl_, &kl_, ab, &ldab, &ipiv_[static_cast<std::size_t>(slot - s0) * m_], &info);
+    PetscBLASInt info = 0;
+    zgbtrf_(&m, &m, &kl, &kl, ab, &ldab_blas, &ipiv_[static_cast<std::size_t>(slot - s0) * m_], &info);
     if (info != 0) singular = mode;
   }
   CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &singular, 1, MPI_INT, MPI_MAX, comm_));
@@ -395,15 +403,20 @@ void FourierBulkSolver::solve(Vec r, Vec x) const {
         for (int c = 0; c < dof_; ++c)
           b[static_cast<std::size_t>(slot - s0) * m_ + jj * dof_ + c] = recv[k++];
   // 3. The banded solves of this rank's slots.
-  const int ldab = 3 * kl_ + 1, one = 1;
+  const int ldab = 3 * kl_ + 1;
+  PetscBLASInt m = 0, kl = 0, ldab_blas = 0;
+  const PetscBLASInt one = 1;
+  CELLFSI_PETSC(PetscBLASIntCast(m_, &m));
+  CELLFSI_PETSC(PetscBLASIntCast(kl_, &kl));
+  CELLFSI_PETSC(PetscBLASIntCast(ldab, &ldab_blas));
   int rejected = 0;  // the first argument zgbtrs rejected, on any rank (a rank may have no slots)
   for (int slot = s0; slot < s1 && rejected == 0; ++slot) {
     cplx* bs = &b[static_cast<std::size_t>(slot - s0) * m_];
     if (pinned_ && slot_mode_[slot] == 0) bs[dof_ - 1] = 0.0;
-    int info = 0;
-    zgbtrs_("N", &m_, &kl_, &kl_, &one, &ab_[static_cast<std::size_t>(slot - s0) * ldab * m_], &ldab,
-            &ipiv_[static_cast<std::size_t>(slot - s0) * m_], bs, &m_, &info, 1);
-    rejected = -info;
+    PetscBLASInt info = 0;
+    zgbtrs_("N", &m, &kl, &kl, &one, &ab_[static_cast<std::size_t>(slot - s0) * ldab * m_], &ldab_blas,
+            &ipiv_[static_cast<std::size_t>(slot - s0) * m_], bs, &m, &info, 1);
+    rejected = static_cast<int>(-info);  // an argument's position
   }
   CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &rejected, 1, MPI_INT, MPI_MAX, comm_));
   if (rejected != 0) {

@@ -102,7 +102,7 @@ class FourierBulkSolver {
   std::vector<int> slot_mode_;  // per slot: its mode
   int n_slots_ = 0;
   std::vector<cplx> ab_;  // LAPACK band storage, per slot of this rank
-  std::vector<int> ipiv_;
+  std::vector<PetscBLASInt> ipiv_;  // LAPACK's pivots, per slot of this rank
   // Ranks.
   MPI_Comm comm_ = PETSC_COMM_SELF;
   int rank_ = 0, size_ = 1;

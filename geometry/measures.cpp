@@ -1,5 +1,6 @@
 #include "geometry/measures.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
@@ -48,6 +49,24 @@ RegionMoments finish(double M0, const Vec3& M1, const Mat3& M2, const Vec3& ref)
 }
 
 }  // namespace
+
+std::array<double, 3> element_extents(const Patch& p, int e) {
+  Param lo, hi;
+  p.element_bounds(p.element_multi_index(e), lo, hi);
+  const int P = p.param_dim();
+  std::array<double, 3> out{0.0, 0.0, 0.0};
+  for (int d = 0; d < P; ++d) {
+    for (int c = 0; c < (1 << P); ++c) {
+      if (c & (1 << d)) continue;
+      Param x0, x1;
+      for (int k = 0; k < 3; ++k) x0[k] = x1[k] = k < P ? ((c >> k) & 1 ? hi[k] : lo[k]) : 0.0;
+      x1[d] = hi[d];
+      x0[d] = lo[d];
+      out[d] = std::max(out[d], (p.point(x1) - p.point(x0)).norm());
+    }
+  }
+  return out;
+}
 
 double patch_measure(const Patch& patch, int extra_gauss) {
   const int P = patch.param_dim();

@@ -3,6 +3,8 @@
 // surface area, centroid, second moments and principal axes (for the inclination angle), swelling degree
 // Delta and effective radius R_0 (paper Sec. 3.1). Integrals use Gauss rules on the patch's elements;
 // rational maps are not integrated exactly, so accuracy improves with refinement and `extra_gauss`.
+#include <array>
+
 #include "geometry/patch.hpp"
 
 namespace cellfsi::geometry {
@@ -13,6 +15,10 @@ struct RegionMoments {
   Vec3 centroid = Vec3::Zero();
   Mat3 second_moment = Mat3::Zero();  // integral of (x - c)(x - c)^T over the region
 };
+
+/// Extent of element e of a patch along each parametric direction d: the largest distance between two of its
+/// corners that differ only in d (entry d < param_dim; the others are zero).
+std::array<double, 3> element_extents(const Patch& patch, int e);
 
 /// Length, area or volume of the patch itself (its parametric dimension decides which).
 double patch_measure(const Patch& patch, int extra_gauss = 2);

@@ -1,6 +1,7 @@
 // Measures against closed forms and the paper's values (Sec. 3.3 and 3.6, docs/design.md §3).
 #include <gtest/gtest.h>
 
+#include <array>
 #include <numbers>
 
 #include "geometry/builders.hpp"
@@ -126,4 +127,20 @@ TEST(Measures, SwellingDegreeAndRadiusFormulas) {
   EXPECT_NEAR(swelling_degree(4.0 / 3.0 * pi, 4 * pi, 3), 1.0, 1e-15);
   EXPECT_NEAR(effective_radius(2 * pi * 3, 2), 3.0, 1e-15);
   EXPECT_NEAR(effective_radius(4 * pi * 9, 3), 3.0, 1e-15);
+}
+
+TEST(Measures, ElementExtentsOfAUniformBoxAreItsElementSizes) {
+  // 3 x 4 x 5 elements of a 0.3 x 0.8 x 1.5 box: every element is 0.1 x 0.2 x 0.3 (the map is affine).
+  const Patch b = box(0.3, 0.8, 1.5, 3, 4, 5, 2);
+  for (int e = 0; e < b.n_elements(); ++e) {
+    const std::array<double, 3> ext = element_extents(b, e);
+    EXPECT_NEAR(ext[0], 0.1, 1e-14);
+    EXPECT_NEAR(ext[1], 0.2, 1e-14);
+    EXPECT_NEAR(ext[2], 0.3, 1e-14);
+  }
+  // A 2D patch: the third entry is zero.
+  const std::array<double, 3> ext = element_extents(rectangle(1.0, 0.5, 4, 5, 3), 7);
+  EXPECT_NEAR(ext[0], 0.25, 1e-14);
+  EXPECT_NEAR(ext[1], 0.1, 1e-14);
+  EXPECT_EQ(ext[2], 0.0);
 }
