@@ -180,7 +180,7 @@ int main(int argc, char** argv) {
       if (rank == 0) run(o);
     }
   } catch (const std::exception& e) {
-    PetscCall(PetscPrintf(PETSC_COMM_WORLD, "cellfsi-geometry: error: %s\n", e.what()));
+    PetscCall(PetscFPrintf(PETSC_COMM_WORLD, PETSC_STDERR, "cellfsi-geometry: error: %s\n", e.what()));
     status = 1;
   }
   PetscCall(PetscFinalize());

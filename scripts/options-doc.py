@@ -111,7 +111,7 @@ def probe(cmd_of, name, dim, cwd):
     parse_message = ""
     for bad in BAD_VALUES:
         r = run(cmd_of(name, ",".join([bad] * dim)), cwd)
-        for line in (r.stderr + r.stdout).splitlines():  # cellfsi-geometry prints its errors on stdout
+        for line in (r.stderr + r.stdout).splitlines():
             m = INVALID.search(line)
             if not m or m[1] != name:
                 continue
