@@ -378,7 +378,9 @@ std::string FluidRun::summary_of_failure(const std::string& status) {
 
 void FluidRun::fail(const std::exception& e, const std::string& where) {
   const std::string note = summary_of_failure(std::string("failed: ") + e.what() + where);
-  throw std::runtime_error(e.what() + where + "; output so far is in " + settings_.output_dir + note);
+  const std::string message = e.what() + where + "; output so far is in " + settings_.output_dir + note;
+  if (dynamic_cast<const CollectiveError*>(&e)) throw CollectiveError(message);  // the same on every rank
+  throw std::runtime_error(message);
 }
 
 FluidRun::Metrics FluidRun::final_metrics(bool with_solver_size) const {

@@ -300,6 +300,9 @@ int launch(int argc, char** argv, Role role) {
     } catch (const std::invalid_argument& e) {
       print_error(with_scene_file_line(e.what(), scene_file, g_launch.command_line));
       status = 1;
+    } catch (const CollectiveError& e) {
+      print_error(e.what());  // every rank has the same message: rank 0 prints it
+      status = 2;
     } catch (const std::exception& e) {
       print_failure(e.what());
       status = 2;

@@ -10,8 +10,15 @@
 
 namespace cellfsi {
 
+/// A failure every rank of a communicator agreed on (throw_if_any_failed): every rank holds the same message,
+/// so one rank reports it.
+class CollectiveError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 /// Throws on every rank of comm when `local_error` is non-empty on any rank: std::invalid_argument if
-/// `invalid_argument` on the first failing rank, std::runtime_error otherwise, with that rank's message.
+/// `invalid_argument` on the first failing rank, CollectiveError otherwise, with that rank's message.
 /// Collective.
 inline void throw_if_any_failed(MPI_Comm comm, const std::string& local_error,
                                 bool invalid_argument = false) {
@@ -29,7 +36,7 @@ inline void throw_if_any_failed(MPI_Comm comm, const std::string& local_error,
   message.resize(static_cast<std::size_t>(n));
   MPI_Bcast(message.data(), n, MPI_CHAR, first, comm);
   if (kind == 1) throw std::invalid_argument(message);
-  throw std::runtime_error(message);
+  throw CollectiveError(message);
 }
 
 /// Runs `work` on every rank of comm and makes its outcome collective (throw_if_any_failed): call it where
@@ -50,7 +57,7 @@ void on_every_rank(MPI_Comm comm, Work&& work) {
 }
 
 /// Runs `work` on rank 0 of comm and makes its outcome collective: if it throws, every rank throws the same
-/// (std::invalid_argument stays one, anything else becomes std::runtime_error), so no rank is left waiting in
+/// (std::invalid_argument stays one, anything else becomes CollectiveError), so no rank is left waiting in
 /// a collective call that rank 0 never reaches. `work` must not call collectives.
 template <class Work>
 void on_rank_zero(MPI_Comm comm, Work&& work) {

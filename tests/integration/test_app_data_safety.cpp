@@ -151,6 +151,7 @@ TEST_F(CellfsiApp, WriteFailureOnRankZeroStopsTwoRanks) {
   EXPECT_NE(r.output.find("cannot write '" + (out_ / "metrics.csv").string() + "': File too large in step"),
             std::string::npos)
       << r.output;
+  EXPECT_EQ(count(r.output, "cellfsi: error"), 1u) << "the ranks agree on the failure: one message\n" << r.output;
   EXPECT_TRUE(whole_rows(out_ / "metrics.csv"));
   EXPECT_EQ(json_string(summary(), "status").value_or("").rfind("failed: cannot write", 0), 0u) << summary();
 }
