@@ -91,7 +91,9 @@ int FluidRun::set_up(const std::string& default_name) {
   if (const int sig = stop_requested_during_set_up()) return stopped_during_set_up(sig);
   check_bodies(settings_, scene_->fluid().patch());
   if (const int sig = stop_requested_during_set_up()) return stopped_during_set_up(sig);
-  scene_->fluid().setup();
+  // A run without cells solves with the fluid's own SNES and KSP, set up now so that misspelt options of its
+  // inner solvers are reported before any step; a coupled run solves with the coupling loop's KSP instead.
+  if (settings_.bodies.empty()) scene_->fluid().setup();
   reject_unknown_options(OptionCheck::before_coupling);
   if (const int sig = stop_requested_during_set_up()) return stopped_during_set_up(sig);
   if (const int other = hs_.agree(2, effective_options_yaml()); other < 0)
@@ -128,11 +130,7 @@ void FluidRun::connect_bodies() {
   }
   scene_->attach_bodies(bodies_);
   const coupling::FsiCoupler* coupler = scene_->coupler();
-  if (coupler) reject_inapplicable_solver_options(user_options_, coupler->solver());
-  // The band and Fourier solvers do not use the fluid's KSP: what its set-up built (ASM's copy of the whole
-  // Jacobian on one rank: 4.3 GB and 11 s at 64^3) is freed.
-  if (coupler && coupler->solver() != coupling::CouplingSolver::fluid)
-    scene_->fluid().release_linear_solver();
+  if (coupler) reject_inapplicable_solver_options(user_options_, coupler->linear_solver().pc_type());
   reject_unknown_options(OptionCheck::before_first_step);
 }
 
@@ -220,14 +218,9 @@ void FluidRun::open_output() {
       CELLFSI_VERSION, settings_.name.c_str(), size_,
       solid_ranks_ ? (" + " + std::to_string(solid_ranks_) + " solid ranks").c_str() : "", bodies_.size(),
       n_steps_, settings_.dt, n_steps_ * settings_.dt, settings_.output_dir.c_str()));
-  if (coupled && scene_->coupler()->solver() == coupling::CouplingSolver::fluid &&
-      settings_.coupling.solver != coupling::CouplingSolver::fluid)
-    CELLFSI_PETSC(
-        PetscPrintf(PETSC_COMM_WORLD,
-                    "cellfsi: note: the band solver needs one fluid rank and a BAIJ Jacobian, the Fourier "
-                    "solver a BAIJ Jacobian and a box uniform along its periodic directions; on %d "
-                    "rank(s) the coupling loop uses -coupling_solver fluid\n",
-                    size_));
+  if (coupled && settings_.coupling.linear.pc_type.empty())
+    CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "cellfsi: the coupled solve uses -coupling_pc_type %s\n",
+                              scene_->coupler()->linear_solver().pc_type().c_str()));
   if (settings_.restart)
     CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
                               "cellfsi: restarting from the checkpoint at t = %g s (step %d)\n", resume_.time,
@@ -259,7 +252,7 @@ int FluidRun::step_loop() {
       linear_ += st.linear_iterations;
       factorizations_ += st.factorizations;
       if (k == resume_.step + 1)
-        reject_unknown_options(coupled && scene_->coupler()->fell_back() ? OptionCheck::after_fallback
+        reject_unknown_options(coupled && scene_->coupler()->linear_solver().fell_back() ? OptionCheck::after_fallback
                                                                          : OptionCheck::after_first_step);
       if (!st.converged) {
         const std::string why = std::string(coupled ? "the coupling iteration" : "Newton") + " diverged (" +
@@ -386,11 +379,12 @@ void FluidRun::fail(const std::exception& e, const std::string& where) {
 FluidRun::Metrics FluidRun::final_metrics(bool with_solver_size) const {
   Metrics m = scene_->summary_metrics();
   if (const coupling::FsiCoupler* coupler = scene_->coupler()) {
-    // What the linear algebra cost: factorisations of the whole fluid Jacobian (band solver: of its fixed
-    // part; Fourier solver: the bulk solver's set-up; the small factorisations of the band or the region
-    // are not counted) and the band's size.
+    // What the linear algebra cost: factorisations of the whole fluid Jacobian (cellfsi_band: of its kept
+    // part; cellfsi_fourier: the bulk solver's set-up; the small factorisations of the band or the region
+    // are not counted) and the unknowns of that band or region.
     m.emplace_back("factorizations", static_cast<double>(factorizations_));
-    if (with_solver_size) m.emplace_back("band_unknowns", static_cast<double>(coupler->band_unknowns()));
+    if (with_solver_size)
+      m.emplace_back("corrected_unknowns", static_cast<double>(coupler->linear_solver().corrected_unknowns()));
   }
   if (exchange_ && with_solver_size) {
     m.emplace_back("solid_ranks", solid_ranks_);
@@ -403,10 +397,7 @@ FluidRun::Metrics FluidRun::final_metrics(bool with_solver_size) const {
 std::vector<std::pair<std::string, std::string>> FluidRun::final_words() const {
   std::vector<std::pair<std::string, std::string>> words = scene_->summary_text();
   if (const coupling::FsiCoupler* coupler = scene_->coupler()) {
-    const coupling::CouplingSolver used = coupler->solver();
-    words.emplace_back("coupling_solver", used == coupling::CouplingSolver::fourier ? "fourier"
-                                          : used == coupling::CouplingSolver::band  ? "band"
-                                                                                    : "fluid");
+    words.emplace_back("coupling_pc_type", coupler->linear_solver().pc_type());
   }
   return words;
 }

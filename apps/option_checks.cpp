@@ -14,21 +14,21 @@ namespace cellfsi::app {
 
 namespace {
 
-/// Whether PETSc may not have read `name` yet at `when`: the coupling loop's solver options are read when it
-/// is created; factorisation packages' options (MUMPS, SuperLU_DIST, ...) and convergence reports only at
-/// the first solve.
+/// Whether PETSc may not have read `name` yet at `when`: the coupled solve's options (the KSP -coupling_) are
+/// read when the coupling loop is created; its subdomain solvers', factorisation packages' (MUMPS,
+/// SuperLU_DIST, ...) and cellfsi_fourier's region LU's only at the first solve.
 bool maybe_unread(const std::string& name, OptionCheck when) {
+  auto starts = [&](const char* p) { return name.rfind(p, 0) == 0; };
   if (when == OptionCheck::after_first_step) return false;
-  // The first step replaced the solver (reported on the console): the band solver's region held most of
-  // the domain, or the Fourier solver chosen by auto found the operator not uniform. The replaced solver's
-  // options were checked against it before the first step and never read.
+  // The first step replaced the automatic choice of preconditioner (reported on the console); the options of
+  // the one it replaced were checked against it before the first step and never read.
   if (when == OptionCheck::after_fallback)
-    return name.rfind("coupling_band_", 0) == 0 || name.rfind("coupling_fourier_", 0) == 0;
-  if (when == OptionCheck::before_coupling &&
-      (name.rfind("coupling_band_", 0) == 0 || name.rfind("coupling_fourier_", 0) == 0))
+    return starts("coupling_band_") || starts("coupling_fourier_") || starts("coupling_pc_") ||
+           starts("coupling_sub_") || starts("coupling_mat_");
+  if (when == OptionCheck::before_coupling && starts("coupling_")) return true;
+  if (when == OptionCheck::before_first_step &&
+      (starts("coupling_fourier_region_") || starts("coupling_band_") || starts("coupling_sub_")))
     return true;
-  // The Fourier solver's region LU is created at the first solve.
-  if (when == OptionCheck::before_first_step && name.rfind("coupling_fourier_region_", 0) == 0) return true;
   for (const char* late : {"mat_mumps_", "mat_superlu", "mat_strumpack", "converged_reason", "ksp_view"})
     if (name.find(late) != std::string::npos) return true;
   return false;
@@ -43,10 +43,24 @@ void reject_unknown_options(OptionCheck when) {
   char** names = nullptr;
   char** values = nullptr;
   CELLFSI_PETSC(PetscOptionsLeftGet(nullptr, &n, &names, &values));
-  std::string first;
-  for (PetscInt i = 0; i < n && first.empty(); ++i)
-    if (!maybe_unread(names[i], when)) first = names[i];
+  std::string first, renamed;
+  for (PetscInt i = 0; i < n && first.empty(); ++i) {
+    if (!coupling::renamed_option(names[i]).empty()) {
+      first = names[i];
+      renamed = coupling::renamed_option(names[i]);
+    } else if (!maybe_unread(names[i], when)) {
+      first = names[i];
+    }
+  }
   CELLFSI_PETSC(PetscOptionsLeftRestore(nullptr, &n, &names, &values));
+  if (!renamed.empty())
+    throw std::invalid_argument(
+        "option -" + first + " was renamed -" + renamed + " in cellfsi 0.2 (docs/options.md)" +
+        (first == "coupling_solver"
+             ? ": -coupling_solver band is -coupling_pc_type cellfsi_band, fourier is cellfsi_fourier, fluid is "
+               "a PETSc PC such as asm (with -coupling_ksp_*, -coupling_sub_* options), auto is the default "
+               "(no option)"
+             : ""));
   if (!first.empty())
     throw std::invalid_argument("unknown option -" + first +
                                 " (misspelt? run with -help for the valid options)" +
@@ -71,45 +85,10 @@ std::vector<std::string> option_names() {
 
 /// See option_checks.hpp.
 void reject_inapplicable_solver_options(const std::vector<std::string>& user_options,
-                                        coupling::CouplingSolver solver) {
-  using coupling::CouplingSolver;
-  const char* in_use = solver == CouplingSolver::band      ? "band"
-                       : solver == CouplingSolver::fourier ? "fourier"
-                                                           : "fluid";
+                                        const std::string& pc_type) {
   for (const std::string& name : user_options) {
-    // The coupling loop is a coupled run's nonlinear iteration, whichever linear solver it uses.
-    if (name.rfind("fluid_snes_", 0) == 0)
-      throw std::invalid_argument("option -" + name +
-                                  " does not apply: in a coupled run the nonlinear iteration is the coupling "
-                                  "loop (-coupling_tolerance, -coupling_max_iterations, -coupling_monitor, "
-                                  "-coupling_acceleration); -fluid_snes_ options act on runs without cells");
-    if (solver != CouplingSolver::fluid) {
-      if (name == "fluid_mat_type_jacobian") continue;  // the matrix type applies to every solver
-      for (const char* p : {"fluid_ksp_", "fluid_pc_", "fluid_sub_", "fluid_mat_"})
-        if (name.rfind(p, 0) == 0)
-          throw std::invalid_argument(
-              "option -" + name + " does not apply: this coupled run solves with -coupling_solver " + in_use +
-              ", which has its own options under -coupling_" + in_use + "_ (e.g. -coupling_" + in_use +
-              "_ksp_monitor" +
-              (solver == CouplingSolver::band
-                   ? ", -coupling_band_mat_mumps_icntl_14 40, -coupling_band_schur_mat_mumps_icntl_35 1"
-                   : ", -coupling_fourier_region_mat_mumps_icntl_14 40") +
-              "); for the fluid's KSP and PC options use -coupling_solver fluid");
-    }
-    // The band's refresh interval and region margin also pace and bound the Fourier solver's refreshes.
-    const bool band_option = name.rfind("coupling_band_", 0) == 0;
-    if (band_option && solver != CouplingSolver::band &&
-        !(solver == CouplingSolver::fourier &&
-          (name == "coupling_band_refresh_steps" || name == "coupling_band_margin")))
-      throw std::invalid_argument("option -" + name + " does not apply: this coupled run solves with " +
-                                  "-coupling_solver " + in_use +
-                                  (solver == CouplingSolver::fluid
-                                       ? " (asked for, or because the band solver needs one fluid rank and a "
-                                         "BAIJ Jacobian)"
-                                       : ""));
-    if (name.rfind("coupling_fourier_", 0) == 0 && solver != CouplingSolver::fourier)
-      throw std::invalid_argument("option -" + name + " does not apply: this coupled run solves with " +
-                                  "-coupling_solver " + in_use);
+    const std::string why = coupling::option_inapplicable(name, pc_type);
+    if (!why.empty()) throw std::invalid_argument("option -" + name + " does not apply: " + why);
   }
 }
 

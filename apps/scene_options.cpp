@@ -12,6 +12,8 @@
 
 #include "apps/scene.hpp"
 #include "common/option_table.hpp"
+#include "coupling/coupled_linear_solver.hpp"
+#include "solvers/pc_types.hpp"
 
 namespace cellfsi::app {
 
@@ -25,7 +27,6 @@ Enum enum_of(const std::string& word, const std::vector<std::string>& words) {
   return static_cast<Enum>(std::find(words.begin(), words.end(), word) - words.begin());
 }
 
-const std::vector<std::string> kSolvers{"auto", "band", "fluid", "fourier"};
 const std::vector<std::string> kMarkings{"support", "central"};
 const std::vector<std::string> kAccelerations{"none", "anderson"};
 const std::vector<std::string> kShapes{"hollow_ellipse", "ellipse", "rbc", "hollow_ellipsoid", "ellipsoid"};
@@ -43,7 +44,8 @@ constexpr double kBodyBytesPerElement2d = 8e3, kBodyBytesPerElement3d = 24e3;
 /// The coupling's options (and the scene's body list, averaging window and mesh-ratio limit).
 void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
   coupling::CouplerOptions& c = s.coupling;
-  std::string solver = kSolvers[static_cast<int>(c.solver)], marking = kMarkings[static_cast<int>(c.marking)],
+  coupling::LinearSolverOptions& l = c.linear;
+  std::string marking = kMarkings[static_cast<int>(c.marking)],
               acceleration = kAccelerations[static_cast<int>(c.acceleration)];
   // "-solid_bodies ''" would read as no list at all: name the mistake.
   PetscBool has = PETSC_FALSE;
@@ -55,6 +57,10 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
         "solid_bodies", "(empty)",
         "one or more comma-separated names, e.g. membrane,nucleus (for a run without cells use a scene "
         "without bodies, e.g. scenes/shear.yaml)");
+  // Defaults of the cellfsi PC types (solvers/pc_types.cpp), for -help.
+  double pc_threshold = 1e-3, pc_blr = 1e-10;
+  int pc_overlap = 0, pc_region_solves = 1;
+  bool pc_fused = true;
   OptionTable t("cellfsi immersed bodies and coupling");
   t.texts("solid_bodies", names, "Names of the immersed bodies, e.g. membrane,nucleus", 64)
       .real("s_interface", c.s_interface, "s_I: s^h on the basis functions at interfaces (paper 3.3)",
@@ -69,7 +75,9 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
             {[](const double& v) { return v > 0 && v < 1; }, "0 < tolerance < 1"})
       .integer("coupling_max_iterations", c.max_iterations, "Block-iterative iterations per step",
                at_least(1))
-      .integer("coupling_pc_lag", c.preconditioner_lag, "Linear solves between preconditioner rebuilds",
+      .integer("coupling_pc_lag", l.preconditioner_lag,
+               "Linear solves between rebuilds of a PETSc PC (not the cellfsi types, which -coupling_refresh_steps "
+               "paces)",
                at_least(1))
       .text("coupling_acceleration", acceleration,
             "Iterates of the coupling loop: none (x - dx, the paper's) or anderson (Anderson acceleration of "
@@ -81,46 +89,46 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
                "Previous time steps whose Anderson pairs are kept (0: none)",
                int_between(0, 1000, "(0: this step's pairs only)"))
       .flag("coupling_monitor", c.monitor, "Print every coupling iteration's residuals")
-      .text(
-          "coupling_solver", solver,
-          "Linear solver of the coupling loop: auto (fourier where it applies, else band), band (the "
-          "Jacobian away from the cells factorised once, the "
-          "band around them re-solved exactly; one fluid rank), fluid (the fluid's KSP, -fluid_ options) or "
-          "fourier (FGMRES: the Jacobian without the cells inverted by FFT, corrected by an LU of the region "
-          "around them; any number of fluid ranks, a BAIJ Jacobian, a box uniform and periodic in all "
-          "directions "
-          "but one)",
-          kSolvers)
-      .real(
-          "coupling_fourier_threshold", c.fourier_threshold,
-          "Fourier solver: relative deviation of a node's Jacobian rows from the bulk operator that puts it "
-          "in the LU-corrected region",
-          positive())
-      .integer("coupling_fourier_overlap", c.fourier_overlap,
-               "Fourier solver: node layers the LU-corrected region is grown by", int_between(0, 20))
-      .flag(
-          "coupling_fourier_partial_jacobian", c.fourier_partial_jacobian,
-          "Fourier solver: re-assemble only the Jacobian around the cells, keeping the rest in a second copy "
-          "(false: one copy, the whole Jacobian at every refresh)")
-      .integer("coupling_fourier_region_solves", c.fourier_region_solves,
-               "Fourier solver: region LU solves per preconditioner application: 2 (region, bulk, region) or "
-               "1 (bulk, region)",
+      .text("coupling_pc_type", l.pc_type,
+            "Preconditioner of the coupled solve, the KSP -coupling_ (FGMRES with the cellfsi types, else "
+            "GMRES): cellfsi_fourier (the Jacobian without the cells inverted by FFT, corrected by an LU of the "
+            "region around them; a box periodic and uniform in all directions but one, any number of ranks), "
+            "cellfsi_band (the Jacobian away from the cells factorised once, the band around them re-solved "
+            "exactly; one fluid rank) or any PETSc PC (asm, lu, ...). Not given: cellfsi_fourier where it "
+            "applies, else cellfsi_band on one rank, else asm")
+      // The cellfsi PC types read their own options (solvers/pc_types.cpp, PCSetFromOptions); they are listed
+      // and range-checked here too, so that -help and docs/options.md show them with the rest.
+      .real("coupling_pc_fourier_threshold", pc_threshold,
+            "cellfsi_fourier: relative deviation of a node's Jacobian rows from the bulk operator that puts it "
+            "in the LU-corrected region",
+            positive())
+      .integer("coupling_pc_fourier_overlap", pc_overlap,
+               "cellfsi_fourier: node layers the LU-corrected region is grown by", int_between(0, 20))
+      .integer("coupling_pc_fourier_region_solves", pc_region_solves,
+               "cellfsi_fourier: region LU solves per application: 2 (region, bulk, region) or 1 (bulk, region)",
                int_between(1, 2))
-      .integer("coupling_band_margin", c.band_margin,
-               "Elements around the s^h band and immersed points in the band solver's region", at_least(0))
-      .integer("coupling_band_refactor_every", c.band_refactor_every,
-               "Steps between factorisations of the band solver's fixed part (0: when the cells leave its "
+      .flag("coupling_pc_band_fused", pc_fused,
+            "cellfsi_band: one MUMPS solve with the Schur complement's inside it (false: two interior solves)")
+      .real("coupling_pc_band_blr_tolerance", pc_blr,
+            "cellfsi_band: block low-rank threshold of the kept part's MUMPS factors (0: full rank)",
+            {[](const double& v) { return v >= 0 && v < 1; }, "0 <= tolerance < 1"})
+      .flag("coupling_partial_jacobian", l.partial_jacobian,
+            "cellfsi_fourier: re-assemble only the Jacobian around the cells, keeping the rest in a second copy "
+            "(false: one copy, the whole Jacobian at every refresh)")
+      .integer("coupling_region_margin", l.region_margin,
+               "cellfsi types: elements around the s^h band and immersed points in the re-assembled region",
+               at_least(0))
+      .integer("coupling_refactor_every", l.refactor_every,
+               "cellfsi_band: steps between factorisations of the kept part (0: when the cells leave its "
                "region)",
                at_least(0, "(0: only when needed)"))
-      .integer("coupling_band_refresh_steps", c.band_refresh_steps,
-               "Steps between refreshes of the band Jacobian while the s^h marking stays (it is refreshed "
-               "whenever the marking moves)",
+      .integer("coupling_refresh_steps", l.refresh_steps,
+               "cellfsi types: steps between refreshes of the Jacobian and the preconditioner while the s^h "
+               "marking stays (it is refreshed whenever the marking moves)",
                at_least(1, "(1: every step)"))
-      .integer(
-          "coupling_band_schur_lag", c.band_schur_lag,
-          "Coupling iterations between re-assemblies of the band Jacobian and factorisations of its Schur "
-          "complement inside a step (0: none)",
-          at_least(0, "(0: none inside a step)"))
+      .integer("coupling_refresh_lag", l.refresh_lag,
+               "cellfsi types: coupling iterations between refreshes inside a step (0: none)",
+               at_least(0, "(0: none inside a step)"))
       .real("coupling_max_mesh_ratio", s.max_mesh_ratio,
             "Largest Lagrangian / smallest Eulerian element size (paper Remark 3)", positive())
       .real("metrics_average_from", s.metrics_average_from,
@@ -134,7 +142,6 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
   if (s.metrics_average_from >= s.final_time)
     t.bad("metrics_average_from", option_value_text(s.metrics_average_from),
           "less than -final_time = " + option_value_text(s.final_time) + " s");
-  c.solver = enum_of<coupling::CouplingSolver>(solver, kSolvers);
   c.marking = enum_of<coupling::Marking>(marking, kMarkings);
   c.acceleration = enum_of<coupling::Acceleration>(acceleration, kAccelerations);
 }
@@ -322,47 +329,45 @@ void check_memory(SceneSettings& s) {
   MPI_Comm_free(&node);
   int leader = node_rank == 0 ? 1 : 0;
   MPI_Allreduce(&leader, &leaders, 1, MPI_INT, MPI_SUM, comm);
-  // The coupling solver the run will use (FsiCoupler's choice): the band solver keeps the Jacobian three
-  // times (its kept part, its band part and their sum), the Fourier solver twice (the part away from the
-  // cells and the sum).
-  using coupling::CouplingSolver;
-  int walls = 0;
-  for (int d = 0; d < s.dim; ++d) walls += !s.periodic[d];
-  const bool fourier_box = s.domain != "narrowing" && walls <= 1;
-  const CouplingSolver solver = s.coupling.solver;
-  char type[16] = "baij";  // -fluid_mat_type_jacobian: both solvers need BAIJ (else the fluid's KSP is used)
+  // The preconditioner the run will use (coupling/coupled_linear_solver.hpp decides) and the copies of the
+  // Jacobian it keeps.
+  char type[16] = "baij";  // -fluid_mat_type_jacobian: both cellfsi types need BAIJ
   CELLFSI_PETSC(
       PetscOptionsGetString(nullptr, nullptr, "-fluid_mat_type_jacobian", type, sizeof type, nullptr));
-  const bool baij = std::string(type) == "baij", cells = !s.bodies.empty();
-  const bool band = cells && baij && size == 1 &&
-                    (solver == CouplingSolver::band || (solver == CouplingSolver::automatic && !fourier_box));
-  const bool fourier = cells && baij && fourier_box &&
-                       (solver == CouplingSolver::fourier || solver == CouplingSolver::automatic);
-  // The Fourier solver's second copy of the Jacobian (-coupling_fourier_partial_jacobian) is dropped unless
-  // asked for when memory is short: a run peaked at 5.2-5.4 Jacobians with it (3D, 32^3 and 64^3, the rest
-  // mostly the region's LU) and 4.4 without; the paper's 64^3 with it was killed at 21.9 GB of 24.
+  coupling::SolverSituation situation;
+  situation.baij = std::string(type) == "baij";
+  situation.fluid_ranks = size;
+  coupling::LinearSolverOptions& l = s.coupling.linear;
+  // The domain is built only for the choice between several copies: a mesh that cannot hold one is refused
+  // without it.
+  const bool fits_once = fluid_jacobian_bytes(s) / std::max(1, leaders) <= available;
+  if (!s.bodies.empty() && l.pc_type.empty() && fits_once)
+    situation.fourier_inapplicable = coupling::fourier_inapplicable(build_domain(s));
+  const std::string pc = s.bodies.empty() || !fits_once ? std::string("none")
+                         : l.pc_type.empty()            ? coupling::default_pc_type(situation)
+                                                        : l.pc_type;
+  // cellfsi_fourier's second copy of the Jacobian (-coupling_partial_jacobian) is dropped unless asked for
+  // when memory is short: a run peaked at 5.2-5.4 Jacobians with it (3D, 32^3 and 64^3, the rest mostly the
+  // region's LU) and 4.4 without; the paper's 64^3 with it was killed at 21.9 GB of 24.
   PetscBool partial_given = PETSC_FALSE;
-  CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-coupling_fourier_partial_jacobian", &partial_given));
-  if (fourier && s.coupling.fourier_partial_jacobian && !partial_given &&
+  CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-coupling_partial_jacobian", &partial_given));
+  if (pc == solvers::kPCFourier && l.partial_jacobian && !partial_given &&
       6 * fluid_jacobian_bytes(s) / std::max(1, leaders) > available) {
-    s.coupling.fourier_partial_jacobian = false;
+    l.partial_jacobian = false;
     CELLFSI_PETSC(
         PetscPrintf(comm,
-                    "cellfsi: note: %.3g GB available: the Fourier solver keeps one copy of the %.3g GB "
-                    "Jacobian (-coupling_fourier_partial_jacobian false)\n",
+                    "cellfsi: note: %.3g GB available: cellfsi_fourier keeps one copy of the %.3g GB Jacobian "
+                    "(-coupling_partial_jacobian false)\n",
                     available / 1e9, fluid_jacobian_bytes(s) / 1e9));
   }
-  const double need = (band                                             ? 3
-                       : fourier && s.coupling.fourier_partial_jacobian ? 2
-                                                                        : 1) *
-                      fluid_jacobian_bytes(s) / std::max(1, leaders);
+  const int copies = coupling::jacobian_copies(pc, l.partial_jacobian);
+  const double need = copies * fluid_jacobian_bytes(s) / std::max(1, leaders);
   if (need <= available) return;
   std::ostringstream v, w;
   for (int d = 0; d < s.dim; ++d) v << (d ? "," : "") << s.elements[d];
-  w << std::setprecision(3) << "fewer elements: a run needs at least " << need / 1e9 << " GB per node ("
-    << (band      ? "the fluid Jacobian three times: its kept part, its band part and their sum"
-        : fourier ? "the fluid Jacobian twice: its part away from the cells and the whole"
-                  : "the fluid Jacobian")
+  w << std::setprecision(3) << "fewer elements: a run needs at least " << need / 1e9 << " GB per node (the "
+    << "fluid Jacobian"
+    << (copies == 1 ? std::string() : " " + std::to_string(copies) + " times with -coupling_pc_type " + pc)
     << "; LU factors come on top) and " << available / 1e9 << " GB are available";
   bad_option("fluid_elements", v.str(), w.str());
 }

@@ -7,8 +7,8 @@
 #   CASES="128x64:band:1:20 128x64:fluid:1:20" bench/run_coupled_steps.sh
 #
 # A case is MESH:SOLVER:RANKS:STEPS, MESH = NXxNY (2D capsule) or NXxNYxNZ (3D compound capsule, quadratic:
-# the paper's Sec. 3.6 scene at a coarser mesh), SOLVER = band, fourier or fluid (-coupling_solver; band runs
-# on one fluid rank and falls back to fluid on more; fourier runs on any number). Environment:
+# the paper's Sec. 3.6 scene at a coarser mesh), SOLVER = band, fourier or fluid (-coupling_pc_type cellfsi_band,
+# cellfsi_fourier or asm; band runs on one fluid rank; fourier runs on any number). Environment:
 # CASES, BUILD_DIR (default build), OUT (default docs/performance/coupled_steps.md), EXTRA (more options for
 # every run). Needs /usr/bin/time (Debian package time) and python3.
 set -uo pipefail
@@ -22,6 +22,9 @@ EXTRA="${EXTRA:-}"
 BIN="$BUILD_DIR/apps/cellfsi"
 [[ -x "$BIN" ]] || { echo "run_coupled_steps.sh: $BIN not found; build first (scripts/build.sh)" >&2; exit 1; }
 [[ -x /usr/bin/time ]] || { echo "run_coupled_steps.sh: /usr/bin/time not found (apt-get install time)" >&2; exit 1; }
+
+# A case's short solver name -> its -coupling_pc_type.
+pc_type() { case "$1" in band) echo cellfsi_band ;; fourier) echo cellfsi_fourier ;; *) echo asm ;; esac; }
 
 cores="$(nproc)"
 export OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
@@ -98,7 +101,7 @@ for c in $CASES; do
   # shellcheck disable=SC2086  # EXTRA is an option list
   # One /usr/bin/time per rank, each writing its own file (the rank from Open MPI's environment).
   "${launch[@]}" bash -c '/usr/bin/time -v -o "$0.${OMPI_COMM_WORLD_RANK:-0}" "$@"' "$work/time" "$BIN" "${args[@]}" \
-    -output_dir "$dir" -output_every 0 -coupling_solver "$solver" -log_view $EXTRA > "$work/log" 2>&1
+    -output_dir "$dir" -output_every 0 -coupling_pc_type "$(pc_type "$solver")" -log_view $EXTRA > "$work/log" 2>&1
   rc=$?
   row="$(python3 - "$work" "$dir" "$mesh" "$solver" "$ranks" "$rc" <<'PY'
 import glob, json, re, sys
@@ -127,9 +130,12 @@ steps = s["steps"]
 wall = s["wall_time_s"]
 ms_n, ms_t = ev.get("MatSolve", (0, 0.0))
 fact = s.get("factorizations", 0)
-used = s.get("coupling_solver", solver)
-if used in ("band", "fourier") and (used == "fourier" or s.get("band_unknowns", 0) > 0):
-    f_n, f_t = ev.get("FsiBandFactor", (0, 0.0))
+# The PC type used, by the short names of the cases (runs before 0.2 wrote coupling_solver).
+short = {"cellfsi_band": "band", "cellfsi_fourier": "fourier", "asm": "fluid"}
+used = short.get(s.get("coupling_pc_type", ""), s.get("coupling_solver", solver))
+corrected = s.get("corrected_unknowns", s.get("band_unknowns", 0))
+if used in ("band", "fourier") and (used == "fourier" or corrected > 0):
+    f_n, f_t = ev.get("FsiFactor", ev.get("FsiBandFactor", (0, 0.0)))
 else:
     f_n, f_t = ev.get("MatLUFactorNum", (0, 0.0))
 rss = []
@@ -158,7 +164,7 @@ lu = units.get((mesh, "band"), units.get((mesh, "fluid")))
 lu_ratio = f"{per / lu:.1f}" if lu else "-"
 label = solver if used == solver else f"{solver} → {used}"
 print(f"| {mesh} | {label} | {ranks} | {steps} | {per:.3f} | {unit:.4f} | {per / unit:.1f} | {lu_ratio} | {fact} ({f_t / max(1, f_n):.2f}) "
-      f"| {wo:.3f} | {coupling:.2f} | {gmres:.2f} | {int(s.get('band_unknowns', 0))} | {max(rss) if rss else 0:.0f} |")
+      f"| {wo:.3f} | {coupling:.2f} | {gmres:.2f} | {int(corrected)} | {max(rss) if rss else 0:.0f} |")
 PY
 )"
   rm -f "$work"/time.*

@@ -1,7 +1,7 @@
 #pragma once
 // Where the coupled Jacobian changes from step to step: the Eulerian elements that carry s^h != 1 or an
 // immersed point ("active"), a region around them that a factorisation is built for, and the unknowns that
-// region touches (the band of fluid::BandSchurSolver). Element masks are indexed like
+// region touches (the band of solvers::BandSchurSolver). Element masks are indexed like
 // Patch::element_multi_index; functions by the patch's natural (folded) control index.
 #include <vector>
 

@@ -142,7 +142,7 @@ class FluidSolver {
   void residual(Vec X, Vec F) { assemble(X, F, nullptr); }
   void jacobian(Vec X, Mat J) { assemble(X, nullptr, J); }
   /// One of two parts of K_MC that add up to jacobian(X, J) (for a solver that keeps one part for many steps,
-  /// see fluid/band_schur.hpp). `in_band[e]` (e: the patch's element index, Patch::element_multi_index) marks
+  /// see solvers/band_schur.hpp). `in_band[e]` (e: the patch's element index, Patch::element_multi_index) marks
   /// the elements of the band part. band_side: the band's elements and every immersed point, Dirichlet rows
   /// zeroed with a zero diagonal; otherwise the other elements, Dirichlet rows zeroed with a unit diagonal.
   void jacobian_part(Vec X, Mat J, const std::vector<char>& in_band, bool band_side) {
@@ -155,7 +155,7 @@ class FluidSolver {
     assemble(X, nullptr, J, &in_band, true, true);
   }
   /// K_MC of the iterate X without the cells: s^h = 1 everywhere and no immersed points (the bulk operator
-  /// of fluid/region_corrected_solver.hpp).
+  /// of solvers/region_corrected.hpp).
   void bulk_jacobian(Vec X, Mat J);
   /// v and grad v at t_{n+alpha_f} of the iterate X at points already located in the patch (element, xi)
   /// (collective; every rank gets every value). vdot is the rate at t_{n+alpha_m}.

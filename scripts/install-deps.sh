@@ -9,7 +9,7 @@ packages=(
   petsc-dev                  # PETSc 3.18 with MUMPS, SuperLU_DIST, hypre
   libopenblas0-pthread       # otherwise PETSc/MUMPS use the slow reference BLAS
   libopenmpi-dev openmpi-bin
-  libeigen3-dev              # (and its FFT module: fluid/fourier_bulk_solver.cpp)
+  libeigen3-dev              # (and its FFT module: solvers/fourier_bulk.cpp)
   liblapack-dev              # banded LU of the Fourier bulk solver (zgbtrf)
   libcgal-dev
   libvtk9-dev

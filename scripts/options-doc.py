@@ -270,9 +270,11 @@ FOOTER = """
 - `-help`: prints these tables, PETSc's own options and the solvers' options under their prefixes, and exits.
 - `-solid_ranks B` (cellfsi only, on the command line only): the last B ranks of the job are the solid side
   ([running.md](running.md) §10).
-- PETSc options of the fluid's solvers under `-fluid_` (`-fluid_snes_monitor`, `-fluid_ksp_type`, ...), and of
-  the coupling loop's linear solvers under `-coupling_band_` and `-coupling_fourier_`: which apply with which
-  `-coupling_solver`, [running.md](running.md) §9; `cellfsi SCENE.yaml -help` lists those PETSc reads.
+- PETSc options of the fluid's solvers under `-fluid_` (`-fluid_snes_monitor`, `-fluid_ksp_type`, ...: runs
+  without cells), and of the coupling loop's KSP under `-coupling_` (`-coupling_ksp_monitor`,
+  `-coupling_sub_pc_type`, and the factorisations of the cellfsi PC types under `-coupling_band_` and
+  `-coupling_fourier_region_`): which apply with which `-coupling_pc_type`, [running.md](running.md) §9;
+  `cellfsi SCENE.yaml -help` lists those PETSc reads.
 """
 
 if __name__ == "__main__":

@@ -107,6 +107,14 @@ TEST_F(CellfsiApp, ValuesThatAreNumbersButNotInputAreRejected) {
        "option -fluid_viscosity = 1e-310 is invalid; valid: 1e-08 ... 1e+06 [g/(cm s)]"},
       {with(tiny, {"-fluid_density", "1e-310"}), "option -fluid_density = 1e-310 is invalid"},
       {with(tiny, {"-fluid_density", "1e300"}), "option -fluid_density = 1e+300 is invalid"},
+      // Options renamed with the PC types of the coupled solve (issue 25): refused with the new name.
+      {with(capsule, {"-coupling_solver", "band"}),
+       "option -coupling_solver was renamed -coupling_pc_type in cellfsi 0.2 (docs/options.md): "
+       "-coupling_solver band is -coupling_pc_type cellfsi_band"},
+      {with(capsule, {"-coupling_band_margin", "3"}),
+       "option -coupling_band_margin was renamed -coupling_region_margin"},
+      {with(capsule, {"-coupling_pc_fourier_threshold", "-1"}),
+       "option -coupling_pc_fourier_threshold = -1 is invalid"},
       {with(capsule, {"-metrics_average_from", "nan"}),
        "option -metrics_average_from = nan is invalid; valid: 0 <="},
       {with(capsule, {"-metrics_average_from", "-5"}), "option -metrics_average_from = -5 is invalid"},
@@ -128,8 +136,10 @@ TEST_F(CellfsiApp, MisspeltPetscTypesAreRejectedByName) {
   const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
       {with({scene("shear.yaml")}, with(kTiny, {"-fluid_ksp_type", "gmress"})),
        "option -fluid_ksp_type = gmress is invalid: Unable to find requested KSP type gmress"},
-      {with(kDefaultCapsule, {"-coupling_solver", "fluid", "-fluid_sub_pc_type", "ilux"}),
-       "option -fluid_sub_pc_type = ilux is invalid: Unable to find requested PC type ilux"},
+      {with(kDefaultCapsule, {"-coupling_pc_type", "asm", "-coupling_sub_pc_type", "ilux"}),
+       "option -coupling_sub_pc_type = ilux is invalid: Unable to find requested PC type ilux"},
+      {with(kDefaultCapsule, {"-coupling_pc_type", "cellfsi_fourer"}),
+       "option -coupling_pc_type = cellfsi_fourer is invalid: Unable to find requested PC type cellfsi_fourer"},
   };
   for (const auto& [args, message] : cases) {
     expect_one_clear_error(cellfsi(args));

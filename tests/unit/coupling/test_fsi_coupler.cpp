@@ -86,15 +86,17 @@ TEST(FsiCoupler, NeutrallyBuoyantStiffDiskRotatesAtHalfTheShearRate) {
 namespace {
 
 /// A capsule (the paper's RBC proxy, Sec. 3.3) in the shear box at 48 x 24 cubic elements, `steps` steps with
-/// the given coupling solver; returns the fluid unknowns and the membrane's control points, and the stats.
+/// the given preconditioner of the coupled solve ("": the automatic choice); returns the fluid unknowns and
+/// the membrane's control points, and the stats.
 struct CapsuleRun {
   std::vector<double> fluid, membrane;
-  int iterations = 0, linear_iterations = 0, factorizations = 0, band_refreshes = 0;
-  bool fell_back = false;  // FsiCoupler::fell_back() at the end
+  int iterations = 0, linear_iterations = 0, factorizations = 0, refreshes = 0;
+  bool fell_back = false;  // CoupledLinearSolver::fell_back() at the end
+  std::string pc_type;     // the one in use at the end
 };
 
-CapsuleRun run_capsule(coupling::CouplingSolver solver, int steps, int band_refresh_steps = 10,
-                       double fourier_uniformity = 1e-2, coupling::CouplingSolver* used = nullptr) {
+CapsuleRun run_capsule(const std::string& pc_type, int steps, int refresh_steps = 10,
+                       double fourier_uniformity = 1e-2) {
   ShearBox sb(48, 24, 1e-3);
   fluid::FluidSolver& fluid = sb.fluid;
   const Vec3 c = ShearBox::center();
@@ -102,9 +104,9 @@ CapsuleRun run_capsule(coupling::CouplingSolver solver, int steps, int band_refr
                              geometry::hollow_ellipse(2e-4, 1e-4, 5e-7, 24, 2, c, std::numbers::pi / 2),
                              std::make_shared<solid::DeviatoricNeoHookean>(7500.0), 1.1);
   coupling::CouplerOptions co;
-  co.solver = solver;
-  co.band_refresh_steps = band_refresh_steps;
-  co.fourier_uniformity = fourier_uniformity;
+  co.linear.pc_type = pc_type;
+  co.linear.refresh_steps = refresh_steps;
+  co.linear.uniformity = fourier_uniformity;
   coupling::FsiCoupler fsi(fluid, {&membrane}, co);
   fsi.initialize();
   CapsuleRun r;
@@ -114,10 +116,10 @@ CapsuleRun run_capsule(coupling::CouplingSolver solver, int steps, int band_refr
     r.iterations += st.iterations;
     r.linear_iterations += st.linear_iterations;
     r.factorizations += st.factorizations;
-    r.band_refreshes += st.band_refreshes;
+    r.refreshes += st.refreshes;
   }
-  if (used) *used = fsi.solver();
-  r.fell_back = fsi.fell_back();
+  r.pc_type = fsi.linear_solver().pc_type();
+  r.fell_back = fsi.linear_solver().fell_back();
   r.fluid = fluid.gather_to_zero(fluid.solution());
   const geometry::Patch current = membrane.current_patch();
   for (const auto& p : current.control_points())
@@ -133,20 +135,20 @@ double relative_difference(const std::vector<double>& a, const std::vector<doubl
 
 }  // namespace
 
-// The band solver (the Jacobian away from the capsule factorised once, the s^h band re-solved exactly when
-// the marking moves) against the fluid's own solver (a full LU whenever the marking moves): the same steps to
+// cellfsi_band (the Jacobian away from the capsule factorised once, the s^h band re-solved exactly when the
+// marking moves) against a PETSc PC (ASM on one rank: a full LU whenever the marking moves): the same steps to
 // the coupling tolerance. Both stop when every residual has dropped by 1e-4 in the step; their iterates then
 // differ by what the last iterations leave, a small fraction of a step's change. Measured 3.6e-7 (fluid
 // unknowns) and 8e-10 (membrane control points); bounds 1e-5 and 1e-6 (a wrong operator or preconditioner
 // shows as a difference of order of a step's change, or as divergence).
-TEST(FsiCoupler, BandSolverGivesTheFluidSolversSteps) {
+TEST(FsiCoupler, BandPCGivesTheStepsOfAPetscPC) {
   const int steps = 4;
-  const CapsuleRun band = run_capsule(coupling::CouplingSolver::band, steps);
-  const CapsuleRun full = run_capsule(coupling::CouplingSolver::fluid, steps);
+  const CapsuleRun band = run_capsule("cellfsi_band", steps);
+  const CapsuleRun full = run_capsule("asm", steps);
   const double dv = relative_difference(full.fluid, band.fluid);
   const double dx = relative_difference(full.membrane, band.membrane);
   std::printf(
-      "  band vs fluid solver: fluid unknowns %.2e, membrane %.2e; factorisations %d vs %d; linear "
+      "  cellfsi_band vs asm: fluid unknowns %.2e, membrane %.2e; factorisations %d vs %d; linear "
       "iterations %d (band, %d coupling iterations) vs %d\n",
       dv, dx, band.factorizations, full.factorizations, band.linear_iterations, band.iterations,
       full.linear_iterations);
@@ -160,21 +162,21 @@ TEST(FsiCoupler, BandSolverGivesTheFluidSolversSteps) {
   EXPECT_GT(full.factorizations, band.factorizations);
 }
 
-// The band is refreshed when the s^h marking moves and at least every band_refresh_steps steps; in between
+// The band is refreshed when the s^h marking moves and at least every refresh_steps steps; in between
 // the Newton matrix is kept. Refreshing at every step gives the same steps to the coupling tolerance.
 // Measured over 12 steps at 48 x 24: 6 refreshes against 12, fluid unknowns 5.4e-7 and membrane 4.2e-10
 // apart; bounds as in the test above.
 TEST(FsiCoupler, BandRefreshedWhenTheMarkingMovesGivesTheSameSteps) {
   const int steps = 12;
-  const CapsuleRun every = run_capsule(coupling::CouplingSolver::band, steps, 1);
-  const CapsuleRun moved = run_capsule(coupling::CouplingSolver::band, steps, 10);
+  const CapsuleRun every = run_capsule("cellfsi_band", steps, 1);
+  const CapsuleRun moved = run_capsule("cellfsi_band", steps, 10);
   const double dv = relative_difference(every.fluid, moved.fluid);
   const double dx = relative_difference(every.membrane, moved.membrane);
   std::printf("  band refreshes %d (every step: %d); fluid unknowns %.2e, membrane %.2e apart\n",
-              moved.band_refreshes, every.band_refreshes, dv, dx);
-  EXPECT_EQ(every.band_refreshes, steps);
-  EXPECT_LT(moved.band_refreshes, steps);
-  EXPECT_GE(moved.band_refreshes, 2);  // the first step, and once every 10 steps at least
+              moved.refreshes, every.refreshes, dv, dx);
+  EXPECT_EQ(every.refreshes, steps);
+  EXPECT_LT(moved.refreshes, steps);
+  EXPECT_GE(moved.refreshes, 2);  // the first step, and once every 10 steps at least
   EXPECT_LT(dv, 1e-5);
   EXPECT_LT(dx, 1e-6);
 }
@@ -183,17 +185,16 @@ TEST(FsiCoupler, BandRefreshedWhenTheMarkingMovesGivesTheSameSteps) {
 // a uniformity bound of 1e-17, below the round-off of the undisturbed shear flow's 1e-15), `auto` falls back
 // to the band solver at the first solve and gives the band solver's steps; `fourier` asked for is refused.
 TEST(FsiCoupler, AutoFallsBackToTheBandSolverWhereTheBulkIsNotUniform) {
-  using coupling::CouplingSolver;
-  CouplingSolver used = CouplingSolver::automatic;
-  const CapsuleRun fallback = run_capsule(CouplingSolver::automatic, 2, 10, 1e-17, &used);
-  EXPECT_EQ(used, CouplingSolver::band);
+  const CapsuleRun fallback = run_capsule("", 2, 10, 1e-17);
+  EXPECT_EQ(fallback.pc_type, "cellfsi_band");
   EXPECT_TRUE(fallback.fell_back);
-  const CapsuleRun band = run_capsule(CouplingSolver::band, 2);
+  const CapsuleRun band = run_capsule("cellfsi_band", 2);
   EXPECT_FALSE(band.fell_back);
   EXPECT_EQ(relative_difference(band.fluid, fallback.fluid), 0.0);
   EXPECT_EQ(relative_difference(band.membrane, fallback.membrane), 0.0);
-  EXPECT_THROW(run_capsule(CouplingSolver::fourier, 1, 10, 1e-17), std::invalid_argument);
+  EXPECT_THROW(run_capsule("cellfsi_fourier", 1, 10, 1e-17), std::invalid_argument);
   // With the default bound the Fourier solver runs.
-  EXPECT_FALSE(run_capsule(CouplingSolver::automatic, 1, 10, 1e-2, &used).fell_back);
-  EXPECT_EQ(used, CouplingSolver::fourier);
+  const CapsuleRun fourier = run_capsule("", 1, 10, 1e-2);
+  EXPECT_FALSE(fourier.fell_back);
+  EXPECT_EQ(fourier.pc_type, "cellfsi_fourier");
 }

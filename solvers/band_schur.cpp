@@ -1,4 +1,4 @@
-#include "fluid/band_schur.hpp"
+#include "solvers/band_schur.hpp"
 
 #ifdef __GLIBC__
 #include <malloc.h>
@@ -10,7 +10,7 @@
 
 #include "common/petsc_error.hpp"
 
-namespace cellfsi::fluid {
+namespace cellfsi::solvers {
 
 namespace {
 
@@ -105,6 +105,7 @@ void BandSchurSolver::release() {
   VecScatterDestroy(&to_band_);
   VecScatterDestroy(&to_interior_);
   s_fixed_.clear();
+  s_fixed_minus_bb_.clear();
   band_pos_.clear();
   edge_pos_.clear();
   s_ia_.clear();
@@ -244,7 +245,6 @@ void BandSchurSolver::factor_impl(Mat fixed, IS band, const std::string& prefix)
   Mat K_BB = nullptr;
   CELLFSI_PETSC(MatCreateSubMatrix(fixed, band_, band_, MAT_INITIAL_MATRIX, &K_BB));
   const BlockStructure kbb = block_structure(K_BB);
-  CELLFSI_PETSC(MatDestroy(&K_BB));
   const PetscScalar* sd = nullptr;
   PetscInt lda = 0;
   CELLFSI_PETSC(MatDenseGetLDA(Sd, &lda));
@@ -289,6 +289,21 @@ void BandSchurSolver::factor_impl(Mat fixed, IS band, const std::string& prefix)
         for (PetscInt c = 0; c < bs; ++c)
           s_fixed_[k * bs2 + e * bs + c] = sd[(ei * bs + c) + (ej * bs + e) * lda];
     }
+  // S_fixed - K_fixed,BB in the same layout, for set_operator (which is given K_BB = K_fixed,BB + K_band,BB).
+  s_fixed_minus_bb_ = s_fixed_;
+  {
+    PetscScalar* kv = nullptr;
+    CELLFSI_PETSC(MatSeqBAIJGetArray(K_BB, &kv));
+    for (PetscInt I = 0; I < nb; ++I)
+      for (PetscInt k = kbb.ia[I]; k < kbb.ia[I + 1]; ++k) {
+        const PetscInt* lo = s.ja.data() + s.ia[I];
+        const PetscInt* hi = s.ja.data() + s.ia[I + 1];
+        const PetscInt pos = static_cast<PetscInt>(std::lower_bound(lo, hi, kbb.ja[k]) - s.ja.data());
+        for (PetscInt i = 0; i < bs2; ++i) s_fixed_minus_bb_[pos * bs2 + i] -= kv[k * bs2 + i];
+      }
+    CELLFSI_PETSC(MatSeqBAIJRestoreArray(K_BB, &kv));
+  }
+  CELLFSI_PETSC(MatDestroy(&K_BB));
   schur_nonzeros_ = static_cast<PetscInt>(s.ja.size()) * bs2;
   CELLFSI_PETSC(MatDenseRestoreArrayRead(Sd, &sd));
   CELLFSI_PETSC(MatDestroy(&Sd));
@@ -306,9 +321,13 @@ void BandSchurSolver::factor_impl(Mat fixed, IS band, const std::string& prefix)
   CELLFSI_PETSC(VecScatterCreate(w1_, interior_, zI_, nullptr, &to_interior_));
 }
 
-void BandSchurSolver::set_band(Mat band) {
-  if (!F_) throw std::logic_error("BandSchurSolver::set_band before factor");
-  require_seqbaij(band, "K_band");
+void BandSchurSolver::set_band(Mat band) { factor_schur(band, s_fixed_, "K_band"); }
+
+void BandSchurSolver::set_operator(Mat K) { factor_schur(K, s_fixed_minus_bb_, "K"); }
+
+void BandSchurSolver::factor_schur(Mat band, const std::vector<double>& base, const char* what) {
+  if (!F_) throw std::logic_error("BandSchurSolver: the band's Schur complement before factor()");
+  require_seqbaij(band, what);
   CELLFSI_PETSC(
       MatCreateSubMatrix(band, band_, band_, band_sub_ ? MAT_REUSE_MATRIX : MAT_INITIAL_MATRIX, &band_sub_));
   const PetscInt bs2 = bs_ * bs_;
@@ -331,7 +350,7 @@ void BandSchurSolver::set_band(Mat band) {
   PetscScalar* b = nullptr;
   CELLFSI_PETSC(MatSeqBAIJGetArray(S_, &a));
   CELLFSI_PETSC(MatSeqBAIJGetArray(band_sub_, &b));
-  std::copy(s_fixed_.begin(), s_fixed_.end(), a);
+  std::copy(base.begin(), base.end(), a);
   for (std::size_t k = 0; k < band_pos_.size(); ++k) {
     PetscScalar* dst = a + band_pos_[k] * bs2;
     const PetscScalar* src = b + k * bs2;
@@ -386,4 +405,4 @@ void BandSchurSolver::solve(Vec r, Vec x) {
   scatter(to_band_, yB_, x, SCATTER_REVERSE);
 }
 
-}  // namespace cellfsi::fluid
+}  // namespace cellfsi::solvers

@@ -1,4 +1,4 @@
-#include "fluid/fourier_bulk_solver.hpp"
+#include "solvers/fourier_bulk.hpp"
 
 #include <unsupported/Eigen/FFT>
 
@@ -23,7 +23,7 @@ void zgbtrs_(const char* trans, const PetscBLASInt* n, const PetscBLASInt* kl, c
              std::size_t trans_len);
 }
 
-namespace cellfsi::fluid {
+namespace cellfsi::solvers {
 
 FourierBulkSolver::FourierBulkSolver(std::array<int, 3> n, std::array<bool, 3> periodic,
                                      std::array<int, 3> degree, int dof, MPI_Comm comm, AO natural)
@@ -351,7 +351,7 @@ void FourierBulkSolver::fft(std::vector<cplx>& z, bool inverse, const std::array
 
 void FourierBulkSolver::solve(Vec r, Vec x) const {
   if (!built_) throw std::logic_error("FourierBulkSolver: solve before a completed build");
-  static const PetscLogEvent event = register_log_event("cellfsi fluid", "FluidFourierSolve");
+  static const PetscLogEvent event = register_log_event("cellfsi solvers", "FourierBulkSolve");
   CELLFSI_PETSC(PetscLogEventBegin(event, 0, 0, 0, 0));
   const std::size_t slab_nodes = static_cast<std::size_t>(slab_[0]) * slab_[1] * slab_[2];
   const int layers = j1_ - j0_;
@@ -546,4 +546,4 @@ std::vector<double> FourierBulkSolver::node_deviation(Mat J) const {
   return dev;
 }
 
-}  // namespace cellfsi::fluid
+}  // namespace cellfsi::solvers

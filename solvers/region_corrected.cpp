@@ -1,11 +1,11 @@
-#include "fluid/region_corrected_solver.hpp"
+#include "solvers/region_corrected.hpp"
 
 #include <algorithm>
 #include <stdexcept>
 
 #include "common/petsc_error.hpp"
 
-namespace cellfsi::fluid {
+namespace cellfsi::solvers {
 
 RegionCorrectedSolver::RegionCorrectedSolver(std::array<int, 3> n, std::array<bool, 3> periodic,
                                              std::array<int, 3> degree, int dof, std::string prefix,
@@ -178,4 +178,4 @@ void RegionCorrectedSolver::apply(Vec r, Vec x) {
   CELLFSI_PETSC(VecScatterEnd(to_region_, xR_, x, ADD_VALUES, SCATTER_REVERSE));
 }
 
-}  // namespace cellfsi::fluid
+}  // namespace cellfsi::solvers

@@ -10,15 +10,18 @@
 
 #include "common/petsc_error.hpp"
 #include "fluid/fluid_solver.hpp"
-#include "fluid/fourier_bulk_solver.hpp"
-#include "fluid/region_corrected_solver.hpp"
+#include "solvers/fourier_bulk.hpp"
+#include "solvers/region_corrected.hpp"
 #include "geometry/builders.hpp"
+#include "test_operators.hpp"
 
 #include <petscdmda.h>
 
 using namespace cellfsi;
-using fluid::FourierBulkSolver;
+using solvers::FourierBulkSolver;
 using geometry::Vec3;
+
+using cellfsi::test::relative_residual;
 
 namespace {
 
@@ -73,19 +76,6 @@ Mat invariant_operator(std::array<int, 3> n, std::array<bool, 3> periodic, int d
   CELLFSI_PETSC(MatAssemblyBegin(A, MAT_FINAL_ASSEMBLY));
   CELLFSI_PETSC(MatAssemblyEnd(A, MAT_FINAL_ASSEMBLY));
   return A;
-}
-
-/// |A x - r| / |r|.
-double relative_residual(Mat A, Vec x, Vec r) {
-  Vec y;
-  CELLFSI_PETSC(VecDuplicate(r, &y));
-  CELLFSI_PETSC(MatMult(A, x, y));
-  CELLFSI_PETSC(VecAXPY(y, -1.0, r));
-  PetscReal e = 0, n = 0;
-  CELLFSI_PETSC(VecNorm(y, NORM_2, &e));
-  CELLFSI_PETSC(VecNorm(r, NORM_2, &n));
-  VecDestroy(&y);
-  return e / n;
 }
 
 Vec random_vector(Mat A, unsigned seed) {
@@ -291,7 +281,7 @@ RegionSolve solve_ring(MPI_Comm comm, bool corrected) {
   CELLFSI_PETSC(DMDAGetAO(fs.dm(), &natural));
   RegionSolve out;
   {
-    fluid::RegionCorrectedSolver pc_solver({n0, n1, 1}, {true, false, false}, {3, 3, 0}, 3, "test_region_",
+    solvers::RegionCorrectedSolver pc_solver({n0, n1, 1}, {true, false, false}, {3, 3, 0}, 3, "test_region_",
                                            comm, natural);
     pc_solver.set_bulk(Jb, true);
     if (!corrected) pc_solver.set_region(1e300, 0);
@@ -310,7 +300,7 @@ RegionSolve solve_ring(MPI_Comm comm, bool corrected) {
     CELLFSI_PETSC(PCShellSetApply(pc, [](PC p, Vec a, Vec b) -> PetscErrorCode {
       void* ctx = nullptr;
       PetscCall(PCShellGetContext(p, &ctx));
-      static_cast<fluid::RegionCorrectedSolver*>(ctx)->apply(a, b);
+      static_cast<solvers::RegionCorrectedSolver*>(ctx)->apply(a, b);
       return 0;
     }));
     CELLFSI_PETSC(KSPSolve(ksp, r, x));

@@ -1,6 +1,6 @@
 #pragma once
 // The exact inverse of a translation-invariant operator on a box mesh that is periodic in all directions but
-// at most one: the bulk solver of fluid/region_corrected_solver.hpp.
+// at most one: the bulk solver of solvers/region_corrected.hpp.
 //
 // Why: away from the cells the fluid Jacobian of the paper's boxes (shear, channels; uniform periodic knot
 // vectors in x (and z), walls in y) is the same stencil at every periodic position, because at Re ~ 1e-4 it
@@ -33,7 +33,7 @@
 #include <complex>
 #include <vector>
 
-namespace cellfsi::fluid {
+namespace cellfsi::solvers {
 
 class FourierBulkSolver {
  public:
@@ -116,4 +116,4 @@ class FourierBulkSolver {
   bool pinned_ = false, built_ = false;
 };
 
-}  // namespace cellfsi::fluid
+}  // namespace cellfsi::solvers

@@ -1,10 +1,10 @@
 #pragma once
 // A preconditioner for a Jacobian J that equals a translation-invariant bulk operator A except in a small
 // region (the cells' s^h band and immersed points): the bulk operator's exact inverse by Fourier transform
-// (fluid/fourier_bulk_solver.hpp, built once per run), corrected by a sparse LU of J restricted to the region
+// (solvers/fourier_bulk.hpp, built once per run), corrected by a sparse LU of J restricted to the region
 // where they differ, grown by a few node layers.
 //
-// Why: the band solver (fluid/band_schur.hpp) keeps a sparse LU of the whole bulk, which in 3D costs
+// Why: the band solver (solvers/band_schur.hpp) keeps a sparse LU of the whole bulk, which in 3D costs
 // O(N^{4/3}) memory or more (32^3 quadratic: 14 GB with Debian's MUMPS), and its region's Schur complement is
 // dense between the region's border unknowns, which in 3D is a surface. Here the bulk costs O(N log N) and
 // O(N) memory, and the region's LU is a sparse matrix of the region's size; the price is a Krylov iteration,
@@ -33,9 +33,9 @@
 #include <string>
 #include <vector>
 
-#include "fluid/fourier_bulk_solver.hpp"
+#include "solvers/fourier_bulk.hpp"
 
-namespace cellfsi::fluid {
+namespace cellfsi::solvers {
 
 class RegionCorrectedSolver {
  public:
@@ -67,6 +67,8 @@ class RegionCorrectedSolver {
 
   const FourierBulkSolver& bulk() const { return bulk_; }
   PetscInt n_region() const { return n_region_; }  // unknowns in the region
+  /// The region's solver (null before the first set_operator): its view is part of the PC's.
+  KSP region_ksp() const { return region_ksp_; }
   /// Nodes whose rows of J differ from the bulk operator by more than the threshold (before the growth).
   int n_differing_nodes() const { return n_differing_; }
 
@@ -95,4 +97,4 @@ class RegionCorrectedSolver {
   Vec rR_ = nullptr, xR_ = nullptr, res_ = nullptr, t_ = nullptr;
 };
 
-}  // namespace cellfsi::fluid
+}  // namespace cellfsi::solvers

@@ -34,7 +34,7 @@
 #include <string>
 #include <vector>
 
-namespace cellfsi::fluid {
+namespace cellfsi::solvers {
 
 class BandSchurSolver {
  public:
@@ -56,6 +56,10 @@ class BandSchurSolver {
   /// Sets K_band (a matrix of K_fixed's size and layout whose entries lie in band x band; entries outside are
   /// ignored) and factorises the band's Schur complement.
   void set_band(Mat band);
+  /// The same from the whole operator K = K_fixed + K_band (K_fixed's layout; only K's band x band block is
+  /// read): K_band,BB = K_BB - K_fixed,BB. For a caller that keeps K and K_fixed but not K_band (the
+  /// cellfsi_band preconditioner, solvers/pc_types.hpp); agrees with set_band to round-off in K_fixed,BB.
+  void set_operator(Mat K);
   /// x = (K_fixed + K_band)^{-1} r.
   void solve(Vec r, Vec x);
 
@@ -73,6 +77,8 @@ class BandSchurSolver {
   void factor_impl(Mat fixed, IS band, const std::string& prefix);
   friend PetscErrorCode band_schur_matsolve(Mat, Mat, Mat);
   void solve_schur(Vec g, Vec y);            // y = S^{-1} g
+  /// S = base + sub's band x band block (in S_'s layout), and its LU.
+  void factor_schur(Mat sub, const std::vector<double>& base, const char* what);
   bool fused_ = true, fused_active_ = true;  // asked for; in use since factor()
   double blr_tolerance_ = 1e-10;
   PetscInt bs_ = 1, n_band_ = 0, n_total_ = 0, schur_nonzeros_ = 0;
@@ -87,9 +93,10 @@ class BandSchurSolver {
   std::vector<PetscInt> edge_pos_;     // positions in B of the edge's unknowns
   std::string prefix_;
   std::vector<double> s_fixed_;     // S_fixed in S_'s value array layout
+  std::vector<double> s_fixed_minus_bb_;  // S_fixed - K_fixed,BB, the same layout
   std::vector<PetscInt> band_pos_;  // block k of band_sub_ -> block of S_
   Vec w1_ = nullptr, w2_ = nullptr, rB_ = nullptr, yB_ = nullptr, tB_ = nullptr, zI_ = nullptr, tI_ = nullptr;
   VecScatter to_band_ = nullptr, to_interior_ = nullptr;  // full vector -> its B or I part
 };
 
-}  // namespace cellfsi::fluid
+}  // namespace cellfsi::solvers

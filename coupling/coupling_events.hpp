@@ -1,0 +1,53 @@
+#pragma once
+// The PETSc log events of a coupled step (-log_view shows where a step goes), shared by the coupling loop
+// (coupling/fsi_coupler.cpp) and its linear solves (coupling/coupled_linear_solver.cpp).
+#include <petscksp.h>
+
+#include <stdexcept>
+#include <string>
+
+#include "common/petsc_error.hpp"
+#include "fluid/fluid_solver.hpp"
+
+namespace cellfsi::coupling {
+
+struct CouplingEvents {
+  PetscLogEvent solid = register_log_event("cellfsi coupling", "FsiSolidUpdate");
+  PetscLogEvent locate = register_log_event("cellfsi coupling", "FsiLocate");
+  PetscLogEvent residual = register_log_event("cellfsi coupling", "FsiResidual");
+  PetscLogEvent jacobian = register_log_event("cellfsi coupling", "FsiJacobian");
+  // The kept part's factorisation (cellfsi_band) or the bulk solver's set-up (cellfsi_fourier).
+  PetscLogEvent factor = register_log_event("cellfsi coupling", "FsiFactor");
+  // The preconditioner's set-up at a refresh: the band's Schur complement or the region's LU.
+  PetscLogEvent pc_setup = register_log_event("cellfsi coupling", "FsiPCSetUp");
+  PetscLogEvent solve = register_log_event("cellfsi coupling", "FsiLinearSolve");
+};
+
+inline const CouplingEvents& coupling_events() {
+  static const CouplingEvents e;
+  return e;
+}
+
+/// RAII begin/end of a log event.
+class EventScope {
+ public:
+  explicit EventScope(PetscLogEvent e) : e_(e) { PetscLogEventBegin(e_, 0, 0, 0, 0); }
+  ~EventScope() { PetscLogEventEnd(e_, 0, 0, 0, 0); }
+  EventScope(const EventScope&) = delete;
+  EventScope& operator=(const EventScope&) = delete;
+
+ private:
+  PetscLogEvent e_;
+};
+
+/// The iterations of the KSP's last solve; throws if it failed.
+inline int iterations_or_throw(KSP ksp) {
+  KSPConvergedReason kr;
+  CELLFSI_PETSC(KSPGetConvergedReason(ksp, &kr));
+  PetscInt lits = 0;
+  CELLFSI_PETSC(KSPGetIterationNumber(ksp, &lits));
+  if (kr < 0) throw std::runtime_error("linear solve failed: " + fluid::linear_solve_failure(ksp));
+  return static_cast<int>(lits);
+}
+
+}  // namespace cellfsi::coupling
