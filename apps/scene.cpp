@@ -103,12 +103,20 @@ geometry::Patch build_body_patch(const SceneSettings& s, const BodySettings& b) 
   return make_body(s, b, body_element_counts(s, b));
 }
 
+std::shared_ptr<const solid::Material> make_material(const BodySettings& b) {
+  if (b.material == "mooney_rivlin")
+    return std::make_shared<solid::DeviatoricMooneyRivlin>(b.shear_modulus, b.mooney_rivlin_fraction);
+  if (b.material == "strain_hardening")
+    return std::make_shared<solid::DeviatoricStrainHardening>(b.shear_modulus, b.hardening_c3);
+  if (b.material != "neo_hookean") throw std::invalid_argument("unknown material law '" + b.material + "'");
+  return std::make_shared<solid::DeviatoricNeoHookean>(b.shear_modulus);
+}
+
 std::vector<std::unique_ptr<solid::NurbsSolid>> build_bodies(const SceneSettings& s) {
   std::vector<std::unique_ptr<solid::NurbsSolid>> out;
   for (const BodySettings& b : s.bodies)
-    out.push_back(std::make_unique<solid::NurbsSolid>(
-        b.name, build_body_patch(s, b), std::make_shared<solid::DeviatoricNeoHookean>(b.shear_modulus),
-        b.density));
+    out.push_back(
+        std::make_unique<solid::NurbsSolid>(b.name, build_body_patch(s, b), make_material(b), b.density));
   return out;
 }
 

@@ -33,8 +33,11 @@ struct BodySettings {
   double thickness = 5e-7;               // membranes [cm]
   std::array<int, 3> elements{0, 0, 0};  // Lagrangian elements per direction; 0: from the fluid mesh
   int degree = 2;
-  double shear_modulus = 7500;  // G [dyn/cm^2]
-  double density = 1.1;         // rho_2 [g/cm^3]
+  double shear_modulus = 7500;           // G [dyn/cm^2], the small-strain shear modulus of every material law
+  std::string material = "neo_hookean";  // neo_hookean | mooney_rivlin | strain_hardening (docs/materials.md)
+  double mooney_rivlin_fraction = 0.5;   // mooney_rivlin: a, the I2 term's share
+  double hardening_c3 = 1.0 / 30;        // strain_hardening: C3 / G (Mills et al. 2004)
+  double density = 1.1;                  // rho_2 [g/cm^3]
   bool membrane() const { return shape.rfind("hollow", 0) == 0 || shape == "rbc"; }
 };
 
@@ -80,6 +83,8 @@ geometry::Patch build_domain(const SceneSettings& s);
 std::array<int, 3> body_element_counts(const SceneSettings& s, const BodySettings& b);
 /// The reference patch of a body (elements from the fluid mesh where not given).
 geometry::Patch build_body_patch(const SceneSettings& s, const BodySettings& b);
+/// A body's material law (-solid_NAME_material and its constants; docs/materials.md).
+std::shared_ptr<const solid::Material> make_material(const BodySettings& b);
 /// The scene's bodies as NurbsSolid (the solid side of a run).
 std::vector<std::unique_ptr<solid::NurbsSolid>> build_bodies(const SceneSettings& s);
 /// The placement checks of docs/design.md §4 (inside the domain, no overlap, Lagrangian elements no larger
@@ -131,7 +136,8 @@ class Scene {
   /// The run's results for summary.json: the last metrics with each body's averages over the oscillatory
   /// regime (-metrics_average_from) in place of its instantaneous values.
   std::vector<std::pair<std::string, double>> summary_metrics();
-  /// Words for summary.json: each body's motion regime over the same window ("<body>_regime").
+  /// Words for summary.json: each body's motion regime over the same window ("<body>_regime") and its
+  /// material law ("<body>_material").
   std::vector<std::pair<std::string, std::string>> summary_text() const;
 
  private:

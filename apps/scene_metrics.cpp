@@ -244,6 +244,11 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     for (const auto& [k, v] : solid::dimensionless_numbers(reference, bodies_[b]->is_membrane(), bs.thickness,
                                                            bs.shear_modulus, flow))
       m.emplace_back(name + "_" + k, v);
+    // The material law's constants (its name is in summary_text): G, and the law's own.
+    m.emplace_back(name + "_shear_modulus", bs.shear_modulus);
+    if (bs.material == "mooney_rivlin")
+      m.emplace_back(name + "_mooney_rivlin_fraction", bs.mooney_rivlin_fraction);
+    if (bs.material == "strain_hardening") m.emplace_back(name + "_hardening_c3", bs.hardening_c3);
     if (!bodies_[b]->is_membrane()) {
       // phi: against the membrane whose enclosed region holds this body's centroid (the nearest such).
       const geometry::Vec3 c = geometry::patch_moments(reference).centroid;
@@ -272,8 +277,10 @@ double Scene::average_from() const {
 
 std::vector<std::pair<std::string, std::string>> Scene::summary_text() const {
   std::vector<std::pair<std::string, std::string>> t;
-  for (size_t b = 0; b < bodies_.size(); ++b)
+  for (size_t b = 0; b < bodies_.size(); ++b) {
     t.emplace_back(bodies_[b]->name() + "_regime", trackers_[b].regime(average_from()));
+    t.emplace_back(bodies_[b]->name() + "_material", body_settings(bodies_[b]->name()).material);
+  }
   return t;
 }
 

@@ -31,6 +31,10 @@ const std::vector<std::string> kMarkings{"support", "central"};
 const std::vector<std::string> kAccelerations{"none", "anderson"};
 const std::vector<std::string> kShapes{"hollow_ellipse", "ellipse", "rbc", "hollow_ellipsoid", "ellipsoid"};
 const std::vector<std::string> kArrangements{"even", "staggered", "random"};
+const std::vector<std::string> kMaterials{"neo_hookean", "mooney_rivlin", "strain_hardening"};
+// C3 / G of the strain-hardening law: Mills et al. (2004) fitted 1/30; 100 makes the law 600 times stiffer
+// than neo-Hookean at I1 - 3 = 1 (a stretch of 1.9), far beyond any cell.
+constexpr double kMaxHardening = 100;
 constexpr double kMaxInterfaceScaling = 1e12;  // s_I
 constexpr double kMaxOriginOverSize = 1e6;     // |domain origin| / domain extent
 // G [dyn/cm^2]: cells are 1e1 ... 1e5, rubber 1e7; the capsule at 48 x 24, dt 5e-4 ran at 1e9, its coupling
@@ -223,6 +227,17 @@ void read_body(SceneSettings& s, const std::string& name) {
       .real("shear_modulus", b.shear_modulus, "G [dyn/cm^2]",
             material(1e-6, kMaxShearModulus, "[dyn/cm^2]",
                      "stiffer than any cell, and a stiffer body needs a far smaller -dt"))
+      .text("material", b.material,
+            "Material law (docs/materials.md), all with the small-strain shear modulus G; neo_hookean is the "
+            "paper's",
+            kMaterials)
+      .real("mooney_rivlin_fraction", b.mooney_rivlin_fraction,
+            "mooney_rivlin: a, the share of the I2 term (C10 = (1 - a) G/2, C01 = a G/2; in 2D the law is "
+            "neo_hookean whatever a)",
+            between(0, 1, "", "(0: neo-Hookean)"))
+      .real("hardening_c3", b.hardening_c3,
+            "strain_hardening: C3 / G in W = G/2 (I1 - 3) + C3 (I1 - 3)^3 (Mills et al. 2004: 1/30)",
+            between(0, kMaxHardening, "", "(0: neo-Hookean)"))
       .real("density", b.density, "rho_2 [g/cm^3]", material(1e-6, 1e3, "[g/cm^3]"))
       .integer("count", count,
                "Copies of the body (NAME_1 ... NAME_N) spread evenly along x, the periodic flow direction; "
@@ -264,6 +279,14 @@ void read_body(SceneSettings& s, const std::string& name) {
       if (!(b.thickness < a))
         t.bad("thickness", option_value_text(b.thickness), "smaller than every semi-axis");
   }
+  // A law's constant given to another law would do nothing.
+  const std::string law_now = " (the material is " + b.material + ")";
+  if (t.given("mooney_rivlin_fraction") && b.material != "mooney_rivlin")
+    t.bad("mooney_rivlin_fraction", option_value_text(b.mooney_rivlin_fraction),
+          "only with -" + pre + "material mooney_rivlin" + law_now);
+  if (t.given("hardening_c3") && b.material != "strain_hardening")
+    t.bad("hardening_c3", option_value_text(b.hardening_c3),
+          "only with -" + pre + "material strain_hardening" + law_now);
   if (b.membrane() && elements[0] > 1)
     t.bad("elements", std::to_string(elements[0]), "1 element through a membrane's thickness");
   const int around = D == 2 ? 1 : 2;  // every builder needs a multiple of 4 elements around

@@ -375,6 +375,30 @@ TEST_F(CellfsiApp, NegativeShearModulusIsRejected) {
   EXPECT_TRUE(nothing_written());
 }
 
+TEST_F(CellfsiApp, BadMaterialLawsAndTheirConstantsAreRejected) {
+  // Issue 28: the law's name, its constant's range, and a constant given to another law (it would do
+  // nothing).
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"-solid_membrane_material", "skalak"},
+       "-solid_membrane_material = skalak is invalid; valid: neo_hookean, mooney_rivlin or strain_hardening"},
+      {{"-solid_membrane_material", "mooney_rivlin", "-solid_membrane_mooney_rivlin_fraction", "1.5"},
+       "-solid_membrane_mooney_rivlin_fraction = 1.5 is invalid; valid: 0 ... 1 (0: neo-Hookean)"},
+      {{"-solid_membrane_material", "strain_hardening", "-solid_membrane_hardening_c3", "-0.1"},
+       "-solid_membrane_hardening_c3 = -0.1 is invalid; valid: 0 ... 100"},
+      {{"-solid_membrane_hardening_c3", "0.1"},
+       "-solid_membrane_hardening_c3 = 0.1 is invalid; valid: only with -solid_membrane_material "
+       "strain_hardening (the material is neo_hookean)"},
+      {{"-solid_membrane_material", "strain_hardening", "-solid_membrane_mooney_rivlin_fraction", "0.2"},
+       "-solid_membrane_mooney_rivlin_fraction = 0.2 is invalid; valid: only with -solid_membrane_material "
+       "mooney_rivlin (the material is strain_hardening)"}};
+  for (const auto& [options, message] : cases) {
+    const RunResult r = cellfsi(with(with({scene("capsule_shear.yaml")}, kCapsule), options));
+    expect_one_clear_error(r);
+    EXPECT_NE(r.output.find(message), std::string::npos) << r.output;
+    EXPECT_TRUE(nothing_written());
+  }
+}
+
 TEST_F(CellfsiApp, MpmdBadInputStopsBothSidesWithOneMessage) {
   const std::vector<std::string> args =
       with({scene("capsule_shear.yaml"), "-solid_membrane_center", "0.0012,0.00005"}, kCapsule);

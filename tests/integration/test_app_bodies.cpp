@@ -31,10 +31,44 @@ TEST_F(CellfsiApp, CapsuleSceneWritesBodyMetricsAndSolidSeries) {
   EXPECT_NEAR(json_number(js, "membrane_Ca").value_or(0), 0.0345, 5e-5) << js;
   EXPECT_NEAR(json_number(js, "membrane_Re").value_or(0), 1.42e-4, 5e-7) << js;
   EXPECT_EQ(json_string(js, "membrane_regime"), "steady") << js;
+  EXPECT_EQ(json_string(js, "membrane_material"), "neo_hookean") << js;
+  EXPECT_EQ(json_number(js, "membrane_shear_modulus"), 7500.0) << js;
   const std::vector<std::string> files = pvd_files(out_ / "solid.pvd");
   ASSERT_EQ(files.size(), 3u) << read_text(out_ / "solid.pvd");
   for (const auto& f : files) EXPECT_TRUE(fs::exists(out_ / f)) << f;
   EXPECT_GE(read_csv(out_ / "metrics.csv").column("membrane_theta_deg"), 0);
+}
+
+TEST_F(CellfsiApp, CapsuleRunsWithEachMaterialLawAndRecordsIt) {
+  // Issue 28: the law and its constant are in summary.json and options.yaml. In 2D Mooney-Rivlin is the
+  // neo-Hookean law (plane strain: I2 = I1): the same run to the last digit.
+  const std::vector<std::string> base = with({scene("capsule_shear.yaml")}, kCapsule);
+  std::optional<double> theta_neo_hookean;
+  for (const std::vector<std::string>& law :
+       {std::vector<std::string>{"-solid_membrane_material", "neo_hookean"},
+        std::vector<std::string>{"-solid_membrane_material", "mooney_rivlin",
+                                 "-solid_membrane_mooney_rivlin_fraction", "0.3"},
+        std::vector<std::string>{"-solid_membrane_material", "strain_hardening",
+                                 "-solid_membrane_hardening_c3", "0.1"}}) {
+    fs::remove_all(out_);
+    const RunResult r = cellfsi(with(base, law));
+    ASSERT_FALSE(r.timed_out) << r.output;
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const std::string js = summary();
+    EXPECT_EQ(json_string(js, "membrane_material"), law[1]) << js;
+    if (law.size() == 4) {
+      const std::string key = law[2].substr(std::string("-solid_").size());
+      EXPECT_EQ(json_number(js, key), std::stod(law[3])) << key << "\n" << js;
+    }
+    EXPECT_NE(read_text(out_ / "options.yaml").find("material: " + law[1]), std::string::npos)
+        << read_text(out_ / "options.yaml");
+    const std::optional<double> theta = json_number(js, "membrane_theta_deg");
+    ASSERT_TRUE(theta.has_value()) << js;
+    if (law[1] == "neo_hookean") theta_neo_hookean = theta;
+    if (law[1] == "mooney_rivlin") {
+      EXPECT_EQ(theta, theta_neo_hookean);
+    }
+  }
 }
 
 TEST_F(CellfsiApp, CoarseCapsuleInclinationWithCentralAndSupportMarking) {
