@@ -329,4 +329,52 @@ bool translation_invariant(const Patch& patch, double tol) {
   return true;
 }
 
+std::optional<AffineMap> affine_map(const Patch& patch, double tol) {
+  const int P = patch.param_dim();
+  const std::vector<Vec3>& X = patch.control_points();
+  const std::vector<double>& w = patch.weights();
+  for (double wi : w)
+    if (std::abs(wi - w[0]) > tol * w[0]) return std::nullopt;
+  Vec3 lo, hi;
+  patch.bounding_box(lo, hi);
+  const double eps = tol * std::max((hi - lo).norm(), 1e-300);
+  // The map from the control points at the two ends of each direction's first row (x_d depends on xi_d only,
+  // so any row serves; the rest are checked below).
+  std::array<std::vector<double>, 3> tau;
+  AffineMap m;
+  m.offset = X[0];
+  for (int d = 0; d < P; ++d) {
+    tau[d] = patch.knots(d).greville_unwrapped();
+    const int n = patch.n_control(d);
+    if (patch.degree(d) < 1 || n < 2 || tau[d][n - 1] == tau[d][0]) return std::nullopt;
+    Index3 last{0, 0, 0};
+    last[d] = n - 1;
+    m.scale[d] =
+        (X[patch.control_index(last[0], last[1], last[2])][d] - X[0][d]) / (tau[d][n - 1] - tau[d][0]);
+    m.offset[d] = X[0][d] - m.scale[d] * tau[d][0];
+    if (std::abs(m.scale[d]) * (tau[d][n - 1] - tau[d][0]) <= eps) return std::nullopt;  // degenerate
+    // A periodic direction continues the map: unwrapped control point j + n is X_j + shift.
+    if (patch.knots(d).periodic()) {
+      Vec3 s = Vec3::Zero();
+      s[d] = m.scale[d] * patch.knots(d).period();
+      if ((patch.shift(d) - s).norm() > eps) return std::nullopt;
+    }
+  }
+  for (int i = 0; i < patch.n_control(); ++i) {
+    const Index3 c = patch.control_multi_index(i);
+    Param g{0, 0, 0};
+    for (int d = 0; d < P; ++d) g[d] = tau[d][c[d]];
+    if ((X[i] - m.point(g)).norm() > eps) return std::nullopt;
+  }
+  // The control points settle it (sum_j tau_j N_j(u) = u); evaluating the patch once inside every element
+  // guards the reasoning (periodic wrap, knot multiplicities) with the code that the solvers use.
+  for (int e = 0; e < patch.n_elements(); ++e) {
+    Param a, b, xi{0, 0, 0};
+    patch.element_bounds(patch.element_multi_index(e), a, b);
+    for (int d = 0; d < P; ++d) xi[d] = a[d] + (0.29 + 0.1 * d) * (b[d] - a[d]);
+    if ((patch.point(xi) - m.point(xi)).norm() > eps) return std::nullopt;
+  }
+  return m;
+}
+
 }  // namespace cellfsi::geometry

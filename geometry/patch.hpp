@@ -7,6 +7,7 @@
 // point j is P_{j mod n} + (j div n) * shift. The shift is zero for a closed curve and (L, 0, 0) for a
 // channel periodic in x, so fields are periodic while the map need not be.
 #include <array>
+#include <optional>
 #include <vector>
 
 #include <Eigen/Dense>
@@ -120,5 +121,23 @@ Patch transformed(const Patch& patch, const Mat3& A, const Vec3& t);
 /// operator assembled on it from a flow that is uniform along those directions is translation-invariant (the
 /// paper's boxes; not the narrowing channel). tol: relative to the patch's extent.
 bool translation_invariant(const Patch& patch, double tol = 1e-12);
+
+/// An axis-aligned affine map of the parameter box: x_d = offset_d + scale_d xi_d for the parametric
+/// directions d < param_dim, x_d = offset_d (scale_d = 0) for the others. Its inverse is closed-form: no
+/// Newton iteration.
+struct AffineMap {
+  Vec3 offset = Vec3::Zero();
+  Vec3 scale = Vec3::Zero();
+  Vec3 point(const Param& xi) const { return offset + scale.cwiseProduct(Vec3(xi[0], xi[1], xi[2])); }
+};
+
+/// The patch's map if it is axis-aligned affine (the paper's boxes and straight channels:
+/// geometry::rectangle, geometry::box), else nullopt (the narrowing channel, any curved, rotated, sheared or
+/// rational patch). Affine means: equal weights (the map is then the B-spline one), every control point at
+/// offset + scale .* (its Greville abscissae) (the coefficients of the identity map, unique by linear
+/// independence), each periodic direction's shift equal to scale_d times its period along axis d, and, as a
+/// check of all that, the patch's own evaluation at a point inside every element equal to the map. tol:
+/// relative to the patch's extent.
+std::optional<AffineMap> affine_map(const Patch& patch, double tol = 1e-12);
 
 }  // namespace cellfsi::geometry

@@ -2,9 +2,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <optional>
 #include <string>
 
 #include "geometry/builders.hpp"
+#include "geometry/refine.hpp"
 
 using namespace cellfsi::geometry;
 
@@ -61,6 +63,53 @@ TEST(Builders, BoxesAreTranslationInvariantAlongTheirPeriodicDirections) {
   Patch r = rectangle(2.4e-3, 1.2e-3, 12, 6, 3, {true, false});
   r.control_points()[20][0] += 1e-6;
   EXPECT_FALSE(translation_invariant(r));
+}
+
+TEST(Builders, TheBoxesAreAffineAndNothingElseIs) {
+  // The locator's closed form (coupling::Locator): x_d = offset_d + scale_d xi_d, found for the paper's boxes
+  // and channels, refused for the narrowing channel and any curved, rotated, sheared or rational patch.
+  const Vec3 origin(0.003, -5e-4, 2e-4);
+  const Patch r = rectangle(2.4e-3, 1.2e-3, 12, 6, 3, {true, false}, origin);
+  const Patch b = box(1.2e-3, 0.9e-3, 0.6e-3, 4, 5, 6, 2, {true, false, true}, origin);
+  for (const Patch* p : {&r, &b}) {
+    const std::optional<AffineMap> m = affine_map(*p);
+    ASSERT_TRUE(m.has_value());
+    const Vec3 size = p == &r ? Vec3(2.4e-3, 1.2e-3, 0) : Vec3(1.2e-3, 0.9e-3, 0.6e-3);
+    EXPECT_LT((m->scale - size).norm(), 1e-18);
+    EXPECT_LT((m->offset - origin).norm(), 1e-18);
+    for (const Param xi : {Param{0.1, 0.7, 0.3}, Param{0.999, 0.0, 1.0}, Param{1.3, 0.5, 0.25}})
+      EXPECT_LT((p->point(xi) - m->point(xi)).norm(), 1e-18);  // 1.3: one period on
+  }
+  EXPECT_TRUE(affine_map(box(1e-3, 1e-3, 1e-3, 3, 3, 3, 1)).has_value());  // open, linear
+  // Non-uniform knots with the control points at their Greville abscissae: still the identity in xi.
+  EXPECT_TRUE(affine_map(insert_knots(r, 1, {0.05, 0.05, 0.41})).has_value());
+
+  EXPECT_FALSE(affine_map(narrowing_channel(NarrowingChannel{}, 24, 6, 2)).has_value());
+  EXPECT_FALSE(affine_map(hollow_ellipse(2e-4, 1e-4, 5e-7, 16, 2)).has_value());
+  EXPECT_FALSE(affine_map(bulky_ellipse(2e-4, 1e-4, 2, 8, 2)).has_value());
+  EXPECT_FALSE(affine_map(solid_ellipsoid(2e-4, 2e-4, 2e-4, 2, 4, 4, 2)).has_value());
+  const Mat3 rotation = Eigen::AngleAxisd(1e-3, Vec3::UnitZ()).toRotationMatrix();
+  EXPECT_FALSE(affine_map(transformed(r, rotation, Vec3::Zero())).has_value());
+  Mat3 shear = Mat3::Identity();
+  shear(0, 1) = 1e-3;
+  EXPECT_FALSE(affine_map(transformed(b, shear, Vec3::Zero())).has_value());
+  // Scaling and translating an affine patch keeps it affine.
+  EXPECT_TRUE(affine_map(transformed(b, Vec3(2, 3, 0.5).asDiagonal(), Vec3(1, 0, 0))).has_value());
+  // One control point off the lattice by 1e-12 cm (6e-10 of the box), one weight changed, a period shift
+  // other than the period's image.
+  Patch bent = b;
+  bent.control_points()[40][1] += 1e-12;
+  EXPECT_FALSE(affine_map(bent).has_value());
+  Patch rational = r;
+  rational.weights()[30] = 1.01;
+  EXPECT_FALSE(affine_map(rational).has_value());
+  const Patch wrong_shift(r.all_knots(), 2, r.control_points(), r.weights(),
+                          {Vec3(2.5e-3, 0, 0), Vec3::Zero(), Vec3::Zero()});
+  EXPECT_FALSE(affine_map(wrong_shift).has_value());
+  // A uniform scaling of all weights changes nothing.
+  Patch weighted = b;
+  for (double& w : weighted.weights()) w = 2.5;
+  EXPECT_TRUE(affine_map(weighted).has_value());
 }
 
 TEST(Builders, HollowEllipseBoundariesAreExactEllipses) {
