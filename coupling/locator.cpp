@@ -46,11 +46,13 @@ struct Locator::Tree {
   AabbTree tree;
 };
 
-Locator::Locator(const geometry::Patch& eulerian)
+Locator::Locator(const geometry::Patch& eulerian, LocatorMethod method)
     : patch_(eulerian), inverter_(eulerian), tree_(std::make_unique<Tree>()) {
   if (eulerian.param_dim() != eulerian.physical_dim())
     throw std::invalid_argument("Locator: the Eulerian patch must fill its space");
   patch_.bounding_box(box_lo_, box_hi_);
+  if (method == LocatorMethod::automatic) affine_ = geometry::affine_map(eulerian);
+  inside_distance_ = inverter_.options().inside_tolerance * (box_hi_ - box_lo_).norm();
   const double pad = 1e-12 * (box_hi_ - box_lo_).norm();
   std::vector<BoxPrimitive> boxes;
   boxes.reserve(eulerian.n_elements());
@@ -86,7 +88,34 @@ std::vector<int> Locator::candidates(const Vec3& x) const {
   return ids;
 }
 
+Location Locator::locate_affine(const Vec3& x) const {
+  const Vec3 y = primary_image(x);
+  Location l;
+  double outside2 = 0;  // squared distance to the nearest point of the domain (a box)
+  for (int d = 0; d < patch_.param_dim(); ++d) {
+    const geometry::KnotVector& kv = patch_.knots(d);
+    double u = (y[d] - affine_->offset[d]) / affine_->scale[d];
+    if (kv.periodic()) {
+      u = kv.normalize(u);  // y is the primary image: this only moves u by round-off across the wrap
+    } else if (u < kv.a() || u > kv.b()) {
+      const double v = std::clamp(u, kv.a(), kv.b());
+      outside2 += std::pow((u - v) * affine_->scale[d], 2);
+      u = v;
+    }
+    // On an interior element boundary, the lower element. The s^h marking depends on this choice: with the
+    // upper element, the 3D scene (bodies centred on the mid-plane knot, with points on it) ran as the mirror
+    // image of its run with the inversion, which gives the lower element there (its candidates tie; round-off
+    // settles which is tried first).
+    l.element[d] = kv.find_element(u);
+    if (l.element[d] > 0 && u == kv.element_begin(l.element[d])) --l.element[d];
+    l.xi[d] = u;
+  }
+  l.found = outside2 <= inside_distance_ * inside_distance_;
+  return l.found ? l : Location{};
+}
+
 Location Locator::locate(const Vec3& x, const Location* previous) const {
+  if (affine_) return locate_affine(x);
   if (previous && previous->found) {
     const geometry::InversionResult r = inverter_.invert(x, previous->element, previous->xi);
     if (r.inside) return {true, r.element, r.xi};

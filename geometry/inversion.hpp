@@ -40,6 +40,7 @@ class PointInverter {
   InversionResult invert(const Vec3& x) const;
 
   const Patch& patch() const { return patch_; }
+  const InversionOptions& options() const { return options_; }
 
  private:
   const Patch& patch_;
