@@ -70,6 +70,12 @@ inline void record_petsc_errors() { PetscPushErrorHandler(detail::record_pending
   // ("Valid values are 0=AMD, 2=AMF, ..."): bad input, not a failure of the run.
   if (code == PETSC_ERR_ARG_OUTOFRANGE && message.find("Valid values") != std::string::npos)
     throw std::invalid_argument("a solver option's value is invalid: " + message);
+  // A solver package that cannot factor the matrix it was given (e.g. -..._pc_factor_mat_solver_type superlu
+  // on a BAIJ matrix: "MatSolverType superlu does not support matrix type seqbaij"): bad input too.
+  if (code == PETSC_ERR_MISSING_FACTOR)
+    throw std::invalid_argument("a solver option's value is invalid: " + message);
+  // Bad input found inside a callback PETSc called (a cellfsi PC type's set-up): its message as it was.
+  if (code == PETSC_ERR_USER_INPUT && !message.empty()) throw std::invalid_argument(message);
   throw std::runtime_error("PETSc error " + std::to_string(code) + " at " + file + ":" +
                            std::to_string(line) + (message.empty() ? std::string() : ": " + message));
 }

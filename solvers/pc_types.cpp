@@ -49,14 +49,14 @@ std::string prefix_of(PC pc) {
   return p ? p : "";
 }
 
-/// Runs `f`, turning an exception into a PETSc error carrying its message (PETSC_ERR_ARG_OUTOFRANGE with
-/// "Valid values" for bad input, which CELLFSI_PETSC turns back into std::invalid_argument).
+/// Runs `f`, turning an exception into a PETSc error carrying its message (PETSC_ERR_USER_INPUT for bad
+/// input, which CELLFSI_PETSC turns back into std::invalid_argument with the same message).
 template <class F>
 PetscErrorCode guarded(PC pc, F&& f) {
   try {
     f();
   } catch (const std::invalid_argument& e) {
-    SETERRQ(PetscObjectComm(reinterpret_cast<PetscObject>(pc)), PETSC_ERR_ARG_OUTOFRANGE, "%s", e.what());
+    SETERRQ(PetscObjectComm(reinterpret_cast<PetscObject>(pc)), PETSC_ERR_USER_INPUT, "%s", e.what());
   } catch (const std::exception& e) {
     SETERRQ(PetscObjectComm(reinterpret_cast<PetscObject>(pc)), PETSC_ERR_LIB, "%s", e.what());
   }

@@ -385,6 +385,15 @@ TEST_F(CellfsiApp, FactorisationOptionValueRefusedAtTheFirstSolveIsBadInput) {
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
   EXPECT_NE(r.output.find("Valid values"), std::string::npos) << r.output;
+  EXPECT_EQ(count(r.output, "a solver option's value is invalid"), 1u) << r.output;
+  // A factorisation package that cannot take the region's BAIJ matrix: bad input, not a diverged step.
+  const RunResult s = cellfsi(with(kDefaultCapsule, {"-coupling_fourier_region_pc_factor_mat_solver_type",
+                                                     "superlu"}));
+  EXPECT_EQ(s.exit_code, 1) << s.output;
+  EXPECT_EQ(count(s.output, "cellfsi: error:"), 1u) << s.output;
+  EXPECT_NE(s.output.find("MatSolverType superlu does not support matrix type seqbaij"), std::string::npos)
+      << s.output;
+  EXPECT_EQ(s.output.find("diverged"), std::string::npos) << s.output;
 }
 
 TEST_F(CellfsiApp, FourierBandAndFluidSolversAgree) {
