@@ -61,6 +61,10 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
         "solid_bodies", "(empty)",
         "one or more comma-separated names, e.g. membrane,nucleus (for a run without cells use a scene "
         "without bodies, e.g. scenes/shear.yaml)");
+  // The re-assembled region's margin: 4 elements in 2D (measured with cellfsi_band at 256 x 128: margins 2 and
+  // 6 were slower), 1 in 3D (cellfsi_fourier at 32^3, 12 steps: the Jacobian 1.43 s per step against 2.18 with
+  // 4, the whole step 6 % faster; docs/performance.md §8).
+  if (s.dim == 3) l.region_margin = 1;
   // Defaults of the cellfsi PC types (solvers/pc_types.cpp), for -help.
   double pc_threshold = 1e-3, pc_blr = 1e-10;
   int pc_overlap = 0, pc_region_solves = 1;
@@ -120,7 +124,8 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
             "cellfsi_fourier: re-assemble only the Jacobian around the cells, keeping the rest in a second copy "
             "(false: one copy, the whole Jacobian at every refresh)")
       .integer("coupling_region_margin", l.region_margin,
-               "cellfsi types: elements around the s^h band and immersed points in the re-assembled region",
+               "cellfsi types: elements around the s^h band and immersed points in the re-assembled region "
+               "(default 4 in 2D, 1 in 3D)",
                at_least(0))
       .integer("coupling_refactor_every", l.refactor_every,
                "cellfsi_band: steps between factorisations of the kept part (0: when the cells leave its "
@@ -370,12 +375,14 @@ void check_memory(SceneSettings& s) {
                          : l.pc_type.empty()            ? coupling::default_pc_type(situation)
                                                         : l.pc_type;
   // cellfsi_fourier's second copy of the Jacobian (-coupling_partial_jacobian) is dropped unless asked for
-  // when memory is short: a run peaked at 5.2-5.4 Jacobians with it (3D, 32^3 and 64^3, the rest mostly the
-  // region's LU) and 4.4 without; the paper's 64^3 with it was killed at 21.9 GB of 24.
+  // when memory is short. Measured at 64^3 on one rank since coupled runs no longer set up the fluid's own
+  // KSP: a peak of 14.9 GB (3.4 Jacobians of 4.33 GB) with it and 10.7 GB (2.5) without; two ranks add
+  // about one Jacobian of ghosts and MUMPS buffers (before: 9.4 GB per rank with that KSP's copy), so it is
+  // kept while 4.5 Jacobians fit.
   PetscBool partial_given = PETSC_FALSE;
   CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-coupling_partial_jacobian", &partial_given));
   if (pc == solvers::kPCFourier && l.partial_jacobian && !partial_given &&
-      6 * fluid_jacobian_bytes(s) / std::max(1, leaders) > available) {
+      4.5 * fluid_jacobian_bytes(s) / std::max(1, leaders) > available) {
     l.partial_jacobian = false;
     CELLFSI_PETSC(
         PetscPrintf(comm,

@@ -39,8 +39,8 @@ inline constexpr const char* kCouplingPrefix = "coupling_";
 
 struct LinearSolverOptions {
   std::string pc_type;  // -coupling_pc_type as given ("": the automatic choice, default_pc_type)
-  // Elements around the s^h band and the immersed points in the re-assembled region (measured with the band
-  // solver: margins 2 and 6 were slower).
+  // Elements around the s^h band and the immersed points in the re-assembled region (the scenes take 4 in 2D
+  // and 1 in 3D, as measured: apps/scene_options.cpp).
   int region_margin = 4;
   int refresh_steps = 10;  // steps between refreshes while the s^h marking stays (cellfsi types)
   int refresh_lag = 0;     // coupling iterations between refreshes inside a step (0: none; cellfsi types)
