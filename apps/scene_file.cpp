@@ -119,7 +119,10 @@ std::string given_options_yaml(const std::string& path, const std::vector<std::s
       // A list is read by PETSc as its items joined by commas.
       std::string text;
       if (value.IsSequence())
-        for (std::size_t i = 0; i < value.size(); ++i) text += (i ? "," : "") + value[i].as<std::string>();
+        for (std::size_t i = 0; i < value.size(); ++i) {
+          if (i) text += ',';
+          text += value[i].as<std::string>();  // (appended apart: GCC 12 warns, wrongly, on "," + string)
+        }
       else if (!value.IsNull())
         text = value.as<std::string>();
       set(name, text);
