@@ -376,9 +376,8 @@ void check_memory(SceneSettings& s) {
                                                         : l.pc_type;
   // cellfsi_fourier's second copy of the Jacobian (-coupling_partial_jacobian) is dropped unless asked for
   // when memory is short. Measured at 64^3 on one rank since coupled runs no longer set up the fluid's own
-  // KSP: a peak of 14.9 GB (3.4 Jacobians of 4.33 GB) with it and 10.7 GB (2.5) without; two ranks add
-  // about one Jacobian of ghosts and MUMPS buffers (before: 9.4 GB per rank with that KSP's copy), so it is
-  // kept while 4.5 Jacobians fit.
+  // KSP: a peak of 14.9 GB (3.4 Jacobians of 4.33 GB) with it and 10.7 GB (2.5) without; on two ranks 8.5 +
+  // 8.7 GB (4.0 Jacobians) with it. It is kept while 4.5 Jacobians fit.
   PetscBool partial_given = PETSC_FALSE;
   CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-coupling_partial_jacobian", &partial_given));
   if (pc == solvers::kPCFourier && l.partial_jacobian && !partial_given &&
