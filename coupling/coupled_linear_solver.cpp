@@ -20,12 +20,11 @@ bool is_cellfsi_type(const std::string& type) { return type == solvers::kPCFouri
 
 bool starts_with(const std::string& s, const char* p) { return s.rfind(p, 0) == 0; }
 
-/// Options set as defaults (the user's own values win): the fluid's defaults for a PETSc PC on the coupled
-/// Jacobian (ASM overlap 4 with MUMPS LU subdomain solves; MUMPS' null-pivot detection for the constant
-/// pressure). Querying marks a default as used: with a PC type that does not read it, it is not "unknown".
+/// Options set as defaults (the user's own values win): the fluid's defaults for the subdomain solves of a
+/// PETSc PC on the coupled Jacobian (MUMPS LU; MUMPS' null-pivot detection for the constant pressure). ASM's
+/// overlap 4 is set with the type (configure), before the options are read. Querying marks a default as used: with a PC type that does not read it, it is not "unknown".
 void set_default_options(bool pressure_null_space) {
-  std::vector<std::pair<std::string, std::string>> defaults{{"-coupling_pc_asm_overlap", "4"},
-                                                            {"-coupling_sub_pc_type", "lu"},
+  std::vector<std::pair<std::string, std::string>> defaults{{"-coupling_sub_pc_type", "lu"},
                                                             {"-coupling_sub_pc_factor_mat_solver_type", "mumps"}};
   if (pressure_null_space) {
     defaults.emplace_back("-coupling_sub_mat_mumps_icntl_24", "1");

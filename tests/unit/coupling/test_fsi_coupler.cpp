@@ -138,8 +138,8 @@ double relative_difference(const std::vector<double>& a, const std::vector<doubl
 // cellfsi_band (the Jacobian away from the capsule factorised once, the s^h band re-solved exactly when the
 // marking moves) against a PETSc PC (ASM on one rank: a full LU whenever the marking moves): the same steps to
 // the coupling tolerance. Both stop when every residual has dropped by 1e-4 in the step; their iterates then
-// differ by what the last iterations leave, a small fraction of a step's change. Measured 3.6e-7 (fluid
-// unknowns) and 8e-10 (membrane control points); bounds 1e-5 and 1e-6 (a wrong operator or preconditioner
+// differ by what the last iterations leave, a small fraction of a step's change. Measured 3.7e-8 (fluid
+// unknowns) and 7.6e-11 (membrane control points); bounds 1e-5 and 1e-6 (a wrong operator or preconditioner
 // shows as a difference of order of a step's change, or as divergence).
 TEST(FsiCoupler, BandPCGivesTheStepsOfAPetscPC) {
   const int steps = 4;
@@ -164,7 +164,7 @@ TEST(FsiCoupler, BandPCGivesTheStepsOfAPetscPC) {
 
 // The band is refreshed when the s^h marking moves and at least every refresh_steps steps; in between
 // the Newton matrix is kept. Refreshing at every step gives the same steps to the coupling tolerance.
-// Measured over 12 steps at 48 x 24: 6 refreshes against 12, fluid unknowns 5.4e-7 and membrane 4.2e-10
+// Measured over 12 steps at 48 x 24: 9 refreshes against 12, fluid unknowns 1.0e-7 and membrane 5.0e-10
 // apart; bounds as in the test above.
 TEST(FsiCoupler, BandRefreshedWhenTheMarkingMovesGivesTheSameSteps) {
   const int steps = 12;
