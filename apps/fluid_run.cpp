@@ -234,7 +234,8 @@ int FluidRun::stopped_before_the_first_step() {
     mark_time_stepping();
     return 0;
   }
-  const std::string where = where_text(" during set-up, before step %d of %d", resume_.step + 1, n_steps_);
+  const std::string where =
+      " during set-up, before step " + std::to_string(resume_.step + 1) + " of " + std::to_string(n_steps_);
   out_->summary("interrupted: " + signal_name(sig) + where, done_, newton_, linear_, {});
   CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "cellfsi: stopped by %s%s; summary in %s/summary.json\n",
                             signal_name(sig).c_str(), where.c_str(), settings_.output_dir.c_str()));
