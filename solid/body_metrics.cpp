@@ -28,6 +28,20 @@ double wrap(double a, double period) {
   return a;
 }
 
+/// The metric of a membrane's mid-surface (directions 1, and 2 in 3D, of the patch): a_ab = dx/dxi_a . dx/dxi_b.
+/// In 2D only entry (0, 0) is the curve's; the other diagonal entry is 1 so that the matrix inverts.
+Eigen::Matrix2d surface_metric(const geometry::MapValues& m, int dim) {
+  Eigen::Matrix2d g = Eigen::Matrix2d::Identity();
+  const Vec3 a1 = m.dx.col(1);
+  g(0, 0) = a1.squaredNorm();
+  if (dim == 3) {
+    const Vec3 a2 = m.dx.col(2);
+    g(0, 1) = g(1, 0) = a1.dot(a2);
+    g(1, 1) = a2.squaredNorm();
+  }
+  return g;
+}
+
 }  // namespace
 
 BodyTracker::BodyTracker(const Patch& reference, bool membrane, int plane_dir, int n_material_points)
@@ -59,6 +73,23 @@ BodyTracker::BodyTracker(const Patch& reference, bool membrane, int plane_dir, i
   for (const Param& xi : material_xi_) {
     const Vec3 y = reference.point(xi) - region.centroid;
     weights_.push_back(dim_ == 2 ? 1.0 : y[0] * y[0] + y[plane_dir_] * y[plane_dir_]);
+  }
+  if (membrane) {
+    // 4 points per element in each direction along the mid-surface (at the element's quarter points'
+    // midpoints), where the largest stretch is looked for.
+    const int per = 4;
+    auto samples = [&](int dir) {
+      std::vector<double> t;
+      if (dir >= dim_) return std::vector<double>{0.0};
+      const geometry::KnotVector& k = reference.knots(dir);
+      const int n = k.n_elements() * per;
+      for (int i = 0; i < n; ++i) t.push_back(k.a() + (k.b() - k.a()) * (i + 0.5) / n);
+      return t;
+    };
+    for (double t2 : samples(2))
+      for (double t1 : samples(1)) stretch_xi_.push_back({xi0, t1, t2});
+    for (const Param& xi : stretch_xi_)
+      reference_metric_inverse_.push_back(surface_metric(reference.evaluate(xi), dim_).inverse());
   }
 }
 
@@ -100,13 +131,13 @@ double mirror_asymmetry(const std::vector<Vec3>& curve, const Vec3& centre, int 
 }
 
 std::vector<double> BodyTracker::state() const {
-  // [n_angles, angles..., n_records, per record: time r_a r_p axis anisotropy material cx cy cz]
+  // [n_angles, angles..., n_records, per record: time r_a r_p axis anisotropy material cx cy cz stretch]
   std::vector<double> out{static_cast<double>(last_angles_.size())};
   out.insert(out.end(), last_angles_.begin(), last_angles_.end());
   out.push_back(static_cast<double>(history_.size()));
   for (const Sample& s : history_)
     out.insert(out.end(), {s.time, s.r_a, s.r_p, s.axis, s.anisotropy, s.material, s.centroid[0],
-                           s.centroid[1], s.centroid[2]});
+                           s.centroid[1], s.centroid[2], s.stretch});
   return out;
 }
 
@@ -122,12 +153,17 @@ void BodyTracker::restore(const std::vector<double>& state) {
   std::vector<double> angles;
   for (int i = 0; i < static_cast<int>(n_angles); ++i) angles.push_back(next());
   const double n_records = next();
-  if (!(n_records >= 0) || state.size() != k + 9 * static_cast<std::size_t>(n_records)) throw bad();
-  std::vector<Sample> history(static_cast<std::size_t>(n_records));
+  if (!(n_records >= 0)) throw bad();
+  // 10 numbers per record; 9 in checkpoints written before the stretch was kept (it restarts from 0 there).
+  const auto n = static_cast<std::size_t>(n_records);
+  const std::size_t per_record = state.size() == k + 10 * n ? 10 : state.size() == k + 9 * n ? 9 : 0;
+  if (per_record == 0) throw bad();
+  std::vector<Sample> history(n);
   for (Sample& s : history) {
     s.time = next(), s.r_a = next(), s.r_p = next(), s.axis = next(), s.anisotropy = next();
     s.material = next();
     for (int c = 0; c < 3; ++c) s.centroid[c] = next();
+    if (per_record == 10) s.stretch = next();
   }
   last_angles_ = std::move(angles);
   history_ = std::move(history);
@@ -144,6 +180,22 @@ void BodyTracker::measure(const Patch& p, double& area, double& boundary,
     boundary = geometry::patch_measure(geometry::isoparametric(p, 0, p.knots(0).b()));
     region = geometry::patch_moments(p);
   }
+}
+
+double BodyTracker::largest_stretch(const Patch& p) const {
+  // The squared principal stretches are the eigenvalues of G^{-1} g (G, g: the reference and current
+  // metrics), which are those of the symmetric G^{-1/2} g G^{-1/2}; the larger of a 2 x 2 pair in closed form.
+  double largest = 0;
+  for (size_t i = 0; i < stretch_xi_.size(); ++i) {
+    const Eigen::Matrix2d m = reference_metric_inverse_[i] * surface_metric(p.evaluate(stretch_xi_[i]), dim_);
+    double l2 = m(0, 0);
+    if (dim_ == 3) {
+      const double tr = m.trace(), det = m.determinant();
+      l2 = 0.5 * tr + std::sqrt(std::max(0.0, 0.25 * tr * tr - det));
+    }
+    largest = std::max(largest, std::sqrt(l2));
+  }
+  return largest;
 }
 
 std::vector<double> BodyTracker::material_angles(const Patch& p, const Vec3& centroid) const {
@@ -170,6 +222,7 @@ void BodyTracker::record(double time, const Patch& current) {
   const geometry::PrincipalAxes ax = geometry::principal_axes(region, dim_);
   const double axis = std::atan2(ax.axes(plane_dir_, 0), ax.axes(0, 0));
   s.anisotropy = ax.values[dim_ - 1] > 0 ? ax.values[0] / ax.values[dim_ - 1] - 1 : 0.0;
+  if (membrane_) s.stretch = largest_stretch(current);
   std::vector<double> angles = material_angles(current, region.centroid);
   if (history_.empty()) {
     s.axis = wrap(axis, kPi);
@@ -245,6 +298,11 @@ std::vector<Metric> BodyTracker::summary(double average_from) const {
                         {"max_anisotropy", peak->anisotropy},
                         {"max_anisotropy_time", peak->time},
                         {"max_anisotropy_x", peak->centroid[0]}};
+  if (membrane_) {
+    double stretch = 0;
+    for (const Sample& s : history_) stretch = std::max(stretch, s.stretch);
+    m.emplace_back("max_stretch", stretch);
+  }
   if (win.size() < 2) return m;  // no window to average over (a run of one step)
   const Sample& a = *win.front();
   const Sample& b = *win.back();

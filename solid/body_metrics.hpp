@@ -19,9 +19,13 @@
 //              a body that is round in its reference shape (a round nucleus has no axis of its own, but turns
 //              as a whole)
 //   regime     (summary) the motion, decided from the data in the window: see motion_regime()
+//   max_stretch (summary, membranes) the largest principal stretch of the mid-surface over the run: of the
+//              mid-line's length in 2D, the larger eigenvalue of the surface's metric against the reference's
+//              in 3D (sampled at 4 points per element and direction)
 // theta is reported for every body whose current shape has a long axis (a round body's is that of its
 // deformation).
 // Angles are taken in the shear plane spanned by x and `plane_dir` (the wall-normal direction).
+#include <Eigen/Dense>
 #include <string>
 #include <utility>
 #include <vector>
@@ -71,12 +75,14 @@ class BodyTracker {
     double time = 0, r_a = 0, r_p = 0;
     double axis = 0;        // long-axis angle, unwrapped [rad]
     double anisotropy = 0;  // largest / smallest second moment - 1 of the current shape
+    double stretch = 0;     // largest principal stretch of a membrane's mid-surface (0: not a membrane)
     double material = 0;    // mean unwrapped angle of the material points [rad]
     geometry::Vec3 centroid = geometry::Vec3::Zero();
   };
   void measure(const geometry::Patch& p, double& area, double& boundary,
                geometry::RegionMoments& region) const;
   std::vector<double> material_angles(const geometry::Patch& p, const geometry::Vec3& centroid) const;
+  double largest_stretch(const geometry::Patch& p) const;
   std::vector<const Sample*> window(double average_from) const;
 
   bool membrane_;
@@ -86,6 +92,10 @@ class BodyTracker {
   std::vector<geometry::Param> material_xi_;
   std::vector<double> last_angles_;  // unwrapped, per material point
   std::vector<double> weights_;      // per material point (1 in 2D; squared in-plane radius in 3D)
+  // Membranes: mid-surface points where the stretch is sampled, and the inverse of the reference surface's
+  // metric there (2D: 1 / |dX/dxi_1|^2 in entry (0, 0)).
+  std::vector<geometry::Param> stretch_xi_;
+  std::vector<Eigen::Matrix2d> reference_metric_inverse_;
   std::vector<Sample> history_;
 };
 
