@@ -133,6 +133,8 @@ class FluidSolver {
   /// Back to the uniform options().viscosity.
   void clear_viscosity();
   bool has_viscosity_field() const { return Nu_ != nullptr; }
+  /// The field's kinematic viscosity nu_A (a vector of the one-dof DMDA, like scaling()); null without one.
+  Vec viscosity_field() const { return Nu_; }
   /// The field's kinematic viscosity nu_A by natural node index on rank 0 (empty elsewhere, and everywhere
   /// without a field).
   std::vector<double> viscosity_on_zero() const;
