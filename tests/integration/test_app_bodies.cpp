@@ -73,9 +73,9 @@ TEST_F(CellfsiApp, CapsuleRunsWithEachMaterialLawAndRecordsIt) {
 
 TEST_F(CellfsiApp, InnerViscosityOfTheFluidsChangesNoMetricAndFiveTimesItRuns) {
   // Issue 27: the default capsule, 3 steps. An inner viscosity equal to the fluid's (0.012) gives the same
-  // summary to the last digit; lambda = 5 runs, is recorded (summary and options.yaml) and turns the capsule
-  // differently.
-  const std::vector<std::string> base = with(kDefaultCapsule, {"-final_time", "6e-3"});
+  // summary to the last digit; lambda = 5 runs, is recorded (summary, options.yaml and the fluid output's
+  // viscosity array, which only a viscosity field writes) and turns the capsule differently.
+  const std::vector<std::string> base = with(kDefaultCapsule, {"-final_time", "6e-3", "-output_every", "3"});
   const char* keys[] = {"steps",        "coupling_iterations", "linear_iterations", "corrected_unknowns",
                         "membrane_r_A", "membrane_r_P",        "membrane_theta_deg", "membrane_omega_tt",
                         "membrane_omega_tu"};
@@ -93,6 +93,8 @@ TEST_F(CellfsiApp, InnerViscosityOfTheFluidsChangesNoMetricAndFiveTimesItRuns) {
         EXPECT_EQ(json_number(js, k), plain[k]) << k << "\n" << js;
       }
     }
+    const bool field = read_text(out_ / "fluid_000003.vts").find("Name=\"viscosity\"") != std::string::npos;
+    EXPECT_EQ(field, mu == "0.06") << mu;
     if (mu == "0.06") {
       EXPECT_DOUBLE_EQ(json_number(js, "membrane_viscosity_ratio").value_or(0), 5.0) << js;
       EXPECT_NE(json_number(js, "membrane_theta_deg"), plain["membrane_theta_deg"]) << js;
