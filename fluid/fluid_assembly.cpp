@@ -2,6 +2,7 @@
 // immersed-solid points, with the Dirichlet rows; the SNES callbacks.
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "common/generalized_alpha.hpp"
 #include "common/petsc_error.hpp"
@@ -371,10 +372,12 @@ void FluidSolver::bulk_jacobian(Vec X, Mat J) {
     Vec& S;
     std::vector<LocatedPoint> immersed;
     Vec nu = nullptr, nu_loc = nullptr;
-    bool scaling_saved = false, immersed_saved = false;
+    bool scaling_saved = false, immersed_saved = false, viscosity_saved = false;
     ~Restore() {
-      std::swap(nu, f.Nu_);
-      std::swap(nu_loc, f.Nu_loc_);
+      if (viscosity_saved) {
+        std::swap(nu, f.Nu_);
+        std::swap(nu_loc, f.Nu_loc_);
+      }
       if (immersed_saved) immersed.swap(f.immersed_);
       if (scaling_saved) VecCopy(S, f.S_);
       VecDestroy(&S);
@@ -386,6 +389,7 @@ void FluidSolver::bulk_jacobian(Vec X, Mat J) {
   restore.immersed_saved = true;
   std::swap(restore.nu, Nu_);
   std::swap(restore.nu_loc, Nu_loc_);
+  restore.viscosity_saved = true;
   CELLFSI_PETSC(VecSet(S_, 1.0));
   assemble(X, nullptr, J);
 }
