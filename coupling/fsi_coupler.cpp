@@ -106,6 +106,7 @@ void FsiCoupler::update_immersed(bool mark) {
 
 void FsiCoupler::update_viscosity() {
   if (!contrast_) return;
+  EventScope ev(coupling_events().viscosity);
   const double mu_out = fluid_.options().viscosity;
   std::vector<geometry::Patch> patches;
   std::vector<size_t> which;

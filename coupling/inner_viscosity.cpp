@@ -50,6 +50,7 @@ std::vector<char> inside_membrane(const geometry::Patch& membrane, const std::ve
   if (P != 2 && P != 3) throw std::invalid_argument("inside_membrane: a 2D or 3D membrane patch");
   const geometry::KnotVector& k0 = membrane.knots(0);
   const double mid = 0.5 * (k0.a() + k0.b());
+  if (samples <= 0) samples = P == 2 ? 8 : 4;
   std::vector<char> inside(points.size(), 0);
   if (P == 2) {
     bool periodic = false;

@@ -251,3 +251,29 @@ TEST(FsiCoupler, CapsuleWithViscosityRatioFiveHasFiveTimesTheViscosityInside) {
   EXPECT_GT(dx, 0.0);
   EXPECT_LT(dx, 1e-2);
 }
+
+// A compound cell (a membrane around a nucleus, paper Sec. 3.6): the cytosol between them gets the membrane's
+// inner viscosity, and so does the nucleus' region (where, as in any solid, the immersed terms remove the
+// local fluid viscosity again); a bulky body takes none.
+TEST(FsiCoupler, CompoundCellsCytosolGetsTheMembranesInnerViscosity) {
+  ShearBox sb(96, 48, 1e-3);
+  const double mu = sb.fluid.options().viscosity, nu = mu / sb.fluid.options().density;
+  const Vec3 c = ShearBox::center();
+  solid::NurbsSolid membrane("membrane",
+                             geometry::hollow_ellipse(2e-4, 1e-4, 5e-7, 48, 2, c, std::numbers::pi / 2),
+                             std::make_shared<solid::DeviatoricNeoHookean>(7500.0), 1.1);
+  solid::NurbsSolid nucleus("nucleus", geometry::bulky_ellipse(6e-5, 6e-5, 4, 24, 2, c),
+                            std::make_shared<solid::DeviatoricNeoHookean>(40.0), 1.1);
+  coupling::CouplerOptions co;
+  co.inner_viscosity = {5 * mu, 0.0};
+  coupling::FsiCoupler fsi(sb.fluid, {&membrane, &nucleus}, co);
+  fsi.initialize();
+  const std::vector<double> field = sb.fluid.viscosity_on_zero();
+  ASSERT_FALSE(field.empty());
+  // The cytosol above the nucleus, the nucleus' centre, and outside.
+  EXPECT_NEAR(field_at(sb.box, field, c + Vec3(0, 1.4e-4, 0)), 5 * nu, 1e-12 * nu);
+  EXPECT_NEAR(field_at(sb.box, field, c), 5 * nu, 1e-12 * nu);
+  EXPECT_NEAR(field_at(sb.box, field, c + Vec3(4e-4, 0, 0)), nu, 1e-12 * nu);
+  co.inner_viscosity = {0.0, 5 * mu};
+  EXPECT_THROW(coupling::FsiCoupler(sb.fluid, {&membrane, &nucleus}, co), std::invalid_argument);
+}
