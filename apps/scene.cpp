@@ -204,7 +204,10 @@ void Scene::attach_bodies(std::vector<solid::SolidSolver*> bodies) {
   if (coupler_) throw std::logic_error("Scene::attach_bodies called twice");
   bodies_ = std::move(bodies);
   if (bodies_.empty()) return;
-  coupler_ = std::make_unique<coupling::FsiCoupler>(*fluid_, bodies_, s_.coupling);
+  coupling::CouplerOptions co = s_.coupling;
+  co.inner_viscosity.clear();
+  for (const BodySettings& b : s_.bodies) co.inner_viscosity.push_back(b.inner_viscosity);
+  coupler_ = std::make_unique<coupling::FsiCoupler>(*fluid_, bodies_, co);
   coupler_->initialize();
   const int plane = wall_dir_ > 0 ? wall_dir_ : 1;
   for (solid::SolidSolver* b : bodies_) {

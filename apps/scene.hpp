@@ -38,6 +38,7 @@ struct BodySettings {
   double mooney_rivlin_fraction = 0.5;   // mooney_rivlin: a, the I2 term's share
   double hardening_c3 = 1.0 / 30;        // strain_hardening: C3 / G (Mills et al. 2004)
   double density = 1.1;                  // rho_2 [g/cm^3]
+  double inner_viscosity = 0;            // membranes: mu of the fluid inside [g/(cm s)] (0: the fluid's)
   bool membrane() const { return shape.rfind("hollow", 0) == 0 || shape == "rbc"; }
 };
 

@@ -249,6 +249,9 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     if (bs.material == "mooney_rivlin")
       m.emplace_back(name + "_mooney_rivlin_fraction", bs.mooney_rivlin_fraction);
     if (bs.material == "strain_hardening") m.emplace_back(name + "_hardening_c3", bs.hardening_c3);
+    // lambda = mu_in / mu_out, where an inner viscosity was given (issue 27).
+    if (bs.inner_viscosity > 0)
+      m.emplace_back(name + "_viscosity_ratio", bs.inner_viscosity / flow.viscosity);
     if (!bodies_[b]->is_membrane()) {
       // phi: against the membrane whose enclosed region holds this body's centroid (the nearest such).
       const geometry::Vec3 c = geometry::patch_moments(reference).centroid;

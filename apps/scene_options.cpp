@@ -244,6 +244,9 @@ void read_body(SceneSettings& s, const std::string& name) {
             "strain_hardening: C3 / G in W = G/2 (I1 - 3) + C3 (I1 - 3)^3 (Mills et al. 2004: 1/30)",
             between(0, kMaxHardening, "", "(0: neo-Hookean)"))
       .real("density", b.density, "rho_2 [g/cm^3]", material(1e-6, 1e3, "[g/cm^3]"))
+      .real("inner_viscosity", b.inner_viscosity,
+            "Membranes: viscosity mu of the fluid inside (a cytosol; for a compound cell, around the "
+            "nucleus) [g/(cm s)], the units of -fluid_viscosity (0: the fluid's, no contrast)")
       .integer("count", count,
                "Copies of the body (NAME_1 ... NAME_N) spread evenly along x, the periodic flow direction; "
                "-center gives the row's y (and z)",
@@ -283,6 +286,15 @@ void read_body(SceneSettings& s, const std::string& name) {
     for (double a : b.semi_axes)
       if (!(b.thickness < a))
         t.bad("thickness", option_value_text(b.thickness), "smaller than every semi-axis");
+  }
+  if (t.given("inner_viscosity")) {
+    // The bounds of -fluid_viscosity (fluid/fluid_options.cpp).
+    const Valid<double> mu = material(1e-8, 1e6, "[g/(cm s)]");
+    if (!mu.ok(b.inner_viscosity)) t.bad("inner_viscosity", option_value_text(b.inner_viscosity), mu.text);
+    if (!b.membrane())
+      t.bad("inner_viscosity", option_value_text(b.inner_viscosity),
+            "only for a membrane (shape hollow_ellipse, rbc or hollow_ellipsoid): a bulky " + b.shape +
+                " (e.g. a nucleus) is solid throughout and encloses no fluid");
   }
   // A law's constant given to another law would do nothing.
   const std::string law_now = " (the material is " + b.material + ")";

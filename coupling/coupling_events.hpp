@@ -21,6 +21,8 @@ struct CouplingEvents {
   // The preconditioner's set-up at a refresh: the band's Schur complement or the region's LU.
   PetscLogEvent pc_setup = register_log_event("cellfsi coupling", "FsiPCSetUp");
   PetscLogEvent solve = register_log_event("cellfsi coupling", "FsiLinearSolve");
+  // The viscosity field from the membranes' insides (with an inner viscosity; once per step).
+  PetscLogEvent viscosity = register_log_event("cellfsi coupling", "FsiViscosity");
 };
 
 inline const CouplingEvents& coupling_events() {

@@ -5,10 +5,10 @@
 #include <cstdio>
 #include <stdexcept>
 
-
 #include "common/petsc_error.hpp"
 #include "coupling/band_region.hpp"
 #include "coupling/coupling_events.hpp"
+#include "coupling/inner_viscosity.hpp"
 #include "coupling/interface_marking.hpp"
 
 namespace cellfsi::coupling {
@@ -23,6 +23,14 @@ FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver
   for (auto* b : bodies_)
     if (b->dim() != fluid.dim())
       throw std::invalid_argument("body '" + b->name() + "' has another dimension");
+  if (opt_.inner_viscosity.size() > bodies_.size())
+    throw std::invalid_argument("more inner viscosities than bodies");
+  opt_.inner_viscosity.resize(bodies_.size(), 0.0);
+  for (size_t b = 0; b < bodies_.size(); ++b) {
+    if (opt_.inner_viscosity[b] == 0) continue;
+    check_inner_viscosity(bodies_[b]->name(), bodies_[b]->is_membrane(), opt_.inner_viscosity[b]);
+    contrast_ = contrast_ || opt_.inner_viscosity[b] != fluid.options().viscosity;
+  }
   collocation_loc_.resize(bodies_.size());
   quadrature_loc_.resize(bodies_.size());
   CELLFSI_PETSC(VecDuplicate(fluid.solution(), &X_));
@@ -48,6 +56,10 @@ FsiCoupler::~FsiCoupler() {
 std::vector<char> FsiCoupler::active_elements() const {
   std::vector<char> active = elements_supporting(fluid_.patch(), marked_);
   const geometry::Patch& patch = fluid_.patch();
+  if (!viscous_.empty()) {
+    const std::vector<char> viscous = elements_supporting(patch, viscous_);
+    for (size_t e = 0; e < active.size(); ++e) active[e] = active[e] || viscous[e];
+  }
   const int n0 = patch.n_elements(0), n1 = patch.n_elements(1);
   for (const auto& body : quadrature_loc_)
     for (const Location& l : body) active[l.element[0] + n0 * (l.element[1] + n1 * l.element[2])] = 1;
@@ -92,6 +104,32 @@ void FsiCoupler::update_immersed(bool mark) {
   fluid_.set_scaling([&](int node) { return s[node]; });
 }
 
+void FsiCoupler::update_viscosity() {
+  if (!contrast_) return;
+  EventScope ev(coupling_events().viscosity);
+  const double mu_out = fluid_.options().viscosity;
+  std::vector<geometry::Patch> patches;
+  std::vector<size_t> which;
+  for (size_t b = 0; b < bodies_.size(); ++b)
+    if (opt_.inner_viscosity[b] > 0 && opt_.inner_viscosity[b] != mu_out) {
+      patches.push_back(bodies_[b]->current_patch());
+      which.push_back(b);
+    }
+  std::vector<InnerViscosity> inner;
+  for (size_t i = 0; i < patches.size(); ++i) inner.push_back({&patches[i], opt_.inner_viscosity[which[i]]});
+  const std::vector<double> mu = viscosity_values(fluid_.patch(), inner, mu_out);
+  fluid_.set_viscosity([&](int node) { return mu[node]; });
+  std::vector<int> viscous;
+  for (size_t k = 0; k < mu.size(); ++k)
+    if (mu[k] != mu_out) viscous.push_back(static_cast<int>(k));
+  // The field changes the Jacobian's rows there: like a new s^h marking, it invalidates a kept
+  // preconditioner.
+  if (viscous != viscous_) {
+    viscous_ = std::move(viscous);
+    linear_->marking_changed();
+  }
+}
+
 void FsiCoupler::initialize() {
   for (size_t b = 0; b < bodies_.size(); ++b) {
     const std::vector<geometry::Vec3> pts = bodies_[b]->collocation_points();
@@ -104,11 +142,13 @@ void FsiCoupler::initialize() {
     }
     bodies_[b]->set_rate(rate);
   }
+  update_viscosity();
   update_immersed(true);
 }
 
 void FsiCoupler::restart() {
   if (anderson_) anderson_->reset();
+  update_viscosity();
   update_immersed(true);
 }
 
@@ -117,6 +157,9 @@ CouplerStats FsiCoupler::step() {
   const fluid::FluidOptions& fo = fluid_.options();
   const solid::TimeParameters tp = solid::TimeParameters::from_rho_inf(fo.rho_inf, fo.dt);
   tp_ = tp;
+  // The cells' insides from the configuration at t_n (once per step, like s^h; the bodies' current_patch()
+  // is valid between steps only).
+  update_viscosity();
   fluid_.begin_step(X_);
   for (auto* b : bodies_) b->begin_step(tp);
   if (anderson_) anderson_->begin_step();

@@ -42,6 +42,10 @@ struct CouplerOptions {
   Acceleration acceleration = Acceleration::anderson;
   int acceleration_columns = 5;  // difference pairs kept by the Anderson acceleration
   int acceleration_reuse = 0;    // previous steps whose pairs are kept (0: only this step's)
+  // Per body (in the order of the bodies; missing or 0: none): the dynamic viscosity mu_in [g/(cm s)] of the
+  // fluid inside a membrane (coupling/inner_viscosity.hpp). Only membranes take one. A value equal to the
+  // fluid's adds nothing: with no contrast the fluid never gets a viscosity field, and runs are unchanged.
+  std::vector<double> inner_viscosity;
   // The linear solves (coupling/coupled_linear_solver.hpp); its fluid_atol and s_I are set from the above.
   LinearSolverOptions linear;
 };
@@ -77,7 +81,10 @@ class FsiCoupler {
 
  private:
   void update_immersed(bool mark);  // mark: also rebuild s^h from the interface points
-  /// Elements with s^h != 1 or an immersed point.
+  /// The fluid's viscosity field from the membranes' current insides (with a contrast; between steps, from
+  /// the accepted configuration, like the bodies' current_patch()).
+  void update_viscosity();
+  /// Elements with s^h != 1, an immersed point, or a viscosity other than the fluid's.
   std::vector<char> active_elements() const;
   fluid::FluidSolver& fluid_;
   std::vector<solid::SolidSolver*> bodies_;
@@ -87,6 +94,8 @@ class FsiCoupler {
   Vec X_ = nullptr, dX_ = nullptr, F_ = nullptr;
   solid::TimeParameters tp_;
   std::vector<int> marked_;  // basis functions carrying s_I
+  bool contrast_ = false;    // some membrane has an inner viscosity other than the fluid's
+  std::vector<int> viscous_;  // basis functions whose viscosity is not the fluid's
   std::unique_ptr<AndersonAcceleration> anderson_;  // with Acceleration::anderson
   std::unique_ptr<CoupledLinearSolver> linear_;
 };

@@ -2,6 +2,7 @@
 // immersed-solid points, with the Dirichlet rows; the SNES callbacks.
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "common/generalized_alpha.hpp"
 #include "common/petsc_error.hpp"
@@ -79,6 +80,7 @@ void point_fields(const PointBasis& b, const double* Vf, const double* Vd, const
     for (int j = 0; j < 3; ++j) pf.dv[i][j] = i < D && j < D ? dv[i][j] : 0.0;
   }
   pf.G = G;
+  pf.dnu = {};  // set by the caller where a viscosity field varies
 }
 
 /// The element matrix of vms_tangent_element_blocks (n x n column-major blocks of bs x bs) in the row-major
@@ -114,12 +116,16 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
   CELLFSI_PETSC(DMGetLocalVector(da_, &U_loc));
   CELLFSI_PETSC(DMGlobalToLocal(da_, U, INSERT_VALUES, U_loc));
   CELLFSI_PETSC(DMGlobalToLocal(da_scalar_, S_, INSERT_VALUES, S_loc_));
-  const PetscScalar *u, *un, *udn, *sh;
+  const PetscScalar *u, *un, *udn, *sh, *nuh = nullptr;
   PetscScalar* f = nullptr;
   CELLFSI_PETSC(VecGetArrayRead(U_loc, &u));
   CELLFSI_PETSC(VecGetArrayRead(Un_loc_, &un));
   CELLFSI_PETSC(VecGetArrayRead(Udotn_loc_, &udn));
   CELLFSI_PETSC(VecGetArrayRead(S_loc_, &sh));
+  if (Nu_) {
+    CELLFSI_PETSC(DMGlobalToLocal(da_scalar_, Nu_, INSERT_VALUES, Nu_loc_));
+    CELLFSI_PETSC(VecGetArrayRead(Nu_loc_, &nuh));
+  }
   if (F) {
     CELLFSI_PETSC(DMGetLocalVector(da_, &F_loc));
     CELLFSI_PETSC(VecSet(F_loc, 0.0));
@@ -137,11 +143,12 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
   MapValues mv;
   PhysicalPoint pp;
   ElementValues scratch;
-  std::vector<double> Re, Ke, Kb, Vf, Vd, S;
+  std::vector<double> Re, Ke, Kb, Vf, Vd, S, Nu;
   std::vector<PetscInt> lidx, lnode;
 
   // Gathers the element's nodal fields at the alpha levels: Vf = velocity at n+alpha_f and pressure at n+1,
-  // Vd = velocity rate at n+alpha_m, S = s^h; lnode = local node indices, lidx = local dof indices.
+  // Vd = velocity rate at n+alpha_m, S = s^h, Nu = nu_A (with a viscosity field); lnode = local node
+  // indices, lidx = local dof indices.
   auto gather = [&](const int first[3]) {
     int np[3] = {1, 1, 1};
     for (int d = 0; d < D; ++d) np[d] = patch_.degree(d) + 1;
@@ -149,11 +156,13 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
     Vf.assign(n * nd, 0.0);
     Vd.assign(n * nd, 0.0);
     S.assign(n, 1.0);
+    if (nuh) Nu.resize(n);
     lidx.resize(n * nd);
     lnode.resize(n);
     for_each_element_node(patch_, first, gxs_, gxm_, [&](int k, PetscInt node) {
       lnode[k] = node;
       S[k] = sh[node];
+      if (nuh) Nu[k] = nuh[node];
       for (int c = 0; c < nd; ++c) {
         const PetscInt li = node * nd + c;
         lidx[k * nd + c] = li;
@@ -175,6 +184,26 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
       point_fields<3>(b, Vf.data(), Vd.data(), S.data(), G, pf);
   };
 
+  // The viscosity over an element: uniform (false; prm_e.nu its value, prm's without a field, so that the
+  // element kernels' fast paths run unchanged) or varying (true: each point gets its own nu^h and grad nu^h,
+  // point_viscosity).
+  VmsParameters prm_e = prm;
+  auto element_viscosity = [&](int n) {
+    if (!nuh) return false;
+    prm_e.nu = Nu[0];
+    for (int k = 1; k < n; ++k)
+      if (Nu[k] != Nu[0]) return true;
+    return false;
+  };
+  auto point_viscosity = [&](const PointBasis& b, VmsParameters& pq, PointFields& pf) {
+    pq = prm;
+    pq.nu = 0;
+    for (int k = 0; k < b.n; ++k) {
+      pq.nu += b.N[k] * Nu[k];
+      for (int j = 0; j < D; ++j) pf.dnu[j] += b.dN[k * 3 + j] * Nu[k];
+    }
+  };
+
   auto scatter = [&](int n, bool matrix_done) {
     if (F)
       for (int r = 0; r < n * nd; ++r) f[lidx[r]] += Re[r];
@@ -191,7 +220,9 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
   };
 
   PointFields pf;
+  VmsParameters prm_q;
   std::vector<PointFields> point_fields;
+  std::vector<VmsParameters> point_prm;
   if (in_band && static_cast<int>(in_band->size()) != patch_.n_elements())
     throw std::invalid_argument("FluidSolver: the element mask has " + std::to_string(in_band->size()) +
                                 " entries for " + std::to_string(patch_.n_elements()) + " elements");
@@ -201,10 +232,12 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
     int first[3];
     const ElementValues& ev = element_basis_.evaluate(e, scratch, first);
     const int n = gather(first);
+    const bool varying = element_viscosity(n);
     // On a one-rank BAIJ matrix the tangent is formed in its block layout and added straight into it.
-    const bool blocks = J && direct.usable() && direct.prepare(n, lnode.data());
+    const bool prepared = J && direct.usable() && direct.prepare(n, lnode.data());
+    const bool blocks = prepared && !varying;
     // Axis-affine patches (2D): the tangent's products are sum-factorised over the basis' univariate factors.
-    const bool tensor = ev.tensor && D == 2;
+    const bool tensor = ev.tensor && D == 2 && !varying;
     Re.assign(n * nd, 0.0);
     if (J) {
       if (blocks || tensor)
@@ -213,15 +246,23 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
         Ke.assign(static_cast<size_t>(n * nd) * n * nd, 0.0);
     }
     point_fields.resize(ev.nq);
+    if (varying) point_prm.resize(ev.nq);
     for (int q = 0; q < ev.nq; ++q) {
       const PointBasis pb{n, &ev.N[static_cast<size_t>(q) * n], &ev.dN[static_cast<size_t>(q) * n * 3],
                           &ev.lapN[static_cast<size_t>(q) * n]};
       fields(pb, ev.G[q], point_fields[q]);
-      if (F) vms_residual(prm, pb, point_fields[q], ev.weight[q], Re.data());
+      if (varying) point_viscosity(pb, point_prm[q], point_fields[q]);
+      if (F) vms_residual(varying ? point_prm[q] : prm_e, pb, point_fields[q], ev.weight[q], Re.data());
     }
     // The element tangent at once: small matrix products over the quadrature points (same result as summing
     // vms_tangent over them, to round-off; tested).
-    if (J) {
+    if (J && varying) {  // the element kernels need one nu per element: point by point
+      for (int q = 0; q < ev.nq; ++q) {
+        const PointBasis pb{n, &ev.N[static_cast<size_t>(q) * n], &ev.dN[static_cast<size_t>(q) * n * 3],
+                            &ev.lapN[static_cast<size_t>(q) * n]};
+        vms_tangent(point_prm[q], pb, point_fields[q], ts, ev.weight[q], Ke.data());
+      }
+    } else if (J) {
       const ElementPoints points{
           n, ev.nq, ev.N.data(), ev.dN.data(), ev.lapN.data(), ev.weight.data(), point_fields.data()};
       if (blocks || tensor) {
@@ -233,15 +274,15 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
           tf.deriv[d] = ev.factor_deriv[d].data();
         }
         if (blocks) {
-          vms_tangent_element_blocks(prm, points, ts, Ke.data(), tensor ? &tf : nullptr);
+          vms_tangent_element_blocks(prm_e, points, ts, Ke.data(), tensor ? &tf : nullptr);
           direct.add_blocks(n, Ke.data());
         } else {  // for MatSetValuesBlockedLocal: the blocks' rows side by side
           Kb.resize(Ke.size());
-          vms_tangent_element_blocks(prm, points, ts, Kb.data(), &tf);
+          vms_tangent_element_blocks(prm_e, points, ts, Kb.data(), &tf);
           rows_from_blocks(n, nd, Kb.data(), Ke.data());
         }
       } else {
-        vms_tangent_element(prm, points, ts, Ke.data());
+        vms_tangent_element(prm_e, points, ts, Ke.data());
       }
     }
     scatter(n, blocks);
@@ -253,14 +294,17 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
   // The points of one element (immersed_ is sorted by element) are summed and added to F and J once: on
   // several ranks each addition to rows of another rank is stashed until the assembly (measured: the 3D
   // compound capsule at 16^3 on 2 ranks, 9.8 GB and 20 s per Jacobian when added point by point).
+  // The fluid viscosity the immersed terms remove is the local one (nu^h at the point, where a field varies).
   for (std::size_t i = 0; i < immersed_.size() && !(in_band && !band_side);) {
     const Index3 element = immersed_[i].element;
     int n = 0;
+    bool varying = false;
     for (bool first_point = true; i < immersed_.size() && immersed_[i].element == element; ++i) {
       const LocatedPoint& ip = immersed_[i];
       physical_point(patch_, ip.element, ip.xi, 2, bv, mv, pp);
       if (first_point) {
         n = gather(pp.first);
+        varying = element_viscosity(n);
         if (direct.usable()) direct.prepare(n, lnode.data());
         Re.assign(n * nd, 0.0);
         if (J) Ke.assign(static_cast<size_t>(n * nd) * n * nd, 0.0);
@@ -268,8 +312,10 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
       }
       const PointBasis pb{pp.n, pp.N.data(), pp.dN.data(), pp.lapN.data()};
       fields(pb, pp.G, pf);
-      if (F) immersed_residual(prm, pb, pf, ip.data, Re.data());
-      if (J) immersed_tangent(prm, pb, pf, ts, ip.data, Ke.data());
+      if (varying) point_viscosity(pb, prm_q, pf);
+      const VmsParameters& pi = varying ? prm_q : prm_e;
+      if (F) immersed_residual(pi, pb, pf, ip.data, Re.data());
+      if (J) immersed_tangent(pi, pb, pf, ts, ip.data, Ke.data());
     }
     scatter(n, false);
   }
@@ -279,6 +325,7 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
   CELLFSI_PETSC(VecRestoreArrayRead(Un_loc_, &un));
   CELLFSI_PETSC(VecRestoreArrayRead(Udotn_loc_, &udn));
   CELLFSI_PETSC(VecRestoreArrayRead(S_loc_, &sh));
+  if (nuh) CELLFSI_PETSC(VecRestoreArrayRead(Nu_loc_, &nuh));
   CELLFSI_PETSC(DMRestoreLocalVector(da_, &U_loc));
 
   const std::vector<PetscInt> rows = dirichlet_rows();
@@ -316,15 +363,21 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
 }
 
 void FluidSolver::bulk_jacobian(Vec X, Mat J) {
-  // s^h and the immersed points are set aside and restored whatever happens (an exception included).
+  // s^h, the immersed points and a viscosity field are set aside and restored whatever happens (an exception
+  // included).
   Vec S = nullptr;
   CELLFSI_PETSC(VecDuplicate(S_, &S));
   struct Restore {
     FluidSolver& f;
     Vec& S;
     std::vector<LocatedPoint> immersed;
-    bool scaling_saved = false, immersed_saved = false;
+    Vec nu = nullptr, nu_loc = nullptr;
+    bool scaling_saved = false, immersed_saved = false, viscosity_saved = false;
     ~Restore() {
+      if (viscosity_saved) {
+        std::swap(nu, f.Nu_);
+        std::swap(nu_loc, f.Nu_loc_);
+      }
       if (immersed_saved) immersed.swap(f.immersed_);
       if (scaling_saved) VecCopy(S, f.S_);
       VecDestroy(&S);
@@ -334,6 +387,9 @@ void FluidSolver::bulk_jacobian(Vec X, Mat J) {
   restore.scaling_saved = true;
   restore.immersed.swap(immersed_);
   restore.immersed_saved = true;
+  std::swap(restore.nu, Nu_);
+  std::swap(restore.nu_loc, Nu_loc_);
+  restore.viscosity_saved = true;
   CELLFSI_PETSC(VecSet(S_, 1.0));
   assemble(X, nullptr, J);
 }

@@ -96,16 +96,21 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
   const int n0 = extent[1] - extent[0] + 1, n1 = extent[3] - extent[2] + 1, n2 = extent[5] - extent[4] + 1;
   const vtkIdType n = owned.empty() ? 0 : static_cast<vtkIdType>(n0) * n1 * n2;
 
-  Vec U_loc, S_loc;
+  Vec U_loc, S_loc, Nu_loc = nullptr;
   CELLFSI_PETSC(DMGetLocalVector(fluid.dm(), &U_loc));
   CELLFSI_PETSC(DMGlobalToLocal(fluid.dm(), fluid.solution(), INSERT_VALUES, U_loc));
   DM dm_scalar;
   CELLFSI_PETSC(VecGetDM(fluid.scaling(), &dm_scalar));
   CELLFSI_PETSC(DMGetLocalVector(dm_scalar, &S_loc));
   CELLFSI_PETSC(DMGlobalToLocal(dm_scalar, fluid.scaling(), INSERT_VALUES, S_loc));
-  const PetscScalar *u, *sh;
+  const PetscScalar *u, *sh, *nuh = nullptr;
   CELLFSI_PETSC(VecGetArrayRead(U_loc, &u));
   CELLFSI_PETSC(VecGetArrayRead(S_loc, &sh));
+  if (fluid.viscosity_field()) {  // a viscosity field (docs/fluid.md): written as the dynamic viscosity
+    CELLFSI_PETSC(DMGetLocalVector(dm_scalar, &Nu_loc));
+    CELLFSI_PETSC(DMGlobalToLocal(dm_scalar, fluid.viscosity_field(), INSERT_VALUES, Nu_loc));
+    CELLFSI_PETSC(VecGetArrayRead(Nu_loc, &nuh));
+  }
   PetscInt gxs[3], gxm[3];
   CELLFSI_PETSC(DMDAGetGhostCorners(fluid.dm(), &gxs[0], &gxs[1], &gxs[2], &gxm[0], &gxm[1], &gxm[2]));
 
@@ -130,6 +135,7 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
   vtkDoubleArray* shv = array("s_h", 1);
   vtkDoubleArray* dvg = array("divergence", 1);  // of the velocity: the discrete incompressibility error
   vtkDoubleArray* dis = undisturbed_ ? array("velocity_disturbance", 3) : nullptr;
+  vtkDoubleArray* mu = nuh ? array("viscosity", 1) : nullptr;
   BasisValues bv;
   MapValues mv;
   PhysicalPoint pp;
@@ -159,6 +165,7 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
         pre->SetValue(id, rho * l.scalar);
         shv->SetValue(id, s_h);
         dvg->SetValue(id, l.grad_v.trace());
+        if (mu) mu->SetValue(id, rho * interpolate(pp, 0, [&](int k, int) { return nuh[nodes[k]]; }).scalar);
         if (dis) {
           const geometry::Vec3 dv = l.v - undisturbed_(l.x);
           dis->SetTuple3(id, dv[0], dv[1], dv[2]);
@@ -175,6 +182,10 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
   CELLFSI_PETSC(VecRestoreArrayRead(S_loc, &sh));
   CELLFSI_PETSC(DMRestoreLocalVector(fluid.dm(), &U_loc));
   CELLFSI_PETSC(DMRestoreLocalVector(dm_scalar, &S_loc));
+  if (Nu_loc) {
+    CELLFSI_PETSC(VecRestoreArrayRead(Nu_loc, &nuh));
+    CELLFSI_PETSC(DMRestoreLocalVector(dm_scalar, &Nu_loc));
+  }
 
   char stem[64];
   std::snprintf(stem, sizeof stem, "fluid_%06d", fluid.steps_taken());

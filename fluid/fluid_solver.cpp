@@ -229,6 +229,8 @@ FluidSolver::~FluidSolver() {
   VecDestroy(&Udotn_loc_);
   VecDestroy(&S_);
   VecDestroy(&S_loc_);
+  VecDestroy(&Nu_);
+  VecDestroy(&Nu_loc_);
   DMDestroy(&da_scalar_);
   DMDestroy(&da_);
 }
@@ -257,6 +259,28 @@ void FluidSolver::set_scaling(const std::function<double(int)>& s) {
     a[idx] = s(patch_.control_index(m[0], m[1], m[2]));
   });
   CELLFSI_PETSC(VecRestoreArray(S_, &a));
+}
+
+void FluidSolver::set_viscosity(const std::function<double(int)>& mu) {
+  if (!Nu_) {
+    CELLFSI_PETSC(DMCreateGlobalVector(da_scalar_, &Nu_));
+    CELLFSI_PETSC(DMCreateLocalVector(da_scalar_, &Nu_loc_));
+  }
+  PetscScalar* a;
+  CELLFSI_PETSC(VecGetArray(Nu_, &a));
+  for_each_owned_node(xs_, xm_, [&](PetscInt idx, const std::array<PetscInt, 3>& m) {
+    a[idx] = mu(patch_.control_index(m[0], m[1], m[2])) / opt_.density;
+  });
+  CELLFSI_PETSC(VecRestoreArray(Nu_, &a));
+}
+
+void FluidSolver::clear_viscosity() {
+  CELLFSI_PETSC(VecDestroy(&Nu_));
+  CELLFSI_PETSC(VecDestroy(&Nu_loc_));
+}
+
+std::vector<double> FluidSolver::viscosity_on_zero() const {
+  return Nu_ ? gather_to_zero(Nu_) : std::vector<double>{};
 }
 
 void FluidSolver::apply_dirichlet_values(Vec U, double /*t*/) const {

@@ -119,6 +119,26 @@ class FluidSolver {
   /// Immersed points, all of them on every rank (each rank keeps those in its elements).
   void set_immersed_points(const std::vector<ImmersedPointData>& points);
 
+  // --- A viscosity that varies in space (docs/fluid.md, "The viscosity field") ---
+  /// Sets the viscosity field by control value: the dynamic viscosity mu_A [g/(cm s)] of each natural node
+  /// index (applies to owned nodes), so that nu^h = sum_A (mu_A / rho_1) N_A. Each quadrature point then
+  /// uses its own nu^h in the viscous term, tau_M and the immersed terms, and grad nu^h in r_M
+  /// (vms_kernel.hpp). Elements whose control values are all equal are assembled as with a uniform viscosity
+  /// of that value (the element kernels' fast paths, bit for bit); without a field every result is
+  /// options().viscosity's.
+  void set_viscosity(const std::function<double(int node)>& mu);
+  /// The L2 projection of a viscosity mu(x) [g/(cm s)] onto the fluid's spline space, as the field (an
+  /// optimal-order nu^h for a smooth mu; collective, CG with prefix fluid_projection_).
+  void project_viscosity(const std::function<double(const Vec3&)>& mu);
+  /// Back to the uniform options().viscosity.
+  void clear_viscosity();
+  bool has_viscosity_field() const { return Nu_ != nullptr; }
+  /// The field's kinematic viscosity nu_A (a vector of the one-dof DMDA, like scaling()); null without one.
+  Vec viscosity_field() const { return Nu_; }
+  /// The field's kinematic viscosity nu_A by natural node index on rank 0 (empty elsewhere, and everywhere
+  /// without a field).
+  std::vector<double> viscosity_on_zero() const;
+
   /// Sets up the linear solver on the Jacobian of the current state, so every solver option (inner ones
   /// included) has been read; optional (step() does it lazily otherwise). Call after setting the initial
   /// state.
@@ -154,8 +174,9 @@ class FluidSolver {
   void jacobian_add_part(Vec X, Mat J, const std::vector<char>& in_band) {
     assemble(X, nullptr, J, &in_band, true, true);
   }
-  /// K_MC of the iterate X without the cells: s^h = 1 everywhere and no immersed points (the bulk operator
-  /// of solvers/region_corrected.hpp).
+  /// K_MC of the iterate X without the cells: s^h = 1 everywhere, no immersed points and the uniform
+  /// options().viscosity (the bulk operator of solvers/region_corrected.hpp; where a viscosity field differs
+  /// from it, the Fourier solver's region takes those nodes in).
   void bulk_jacobian(Vec X, Mat J);
   /// v and grad v at t_{n+alpha_f} of the iterate X at points already located in the patch (element, xi)
   /// (collective; every rank gets every value). vdot is the rate at t_{n+alpha_m}.
@@ -209,6 +230,9 @@ class FluidSolver {
   void apply_dirichlet_values(Vec U, double t) const;
   std::vector<PetscInt> dirichlet_rows() const;  // global PETSc indices of owned Dirichlet rows
   bool owns_element(const geometry::Index3& e) const;
+  /// The L2 projections onto the spline space of `count` scalar functions (f(x, values) fills values[0 ..
+  /// count)), as global vectors of the one-dof DMDA (the caller destroys them). Collective.
+  std::vector<Vec> l2_project(int count, const std::function<void(const Vec3&, double*)>& f) const;
   /// Shifts the pressure of U by a constant so that the first control value is 0 (with the null space).
   void normalize_pressure(Vec U) const;
   /// What sample and sample_alpha share: at the points this rank's elements hold (elements[i], xi[i];
@@ -230,6 +254,7 @@ class FluidSolver {
   Vec U_ = nullptr, Udot_ = nullptr;            // at t_n between steps
   Vec Un_loc_ = nullptr, Udotn_loc_ = nullptr;  // ghosted copies of t_n values during a step
   Vec S_ = nullptr, S_loc_ = nullptr;           // scaling field s^h
+  Vec Nu_ = nullptr, Nu_loc_ = nullptr;         // kinematic viscosity field nu_A (null: uniform)
   Vec F_ = nullptr;
   Mat J_ = nullptr;
   SNES snes_ = nullptr;

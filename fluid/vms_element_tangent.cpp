@@ -54,6 +54,7 @@ struct PointScalars {
 template <int Dim, bool kConvective>
 void point_scalars(const VmsParameters& prm, const PointFields& f, const Stabilization& tau, double weight,
                    PointScalars<Dim>& ps) {
+  assert(!f.has_dnu());  // a varying viscosity is assembled point by point (vms_kernel.hpp)
   ps.w = weight;
   ps.tm = tau.tau_m;
   ps.tc = tau.tau_c;

@@ -102,6 +102,11 @@ void tangent_kernel(const VmsParameters& prm, const PointBasis& basis, const Poi
     a[i] = st.a[i];
     for (int j = 0; j < Dim; ++j) dv[i][j] = f.dv[i][j];
   }
+  // A viscosity field (vms_kernel.hpp): r_M,j has -grad nu . (grad v_j + d_j v), whose second part gives
+  // d r_M,j / d V_{B,e} = -velocity dnu_e dN_B,j, so d v'_j / d V_{B,e} gains tau_M velocity dnu_e dN_B,j.
+  const bool has_dnu = f.has_dnu();
+  double dnu[Dim];
+  for (int j = 0; j < Dim; ++j) dnu[j] = f.dnu[j];
   // N_A ((v + v').grad) v_i differentiated through v and v' (convective part) gives N_A N_B M[i][e].
   [[maybe_unused]] double M[Dim][Dim];
   if constexpr (kConvective) {
@@ -124,6 +129,9 @@ void tangent_kernel(const VmsParameters& prm, const PointBasis& basis, const Poi
         y[2 + j] = basis.dN[B * 3 + j];
         if constexpr (kConvective) y[1] += vel * v[j] * y[2 + j];
       }
+      // -grad nu . grad v_i in r_M,i (the delta_ie part of the viscosity field's term).
+      if (has_dnu)
+        for (int j = 0; j < Dim; ++j) y[1] -= vel * dnu[j] * y[2 + j];
     }
 
     for (int A = 0; A < n; ++A) {
@@ -176,7 +184,18 @@ void tangent_kernel(const VmsParameters& prm, const PointBasis& basis, const Poi
         }
         // PSPG through the convective part of v'.
         for (int e = 0; e < Dim; ++e) X[Dim][0][e] += tm * vel * dNt_dv[e];
+        if (has_dnu)  // the three convective terms through the dnu_e dN_B,j part of v'_j
+          for (int e = 0; e < Dim; ++e) {
+            const double g = tm * vel * dnu[e];
+            for (int i = 0; i < Dim; ++i) {
+              for (int j = 0; j < Dim; ++j) X[i][2 + j][e] += g * (wN * dv[i][j] - v_fine[i] * wdN[j]);
+              X[i][2 + i][e] -= g * a_dN;
+            }
+          }
       }
+      if (has_dnu)  // PSPG -grad N_A . v' through the same part
+        for (int e = 0; e < Dim; ++e)
+          for (int j = 0; j < Dim; ++j) X[Dim][2 + j][e] -= tm * vel * dnu[e] * wdN[j];
 
       double* const block_row = K + static_cast<std::size_t>(A) * nc * ld;
       for (int B = b0; B < b1; ++B) {

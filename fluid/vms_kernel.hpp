@@ -8,8 +8,8 @@
 // Time discretisation (generalized-alpha, docs/design.md §3): the caller evaluates the fields at
 // v = v_{n+alpha_f}, vdot = vdot_{n+alpha_m}, p = p_{n+1}; TangentScales carries d(field)/d(unknown at n+1).
 //
-// Residual (test functions w = N_A e_i, q = N_A), with r_M = vdot + (v.grad)v + grad p - nu lap v - g, r_C =
-// div v, v' = -tau_M r_M, p' = -tau_C r_C:
+// Residual (test functions w = N_A e_i, q = N_A), with r_M = vdot + (v.grad)v + grad p - nu lap v
+// - grad nu . (grad v + grad v^T) - g, r_C = div v, v' = -tau_M r_M, p' = -tau_C r_C:
 //   R^M_{A,i} = N_A (vdot_i + (v.grad)v_i - g_i) + nu d_j N_A (d_j v_i + d_i v_j) - d_i N_A p (Galerkin)
 //             + N_A (v'.grad)v_i (cross)
 //             - ((v + v').grad N_A) v'_i                                                   (SUPG and
@@ -19,6 +19,16 @@
 // In Stokes mode every convective term is dropped: (v.grad)v in r_M and in the Galerkin term, the cross term,
 // the whole SUPG/Reynolds line, and v.G v in tau_M (the PSPG and LSIC terms stay: they stabilise equal-order
 // pairs).
+//
+// Viscosity: prm.nu is the kinematic viscosity at the point. A viscosity that varies in space (a spline field
+// nu^h = sum_A nu_A N_A, docs/fluid.md "The viscosity field") is handled by the caller setting prm.nu to
+// nu^h at each point and f.dnu to grad nu^h there: the Galerkin term, tau_M's C_I nu^2 G:G and the immersed
+// terms then all use the same local nu. The strong residual of -div(2 nu eps(v)) is -nu lap v - nu grad(div
+// v) - grad nu . (grad v + grad v^T); the grad(div v) part is dropped as for a uniform nu (div v = 0 up to
+// the discretisation), the grad nu part is kept exactly (nu^h is smooth within an element, and without it
+// r_M of the exact solution is not zero, so the stabilisation is not consistent: the manufactured solution
+// of tests/convergence/test_fluid_convergence.cpp converges at rates 3.00 and 4.04 for p = 2 and 3 with it,
+// 1.98 for both without). With f.dnu zero (the default) every formula is the uniform viscosity's.
 #include <array>
 
 namespace cellfsi::fluid {
@@ -50,8 +60,11 @@ struct PointFields {
   double p = 0;                               // kinematic pressure
   std::array<double, 3> dp{};                 // its gradient
   std::array<std::array<double, 3>, 3>
-      G{};         // G_ij = sum_k dxi_k/dx_i dxi_k/dx_j, parent coordinates xi in [-1,1]^d
-  double s = 1.0;  // scaling field s^h at the point (paper Eq. (16))
+      G{};                      // G_ij = sum_k dxi_k/dx_i dxi_k/dx_j, parent coordinates xi in [-1,1]^d
+  double s = 1.0;               // scaling field s^h at the point (paper Eq. (16))
+  std::array<double, 3> dnu{};  // gradient of the kinematic viscosity at the point (zero: uniform nu)
+  /// Whether dnu is nonzero (the terms it adds are skipped otherwise, so a uniform nu costs nothing).
+  bool has_dnu() const { return dnu[0] != 0.0 || dnu[1] != 0.0 || dnu[2] != 0.0; }
 };
 
 /// tau_M and tau_C of Eqs. (16)-(17).
@@ -101,7 +114,9 @@ enum class ElementKernelIsa { best, baseline };
 /// Element tangent: adds to K (layout of vms_tangent; K is accumulated into, not overwritten) the sum over
 /// the nq points of vms_tangent(prm, {n, N + q n, dN + 3 q n, lapN + q n}, fields[q], ts, weight[q], K),
 /// formed as small matrix products over the points instead of pair by pair (same result up to round-off).
-/// Thread safe; per-thread scratch memory, kept between calls.
+/// Thread safe; per-thread scratch memory, kept between calls. The viscosity must be uniform over the element
+/// (prm.nu at every point, every fields[q].dnu zero): an element where a viscosity field varies is assembled
+/// point by point with vms_tangent (FluidSolver::assemble).
 void vms_tangent_element(const VmsParameters& prm, const ElementPoints& points, const TangentScales& ts,
                          double* K, ElementKernelIsa isa = ElementKernelIsa::best);
 

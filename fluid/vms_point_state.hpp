@@ -23,10 +23,13 @@ inline PointState point_state(const VmsParameters& prm, const PointFields& f, co
   PointState st;
   st.tau_m = tau.tau_m;
   st.tau_c = tau.tau_c;
+  const bool dnu = f.has_dnu();
   for (int i = 0; i < d; ++i) {
     double r_m = f.vdot[i] + f.dp[i] - prm.nu * f.lap_v[i] - prm.g[i];
     if (!prm.stokes)
       for (int j = 0; j < d; ++j) r_m += f.v[j] * f.dv[i][j];
+    if (dnu)  // a viscosity field: -grad nu . (grad v + grad v^T) of -div(2 nu eps(v)) (vms_kernel.hpp)
+      for (int j = 0; j < d; ++j) r_m -= f.dnu[j] * (f.dv[i][j] + f.dv[j][i]);
     st.v_fine[i] = -tau.tau_m * r_m;
     st.a[i] = f.v[i] + st.v_fine[i];
     st.r_c += f.dv[i][i];

@@ -2,10 +2,12 @@
 // pi-periodic square: v = (sin x cos y, -cos x sin y) e^{-2 nu t}, p = (cos 2x + cos 2y) e^{-4 nu t} / 4.
 // Space: velocity L2 error rate within 0.2 of the optimal p + 1 for p = 2, 3 over three meshes.
 // Time: second order (generalized-alpha, rho_inf = 0.5) on a fine mesh.
+// A viscosity that varies in space: a manufactured steady solution (rate p + 1) and a two-layer Couette flow.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <numbers>
 
 #include "fluid/fluid_solver.hpp"
@@ -85,4 +87,92 @@ TEST_F(TightSolves, TimeIntegrationIsSecondOrder) {
   std::printf("  Taylor-Green dt = 0.04, 0.02, 0.01: rel L2 errors %.3e %.3e %.3e, rates %.2f %.2f\n", e1, e2,
               e3, r1, r2);
   EXPECT_NEAR(r2, 2.0, 0.2);
+}
+
+// --- A viscosity that varies in space (fluid/vms_kernel.hpp; docs/fluid.md, "The viscosity field") ---------
+
+namespace {
+
+/// Relative L2 velocity error of the steady state reached from the L2 projection of v_exact (40 steps of
+/// dt = 10: every mode of the error is in generalized-alpha's stiff limit and drops by rho_inf = 0.5 per
+/// step, to 1e-12) on the unit square, periodic in x, walls at y = 0, 1 moving with v_exact there. set_field
+/// gives the fluid its viscosity field.
+double steady_error(int nx, int ny, int p, const std::function<Vec3(const Vec3&)>& v_exact, const Vec3& force,
+                    const std::function<void(fluid::FluidSolver&)>& set_field) {
+  const geometry::Patch box = geometry::rectangle(1.0, 1.0, nx, ny, p, {true, false});
+  fluid::FluidOptions opt;
+  opt.density = 1.0;
+  opt.viscosity = 1.0;  // replaced by the field
+  opt.dt = 10.0;
+  opt.body_force = force;
+  opt.wall_velocity[1][0] = v_exact(Vec3(0, 0, 0));
+  opt.wall_velocity[1][1] = v_exact(Vec3(0, 1, 0));
+  fluid::FluidSolver fs(PETSC_COMM_WORLD, box, opt);
+  set_field(fs);
+  fs.project_initial_state(v_exact, [](const Vec3&) { return Vec3(Vec3::Zero()); });
+  for (int s = 0; s < 40; ++s) {
+    const fluid::StepStats st = fs.step();
+    if (!st.converged) ADD_FAILURE() << "step " << s << " did not converge: " << st.reason;
+  }
+  const auto e = fs.velocity_l2_error(v_exact);
+  return e.error / e.norm;
+}
+
+}  // namespace
+
+// A manufactured steady solution with a smooth viscosity that varies in x and y by a factor of about 9:
+// v = (e^y, 0), p = a sin(2 pi (x + y)), nu = phi(x, y) e^-y with phi = c - g y + a sin(2 pi (x + y)) (so
+// nu u' = phi), and the uniform body force g along x. It satisfies -div(2 nu eps(v)) + grad p = (g, 0),
+// div v = 0 and (v.grad)v = 0 because phi_xx = phi_yy. nu^h is the L2 projection of nu (order p + 1). The
+// rate is p + 1 within 0.25, as for Taylor-Green above; it needs grad nu in r_M (the kernels' choice).
+TEST_F(TightSolves, VariableViscosityManufacturedSolutionConvergesAtTheOptimalRate) {
+  const double c = 1.0, g = 0.3, a = 0.3, two_pi = kTwoPi;
+  const auto v_exact = [](const Vec3& x) { return Vec3(std::exp(x[1]), 0, 0); };
+  const auto nu = [=](const Vec3& x) {
+    return (c - g * x[1] + a * std::sin(two_pi * (x[0] + x[1]))) * std::exp(-x[1]);
+  };
+  for (int p : {2, 3}) {
+    const int meshes[4] = {8, 16, 32, 64};
+    double e[4];
+    for (int i = 0; i < 4; ++i)
+      e[i] = steady_error(meshes[i], meshes[i], p, v_exact, Vec3(g, 0, 0),
+                          [&](fluid::FluidSolver& fs) { fs.project_viscosity(nu); });
+    const double r3 = std::log2(e[2] / e[3]);
+    std::printf(
+        "  variable-viscosity MMS p=%d, 8 ... 64: rel L2 errors %.3e %.3e %.3e %.3e, rates %.2f %.2f %.2f "
+        "(optimal %d)\n",
+        p, e[0], e[1], e[2], e[3], std::log2(e[0] / e[1]), std::log2(e[1] / e[2]), r3, p + 1);
+    EXPECT_NEAR(r3, p + 1, 0.25) << "p=" << p;
+  }
+}
+
+// Plane Couette flow through two layers, nu = 1 below y = 1/2 and 5 above, walls at rest (y = 0) and moving
+// at 1 (y = 1): the exact velocity is piecewise linear, slopes 5/3 and 1/3 (ratio 5, the inverse of the
+// viscosity ratio). The field's control values are the layer's viscosity at each control point (as sharp as
+// the mesh allows, as the membranes' indicator makes it: coupling/inner_viscosity.hpp), so nu^h is smeared
+// over p elements and the velocity converges at first order (docs/validation.md, "Two-layer Couette flow").
+TEST_F(TightSolves, TwoLayerCouetteFlowConvergesToThePiecewiseLinearProfile) {
+  const double nu1 = 1.0, nu2 = 5.0, tau = 1.0 / (0.5 / nu1 + 0.5 / nu2);
+  const auto v_exact = [=](const Vec3& x) {
+    const double y = x[1];
+    return Vec3(y < 0.5 ? tau * y / nu1 : tau * (0.5 / nu1 + (y - 0.5) / nu2), 0, 0);
+  };
+  for (int p : {2, 3}) {
+    const int meshes[4] = {8, 16, 32, 64};
+    double e[4];
+    for (int i = 0; i < 4; ++i)
+      e[i] = steady_error(4, meshes[i], p, v_exact, Vec3::Zero(), [&](fluid::FluidSolver& fs) {
+        const auto& cps = fs.patch().control_points();
+        fs.set_viscosity([&](int k) {
+          const double y = cps[k][1];
+          return y < 0.5 ? nu1 : y > 0.5 ? nu2 : 0.5 * (nu1 + nu2);
+        });
+      });
+    std::printf(
+        "  two-layer Couette p=%d, ny = 8, 16, 32, 64: rel L2 errors %.3e %.3e %.3e %.3e, rates %.2f "
+        "%.2f %.2f\n",
+        p, e[0], e[1], e[2], e[3], std::log2(e[0] / e[1]), std::log2(e[1] / e[2]), std::log2(e[2] / e[3]));
+    for (int i = 0; i < 3; ++i) EXPECT_LT(e[i + 1], 0.7 * e[i]) << "p=" << p << ", ny " << meshes[i + 1];
+    EXPECT_GT(std::log2(e[2] / e[3]), 0.8) << "p=" << p;
+  }
 }

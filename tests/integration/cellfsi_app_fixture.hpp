@@ -261,6 +261,9 @@ inline size_t count(const std::string& text, const std::string& what) {
 // ---------------------------------------------------------------------------------------------------------
 // Fixture: a fresh temporary folder per test; the run's output folder `out` inside it does not exist yet
 
+inline void expect_one_clear_error(const RunResult& r);
+inline std::vector<std::string> with(std::vector<std::string> a, const std::vector<std::string>& b);
+
 class CellfsiApp : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -314,6 +317,18 @@ class CellfsiApp : public ::testing::Test {
   }
 
   std::string summary() const { return read_text(out_ / "summary.json"); }
+
+  /// Runs base followed by each case's options: each is refused with one clear error holding the case's
+  /// message, and nothing is written.
+  void expect_each_refused(const std::vector<std::string>& base,
+                           const std::vector<std::pair<std::vector<std::string>, std::string>>& cases) const {
+    for (const auto& [options, message] : cases) {
+      const RunResult r = cellfsi(with(base, options));
+      expect_one_clear_error(r);
+      EXPECT_NE(r.output.find(message), std::string::npos) << r.output;
+      EXPECT_TRUE(nothing_written());
+    }
+  }
 
   fs::path root_, out_;
   mutable std::string last_output_;

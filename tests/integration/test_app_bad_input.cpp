@@ -391,12 +391,25 @@ TEST_F(CellfsiApp, BadMaterialLawsAndTheirConstantsAreRejected) {
       {{"-solid_membrane_material", "strain_hardening", "-solid_membrane_mooney_rivlin_fraction", "0.2"},
        "-solid_membrane_mooney_rivlin_fraction = 0.2 is invalid; valid: only with -solid_membrane_material "
        "mooney_rivlin (the material is strain_hardening)"}};
-  for (const auto& [options, message] : cases) {
-    const RunResult r = cellfsi(with(with({scene("capsule_shear.yaml")}, kCapsule), options));
-    expect_one_clear_error(r);
-    EXPECT_NE(r.output.find(message), std::string::npos) << r.output;
-    EXPECT_TRUE(nothing_written());
-  }
+  expect_each_refused(with({scene("capsule_shear.yaml")}, kCapsule), cases);
+}
+
+TEST_F(CellfsiApp, BadInnerViscositiesAreRejected) {
+  // Issue 27: a viscosity that is not one (<= 0, not a number, beyond any liquid), and one given to a bulky
+  // body, which encloses no fluid.
+  const std::string opt = "-solid_membrane_inner_viscosity";
+  const std::string range = " is invalid; valid: 1e-08 ... 1e+06 [g/(cm s)]";
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{opt, "0"}, opt + " = 0" + range},
+      {{opt, "-0.06"}, opt + " = -0.06" + range},
+      {{opt, "1e300"}, opt + " = 1e+300" + range},
+      {{opt, "thick"}, opt},
+      {{"-solid_bodies", "membrane,nucleus", "-solid_nucleus_shape", "ellipse", "-solid_nucleus_semi_axes",
+        "5e-5,5e-5", "-solid_nucleus_inner_viscosity", "0.06"},
+       "-solid_nucleus_inner_viscosity = 0.06 is invalid; valid: only for a membrane (shape hollow_ellipse, "
+       "rbc or hollow_ellipsoid): a bulky ellipse (e.g. a nucleus) is solid throughout and encloses no "
+       "fluid"}};
+  expect_each_refused(with({scene("capsule_shear.yaml")}, kCapsule), cases);
 }
 
 TEST_F(CellfsiApp, MpmdBadInputStopsBothSidesWithOneMessage) {

@@ -71,6 +71,39 @@ TEST_F(CellfsiApp, CapsuleRunsWithEachMaterialLawAndRecordsIt) {
   }
 }
 
+TEST_F(CellfsiApp, InnerViscosityOfTheFluidsChangesNoMetricAndFiveTimesItRuns) {
+  // Issue 27: the default capsule, 3 steps. An inner viscosity equal to the fluid's (0.012) gives the same
+  // summary to the last digit; lambda = 5 runs, is recorded (summary, options.yaml and the fluid output's
+  // viscosity array, which only a viscosity field writes) and turns the capsule differently.
+  const std::vector<std::string> base = with(kDefaultCapsule, {"-final_time", "6e-3", "-output_every", "3"});
+  const char* keys[] = {"steps",        "coupling_iterations", "linear_iterations", "corrected_unknowns",
+                        "membrane_r_A", "membrane_r_P",        "membrane_theta_deg", "membrane_omega_tt",
+                        "membrane_omega_tu"};
+  std::map<std::string, std::optional<double>> plain;
+  for (const std::string mu : {"", "0.012", "0.06"}) {
+    fs::remove_all(out_);
+    const RunResult r = cellfsi(mu.empty() ? base : with(base, {"-solid_membrane_inner_viscosity", mu}));
+    ASSERT_FALSE(r.timed_out) << r.output;
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const std::string js = summary();
+    for (const char* k : keys) {
+      if (mu.empty()) plain[k] = json_number(js, k);
+      ASSERT_TRUE(plain[k].has_value()) << k << "\n" << js;
+      if (mu == "0.012") {
+        EXPECT_EQ(json_number(js, k), plain[k]) << k << "\n" << js;
+      }
+    }
+    const bool field = read_text(out_ / "fluid_000003.vts").find("Name=\"viscosity\"") != std::string::npos;
+    EXPECT_EQ(field, mu == "0.06") << mu;
+    if (mu == "0.06") {
+      EXPECT_DOUBLE_EQ(json_number(js, "membrane_viscosity_ratio").value_or(0), 5.0) << js;
+      EXPECT_NE(json_number(js, "membrane_theta_deg"), plain["membrane_theta_deg"]) << js;
+      EXPECT_NE(read_text(out_ / "options.yaml").find("inner_viscosity: 0.06"), std::string::npos)
+          << read_text(out_ / "options.yaml");
+    }
+  }
+}
+
 TEST_F(CellfsiApp, CoarseCapsuleInclinationWithCentralAndSupportMarking) {
   // Issue 8: at 96 x 48 quadratic elements the capsule's inclination with the default (central) s^h marking
   // is closer to the converged 26.09 deg (paper, 512 x 256 cubic) than the paper's own 17.81 at this mesh;

@@ -5,7 +5,9 @@
 
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <numbers>
+#include <vector>
 
 #include "common/petsc_error.hpp"
 #include "fluid/fluid_solver.hpp"
@@ -46,6 +48,22 @@ std::vector<Vec3> sample_points(double lx, double ly, double y0 = 0.0) {
   std::vector<Vec3> pts;
   for (int i = 0; i < 5; ++i)
     for (int j = 0; j < 7; ++j) pts.emplace_back(lx * (i + 0.31) / 5, y0 + ly * (j + 0.5) / 7, 0);
+  return pts;
+}
+
+/// Five immersed points spread over the box [0, lx] x [-ly/2, ly/2] (a few elements, the periodic seam), with
+/// a shear stress and the given stiffness viscosity.
+std::vector<fluid::ImmersedPointData> five_immersed_points(double lx, double ly, double stiffness_viscosity) {
+  std::vector<fluid::ImmersedPointData> pts;
+  for (int i = 0; i < 5; ++i) {
+    fluid::ImmersedPointData d;
+    d.x = Vec3(lx * (0.05 + 0.2 * i), ly * (0.1 * i - 0.25), 0);
+    d.data.weight = 1e-9;
+    d.data.beta = -0.07;
+    d.data.stress[0][1] = d.data.stress[1][0] = 3.0;
+    d.data.stiffness_viscosity = stiffness_viscosity;
+    pts.push_back(d);
+  }
   return pts;
 }
 
@@ -268,6 +286,104 @@ TEST(FluidSolver, AssembledTangentMatchesFiniteDifferences) {
   EXPECT_LT(dev, 1e-3);
 }
 
+// A viscosity field (FluidSolver::set_viscosity): its tangent, where it varies (each point's own nu and grad
+// nu), is the Jacobian of its residual; in Stokes mode exactly, as without a field.
+TEST(FluidSolver, AssembledTangentWithAViscosityFieldMatchesFiniteDifferences) {
+  const geometry::Patch ch = geometry::narrowing_channel(geometry::NarrowingChannel{}, 6, 3, 2);
+  FluidOptions opt;
+  opt.body_force = Vec3(1666.66, 0, 0);
+  for (bool stokes : {true, false}) {
+    opt.stokes = stokes;
+    FluidSolver fs(PETSC_COMM_WORLD, ch, opt);
+    fs.set_initial_velocity([](const Vec3& x) { return Vec3(0.01 + 3 * x[1], 5 * x[0], 0); });
+    // A ratio of 5 across the channel, smooth in x and y.
+    fs.project_viscosity([&](const Vec3& x) {
+      return opt.viscosity * (3 + 2 * std::sin(2000 * x[1]) * std::cos(1000 * x[0]));
+    });
+    const double dev = jacobian_deviation(fs, 0.01);
+    std::printf("  %s tangent with a viscosity field: max |J - J_fd| / max |J| = %.3e\n",
+                stokes ? "Stokes" : "Navier-Stokes", dev);
+    EXPECT_LT(dev, stokes ? 1e-6 : 1e-3);
+  }
+}
+
+namespace {
+/// Residual and Jacobian of the solver's current state, perturbed, with a few immersed points.
+struct Assembled {
+  std::vector<double> F;
+  Mat J = nullptr;
+  ~Assembled() { MatDestroy(&J); }
+};
+void assemble_state(FluidSolver& fs, Assembled& out) {
+  Vec U, F;
+  CELLFSI_PETSC(VecDuplicate(fs.solution(), &U));
+  CELLFSI_PETSC(VecCopy(fs.solution(), U));
+  CELLFSI_PETSC(VecShift(U, 1e-4));
+  CELLFSI_PETSC(VecDuplicate(U, &F));
+  fs.evaluate_residual(U, F);
+  out.F = fs.gather_to_zero(F);
+  CELLFSI_PETSC(MatDuplicate(fs.jacobian_matrix(), MAT_DO_NOT_COPY_VALUES, &out.J));
+  fs.evaluate_jacobian(U, out.J);
+  CELLFSI_PETSC(VecDestroy(&U));
+  CELLFSI_PETSC(VecDestroy(&F));
+}
+/// |A - B|_F (0: bit for bit).
+double matrix_difference(Mat A, Mat B) {
+  Mat D;
+  CELLFSI_PETSC(MatDuplicate(A, MAT_COPY_VALUES, &D));
+  CELLFSI_PETSC(MatAXPY(D, -1.0, B, SAME_NONZERO_PATTERN));
+  PetscReal n = 0;
+  CELLFSI_PETSC(MatNorm(D, NORM_FROBENIUS, &n));
+  CELLFSI_PETSC(MatDestroy(&D));
+  return n;
+}
+}  // namespace
+
+// Where the field's control values over an element are all equal, the element is assembled as with a uniform
+// viscosity of that value, on the same fast paths: a field equal to the fluid's viscosity everywhere changes
+// no bit of the residual or the Jacobian (immersed points included), nor does a field of another constant
+// against a fluid of that viscosity; the bulk operator (bulk_jacobian) ignores the field.
+TEST(FluidSolver, UniformViscosityFieldChangesNoBit) {
+  const double lx = 0.0024, ly = 0.0012, shear = 70.0;
+  const geometry::Patch box = geometry::rectangle(lx, ly, 12, 6, 3, {true, false}, Vec3(0, -ly / 2, 0));
+  FluidOptions opt = moving_walls(shear * ly / 2);
+  const std::vector<fluid::ImmersedPointData> pts = five_immersed_points(lx, ly, 0.0);
+  auto make = [&](const FluidOptions& o) {
+    auto fs = std::make_unique<FluidSolver>(PETSC_COMM_WORLD, box, o);
+    fs->set_initial_velocity(
+        [&](const Vec3& x) { return Vec3(shear * x[1], 1e-3 * std::sin(9 * x[0] / lx), 0); });
+    fs->set_immersed_points(pts);
+    return fs;
+  };
+  for (double mu : {opt.viscosity, 5 * opt.viscosity}) {
+    FluidOptions o = opt;
+    o.viscosity = mu;
+    auto plain = make(o), with_field = make(opt);
+    with_field->set_viscosity([&](int) { return mu; });
+    Assembled a, b;
+    assemble_state(*plain, a);
+    assemble_state(*with_field, b);
+    EXPECT_EQ(a.F, b.F) << "mu " << mu;
+    EXPECT_EQ(matrix_difference(a.J, b.J), 0.0) << "mu " << mu;
+  }
+  // The bulk operator of a solver with a varying field is that of the fluid's uniform viscosity.
+  auto plain = make(opt), with_field = make(opt);
+  with_field->set_viscosity([&](int k) { return opt.viscosity * (1 + (k % 7 == 0 ? 4 : 0)); });
+  Mat Jp, Jf;
+  CELLFSI_PETSC(MatDuplicate(plain->jacobian_matrix(), MAT_DO_NOT_COPY_VALUES, &Jp));
+  CELLFSI_PETSC(MatDuplicate(plain->jacobian_matrix(), MAT_DO_NOT_COPY_VALUES, &Jf));
+  plain->bulk_jacobian(plain->solution(), Jp);
+  with_field->bulk_jacobian(with_field->solution(), Jf);
+  EXPECT_EQ(matrix_difference(Jp, Jf), 0.0);
+  EXPECT_TRUE(with_field->has_viscosity_field());  // restored after the bulk assembly
+  // ... and the field changes the Jacobian itself.
+  plain->evaluate_jacobian(plain->solution(), Jp);
+  with_field->evaluate_jacobian(with_field->solution(), Jf);
+  EXPECT_GT(matrix_difference(Jp, Jf), 0.0);
+  CELLFSI_PETSC(MatDestroy(&Jp));
+  CELLFSI_PETSC(MatDestroy(&Jf));
+}
+
 TEST(FluidSolver, JacobianPartsAddUpToTheJacobian) {
   // The band solver's split (jacobian_part): the elements of a mask with every immersed point, and the other
   // elements, add up to the whole tangent, including the wall (Dirichlet) rows, the pinned pressure and the
@@ -278,16 +394,7 @@ TEST(FluidSolver, JacobianPartsAddUpToTheJacobian) {
   FluidSolver fs(PETSC_COMM_WORLD, box, opt);
   fs.set_initial_velocity(
       [&](const Vec3& x) { return Vec3(shear * x[1], 1e-3 * std::sin(9 * x[0] / lx), 0); });
-  std::vector<fluid::ImmersedPointData> pts;
-  for (int i = 0; i < 5; ++i) {
-    fluid::ImmersedPointData d;
-    d.x = Vec3(lx * (0.05 + 0.2 * i), ly * (0.1 * i - 0.25), 0);
-    d.data.weight = 1e-9;
-    d.data.beta = -0.07;
-    d.data.stress[0][1] = d.data.stress[1][0] = 3.0;
-    d.data.stiffness_viscosity = 0.5;
-    pts.push_back(d);
-  }
+  const std::vector<fluid::ImmersedPointData> pts = five_immersed_points(lx, ly, 0.5);
   fs.set_immersed_points(pts);
   std::vector<char> mask(box.n_elements(), 0);
   for (int e = 0; e < box.n_elements(); ++e) {
