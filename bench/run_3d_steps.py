@@ -125,7 +125,8 @@ def main():
     if not os.access("/usr/bin/time", os.X_OK):
         sys.exit(f"{TOOL}: /usr/bin/time not found (apt-get install time)")
     args.jobs = 1
-    head = provenance(args, "python3 bench/run_3d_steps.py " + " ".join(sys.argv[1:]))
+    head = provenance(args, "python3 bench/run_3d_steps.py " + " ".join(sys.argv[1:])).replace(
+        "(one rank each)", "(each on the ranks of its row)")
     lines = ["# A 3D coupled step: cost per step and where it goes", "",
              head, "",
              "The compound capsule of scenes/compound_capsule_shear_3d.yaml (dt 5e-4) at N^3 quadratic elements, "
