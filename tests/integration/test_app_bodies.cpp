@@ -100,6 +100,14 @@ TEST_F(CellfsiApp, InnerViscosityOfTheFluidsChangesNoMetricAndFiveTimesItRuns) {
       EXPECT_NE(json_number(js, "membrane_theta_deg"), plain["membrane_theta_deg"]) << js;
       EXPECT_NE(read_text(out_ / "options.yaml").find("inner_viscosity: 0.06"), std::string::npos)
           << read_text(out_ / "options.yaml");
+      // The scene-file form: options.yaml nests `inner_viscosity` under the body; run from it, the same run.
+      const fs::path again = root_ / "again";
+      const RunResult r2 =
+          run_process({CELLFSI_EXE, (out_ / "options.yaml").string(), "-output_dir", again.string()}, 60);
+      ASSERT_EQ(r2.exit_code, 0) << r2.output;
+      const std::string js2 = read_text(again / "summary.json");
+      EXPECT_DOUBLE_EQ(json_number(js2, "membrane_viscosity_ratio").value_or(0), 5.0) << js2;
+      EXPECT_EQ(json_number(js2, "membrane_theta_deg"), json_number(js, "membrane_theta_deg")) << js2;
     }
   }
 }
