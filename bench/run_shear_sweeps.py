@@ -5,10 +5,11 @@ collects every run's summary.json, and writes a markdown table and a figure.
     python3 bench/run_shear_sweeps.py swelling   # capsules a = 1e-4 ... 5.5e-4 cm + the biconcave capsule: Fig. 3a/b
     python3 bench/run_shear_sweeps.py bulky      # bulky ellipses a = 1e-4 ... 5.5e-4 cm: Fig. 4a
     python3 bench/run_shear_sweeps.py compound   # compound capsules, nucleus r = 1e-5 ... 7e-5 cm: Fig. 4b-d
+    python3 bench/run_shear_sweeps.py viscosity  # the Sec. 3.3 capsule, inner/outer viscosity 1 ... 10 (issue 27)
 
 Options (all have defaults; the paper's resolution is 384x192 cubic, dt 5e-4, which -- mesh and --dt select):
   --mesh NXxNY (256x128)  --degree P (3)  --dt S (1e-3)  --final-time S (0.3)  --average-from S (0.15)
-  --values V,V,...  (the sweep's values in cm)  --jobs N (2)  --runs DIR (out/sweeps)  --build DIR (build)
+  --values V,V,...  (the sweep's values: cm; viscosity: the ratio lambda)  --jobs N (2)  --runs DIR (out/sweeps)  --build DIR (build)
   --table FILE (docs/validation/shear_<sweep>.md)  --figure FILE (docs/figures/shear_<sweep>.png)
   --report  (no runs: only the table and figure from the runs in --runs)  --extra "OPTIONS" (to every run)
 A run whose summary.json says "completed" is not run again. Exit code 3 when a run did not complete (it is in
@@ -30,10 +31,15 @@ SWEEPS = {
     "swelling": ("capsule_shear.yaml", [1e-4, 2e-4, 3e-4, 4e-4, 5e-4, 5.5e-4], "membrane", "Delta"),
     "bulky": ("bulky_ellipse_shear.yaml", [1e-4, 2e-4, 3e-4, 4e-4, 5e-4, 5.5e-4], "body", "Delta"),
     "compound": ("compound_capsule_shear.yaml", [1e-5, 2e-5, 3e-5, 4e-5, 5e-5, 6e-5, 7e-5], "nucleus", "phi"),
+    # the ratio lambda of the membrane's inner viscosity to the plasma's (the scene's 0.012 g/(cm s))
+    "viscosity": ("capsule_shear.yaml", [1, 2, 3, 5, 8, 10], "membrane", "lambda"),
 }
+PLASMA_VISCOSITY = 0.012  # g/(cm s), scenes/capsule_shear.yaml
 
 
 def value_options(sweep, v):
+    if sweep == "viscosity":
+        return ["-solid_membrane_inner_viscosity", f"{v * PLASMA_VISCOSITY:g}"]
     if sweep == "compound":
         return ["-solid_nucleus_semi_axes", f"{v:g},{v:g}"]
     body = SWEEPS[sweep][2]
@@ -82,7 +88,8 @@ def write_sweep_table(args, rows, command):
                          f" {s.get('status')} |")
     else:
         body = SWEEPS[sweep][2]
-        lines += ["| a cm | Delta | theta deg | omega_TT 1/s | omega_TU 1/s | half-turns | regime | steps | wall s |"
+        first = "lambda" if sweep == "viscosity" else "a cm"
+        lines += [f"| {first} | Delta | theta deg | omega_TT 1/s | omega_TU 1/s | half-turns | regime | steps | wall s |"
                   " status |", "|---|---|---|---|---|---|---|---|---|---|"]
         for s in rows:
             b = "membrane" if s["_scene"].startswith("biconcave") else body
@@ -117,6 +124,20 @@ def write_figure(args, rows):
             ax.set_ylabel(name)
             ax.grid(True, lw=0.3)
         fig.suptitle(f"Compound capsules ({label}); x: membrane not tank-treading", fontsize=10)
+    elif args.sweep == "viscosity":
+        xs = [s.get("membrane_viscosity_ratio", 1.0) for s in done]
+        panels = [("membrane_theta_deg", "theta (deg)"), ("membrane_omega_tt", "omega_TT (1/s)"),
+                  ("membrane_omega_tu", "omega_TU (1/s)")]
+        fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+        for ax, (key, name) in zip(axes, panels):
+            ax.plot(xs, [s.get(key) for s in done], "-", color="tab:blue", lw=1)
+            for x, s in zip(xs, done):
+                ax.plot(x, s.get(key), "o" if s.get("membrane_regime") == "tank-treading" else "x",
+                        color="tab:blue", ms=6)
+            ax.set_xlabel("viscosity ratio lambda")
+            ax.set_ylabel(name)
+            ax.grid(True, lw=0.3)
+        fig.suptitle(f"The Sec. 3.3 capsule with an inner viscosity ({label}); x: not tank-treading", fontsize=10)
     else:
         body = SWEEPS[args.sweep][2]
         ell = [s for s in done if not s["_scene"].startswith("biconcave")]
