@@ -130,8 +130,11 @@ def write_figure(args, rows):
                   ("membrane_omega_tu", "omega_TU (1/s)")]
         fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
         for ax, (key, name) in zip(axes, panels):
-            ax.plot(xs, [s.get(key) for s in done], "-", color="tab:blue", lw=1)
-            for x, s in zip(xs, done):
+            # A tumbling capsule's mean inclination means nothing: theta only where the axis stays.
+            pts = [(x, s) for x, s in zip(xs, done)
+                   if key != "membrane_theta_deg" or s.get("membrane_regime") != "tumbling"]
+            ax.plot([x for x, _ in pts], [s.get(key) for _, s in pts], "-", color="tab:blue", lw=1)
+            for x, s in pts:
                 ax.plot(x, s.get(key), "o" if s.get("membrane_regime") == "tank-treading" else "x",
                         color="tab:blue", ms=6)
             ax.set_xlabel("viscosity ratio lambda")
