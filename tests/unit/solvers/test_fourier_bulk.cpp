@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <random>
 
 #include "common/petsc_error.hpp"
@@ -90,6 +91,19 @@ Vec random_vector(Mat A, unsigned seed) {
   return v;
 }
 
+/// The paper's shear box as a fluid on PETSC_COMM_WORLD (walls in y moving at -+ shear ly / 2, the linear
+/// shear as its state) and its bulk Jacobian in *J (a new matrix; the caller destroys it).
+std::unique_ptr<fluid::FluidSolver> shear_box_fluid(const geometry::Patch& box, double ly, double shear, Mat* J) {
+  fluid::FluidOptions opt;
+  opt.wall_velocity[1][0] = Vec3(-shear * ly / 2, 0, 0);
+  opt.wall_velocity[1][1] = Vec3(shear * ly / 2, 0, 0);
+  auto fs = std::make_unique<fluid::FluidSolver>(PETSC_COMM_WORLD, box, opt);
+  fs->set_initial_velocity([&](const Vec3& x) { return Vec3(shear * x[1], 0, 0); });
+  CELLFSI_PETSC(MatDuplicate(fs->jacobian_matrix(), MAT_DO_NOT_COPY_VALUES, J));
+  fs->bulk_jacobian(fs->solution(), *J);
+  return fs;
+}
+
 struct Case {
   std::array<int, 3> n;
   std::array<bool, 3> periodic;
@@ -147,14 +161,8 @@ TEST(FourierBulkSolver, InvertsTheFluidJacobianWithoutCells) {
     const geometry::Patch box =
         dim == 2 ? geometry::rectangle(lx, ly, 12, 6, 3, {true, false}, Vec3(0, -ly / 2, 0))
                  : geometry::box(ly, ly, ly, 6, 5, 4, 2, {true, false, true}, Vec3(0, -ly / 2, 0));
-    fluid::FluidOptions opt;
-    opt.wall_velocity[1][0] = Vec3(-shear * ly / 2, 0, 0);
-    opt.wall_velocity[1][1] = Vec3(shear * ly / 2, 0, 0);
-    fluid::FluidSolver fs(PETSC_COMM_WORLD, box, opt);
-    fs.set_initial_velocity([&](const Vec3& x) { return Vec3(shear * x[1], 0, 0); });
     Mat J;
-    CELLFSI_PETSC(MatDuplicate(fs.jacobian_matrix(), MAT_DO_NOT_COPY_VALUES, &J));
-    fs.bulk_jacobian(fs.solution(), J);
+    const std::unique_ptr<fluid::FluidSolver> solver = shear_box_fluid(box, ly, shear, &J);
     std::array<int, 3> n{1, 1, 1}, p{0, 0, 0};
     std::array<bool, 3> periodic{false, false, false};
     for (int d = 0; d < dim; ++d) {
@@ -187,7 +195,7 @@ TEST(FourierBulkSolver, InvertsTheFluidJacobianWithoutCells) {
     // row, averaged in with the others of its layer: the bottom layer's nodes differ from the bulk operator
     // (and join the region), no others.
     if (dim == 2) {
-      fluid::FluidOptions pinned = opt;
+      fluid::FluidOptions pinned = solver->options();
       pinned.pressure_null_space = false;
       fluid::FluidSolver fp(PETSC_COMM_WORLD, box, pinned);
       fp.set_initial_velocity([&](const Vec3& x) { return Vec3(shear * x[1], 0, 0); });
@@ -368,14 +376,9 @@ TEST(FourierParallel, BulkSolverInvertsTheDistributedJacobian) {
   // whatever the partition.
   const double ly = 0.0012, shear = 70.0;
   const geometry::Patch box = geometry::box(ly, ly, ly, 6, 5, 4, 2, {true, false, true}, Vec3(0, -ly / 2, 0));
-  fluid::FluidOptions opt;
-  opt.wall_velocity[1][0] = Vec3(-shear * ly / 2, 0, 0);
-  opt.wall_velocity[1][1] = Vec3(shear * ly / 2, 0, 0);
-  fluid::FluidSolver fs(PETSC_COMM_WORLD, box, opt);
-  fs.set_initial_velocity([&](const Vec3& x) { return Vec3(shear * x[1], 0, 0); });
   Mat J;
-  CELLFSI_PETSC(MatDuplicate(fs.jacobian_matrix(), MAT_DO_NOT_COPY_VALUES, &J));
-  fs.bulk_jacobian(fs.solution(), J);
+  const std::unique_ptr<fluid::FluidSolver> solver = shear_box_fluid(box, ly, shear, &J);
+  fluid::FluidSolver& fs = *solver;
   AO natural = nullptr;
   CELLFSI_PETSC(DMDAGetAO(fs.dm(), &natural));
   const std::array<int, 3> n{box.n_control(0), box.n_control(1), box.n_control(2)};
