@@ -7,6 +7,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "common/petsc_error.hpp"
 
@@ -99,6 +100,8 @@ FourierBulkSolver::FourierBulkSolver(std::array<int, 3> n, std::array<bool, 3> p
 FourierBulkSolver::~FourierBulkSolver() {
   VecScatterDestroy(&to_slab_);
   VecDestroy(&slab_vec_);
+  VecScatterDestroy(&to_ghosted_);
+  VecDestroy(&ghosted_vec_);
 }
 
 std::size_t FourierBulkSolver::slab_node(int mode, int jl) const {
@@ -212,6 +215,29 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
   CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, stencil_.data(), static_cast<int>(stencil_.size()), MPI_DOUBLE,
                               MPI_SUM, comm_));
   CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, has_unit.data(), m_, MPI_INT, MPI_MAX, comm_));
+  // The stencil regrouped by layer for multiply(): one term per column offset with a nonzero block.
+  terms_.assign(n_across_, {});
+  if (dof_ <= 8)
+    for (int jj = 0; jj < n_across_; ++jj)
+      for (int o0 = 0; o0 < width_[0]; ++o0)
+        for (int o1 = 0; o1 < width_[1]; ++o1)
+          for (int o2 = 0; o2 < width_[2]; ++o2)
+            for (int d2 = 0; d2 < wq; ++d2) {
+              StencilTerm t;
+              bool nonzero = false;
+              for (int c = 0; c < dof_; ++c)
+                for (int c2 = 0; c2 < dof_; ++c2) {
+                  const double a = stencil_[stencil_index(jj, c, {o0, o1, o2}, d2, c2)];
+                  t.block[c * dof_ + c2] = a;
+                  nonzero = nonzero || a != 0;
+                }
+              if (!nonzero) continue;
+              const std::array<int, 3> oo{o0, o1, o2};
+              for (int d = 0; d < 3; ++d)
+                t.shift[d] = periodic_[d] && width_[d] < n_[d] ? oo[d] - degree_[d] : oo[d];
+              if (across_ >= 0) t.shift[across_] = d2 - degree_[across_];
+              terms_[jj].push_back(t);
+            }
   // 2. How far A is from its average. A non-finite entry makes the deviation NaN (std::max would skip it),
   // which no caller takes for uniform.
   deviation_ = 0;
@@ -349,31 +375,129 @@ void FourierBulkSolver::fft(std::vector<cplx>& z, bool inverse, const std::array
   }
 }
 
+void FourierBulkSolver::make_layer_scatter(Vec r, int first, int last, VecScatter* scatter, Vec* values) const {
+  // The unknowns of layers [first, last) across (every periodic position), node-major in the layers' own
+  // lexicographic order, in r's global ordering. Without a wall direction the single "layer" is the box.
+  std::array<int, 3> dims = n_;
+  if (across_ >= 0)
+    dims[across_] = last - first;
+  else if (last == first)
+    dims = {0, 0, 0};
+  const std::size_t nodes = static_cast<std::size_t>(dims[0]) * dims[1] * dims[2];
+  std::vector<PetscInt> idx(nodes * dof_);
+  for (std::size_t s = 0; s < nodes; ++s) {
+    std::array<int, 3> i{static_cast<int>(s % dims[0]), static_cast<int>((s / dims[0]) % dims[1]),
+                         static_cast<int>(s / (static_cast<std::size_t>(dims[0]) * dims[1]))};
+    if (across_ >= 0) i[across_] += first;
+    const int g = global_node((i[2] * n_[1] + i[1]) * n_[0] + i[0]);
+    for (int c = 0; c < dof_; ++c) idx[s * dof_ + c] = static_cast<PetscInt>(g) * dof_ + c;
+  }
+  IS is;
+  CELLFSI_PETSC(ISCreateGeneral(PETSC_COMM_SELF, static_cast<PetscInt>(idx.size()), idx.data(),
+                                PETSC_COPY_VALUES, &is));
+  CELLFSI_PETSC(VecCreateSeq(PETSC_COMM_SELF, static_cast<PetscInt>(idx.size()), values));
+  const PetscErrorCode ierr = VecScatterCreate(r, is, *values, nullptr, scatter);
+  ISDestroy(&is);
+  if (ierr) VecDestroy(values);  // the next call creates both again
+  CELLFSI_PETSC(ierr);
+}
+
+void FourierBulkSolver::multiply(Vec x, Vec y) const {
+  if (!built_) throw std::logic_error("FourierBulkSolver: multiply before a completed build");
+  if (dof_ > 8) throw std::logic_error("FourierBulkSolver::multiply: more than 8 unknowns per node");
+  static const PetscLogEvent event = register_log_event("cellfsi solvers", "FourierBulkMult");
+  CELLFSI_PETSC(PetscLogEventBegin(event, 0, 0, 0, 0));
+  if (!to_slab_) make_layer_scatter(x, j0_, j1_, &to_slab_, &slab_vec_);
+  // The layers this rank's rows reach: `degree` more on either side across (none beyond the walls).
+  const int reach = across_ >= 0 ? degree_[across_] : 0;
+  const int g0 = across_ >= 0 ? std::max(0, j0_ - reach) : j0_;
+  const int g1 = across_ >= 0 ? std::min(n_across_, j1_ + reach) : j1_;
+  if (!to_ghosted_) make_layer_scatter(x, g0, g1, &to_ghosted_, &ghosted_vec_);
+  CELLFSI_PETSC(VecScatterBegin(to_ghosted_, x, ghosted_vec_, INSERT_VALUES, SCATTER_FORWARD));
+  CELLFSI_PETSC(VecScatterEnd(to_ghosted_, x, ghosted_vec_, INSERT_VALUES, SCATTER_FORWARD));
+  const PetscScalar* xg = nullptr;
+  PetscScalar* ys = nullptr;
+  CELLFSI_PETSC(VecGetArrayRead(ghosted_vec_, &xg));
+  CELLFSI_PETSC(VecGetArray(slab_vec_, &ys));
+  std::array<int, 3> gdims = n_;  // the ghosted slab's extent
+  if (across_ >= 0) gdims[across_] = g1 - g0;
+  const std::array<long, 3> stride{static_cast<long>(dof_), static_cast<long>(dof_) * gdims[0],
+                                   static_cast<long>(dof_) * gdims[0] * gdims[1]};
+  // Per direction and shift, the column's offset in the ghosted slab for each row coordinate (-1: beyond a
+  // wall), so that the inner loop only adds.
+  std::array<std::vector<long>, 3> offset_of;
+  std::array<int, 3> lo{}, hi{};
+  for (int d = 0; d < 3; ++d) {
+    lo[d] = 0;
+    hi[d] = 0;
+    for (const auto& layer : terms_)
+      for (const StencilTerm& t : layer) {
+        lo[d] = std::min(lo[d], t.shift[d]);
+        hi[d] = std::max(hi[d], t.shift[d]);
+      }
+    const int rows = d == across_ ? n_across_ : n_[d];
+    offset_of[d].assign(static_cast<std::size_t>(hi[d] - lo[d] + 1) * rows, -1);
+    for (int sh = lo[d]; sh <= hi[d]; ++sh)
+      for (int i = 0; i < rows; ++i) {
+        long col = -1;
+        if (d == across_) {
+          const int jc = i + sh;
+          if (jc >= g0 && jc < g1) col = jc - g0;
+        } else {
+          col = ((i + sh) % n_[d] + n_[d]) % n_[d];
+        }
+        offset_of[d][static_cast<std::size_t>(sh - lo[d]) * rows + i] = col < 0 ? -1 : col * stride[d];
+      }
+  }
+  const std::size_t slab_nodes = static_cast<std::size_t>(slab_[0]) * slab_[1] * slab_[2];
+  // The dof x dof block products unrolled for the fluid's 3 (2D) and 4 (3D) unknowns per node.
+  auto block_product = [&](auto dof_tag, const StencilTerm& t, const PetscScalar* xc, double* acc) {
+    constexpr int nd = decltype(dof_tag)::value;
+    const int n = nd > 0 ? nd : dof_;
+    for (int c = 0; c < n; ++c)
+      for (int c2 = 0; c2 < n; ++c2) acc[c] += t.block[c * n + c2] * xc[c2];
+  };
+  for (std::size_t s = 0; s < slab_nodes; ++s) {
+    std::array<int, 3> i{static_cast<int>(s % slab_[0]), static_cast<int>((s / slab_[0]) % slab_[1]),
+                         static_cast<int>(s / (static_cast<std::size_t>(slab_[0]) * slab_[1]))};
+    if (across_ >= 0) i[across_] += j0_;  // the row's coordinate in the whole box
+    const int layer = across_ >= 0 ? i[across_] : 0;
+    std::array<const long*, 3> table{};
+    std::array<int, 3> rows{};
+    for (int d = 0; d < 3; ++d) {
+      rows[d] = d == across_ ? n_across_ : n_[d];
+      table[d] = offset_of[d].data() + i[d];
+    }
+    double acc[8] = {};
+    for (const StencilTerm& t : terms_[layer]) {
+      const long o0 = table[0][static_cast<long>(t.shift[0] - lo[0]) * rows[0]];
+      const long o1 = table[1][static_cast<long>(t.shift[1] - lo[1]) * rows[1]];
+      const long o2 = table[2][static_cast<long>(t.shift[2] - lo[2]) * rows[2]];
+      if ((o0 | o1 | o2) < 0) continue;  // beyond a wall
+      const PetscScalar* xc = xg + o0 + o1 + o2;
+      if (dof_ == 4)
+        block_product(std::integral_constant<int, 4>{}, t, xc, acc);
+      else if (dof_ == 3)
+        block_product(std::integral_constant<int, 3>{}, t, xc, acc);
+      else
+        block_product(std::integral_constant<int, 0>{}, t, xc, acc);
+    }
+    for (int c = 0; c < dof_; ++c) ys[s * dof_ + c] = acc[c];
+  }
+  CELLFSI_PETSC(VecRestoreArrayRead(ghosted_vec_, &xg));
+  CELLFSI_PETSC(VecRestoreArray(slab_vec_, &ys));
+  CELLFSI_PETSC(VecScatterBegin(to_slab_, slab_vec_, y, INSERT_VALUES, SCATTER_REVERSE));
+  CELLFSI_PETSC(VecScatterEnd(to_slab_, slab_vec_, y, INSERT_VALUES, SCATTER_REVERSE));
+  CELLFSI_PETSC(PetscLogEventEnd(event, 0, 0, 0, 0));
+}
+
 void FourierBulkSolver::solve(Vec r, Vec x) const {
   if (!built_) throw std::logic_error("FourierBulkSolver: solve before a completed build");
   static const PetscLogEvent event = register_log_event("cellfsi solvers", "FourierBulkSolve");
   CELLFSI_PETSC(PetscLogEventBegin(event, 0, 0, 0, 0));
   const std::size_t slab_nodes = static_cast<std::size_t>(slab_[0]) * slab_[1] * slab_[2];
   const int layers = j1_ - j0_;
-  if (!to_slab_) {
-    // The slab's unknowns (node-major in the slab's own lexicographic order) in r's global ordering.
-    std::vector<PetscInt> idx(slab_nodes * dof_);
-    for (std::size_t s = 0; s < slab_nodes; ++s) {
-      std::array<int, 3> i{static_cast<int>(s % slab_[0]), static_cast<int>((s / slab_[0]) % slab_[1]),
-                           static_cast<int>(s / (static_cast<std::size_t>(slab_[0]) * slab_[1]))};
-      if (across_ >= 0) i[across_] += j0_;
-      const int g = global_node((i[2] * n_[1] + i[1]) * n_[0] + i[0]);
-      for (int c = 0; c < dof_; ++c) idx[s * dof_ + c] = static_cast<PetscInt>(g) * dof_ + c;
-    }
-    IS is;
-    CELLFSI_PETSC(ISCreateGeneral(PETSC_COMM_SELF, static_cast<PetscInt>(idx.size()), idx.data(),
-                                  PETSC_COPY_VALUES, &is));
-    CELLFSI_PETSC(VecCreateSeq(PETSC_COMM_SELF, static_cast<PetscInt>(idx.size()), &slab_vec_));
-    const PetscErrorCode ierr = VecScatterCreate(r, is, slab_vec_, nullptr, &to_slab_);
-    ISDestroy(&is);
-    if (ierr) VecDestroy(&slab_vec_);  // the next solve creates both again
-    CELLFSI_PETSC(ierr);
-  }
+  if (!to_slab_) make_layer_scatter(r, j0_, j1_, &to_slab_, &slab_vec_);
   // 1. Lines: the slab of r, transformed along the periodic directions.
   CELLFSI_PETSC(VecScatterBegin(to_slab_, r, slab_vec_, INSERT_VALUES, SCATTER_FORWARD));
   CELLFSI_PETSC(VecScatterEnd(to_slab_, r, slab_vec_, INSERT_VALUES, SCATTER_FORWARD));
