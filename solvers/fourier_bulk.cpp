@@ -423,66 +423,67 @@ void FourierBulkSolver::multiply(Vec x, Vec y) const {
   if (across_ >= 0) gdims[across_] = g1 - g0;
   const std::array<long, 3> stride{static_cast<long>(dof_), static_cast<long>(dof_) * gdims[0],
                                    static_cast<long>(dof_) * gdims[0] * gdims[1]};
-  // Per direction and shift, the column's offset in the ghosted slab for each row coordinate (-1: beyond a
-  // wall), so that the inner loop only adds.
-  std::array<std::vector<long>, 3> offset_of;
-  std::array<int, 3> lo{}, hi{};
-  for (int d = 0; d < 3; ++d) {
-    lo[d] = 0;
-    hi[d] = 0;
-    for (const auto& layer : terms_)
-      for (const StencilTerm& t : layer) {
-        lo[d] = std::min(lo[d], t.shift[d]);
-        hi[d] = std::max(hi[d], t.shift[d]);
-      }
-    const int rows = d == across_ ? n_across_ : n_[d];
-    offset_of[d].assign(static_cast<std::size_t>(hi[d] - lo[d] + 1) * rows, -1);
-    for (int sh = lo[d]; sh <= hi[d]; ++sh)
-      for (int i = 0; i < rows; ++i) {
-        long col = -1;
-        if (d == across_) {
-          const int jc = i + sh;
-          if (jc >= g0 && jc < g1) col = jc - g0;
-        } else {
-          col = ((i + sh) % n_[d] + n_[d]) % n_[d];
-        }
-        offset_of[d][static_cast<std::size_t>(sh - lo[d]) * rows + i] = col < 0 ? -1 : col * stride[d];
-      }
-  }
+  // Term by term along lines of direction 0 (the slab's fastest): for a line of rows and one stencil term, the
+  // columns are a line of the ghosted slab shifted by the term's offset (wrapped in a periodic direction 0:
+  // two contiguous pieces), so the inner loop is a dof x dof block times consecutive nodes.
   const std::size_t slab_nodes = static_cast<std::size_t>(slab_[0]) * slab_[1] * slab_[2];
-  // The dof x dof block products unrolled for the fluid's 3 (2D) and 4 (3D) unknowns per node.
-  auto block_product = [&](auto dof_tag, const StencilTerm& t, const PetscScalar* xc, double* acc) {
+  std::fill(ys, ys + slab_nodes * dof_, 0.0);
+  auto line_product = [&](auto dof_tag, const StencilTerm& t, const PetscScalar* xc, PetscScalar* yr, int count) {
     constexpr int nd = decltype(dof_tag)::value;
     const int n = nd > 0 ? nd : dof_;
+    double b[64];  // the block by columns: y += sum over c2 of column c2 times x[c2] (the rows vectorise)
     for (int c = 0; c < n; ++c)
-      for (int c2 = 0; c2 < n; ++c2) acc[c] += t.block[c * n + c2] * xc[c2];
+      for (int c2 = 0; c2 < n; ++c2) b[c2 * n + c] = t.block[c * n + c2];
+    for (int k = 0; k < count; ++k, xc += n, yr += n)
+      for (int c2 = 0; c2 < n; ++c2) {
+        const double xv = xc[c2];
+        for (int c = 0; c < n; ++c) yr[c] += b[c2 * n + c] * xv;
+      }
   };
-  for (std::size_t s = 0; s < slab_nodes; ++s) {
-    std::array<int, 3> i{static_cast<int>(s % slab_[0]), static_cast<int>((s / slab_[0]) % slab_[1]),
-                         static_cast<int>(s / (static_cast<std::size_t>(slab_[0]) * slab_[1]))};
-    if (across_ >= 0) i[across_] += j0_;  // the row's coordinate in the whole box
-    const int layer = across_ >= 0 ? i[across_] : 0;
-    std::array<const long*, 3> table{};
-    std::array<int, 3> rows{};
-    for (int d = 0; d < 3; ++d) {
-      rows[d] = d == across_ ? n_across_ : n_[d];
-      table[d] = offset_of[d].data() + i[d];
+  auto product = [&](const StencilTerm& t, const PetscScalar* xc, PetscScalar* yr, int count) {
+    if (dof_ == 4)
+      line_product(std::integral_constant<int, 4>{}, t, xc, yr, count);
+    else if (dof_ == 3)
+      line_product(std::integral_constant<int, 3>{}, t, xc, yr, count);
+    else
+      line_product(std::integral_constant<int, 0>{}, t, xc, yr, count);
+  };
+  const int n_lines = slab_[1] * slab_[2], len = slab_[0];
+  for (int line = 0; line < n_lines && len > 0; ++line) {
+    std::array<int, 3> i{0, line % slab_[1], line / slab_[1]};
+    if (across_ >= 0) i[across_] += j0_;  // the row's coordinates in the whole box (i[0] varies along the line)
+    PetscScalar* yline = ys + static_cast<std::size_t>(line) * len * dof_;
+    for (int x0 = 0; x0 < len; x0 += across_ == 0 ? 1 : len) {  // direction 0 across: node by node
+      if (across_ == 0) i[0] = j0_ + x0;
+      const int layer = across_ >= 0 ? i[across_] : 0;
+      for (const StencilTerm& t : terms_[layer]) {
+        std::array<long, 3> col{};
+        bool inside = true;
+        for (int d = 1; d < 3; ++d) {
+          if (d == across_) {
+            const int jc = i[d] + t.shift[d];
+            inside = inside && jc >= g0 && jc < g1;
+            col[d] = jc - g0;
+          } else {
+            col[d] = ((i[d] + t.shift[d]) % n_[d] + n_[d]) % n_[d];
+          }
+        }
+        if (across_ == 0) {
+          const int jc = i[0] + t.shift[0];
+          if (!inside || jc < g0 || jc >= g1) continue;
+          product(t, xg + (jc - g0) * stride[0] + col[1] * stride[1] + col[2] * stride[2],
+                  yline + static_cast<std::size_t>(x0) * dof_, 1);
+          continue;
+        }
+        if (!inside) continue;
+        const PetscScalar* xrow = xg + col[1] * stride[1] + col[2] * stride[2];
+        // Rows 0..len-1 take columns (k + shift) mod n0: a piece before the wrap and one after.
+        const int n0 = n_[0], sh = ((t.shift[0] % n0) + n0) % n0;
+        const int first = std::min(len, n0 - sh);
+        product(t, xrow + static_cast<long>(sh) * dof_, yline, first);
+        if (first < len) product(t, xrow, yline + static_cast<std::size_t>(first) * dof_, len - first);
+      }
     }
-    double acc[8] = {};
-    for (const StencilTerm& t : terms_[layer]) {
-      const long o0 = table[0][static_cast<long>(t.shift[0] - lo[0]) * rows[0]];
-      const long o1 = table[1][static_cast<long>(t.shift[1] - lo[1]) * rows[1]];
-      const long o2 = table[2][static_cast<long>(t.shift[2] - lo[2]) * rows[2]];
-      if ((o0 | o1 | o2) < 0) continue;  // beyond a wall
-      const PetscScalar* xc = xg + o0 + o1 + o2;
-      if (dof_ == 4)
-        block_product(std::integral_constant<int, 4>{}, t, xc, acc);
-      else if (dof_ == 3)
-        block_product(std::integral_constant<int, 3>{}, t, xc, acc);
-      else
-        block_product(std::integral_constant<int, 0>{}, t, xc, acc);
-    }
-    for (int c = 0; c < dof_; ++c) ys[s * dof_ + c] = acc[c];
   }
   CELLFSI_PETSC(VecRestoreArrayRead(ghosted_vec_, &xg));
   CELLFSI_PETSC(VecRestoreArray(slab_vec_, &ys));
