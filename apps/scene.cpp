@@ -58,11 +58,12 @@ geometry::Patch make_body(const SceneSettings& s, const BodySettings& b, const s
                                    b.area > 0 ? b.area : geometry::kRbcArea2d);
   // 3D: built axis-aligned at c, then turned about c.
   const geometry::Mat3 A = Eigen::AngleAxisd(angle, b.axis).toRotationMatrix();
-  if (b.shape == "hollow_ellipsoid")
-    return geometry::transformed(
-        geometry::hollow_ellipsoid(a[0], a[1], a[2], b.thickness, n[1], n[2], b.degree, c), A, c - A * c);
-  return geometry::transformed(geometry::solid_ellipsoid(a[0], a[1], a[2], n[0], n[1], n[2], b.degree, c), A,
-                               c - A * c);
+  const geometry::Patch axis_aligned =
+      b.shape == "hollow_ellipsoid"
+          ? geometry::hollow_ellipsoid(a[0], a[1], a[2], b.thickness, n[1], n[2], b.degree, c)
+      : b.shape == "rbc_3d" ? geometry::biconcave_rbc_3d(b.thickness, n[1], n[2], b.degree, c)
+                            : geometry::solid_ellipsoid(a[0], a[1], a[2], n[0], n[1], n[2], b.degree, c);
+  return geometry::transformed(axis_aligned, A, c - A * c);
 }
 
 }  // namespace

@@ -24,8 +24,9 @@ namespace cellfsi::app {
 /// One immersed body (a cell membrane or a nucleus).
 struct BodySettings {
   std::string name;
-  std::string shape = "hollow_ellipse";       // hollow_ellipse | ellipse | rbc | hollow_ellipsoid | ellipsoid
-  std::vector<double> semi_axes{2e-4, 1e-4};  // mid-surface semi-axes [cm] (rbc: none)
+  // hollow_ellipse | ellipse | rbc (2D); hollow_ellipsoid | ellipsoid | rbc_3d (3D)
+  std::string shape = "hollow_ellipse";
+  std::vector<double> semi_axes{2e-4, 1e-4};  // mid-surface semi-axes [cm] (rbc, rbc_3d: none)
   geometry::Vec3 center = geometry::Vec3::Zero();
   double angle_deg = 0;                           // rotation [degrees]: 2D from +x, 3D about `axis`
   geometry::Vec3 axis = geometry::Vec3::UnitZ();  // 3D: rotation axis (unit)
@@ -39,7 +40,8 @@ struct BodySettings {
   double hardening_c3 = 1.0 / 30;        // strain_hardening: C3 / G (Mills et al. 2004)
   double density = 1.1;                  // rho_2 [g/cm^3]
   double inner_viscosity = 0;            // membranes: mu of the fluid inside [g/(cm s)] (0: the fluid's)
-  bool membrane() const { return shape.rfind("hollow", 0) == 0 || shape == "rbc"; }
+  bool membrane() const { return shape.rfind("hollow", 0) == 0 || biconcave(); }
+  bool biconcave() const { return shape == "rbc" || shape == "rbc_3d"; }  // Evans-Fung: no semi-axes
 };
 
 struct SceneSettings {

@@ -252,6 +252,17 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     // lambda = mu_in / mu_out, where an inner viscosity was given (issue 27).
     if (bs.inner_viscosity > 0)
       m.emplace_back(name + "_viscosity_ratio", bs.inner_viscosity / flow.viscosity);
+    if (bodies_[b]->is_membrane()) {
+      // The mid-surface encloses incompressible fluid: a change of its area/volume is a conservation error
+      // of the coupling (r_A measures the band's own).
+      const double enclosed0 = geometry::membrane_shape(reference, 0).enclosed;
+      m.emplace_back(name + "_enclosed_change",
+                     geometry::membrane_shape(bodies_[b]->current_patch(), 0).enclosed / enclosed0 - 1);
+      // The bending modulus the solid shell implies (incompressible thin plate: E h^3 / (12 (1 - nu^2)) with
+      // E = 3 G, nu = 1/2), in erg.
+      if (reference.physical_dim() == 3)
+        m.emplace_back(name + "_bending_modulus", bs.shear_modulus * std::pow(bs.thickness, 3) / 3);
+    }
     if (!bodies_[b]->is_membrane()) {
       // phi: against the membrane whose enclosed region holds this body's centroid (the nearest such).
       const geometry::Vec3 c = geometry::patch_moments(reference).centroid;

@@ -29,7 +29,8 @@ Enum enum_of(const std::string& word, const std::vector<std::string>& words) {
 
 const std::vector<std::string> kMarkings{"support", "central"};
 const std::vector<std::string> kAccelerations{"none", "anderson"};
-const std::vector<std::string> kShapes{"hollow_ellipse", "ellipse", "rbc", "hollow_ellipsoid", "ellipsoid"};
+const std::vector<std::string> kShapes{"hollow_ellipse",   "ellipse",   "rbc",
+                                       "hollow_ellipsoid", "ellipsoid", "rbc_3d"};
 const std::vector<std::string> kArrangements{"even", "staggered", "random"};
 const std::vector<std::string> kMaterials{"neo_hookean", "mooney_rivlin", "strain_hardening"};
 // C3 / G of the strain-hardening law: Mills et al. (2004) fitted 1/30; 100 makes the law 600 times stiffer
@@ -212,7 +213,10 @@ void read_body(SceneSettings& s, const std::string& name) {
   std::string arrangement = kArrangements[0];
   OptionTable t("cellfsi body '" + name + "'", pre);
   const auto dim = [D] { return D; };
-  t.text("shape", b.shape, "Body shape (the first three 2D, the last two 3D)", kShapes)
+  t.text("shape", b.shape,
+         "Body shape (the first three 2D, the last three 3D; rbc_3d: the Evans-Fung RBC, its axis of "
+         "symmetry along z before -angle, docs/geometry.md)",
+         kShapes)
       .reals("semi_axes", axes, "Semi-axes a,b[,c] [cm] (membranes: of the mid-surface)", nullptr,
              positive("[cm]"))
       .reals("center", center, "Centre x,y[,z] [cm] (default: the domain's centre)", dim, finite("[cm]"))
@@ -263,7 +267,7 @@ void read_body(SceneSettings& s, const std::string& name) {
 
   const bool is2d = b.shape == "hollow_ellipse" || b.shape == "ellipse" || b.shape == "rbc";
   if ((D == 2) != is2d) t.bad("shape", b.shape, D == 2 ? "a 2D shape (-dim 2)" : "a 3D shape (-dim 3)");
-  if (b.shape != "rbc") {
+  if (!b.biconcave()) {
     if (!t.given("semi_axes") && D == 3 && axes.size() == 2) axes.push_back(axes[1]);  // c = b
     if (static_cast<int>(axes.size()) != D)
       t.bad("semi_axes", std::to_string(axes.size()) + " values", std::to_string(D) + " values");
@@ -286,6 +290,11 @@ void read_body(SceneSettings& s, const std::string& name) {
     for (double a : b.semi_axes)
       if (!(b.thickness < a))
         t.bad("thickness", option_value_text(b.thickness), "smaller than every semi-axis");
+    // The 3D RBC's two sheets are C0 apart at its dimples: a thicker shell would fold through itself.
+    if (b.shape == "rbc_3d" && !(b.thickness < geometry::EvansFung{}.C0))
+      t.bad("thickness", option_value_text(b.thickness),
+            "smaller than the RBC's thickness at its dimples, C0 = " +
+                option_value_text(geometry::EvansFung{}.C0) + " [cm]");
   }
   if (t.given("inner_viscosity")) {
     // The bounds of -fluid_viscosity (fluid/fluid_options.cpp).

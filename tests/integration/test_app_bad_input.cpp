@@ -51,6 +51,16 @@ TEST_F(CellfsiApp, UnknownDomainIsRejected) {
   EXPECT_TRUE(nothing_written());
 }
 
+TEST_F(CellfsiApp, Rbc3dThickerThanItsDimplesIsRejected) {
+  // The 3D RBC's two sheets are C0 = 0.81 um apart at the dimples: a thicker shell would fold through itself.
+  const RunResult r = cellfsi({scene("rbc_shear_3d.yaml"), "-fluid_elements", "12,12,12", "-final_time",
+                               "1e-3", "-solid_rbc_thickness", "1e-4"});
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("-solid_rbc_thickness = 0.0001"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("C0 = 8.1e-05 [cm]"), std::string::npos) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
 TEST_F(CellfsiApp, MissingSceneFileIsRejected) {
   const std::string missing = scene("no_such_scene.yaml");
   const RunResult r = cellfsi(with({missing}, kTiny));
