@@ -66,6 +66,10 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
   // 6 were slower), 1 in 3D (cellfsi_fourier at 32^3, 12 steps: the Jacobian 1.43 s per step against 2.18 with
   // 4, the whole step 6 % faster; docs/performance.md §8).
   if (s.dim == 3) l.region_margin = 1;
+  // No whole Jacobian after the first step in 3D (cellfsi_fourier): at the paper's 64^3 on one rank, peak
+  // memory 7.2 GB against 14.8 and the Jacobian's refreshes 7x cheaper, the metrics the same to 4e-10
+  // (docs/performance.md §11). 2D keeps the assembled Jacobian (small there).
+  if (s.dim == 3) l.bulk_stencil = true;
   // Defaults of the cellfsi PC types (solvers/pc_types.cpp), for -help.
   double pc_threshold = 1e-3, pc_blr = 1e-10;
   int pc_overlap = 0, pc_region_solves = 1;
@@ -124,6 +128,10 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
       .flag("coupling_partial_jacobian", l.partial_jacobian,
             "cellfsi_fourier: re-assemble only the Jacobian around the cells, keeping the rest in a second copy "
             "(false: one copy, the whole Jacobian at every refresh)")
+      .flag("coupling_bulk_stencil", l.bulk_stencil,
+            "cellfsi_fourier: no whole Jacobian after the first step: the Krylov products apply the bulk "
+            "operator's stencil away from the cells and an assembled matrix of the rows near them (saves the "
+            "Jacobian's memory and most of its assembly; an inexact Newton iteration; default true in 3D)")
       .integer("coupling_region_margin", l.region_margin,
                "cellfsi types: elements around the s^h band and immersed points in the re-assembled region "
                "(default 4 in 2D, 1 in 3D)",
@@ -401,7 +409,7 @@ void check_memory(SceneSettings& s) {
   // 8.7 GB (4.0 Jacobians) with it. It is kept while 4.5 Jacobians fit.
   PetscBool partial_given = PETSC_FALSE;
   CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-coupling_partial_jacobian", &partial_given));
-  if (pc == solvers::kPCFourier && l.partial_jacobian && !partial_given &&
+  if (pc == solvers::kPCFourier && l.partial_jacobian && !l.bulk_stencil && !partial_given &&
       4.5 * fluid_jacobian_bytes(s) / std::max(1, leaders) > available) {
     l.partial_jacobian = false;
     CELLFSI_PETSC(
@@ -410,7 +418,7 @@ void check_memory(SceneSettings& s) {
                     "(-coupling_partial_jacobian false)\n",
                     available / 1e9, fluid_jacobian_bytes(s) / 1e9));
   }
-  const int copies = coupling::jacobian_copies(pc, l.partial_jacobian);
+  const int copies = coupling::jacobian_copies(pc, l.partial_jacobian, l.bulk_stencil);
   const double need = copies * fluid_jacobian_bytes(s) / std::max(1, leaders);
   if (need <= available) return;
   std::ostringstream v, w;

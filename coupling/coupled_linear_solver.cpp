@@ -10,6 +10,7 @@
 #include "common/petsc_error.hpp"
 #include "coupling/band_region.hpp"
 #include "coupling/coupling_events.hpp"
+#include "solvers/near_operator.hpp"
 #include "solvers/pc_types.hpp"
 
 namespace cellfsi::coupling {
@@ -57,10 +58,12 @@ std::string default_pc_type(const SolverSituation& s) {
   return PCASM;
 }
 
-int jacobian_copies(const std::string& pc_type, bool partial_jacobian) {
+int jacobian_copies(const std::string& pc_type, bool partial_jacobian, bool bulk_stencil) {
   // cellfsi_band: the kept part, MUMPS' input copy of it and the whole; cellfsi_fourier: the part away from
-  // the cells (unless partial_jacobian is off) and the whole.
+  // the cells (unless partial_jacobian is off) and the whole, or with the bulk stencil the whole only while
+  // the bulk solver is built (then the rows near the cells).
   if (pc_type == solvers::kPCBand) return 3;
+  if (pc_type == solvers::kPCFourier && bulk_stencil) return 1;
   if (pc_type == solvers::kPCFourier) return partial_jacobian ? 2 : 1;
   return 1;
 }
@@ -100,7 +103,7 @@ std::string option_inapplicable(const std::string& name, const std::string& pc_t
        name == "coupling_refactor_every") &&
       !band)
     return in_use;
-  if (name == "coupling_partial_jacobian" && !fourier) return in_use;
+  if ((name == "coupling_partial_jacobian" || name == "coupling_bulk_stencil") && !fourier) return in_use;
   if ((name == "coupling_region_margin" || name == "coupling_refresh_steps" || name == "coupling_refresh_lag") &&
       !fourier && !band)
     return in_use + ", which refreshes its preconditioner every -coupling_pc_lag solves";
@@ -148,6 +151,26 @@ CoupledLinearSolver::CoupledLinearSolver(fluid::FluidSolver& fluid, LinearSolver
     PC pc;
     CELLFSI_PETSC(KSPGetPC(ksp_, &pc));
     solvers::pc_fourier_set_box(pc, box);
+    if (opt_.bulk_stencil && !fluid.options().pressure_null_space) {
+      // (The default in 3D gives way; asked for, it is refused.)
+      PetscBool given = PETSC_FALSE;
+      CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-coupling_bulk_stencil", &given));
+      if (given)
+        throw std::invalid_argument("-coupling_bulk_stencil needs the constant pressure as the Jacobian's null "
+                                    "space (-fluid_pressure_null_space true): a pinned pressure row is not "
+                                    "part of the bulk stencil");
+      opt_.bulk_stencil = false;
+    }
+    if (opt_.bulk_stencil) {
+      // The operator that replaces the Jacobian carries its null spaces.
+      CELLFSI_PETSC(MatGetNullSpace(J, &null_space_));
+      CELLFSI_PETSC(MatGetTransposeNullSpace(J, &transpose_null_space_));
+      if (null_space_) CELLFSI_PETSC(PetscObjectReference(reinterpret_cast<PetscObject>(null_space_)));
+      if (transpose_null_space_)
+        CELLFSI_PETSC(PetscObjectReference(reinterpret_cast<PetscObject>(transpose_null_space_)));
+    }
+  } else {
+    opt_.bulk_stencil = false;  // (given by the user, the option checks refuse it: option_inapplicable)
   }
   if (!cellfsi_type_) {
     // A PETSc PC sets itself up on the Jacobian of the current state now, so that its inner solvers (ASM's
@@ -166,6 +189,10 @@ CoupledLinearSolver::CoupledLinearSolver(fluid::FluidSolver& fluid, LinearSolver
 CoupledLinearSolver::~CoupledLinearSolver() {
   KSPDestroy(&ksp_);
   MatDestroy(&J_fixed_);
+  MatDestroy(&near_op_);
+  MatDestroy(&near_);
+  MatNullSpaceDestroy(&null_space_);
+  MatNullSpaceDestroy(&transpose_null_space_);
 }
 
 void CoupledLinearSolver::configure(const std::string& type) {
@@ -213,6 +240,7 @@ void CoupledLinearSolver::fall_back(const std::string& type, const std::string& 
   fell_back_ = true;
   region_.clear();
   MatDestroy(&J_fixed_);
+  opt_.bulk_stencil = false;  // (the bulk solver was not built: the whole Jacobian is still there)
   configure(type);
   marking_changed_ = pc_stale_ = true;
   steps_since_refresh_ = 0;
@@ -253,6 +281,15 @@ bool CoupledLinearSolver::build_bulk(Vec X) {
                             "uniform to %.2e\n",
                             f->bulk().n_modes(), factor_mb, dev));
   marking_changed_ = true;
+  if (opt_.bulk_stencil) {  // from here on the stencil and the near rows
+    PetscLogDouble before = 0, after = 0;
+    CELLFSI_PETSC(PetscMemoryGetCurrentUsage(&before));
+    fluid_.release_jacobian_matrix();
+    CELLFSI_PETSC(PetscMemoryGetCurrentUsage(&after));
+    if (opt_.monitor)
+      CELLFSI_PETSC(PetscPrintf(fluid_.comm(), "  the whole Jacobian released: resident %.0f -> %.0f MB\n",
+                                before / 1048576.0, after / 1048576.0));
+  }
   return true;
 }
 
@@ -310,8 +347,105 @@ bool CoupledLinearSolver::ensure_band_factorization(Vec X) {
   return true;
 }
 
+void CoupledLinearSolver::make_near_operator() {
+  MatDestroy(&near_op_);
+  MatDestroy(&near_);
+  PC pc;
+  CELLFSI_PETSC(KSPGetPC(ksp_, &pc));
+  const solvers::FourierBulkSolver& bulk = solvers::pc_fourier_solver(pc)->bulk();
+  const geometry::Patch& patch = fluid_.patch();
+  const int dim = fluid_.dim(), dof = dim + 1;
+  // The rows the region's elements touch, and those they hold in full (every element of the node's support
+  // in the region).
+  std::vector<char> touched(bulk.n_nodes(), 0), outside(region_.size(), 0);
+  for (int f : functions_on_elements(patch, region_)) touched[f] = 1;
+  for (std::size_t e = 0; e < region_.size(); ++e) outside[e] = !region_[e];
+  std::vector<char> near_nodes = touched;
+  for (int f : functions_on_elements(patch, outside)) near_nodes[f] = 0;
+  // Preallocation: a touched row's block columns are its stencil's nodes (+-degree per direction, wrapped in
+  // the periodic ones), split between this rank's columns and the others'; any other row, its diagonal (the
+  // unit rows of the walls).
+  PetscInt lo = 0, hi = 0;
+  CELLFSI_PETSC(VecGetOwnershipRange(fluid_.solution(), &lo, &hi));
+  const PetscInt b0 = lo / dof, b1 = hi / dof;
+  std::array<int, 3> n{1, 1, 1}, p{0, 0, 0};
+  std::array<bool, 3> periodic{false, false, false};
+  for (int d = 0; d < dim; ++d) {
+    n[d] = patch.n_control(d);
+    p[d] = patch.degree(d);
+    periodic[d] = patch.knots(d).periodic();
+  }
+  std::vector<PetscInt> d_nnz(b1 - b0, 1), o_nnz(b1 - b0, 0);
+  std::array<std::vector<int>, 3> cols;
+  for (PetscInt gb = b0; gb < b1; ++gb) {
+    const int node = bulk.natural_node(static_cast<int>(gb));
+    if (!touched[node]) continue;
+    const std::array<int, 3> c{node % n[0], (node / n[0]) % n[1], node / (n[0] * n[1])};
+    for (int d = 0; d < 3; ++d) {
+      cols[d].clear();
+      for (int o = -p[d]; o <= p[d]; ++o) {
+        int x = c[d] + o;
+        if (periodic[d])
+          x = (x % n[d] + n[d]) % n[d];
+        else if (x < 0 || x >= n[d])
+          continue;
+        if (std::find(cols[d].begin(), cols[d].end(), x) == cols[d].end()) cols[d].push_back(x);
+      }
+    }
+    PetscInt in = 0, out = 0;
+    for (int z : cols[2])
+      for (int y : cols[1])
+        for (int x : cols[0]) {
+          const PetscInt g = bulk.global_node(x + n[0] * (y + n[1] * z));
+          (g >= b0 && g < b1 ? in : out) += 1;
+        }
+    d_nnz[gb - b0] = in;
+    o_nnz[gb - b0] = out;
+  }
+  CELLFSI_PETSC(MatCreateBAIJ(fluid_.comm(), dof, hi - lo, hi - lo, PETSC_DETERMINE, PETSC_DETERMINE, 0,
+                              d_nnz.data(), 0, o_nnz.data(), &near_));
+  // Every row's diagonal block in the pattern (an assembly squeezes out what was not set): the assembly's
+  // Dirichlet rows become unit rows there.
+  const std::vector<PetscScalar> zero(static_cast<std::size_t>(dof) * dof, 0.0);
+  for (PetscInt gb = b0; gb < b1; ++gb)
+    CELLFSI_PETSC(MatSetValuesBlocked(near_, 1, &gb, 1, &gb, zero.data(), INSERT_VALUES));
+  CELLFSI_PETSC(MatAssemblyBegin(near_, MAT_FLUSH_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(near_, MAT_FLUSH_ASSEMBLY));
+  ISLocalToGlobalMapping ltog = nullptr;
+  CELLFSI_PETSC(DMGetLocalToGlobalMapping(fluid_.dm(), &ltog));
+  CELLFSI_PETSC(MatSetLocalToGlobalMapping(near_, ltog, ltog));
+  near_op_ = solvers::create_near_operator(bulk, near_, std::move(near_nodes));
+  if (null_space_) CELLFSI_PETSC(MatSetNullSpace(near_op_, null_space_));
+  if (transpose_null_space_) CELLFSI_PETSC(MatSetTransposeNullSpace(near_op_, transpose_null_space_));
+}
+
+void CoupledLinearSolver::refresh_near_operator(Vec X) {
+  // The region: the elements around the cells, `degree` elements beyond the active ones at least, so that
+  // every row the cells change (a node whose support meets an active element) is held in full; grown by
+  // the margin so that it is kept for a while as the cells move.
+  const std::vector<char> active = active_elements_();
+  const geometry::Patch& patch = fluid_.patch();
+  int reach = 0;
+  for (int d = 0; d < fluid_.dim(); ++d) reach = std::max(reach, patch.degree(d));
+  const bool fresh = !near_ || !contains(region_, grow_elements(patch, active, reach));
+  if (fresh) {
+    region_ = grow_elements(patch, active, reach + opt_.region_margin);
+    make_near_operator();
+  } else {
+    CELLFSI_PETSC(MatZeroEntries(near_));
+  }
+  fluid_.jacobian_add_part(X, near_, region_);
+  // (An assembly of the operator raises its state: KSP then sets the preconditioner up again.)
+  CELLFSI_PETSC(MatAssemblyBegin(near_op_, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(near_op_, MAT_FINAL_ASSEMBLY));
+}
+
 void CoupledLinearSolver::refresh_jacobian(Vec X) {
   EventScope ev(coupling_events().jacobian);
+  if (opt_.bulk_stencil) {
+    refresh_near_operator(X);
+    return;
+  }
   Mat J = fluid_.jacobian_matrix();
   if (pc_type() == solvers::kPCFourier) {
     // Only the elements around the cells are re-assembled: the rest, kept in J_fixed_, is rebuilt when the
@@ -361,10 +495,10 @@ int CoupledLinearSolver::solve(Vec X, Vec F, Vec dX, bool first_iteration, Solve
                        (first_iteration && (marking_changed_ || steps_since_refresh_ >= opt_.refresh_steps)) ||
                        (opt_.refresh_lag > 0 && solves_since_refresh_ >= opt_.refresh_lag);
   if (first_iteration) marking_changed_ = false;
-  Mat J = fluid_.jacobian_matrix();
+  if (refresh) refresh_jacobian(X);
+  Mat J = near_op_ ? near_op_ : fluid_.jacobian_matrix();
   CELLFSI_PETSC(KSPSetOperators(ksp_, J, J));
   if (refresh) {
-    refresh_jacobian(X);
     EventScope ev(coupling_events().pc_setup);
     CELLFSI_PETSC(KSPSetUp(ksp_));  // the region's LU or the band's Schur complement
     ++counts.refreshes;

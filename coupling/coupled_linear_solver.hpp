@@ -24,6 +24,9 @@
 // chord iteration; the residual is exact, so the answer is the same to the coupling tolerance). A refresh
 // re-assembles only the elements around the cells (-coupling_region_margin elements around the active
 // ones); the rest is kept in a second copy of the Jacobian, re-assembled when the cells leave that region.
+// With -coupling_bulk_stencil (cellfsi_fourier) there is no whole Jacobian after the bulk solver is built:
+// the operator is solvers/near_operator.hpp's, the bulk stencil away from the cells and a matrix of the rows
+// near them (the active elements grown by the spline degree and the margin), re-assembled at each refresh.
 #include <petscksp.h>
 
 #include <functional>
@@ -49,6 +52,9 @@ struct LinearSolverOptions {
   // cellfsi_fourier: re-assemble only the region, keeping the rest in a second copy (false: the whole
   // Jacobian at every refresh, one copy less: for meshes whose memory is tight).
   bool partial_jacobian = true;
+  // cellfsi_fourier: no whole Jacobian after the first step: the Krylov products use the bulk operator's
+  // stencil away from the cells and an assembled matrix of the rows near them (solvers/near_operator.hpp).
+  bool bulk_stencil = false;
   int preconditioner_lag = 10;  // other PCs: linear solves between rebuilds of the preconditioner
   // cellfsi_fourier: the bulk operator's largest relative deviation between periodic positions above which
   // it does not run. No option sets it: the meshes it guards are uniform to round-off (about 1e-13) or not
@@ -72,7 +78,7 @@ struct SolverSituation {
 /// The PC type of the automatic choice (before any fallback).
 std::string default_pc_type(const SolverSituation& s);
 /// Copies of the fluid Jacobian a run with this PC type keeps (the memory check).
-int jacobian_copies(const std::string& pc_type, bool partial_jacobian);
+int jacobian_copies(const std::string& pc_type, bool partial_jacobian, bool bulk_stencil = false);
 /// Why option `name` (without the dash) given by the user does not apply to a coupled run whose solve uses
 /// `pc_type`, or "" if it applies.
 std::string option_inapplicable(const std::string& name, const std::string& pc_type);
@@ -116,6 +122,10 @@ class CoupledLinearSolver {
   bool ensure_band_factorization(Vec X);   // cellfsi_band; returns whether it factorised
   bool build_bulk(Vec X);                  // cellfsi_fourier, once; false if it fell back
   void refresh_jacobian(Vec X);            // the region re-assembled, the rest kept
+  void refresh_near_operator(Vec X);       // bulk_stencil: the near rows re-assembled
+  /// bulk_stencil: the matrix of the rows of nodes on region_'s elements (the others hold one diagonal
+  /// block), the operator made of it and the bulk stencil, and the nodes whose rows it holds in full.
+  void make_near_operator();
   int solve_generic(Vec X, Vec F, Vec dX, SolveCounts& counts);
   fluid::FluidSolver& fluid_;
   LinearSolverOptions opt_;
@@ -124,6 +134,8 @@ class CoupledLinearSolver {
   bool cellfsi_type_ = false, fell_back_ = false, marking_changed_ = true, pc_stale_ = true;
   std::vector<char> region_;  // elements re-assembled at every refresh
   Mat J_fixed_ = nullptr;     // the Jacobian of the other elements
+  Mat near_ = nullptr, near_op_ = nullptr;  // bulk_stencil: the near rows, and the operator
+  MatNullSpace null_space_ = nullptr, transpose_null_space_ = nullptr;  // the fluid Jacobian's, for near_op_
   int steps_since_refresh_ = 0, solves_since_refresh_ = 0, steps_since_factor_ = 0, solves_since_pc_ = 1 << 30;
   bool bulk_built_ = false;
 };

@@ -1,5 +1,9 @@
 #include "fluid/fluid_solver.hpp"
 
+#ifdef __GLIBC__
+#include <malloc.h>  // malloc_trim
+#endif
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -130,10 +134,6 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
   CELLFSI_PETSC(DMCreateGlobalVector(da_scalar_, &S_));
   CELLFSI_PETSC(VecSet(S_, 1.0));
   CELLFSI_PETSC(DMCreateLocalVector(da_scalar_, &S_loc_));
-  // Block AIJ with one block per control point (the default): element blocks are inserted node by node.
-  CELLFSI_PETSC(DMSetMatType(da_, opt_.jacobian_type.c_str()));
-  CELLFSI_PETSC(DMCreateMatrix(da_, &J_));
-  CELLFSI_PETSC(MatSetOption(J_, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
 
   // The pressure of the first control point is pinned (see the header), or the linear solver is given the
   // constant pressure as the Jacobian's null space.
@@ -148,23 +148,7 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
     CELLFSI_PETSC(PetscOptionsGetString(nullptr, nullptr, name, package, sizeof package, &set));
     if (set && std::string(package) != "mumps" && !asked) opt_.pressure_null_space = false;
   }
-  if (opt_.pressure_null_space) {
-    Vec constant;
-    CELLFSI_PETSC(VecDuplicate(U_, &constant));
-    CELLFSI_PETSC(VecSet(constant, 0.0));
-    CELLFSI_PETSC(VecStrideSet(constant, dim_, 1.0));
-    CELLFSI_PETSC(VecNormalize(constant, nullptr));
-    MatNullSpace nsp;
-    CELLFSI_PETSC(MatNullSpaceCreate(comm, PETSC_FALSE, 1, &constant, &nsp));
-    CELLFSI_PETSC(MatSetNullSpace(J_, nsp));
-    // Without walls the continuity rows sum to zero for any state: the constant pressure is also the left
-    // null vector, whose component of a right-hand side (round-off) KSP then removes.
-    bool walls = false;
-    for (int d = 0; d < dim_; ++d) walls = walls || !patch.knots(d).periodic();
-    if (!walls) CELLFSI_PETSC(MatSetTransposeNullSpace(J_, nsp));
-    CELLFSI_PETSC(MatNullSpaceDestroy(&nsp));
-    CELLFSI_PETSC(VecDestroy(&constant));
-  } else if (xs_[0] == 0 && xs_[1] == 0 && xs_[2] == 0) {
+  if (!opt_.pressure_null_space && xs_[0] == 0 && xs_[1] == 0 && xs_[2] == 0) {
     PetscInt lo = 0;
     CELLFSI_PETSC(VecGetOwnershipRange(U_, &lo, nullptr));
     pin_row_ = lo + dim_;
@@ -172,8 +156,7 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
 
   CELLFSI_PETSC(SNESCreate(comm, &snes_));
   CELLFSI_PETSC(SNESSetOptionsPrefix(snes_, "fluid_"));
-  CELLFSI_PETSC(SNESSetFunction(snes_, F_, fluid_residual, this));
-  CELLFSI_PETSC(SNESSetJacobian(snes_, J_, J_, fluid_jacobian, this));
+  create_jacobian_matrix();
   // The paper's linear solver, as defaults that the command line overrides: GMRES (rtol 1e-5), restricted
   // additive Schwarz with one subdomain per rank, LU subdomain solves with nested-dissection ordering.
   KSP ksp;
@@ -217,6 +200,46 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
     CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, kv[0], &set));
   }
   CELLFSI_PETSC(SNESSetFromOptions(snes_));
+}
+
+void FluidSolver::create_jacobian_matrix() {
+  if (J_) return;
+  // Block AIJ with one block per control point (the default): element blocks are inserted node by node.
+  CELLFSI_PETSC(DMSetMatType(da_, opt_.jacobian_type.c_str()));
+  CELLFSI_PETSC(DMCreateMatrix(da_, &J_));
+  CELLFSI_PETSC(MatSetOption(J_, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
+  // The constant pressure as the Jacobian's null space (or the pin of the constructor).
+  if (opt_.pressure_null_space) {
+    Vec constant;
+    CELLFSI_PETSC(VecDuplicate(U_, &constant));
+    CELLFSI_PETSC(VecSet(constant, 0.0));
+    CELLFSI_PETSC(VecStrideSet(constant, dim_, 1.0));
+    CELLFSI_PETSC(VecNormalize(constant, nullptr));
+    MatNullSpace nsp;
+    CELLFSI_PETSC(MatNullSpaceCreate(comm_, PETSC_FALSE, 1, &constant, &nsp));
+    CELLFSI_PETSC(MatSetNullSpace(J_, nsp));
+    // Without walls the continuity rows sum to zero for any state: the constant pressure is also the left
+    // null vector, whose component of a right-hand side (round-off) KSP then removes.
+    bool walls = false;
+    for (int d = 0; d < dim_; ++d) walls = walls || !patch_.knots(d).periodic();
+    if (!walls) CELLFSI_PETSC(MatSetTransposeNullSpace(J_, nsp));
+    CELLFSI_PETSC(MatNullSpaceDestroy(&nsp));
+    CELLFSI_PETSC(VecDestroy(&constant));
+  }
+  CELLFSI_PETSC(SNESSetFunction(snes_, F_, fluid_residual, this));
+  CELLFSI_PETSC(SNESSetJacobian(snes_, J_, J_, fluid_jacobian, this));
+}
+
+void FluidSolver::release_jacobian_matrix() {
+  // SNESReset drops the SNES's (and its KSP's) references to the matrix; its type and options stay.
+  CELLFSI_PETSC(SNESReset(snes_));
+  MatDestroy(&J_);
+#ifdef __GLIBC__
+  // glibc keeps the freed pages of the matrix in its heap rather than returning them (measured at 32^3:
+  // resident 694 MB before and after; 150 MB after malloc_trim), and later large allocations (MUMPS' factors)
+  // do not reuse them: hand them back.
+  malloc_trim(0);
+#endif
 }
 
 FluidSolver::~FluidSolver() {
@@ -369,6 +392,7 @@ void FluidSolver::sort_immersed_points() {
 // Time step
 
 void FluidSolver::setup() {
+  create_jacobian_matrix();
   // The Jacobian at the initial state lets the linear solver set itself up: inner solvers (ASM subdomains,
   // multigrid levels) read their options here, so misspelt ones are reported before any time step.
   // Factorisations are deferred to the first solve, so this costs one Jacobian assembly.
@@ -392,6 +416,7 @@ StepStats FluidSolver::step() {
   StepStats st;
   Vec X;
   CELLFSI_PETSC(VecDuplicate(U_, &X));
+  create_jacobian_matrix();
   begin_step(X);
   CELLFSI_PETSC(SNESSolve(snes_, nullptr, X));
   PetscInt its = 0, lits = 0;

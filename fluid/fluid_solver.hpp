@@ -192,6 +192,10 @@ class FluidSolver {
   void restore(Vec U, Vec Udot, int steps);
   /// The Jacobian matrix and the linear solver of the fluid (KSP prefix fluid_).
   Mat jacobian_matrix() const { return J_; }
+  /// Frees the Jacobian matrix (jacobian_matrix() is then null) for a coupled run whose operator needs no
+  /// whole matrix (coupling/coupled_linear_solver.hpp, -coupling_bulk_stencil); step() and setup() make it
+  /// again.
+  void release_jacobian_matrix();
   KSP ksp() const;
 
   /// Residual and Jacobian of the current state (for tests): F(U) with U the current unknown at t_{n+1}.
@@ -228,6 +232,8 @@ class FluidSolver {
   void assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band = nullptr, bool band_side = true,
                 bool accumulate = false);
   void apply_dirichlet_values(Vec U, double t) const;
+  /// Creates J_ (with the pressure's null space) and gives it to the SNES, if it does not exist.
+  void create_jacobian_matrix();
   std::vector<PetscInt> dirichlet_rows() const;  // global PETSc indices of owned Dirichlet rows
   bool owns_element(const geometry::Index3& e) const;
   /// The L2 projections onto the spline space of `count` scalar functions (f(x, values) fills values[0 ..

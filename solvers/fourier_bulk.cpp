@@ -7,6 +7,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "common/petsc_error.hpp"
 
@@ -99,6 +100,8 @@ FourierBulkSolver::FourierBulkSolver(std::array<int, 3> n, std::array<bool, 3> p
 FourierBulkSolver::~FourierBulkSolver() {
   VecScatterDestroy(&to_slab_);
   VecDestroy(&slab_vec_);
+  VecScatterDestroy(&to_ghosted_);
+  VecDestroy(&ghosted_vec_);
 }
 
 std::size_t FourierBulkSolver::slab_node(int mode, int jl) const {
@@ -212,6 +215,29 @@ void FourierBulkSolver::build(Mat A, bool pin_pressure) {
   CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, stencil_.data(), static_cast<int>(stencil_.size()), MPI_DOUBLE,
                               MPI_SUM, comm_));
   CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, has_unit.data(), m_, MPI_INT, MPI_MAX, comm_));
+  // The stencil regrouped by layer for multiply(): one term per column offset with a nonzero block.
+  terms_.assign(n_across_, {});
+  if (dof_ <= 8)
+    for (int jj = 0; jj < n_across_; ++jj)
+      for (int o0 = 0; o0 < width_[0]; ++o0)
+        for (int o1 = 0; o1 < width_[1]; ++o1)
+          for (int o2 = 0; o2 < width_[2]; ++o2)
+            for (int d2 = 0; d2 < wq; ++d2) {
+              StencilTerm t;
+              bool nonzero = false;
+              for (int c = 0; c < dof_; ++c)
+                for (int c2 = 0; c2 < dof_; ++c2) {
+                  const double a = stencil_[stencil_index(jj, c, {o0, o1, o2}, d2, c2)];
+                  t.block[c * dof_ + c2] = a;
+                  nonzero = nonzero || a != 0;
+                }
+              if (!nonzero) continue;
+              const std::array<int, 3> oo{o0, o1, o2};
+              for (int d = 0; d < 3; ++d)
+                t.shift[d] = periodic_[d] && width_[d] < n_[d] ? oo[d] - degree_[d] : oo[d];
+              if (across_ >= 0) t.shift[across_] = d2 - degree_[across_];
+              terms_[jj].push_back(t);
+            }
   // 2. How far A is from its average. A non-finite entry makes the deviation NaN (std::max would skip it),
   // which no caller takes for uniform.
   deviation_ = 0;
@@ -349,31 +375,130 @@ void FourierBulkSolver::fft(std::vector<cplx>& z, bool inverse, const std::array
   }
 }
 
+void FourierBulkSolver::make_layer_scatter(Vec r, int first, int last, VecScatter* scatter, Vec* values) const {
+  // The unknowns of layers [first, last) across (every periodic position), node-major in the layers' own
+  // lexicographic order, in r's global ordering. Without a wall direction the single "layer" is the box.
+  std::array<int, 3> dims = n_;
+  if (across_ >= 0)
+    dims[across_] = last - first;
+  else if (last == first)
+    dims = {0, 0, 0};
+  const std::size_t nodes = static_cast<std::size_t>(dims[0]) * dims[1] * dims[2];
+  std::vector<PetscInt> idx(nodes * dof_);
+  for (std::size_t s = 0; s < nodes; ++s) {
+    std::array<int, 3> i{static_cast<int>(s % dims[0]), static_cast<int>((s / dims[0]) % dims[1]),
+                         static_cast<int>(s / (static_cast<std::size_t>(dims[0]) * dims[1]))};
+    if (across_ >= 0) i[across_] += first;
+    const int g = global_node((i[2] * n_[1] + i[1]) * n_[0] + i[0]);
+    for (int c = 0; c < dof_; ++c) idx[s * dof_ + c] = static_cast<PetscInt>(g) * dof_ + c;
+  }
+  IS is;
+  CELLFSI_PETSC(ISCreateGeneral(PETSC_COMM_SELF, static_cast<PetscInt>(idx.size()), idx.data(),
+                                PETSC_COPY_VALUES, &is));
+  CELLFSI_PETSC(VecCreateSeq(PETSC_COMM_SELF, static_cast<PetscInt>(idx.size()), values));
+  const PetscErrorCode ierr = VecScatterCreate(r, is, *values, nullptr, scatter);
+  ISDestroy(&is);
+  if (ierr) VecDestroy(values);  // the next call creates both again
+  CELLFSI_PETSC(ierr);
+}
+
+void FourierBulkSolver::multiply(Vec x, Vec y) const {
+  if (!built_) throw std::logic_error("FourierBulkSolver: multiply before a completed build");
+  if (dof_ > 8) throw std::logic_error("FourierBulkSolver::multiply: more than 8 unknowns per node");
+  static const PetscLogEvent event = register_log_event("cellfsi solvers", "FourierBulkMult");
+  CELLFSI_PETSC(PetscLogEventBegin(event, 0, 0, 0, 0));
+  if (!to_slab_) make_layer_scatter(x, j0_, j1_, &to_slab_, &slab_vec_);
+  // The layers this rank's rows reach: `degree` more on either side across (none beyond the walls).
+  const int reach = across_ >= 0 ? degree_[across_] : 0;
+  const int g0 = across_ >= 0 ? std::max(0, j0_ - reach) : j0_;
+  const int g1 = across_ >= 0 ? std::min(n_across_, j1_ + reach) : j1_;
+  if (!to_ghosted_) make_layer_scatter(x, g0, g1, &to_ghosted_, &ghosted_vec_);
+  CELLFSI_PETSC(VecScatterBegin(to_ghosted_, x, ghosted_vec_, INSERT_VALUES, SCATTER_FORWARD));
+  CELLFSI_PETSC(VecScatterEnd(to_ghosted_, x, ghosted_vec_, INSERT_VALUES, SCATTER_FORWARD));
+  const PetscScalar* xg = nullptr;
+  PetscScalar* ys = nullptr;
+  CELLFSI_PETSC(VecGetArrayRead(ghosted_vec_, &xg));
+  CELLFSI_PETSC(VecGetArray(slab_vec_, &ys));
+  std::array<int, 3> gdims = n_;  // the ghosted slab's extent
+  if (across_ >= 0) gdims[across_] = g1 - g0;
+  const std::array<long, 3> stride{static_cast<long>(dof_), static_cast<long>(dof_) * gdims[0],
+                                   static_cast<long>(dof_) * gdims[0] * gdims[1]};
+  // Term by term along lines of direction 0 (the slab's fastest): for a line of rows and one stencil term, the
+  // columns are a line of the ghosted slab shifted by the term's offset (wrapped in a periodic direction 0:
+  // two contiguous pieces), so the inner loop is a dof x dof block times consecutive nodes.
+  const std::size_t slab_nodes = static_cast<std::size_t>(slab_[0]) * slab_[1] * slab_[2];
+  std::fill(ys, ys + slab_nodes * dof_, 0.0);
+  auto line_product = [&](auto dof_tag, const StencilTerm& t, const PetscScalar* xc, PetscScalar* yr, int count) {
+    constexpr int nd = decltype(dof_tag)::value;
+    const int n = nd > 0 ? nd : dof_;
+    double b[64];  // the block by columns: y += sum over c2 of column c2 times x[c2] (the rows vectorise)
+    for (int c = 0; c < n; ++c)
+      for (int c2 = 0; c2 < n; ++c2) b[c2 * n + c] = t.block[c * n + c2];
+    for (int k = 0; k < count; ++k, xc += n, yr += n)
+      for (int c2 = 0; c2 < n; ++c2) {
+        const double xv = xc[c2];
+        for (int c = 0; c < n; ++c) yr[c] += b[c2 * n + c] * xv;
+      }
+  };
+  auto product = [&](const StencilTerm& t, const PetscScalar* xc, PetscScalar* yr, int count) {
+    if (dof_ == 4)
+      line_product(std::integral_constant<int, 4>{}, t, xc, yr, count);
+    else if (dof_ == 3)
+      line_product(std::integral_constant<int, 3>{}, t, xc, yr, count);
+    else
+      line_product(std::integral_constant<int, 0>{}, t, xc, yr, count);
+  };
+  const int n_lines = slab_[1] * slab_[2], len = slab_[0];
+  for (int line = 0; line < n_lines && len > 0; ++line) {
+    std::array<int, 3> i{0, line % slab_[1], line / slab_[1]};
+    if (across_ >= 0) i[across_] += j0_;  // the row's coordinates in the whole box (i[0] varies along the line)
+    PetscScalar* yline = ys + static_cast<std::size_t>(line) * len * dof_;
+    for (int x0 = 0; x0 < len; x0 += across_ == 0 ? 1 : len) {  // direction 0 across: node by node
+      if (across_ == 0) i[0] = j0_ + x0;
+      const int layer = across_ >= 0 ? i[across_] : 0;
+      for (const StencilTerm& t : terms_[layer]) {
+        std::array<long, 3> col{};
+        bool inside = true;
+        for (int d = 1; d < 3; ++d) {
+          if (d == across_) {
+            const int jc = i[d] + t.shift[d];
+            inside = inside && jc >= g0 && jc < g1;
+            col[d] = jc - g0;
+          } else {
+            col[d] = ((i[d] + t.shift[d]) % n_[d] + n_[d]) % n_[d];
+          }
+        }
+        if (across_ == 0) {
+          const int jc = i[0] + t.shift[0];
+          if (!inside || jc < g0 || jc >= g1) continue;
+          product(t, xg + (jc - g0) * stride[0] + col[1] * stride[1] + col[2] * stride[2],
+                  yline + static_cast<std::size_t>(x0) * dof_, 1);
+          continue;
+        }
+        if (!inside) continue;
+        const PetscScalar* xrow = xg + col[1] * stride[1] + col[2] * stride[2];
+        // Rows 0..len-1 take columns (k + shift) mod n0: a piece before the wrap and one after.
+        const int n0 = n_[0], sh = ((t.shift[0] % n0) + n0) % n0;
+        const int first = std::min(len, n0 - sh);
+        product(t, xrow + static_cast<long>(sh) * dof_, yline, first);
+        if (first < len) product(t, xrow, yline + static_cast<std::size_t>(first) * dof_, len - first);
+      }
+    }
+  }
+  CELLFSI_PETSC(VecRestoreArrayRead(ghosted_vec_, &xg));
+  CELLFSI_PETSC(VecRestoreArray(slab_vec_, &ys));
+  CELLFSI_PETSC(VecScatterBegin(to_slab_, slab_vec_, y, INSERT_VALUES, SCATTER_REVERSE));
+  CELLFSI_PETSC(VecScatterEnd(to_slab_, slab_vec_, y, INSERT_VALUES, SCATTER_REVERSE));
+  CELLFSI_PETSC(PetscLogEventEnd(event, 0, 0, 0, 0));
+}
+
 void FourierBulkSolver::solve(Vec r, Vec x) const {
   if (!built_) throw std::logic_error("FourierBulkSolver: solve before a completed build");
   static const PetscLogEvent event = register_log_event("cellfsi solvers", "FourierBulkSolve");
   CELLFSI_PETSC(PetscLogEventBegin(event, 0, 0, 0, 0));
   const std::size_t slab_nodes = static_cast<std::size_t>(slab_[0]) * slab_[1] * slab_[2];
   const int layers = j1_ - j0_;
-  if (!to_slab_) {
-    // The slab's unknowns (node-major in the slab's own lexicographic order) in r's global ordering.
-    std::vector<PetscInt> idx(slab_nodes * dof_);
-    for (std::size_t s = 0; s < slab_nodes; ++s) {
-      std::array<int, 3> i{static_cast<int>(s % slab_[0]), static_cast<int>((s / slab_[0]) % slab_[1]),
-                           static_cast<int>(s / (static_cast<std::size_t>(slab_[0]) * slab_[1]))};
-      if (across_ >= 0) i[across_] += j0_;
-      const int g = global_node((i[2] * n_[1] + i[1]) * n_[0] + i[0]);
-      for (int c = 0; c < dof_; ++c) idx[s * dof_ + c] = static_cast<PetscInt>(g) * dof_ + c;
-    }
-    IS is;
-    CELLFSI_PETSC(ISCreateGeneral(PETSC_COMM_SELF, static_cast<PetscInt>(idx.size()), idx.data(),
-                                  PETSC_COPY_VALUES, &is));
-    CELLFSI_PETSC(VecCreateSeq(PETSC_COMM_SELF, static_cast<PetscInt>(idx.size()), &slab_vec_));
-    const PetscErrorCode ierr = VecScatterCreate(r, is, slab_vec_, nullptr, &to_slab_);
-    ISDestroy(&is);
-    if (ierr) VecDestroy(&slab_vec_);  // the next solve creates both again
-    CELLFSI_PETSC(ierr);
-  }
+  if (!to_slab_) make_layer_scatter(r, j0_, j1_, &to_slab_, &slab_vec_);
   // 1. Lines: the slab of r, transformed along the periodic directions.
   CELLFSI_PETSC(VecScatterBegin(to_slab_, r, slab_vec_, INSERT_VALUES, SCATTER_FORWARD));
   CELLFSI_PETSC(VecScatterEnd(to_slab_, r, slab_vec_, INSERT_VALUES, SCATTER_FORWARD));

@@ -53,6 +53,10 @@ class FourierBulkSolver {
   void build(Mat A, bool pin_pressure);
   /// x = A_avg^{-1} r (r, x: vectors of the matrix's layout). Collective.
   void solve(Vec r, Vec x) const;
+  /// y = A_avg x, the averaged stencil applied without a matrix (x, y: vectors of the matrix's layout): each
+  /// rank applies it on its slab of layers, with the degree's layers across on either side brought in.
+  /// Collective.
+  void multiply(Vec x, Vec y) const;
 
   /// Largest |A_ij - A_avg,ij| / max_j |A_ij| over the rows of the last build(). Rows of a (layer, component)
   /// class of which any row is a unit row (walls, a pinned pressure) are skipped, the whole class: its
@@ -90,6 +94,13 @@ class FourierBulkSolver {
   int first_layer(int rank) const { return static_cast<int>(static_cast<long>(rank) * n_across_ / size_); }
   int first_slot(int rank) const { return static_cast<int>(static_cast<long>(rank) * n_slots_ / size_); }
   int mirror(int mode) const;             // the mode of wave vector -k
+  /// A scatter of a global vector like r to the nodes of layers [first, last) across, and its values.
+  void make_layer_scatter(Vec r, int first, int last, VecScatter* scatter, Vec* values) const;
+  /// The stencil regrouped for multiply(): per layer across, its nonzero (offset, dof x dof block) pairs.
+  struct StencilTerm {
+    std::array<int, 3> shift{};  // the column node's offset per direction (periodic: wrapped later)
+    std::array<double, 64> block{};  // row-major dof x dof (dof <= 8)
+  };
   int across_coordinate(int node) const;  // the node's index across (0 without a wall direction)
 
   std::array<int, 3> n_{}, degree_{};
@@ -112,6 +123,9 @@ class FourierBulkSolver {
   std::vector<int> send_counts_, send_offsets_, recv_counts_, recv_offsets_;  // lines -> modes, in doubles
   mutable VecScatter to_slab_ = nullptr;                                      // global vector -> slab
   mutable Vec slab_vec_ = nullptr;
+  mutable VecScatter to_ghosted_ = nullptr;  // global vector -> slab with `degree` layers either side
+  mutable Vec ghosted_vec_ = nullptr;
+  std::vector<std::vector<StencilTerm>> terms_;  // per layer across (multiply)
   double deviation_ = 0;
   bool pinned_ = false, built_ = false;
 };

@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "common/petsc_error.hpp"
+#include "solvers/near_operator.hpp"
 
 namespace cellfsi::solvers {
 
@@ -42,9 +43,16 @@ void RegionCorrectedSolver::set_operator(Mat J) {
   if (!res_) {
     CELLFSI_PETSC(MatCreateVecs(J, &res_, &t_));
   }
+  // An operator of solvers/near_operator.hpp: its rows away from the cells are the bulk operator itself, and
+  // the region is read from its assembled near rows.
+  const NearOperator* near = near_operator(J);
+  const Mat rows_of = near ? near->near : J;
   // The nodes where J is not the bulk operator, grown by overlap_ layers (periodic directions wrap).
-  const std::vector<double> dev = bulk_.node_deviation(J);
+  std::vector<double> dev = bulk_.node_deviation(rows_of);
   const int n_nodes = static_cast<int>(dev.size());
+  if (near)
+    for (int i = 0; i < n_nodes; ++i)
+      if (!near->near_nodes[i]) dev[i] = 0;
   std::vector<char> in(n_nodes, 0), grown(n_nodes, 0);
   n_differing_ = 0;
   for (int i = 0; i < n_nodes; ++i)
@@ -79,13 +87,19 @@ void RegionCorrectedSolver::set_operator(Mat J) {
   std::vector<int> region;
   for (int i = 0; i < n_nodes; ++i)
     if (grown[i]) region.push_back(i);
+  if (near)
+    for (int node : region)
+      if (!near->near_nodes[node])
+        throw std::runtime_error("RegionCorrectedSolver: the region reaches node " + std::to_string(node) +
+                                 ", whose rows the operator's assembled part does not hold (a larger margin "
+                                 "of assembled elements around the cells is needed)");
   if (region != region_ || (!region.empty() && !JR_)) {
     release_region();  // (also after a build that failed half-way)
     n_region_ = static_cast<PetscInt>(region.size()) * dof_;
     if (n_region_ == 0) return;
     // This rank's rows of the region, in the global ordering.
     PetscInt row_begin = 0, row_end = 0;
-    CELLFSI_PETSC(MatGetOwnershipRange(J, &row_begin, &row_end));
+    CELLFSI_PETSC(MatGetOwnershipRange(rows_of, &row_begin, &row_end));
     std::vector<PetscInt> rows;
     for (int node : region) {
       const PetscInt g = static_cast<PetscInt>(bulk_.global_node(node)) * dof_;
@@ -96,10 +110,10 @@ void RegionCorrectedSolver::set_operator(Mat J) {
     const auto n_rows = static_cast<PetscInt>(rows.size());
     CELLFSI_PETSC(ISCreateGeneral(comm_, n_rows, rows.data(), PETSC_COPY_VALUES, &is_));
     CELLFSI_PETSC(ISSetBlockSize(is_, dof_));
-    CELLFSI_PETSC(MatCreateSubMatrix(J, is_, is_, MAT_INITIAL_MATRIX, &JR_));
+    CELLFSI_PETSC(MatCreateSubMatrix(rows_of, is_, is_, MAT_INITIAL_MATRIX, &JR_));
     CELLFSI_PETSC(ISCreateStride(comm_, row_end - row_begin, row_begin, 1, &all_));
     CELLFSI_PETSC(ISSetBlockSize(all_, dof_));
-    CELLFSI_PETSC(MatCreateSubMatrix(J, is_, all_, MAT_INITIAL_MATRIX, &J_rows_));
+    CELLFSI_PETSC(MatCreateSubMatrix(rows_of, is_, all_, MAT_INITIAL_MATRIX, &J_rows_));
     CELLFSI_PETSC(VecCreate(comm_, &rR_));
     CELLFSI_PETSC(VecSetSizes(rR_, n_rows, PETSC_DECIDE));
     CELLFSI_PETSC(VecSetType(rR_, VECSTANDARD));
@@ -124,8 +138,8 @@ void RegionCorrectedSolver::set_operator(Mat J) {
       MatDestroy(&JR_);
       MatDestroy(&J_rows_);
     }
-    CELLFSI_PETSC(MatCreateSubMatrix(J, is_, is_, reuse, &JR_));
-    CELLFSI_PETSC(MatCreateSubMatrix(J, is_, all_, reuse, &J_rows_));
+    CELLFSI_PETSC(MatCreateSubMatrix(rows_of, is_, is_, reuse, &JR_));
+    CELLFSI_PETSC(MatCreateSubMatrix(rows_of, is_, all_, reuse, &J_rows_));
   }
   if (n_region_ == 0) return;
   CELLFSI_PETSC(KSPSetOperators(region_ksp_, JR_, JR_));

@@ -12,6 +12,7 @@
 #include "common/petsc_error.hpp"
 #include "fluid/fluid_solver.hpp"
 #include "solvers/fourier_bulk.hpp"
+#include "solvers/near_operator.hpp"
 #include "solvers/region_corrected.hpp"
 #include "geometry/builders.hpp"
 #include "test_operators.hpp"
@@ -19,9 +20,13 @@
 #include <petscdmda.h>
 
 using namespace cellfsi;
+using solvers::create_near_operator;
 using solvers::FourierBulkSolver;
+using solvers::near_operator;
+using solvers::RegionCorrectedSolver;
 using geometry::Vec3;
 
+using cellfsi::test::relative_difference;
 using cellfsi::test::relative_residual;
 
 namespace {
@@ -125,6 +130,15 @@ TEST(FourierBulkSolver, InvertsRandomTranslationInvariantOperators) {
     CELLFSI_PETSC(VecDuplicate(r, &x));
     s.solve(r, x);
     EXPECT_LT(relative_residual(A, x, r), 1e-12) << "n = " << c.n[0] << "x" << c.n[1] << "x" << c.n[2];
+    // The stencil applied without the matrix is the matrix's product.
+    Vec y, z;
+    CELLFSI_PETSC(VecDuplicate(r, &y));
+    CELLFSI_PETSC(VecDuplicate(r, &z));
+    CELLFSI_PETSC(MatMult(A, r, y));
+    s.multiply(r, z);
+    EXPECT_LT(relative_difference(y, z), 1e-14) << "n = " << c.n[0] << "x" << c.n[1] << "x" << c.n[2];
+    VecDestroy(&y);
+    VecDestroy(&z);
     // One entry off the stencil's average: the deviation and the node that carries it show it.
     CELLFSI_PETSC(MatSetValue(A, 5 * c.dof + 1, 5 * c.dof + 1, 100.0, ADD_VALUES));
     CELLFSI_PETSC(MatAssemblyBegin(A, MAT_FINAL_ASSEMBLY));
@@ -238,6 +252,38 @@ Vec natural_pattern(const fluid::FluidSolver& fs) {
   return g;
 }
 
+/// FGMRES on M x = b (rtol 1e-10) preconditioned by `solver` (a PCSHELL around RegionCorrectedSolver::apply).
+struct FgmresResult {
+  int iterations = 0;
+  KSPConvergedReason reason = KSP_CONVERGED_ITERATING;
+};
+FgmresResult fgmres_with(solvers::RegionCorrectedSolver& solver, Mat M, Vec b, Vec x, int max_iterations) {
+  KSP ksp;
+  CELLFSI_PETSC(KSPCreate(PetscObjectComm(reinterpret_cast<PetscObject>(M)), &ksp));
+  CELLFSI_PETSC(KSPSetType(ksp, KSPFGMRES));
+  CELLFSI_PETSC(KSPSetOperators(ksp, M, M));
+  CELLFSI_PETSC(KSPSetTolerances(ksp, 1e-10, 1e-50, PETSC_DEFAULT, max_iterations));
+  CELLFSI_PETSC(KSPGMRESSetRestart(ksp, max_iterations));
+  PC pc;
+  CELLFSI_PETSC(KSPGetPC(ksp, &pc));
+  CELLFSI_PETSC(PCSetType(pc, PCSHELL));
+  CELLFSI_PETSC(PCShellSetContext(pc, &solver));
+  CELLFSI_PETSC(PCShellSetApply(pc, [](PC p, Vec a, Vec c) -> PetscErrorCode {
+    void* ctx = nullptr;
+    PetscCall(PCShellGetContext(p, &ctx));
+    static_cast<solvers::RegionCorrectedSolver*>(ctx)->apply(a, c);
+    return 0;
+  }));
+  CELLFSI_PETSC(KSPSolve(ksp, b, x));
+  FgmresResult out;
+  PetscInt its = 0;
+  CELLFSI_PETSC(KSPGetIterationNumber(ksp, &its));
+  out.iterations = static_cast<int>(its);
+  CELLFSI_PETSC(KSPGetConvergedReason(ksp, &out.reason));
+  KSPDestroy(&ksp);
+  return out;
+}
+
 struct RegionSolve {
   int iterations = 0;
   KSPConvergedReason reason = KSP_CONVERGED_ITERATING;
@@ -295,29 +341,10 @@ RegionSolve solve_ring(MPI_Comm comm, bool corrected) {
     if (!corrected) pc_solver.set_region(1e300, 0);
     pc_solver.set_operator(J);
     out.region = pc_solver.n_region();
-    KSP ksp;
-    CELLFSI_PETSC(KSPCreate(comm, &ksp));
-    CELLFSI_PETSC(KSPSetType(ksp, KSPFGMRES));
-    CELLFSI_PETSC(KSPSetOperators(ksp, J, J));
-    CELLFSI_PETSC(KSPSetTolerances(ksp, 1e-10, 1e-50, PETSC_DEFAULT, 200));
-    CELLFSI_PETSC(KSPGMRESSetRestart(ksp, 200));
-    PC pc;
-    CELLFSI_PETSC(KSPGetPC(ksp, &pc));
-    CELLFSI_PETSC(PCSetType(pc, PCSHELL));
-    CELLFSI_PETSC(PCShellSetContext(pc, &pc_solver));
-    CELLFSI_PETSC(PCShellSetApply(pc, [](PC p, Vec a, Vec b) -> PetscErrorCode {
-      void* ctx = nullptr;
-      PetscCall(PCShellGetContext(p, &ctx));
-      static_cast<solvers::RegionCorrectedSolver*>(ctx)->apply(a, b);
-      return 0;
-    }));
-    CELLFSI_PETSC(KSPSolve(ksp, r, x));
-    PetscInt its = 0;
-    CELLFSI_PETSC(KSPGetIterationNumber(ksp, &its));
-    out.iterations = static_cast<int>(its);
-    CELLFSI_PETSC(KSPGetConvergedReason(ksp, &out.reason));
+    const FgmresResult f = fgmres_with(pc_solver, J, r, x, 200);
+    out.iterations = f.iterations;
+    out.reason = f.reason;
     out.residual = relative_residual(J, x, r);
-    KSPDestroy(&ksp);
   }
   out.x = fs.gather_to_zero(x);
   VecDestroy(&y);
@@ -345,6 +372,76 @@ TEST(RegionCorrectedSolver, SolvesTheJacobianWithAnInterfaceBandInAFewIterations
       EXPECT_TRUE(s.reason < 0 || s.iterations > 50) << "without the region correction: " << s.iterations;
     }
   }
+}
+
+TEST(NearOperator, IsTheAssembledRowsNearTheCellsAndTheStencilElsewhere) {
+  // A bulk operator A (a quadratic-like stencil in a channel, walls across) and J = A changed on a patch of
+  // nodes, as the cells change the Jacobian. The operator from J's rows on a set of nodes around the patch
+  // (the other rows of that matrix deliberately wrong: they must not count) is J; the region-corrected
+  // solver reads the same region from it and FGMRES takes the same iterations.
+  const std::array<int, 3> n{10, 7, 1};
+  const int dof = 3;
+  Mat A = invariant_operator(n, {true, false, false}, 2, dof, 5);
+  Mat J, near;
+  CELLFSI_PETSC(MatDuplicate(A, MAT_COPY_VALUES, &J));
+  auto node = [&](int i, int j) { return i + n[0] * j; };
+  std::vector<char> near_nodes(n[0] * n[1], 0);
+  for (int j = 2; j <= 4; ++j)
+    for (int i = 3; i <= 5; ++i)
+      for (int c = 0; c < dof; ++c) {
+        const PetscInt row = node(i, j) * dof + c;
+        CELLFSI_PETSC(MatSetValue(J, row, row, 40.0, ADD_VALUES));
+        CELLFSI_PETSC(MatSetValue(J, row, node(i + 1, j) * dof + (c + 1) % dof, -3.0, ADD_VALUES));
+      }
+  CELLFSI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+  for (int j = 1; j <= 5; ++j)
+    for (int i = 2; i <= 6; ++i) near_nodes[node(i, j)] = 1;
+  CELLFSI_PETSC(MatDuplicate(J, MAT_COPY_VALUES, &near));
+  std::vector<PetscInt> other_rows;
+  for (int k = 0; k < n[0] * n[1]; ++k)
+    if (!near_nodes[k])
+      for (int c = 0; c < dof; ++c) other_rows.push_back(k * dof + c);
+  CELLFSI_PETSC(MatZeroRows(near, static_cast<PetscInt>(other_rows.size()), other_rows.data(), 7.0, nullptr,
+                            nullptr));
+  FourierBulkSolver bulk(n, {true, false, false}, {2, 2, 0}, dof);
+  bulk.build(A, false);
+  Mat op = create_near_operator(bulk, near, near_nodes);
+  ASSERT_NE(near_operator(op), nullptr);
+  EXPECT_EQ(near_operator(J), nullptr);
+  Vec x = random_vector(A, 9), y, z;
+  CELLFSI_PETSC(VecDuplicate(x, &y));
+  CELLFSI_PETSC(VecDuplicate(x, &z));
+  CELLFSI_PETSC(MatMult(J, x, y));
+  CELLFSI_PETSC(MatMult(op, x, z));
+  EXPECT_LT(relative_difference(y, z), 1e-14);
+  // The same region and iterations with the operator as with J.
+  int iterations[2] = {0, 0};
+  PetscInt region[2] = {0, 0};
+  for (int k = 0; k < 2; ++k) {
+    const Mat M = k == 0 ? J : op;
+    RegionCorrectedSolver rc(n, {true, false, false}, {2, 2, 0}, dof, "test_near_");
+    rc.set_bulk(A, false);
+    rc.set_operator(M);
+    region[k] = rc.n_region();
+    iterations[k] = fgmres_with(rc, M, y, z, 100).iterations;
+    EXPECT_LT(relative_residual(J, z, y), 1e-9);
+  }
+  EXPECT_EQ(region[0], 9 * dof);  // the changed patch, 3 x 3 nodes
+  EXPECT_EQ(region[1], region[0]);
+  EXPECT_EQ(iterations[1], iterations[0]);
+  // A region grown beyond the held rows is refused.
+  RegionCorrectedSolver wide(n, {true, false, false}, {2, 2, 0}, dof, "test_near_");
+  wide.set_bulk(A, false);
+  wide.set_region(1e-3, 2);
+  EXPECT_THROW(wide.set_operator(op), std::runtime_error);
+  VecDestroy(&x);
+  VecDestroy(&y);
+  VecDestroy(&z);
+  MatDestroy(&op);
+  MatDestroy(&near);
+  MatDestroy(&J);
+  MatDestroy(&A);
 }
 
 // Run on 2 ranks by the test fluid_parallel_2ranks (on 1 rank it compares the solver with itself).
@@ -391,6 +488,9 @@ TEST(FourierParallel, BulkSolverInvertsTheDistributedJacobian) {
   CELLFSI_PETSC(MatMult(J, y, r));
   s.solve(r, x);
   EXPECT_LT(relative_residual(J, x, r), 1e-10);
+  // The stencil's product without the matrix, on the ranks' slabs.
+  s.multiply(y, x);
+  EXPECT_LT(relative_difference(r, x), 1e-13);
   // One entry changed at natural node 37 (added by rank 0 wherever the row lives): that node, and only it,
   // differs, on every rank.
   PetscInt row = 37 * 4 + 1;

@@ -64,4 +64,16 @@ inline double relative_residual(Mat A, Vec x, Vec r) {
   return e / n;
 }
 
+/// |a - b| / |a|.
+inline double relative_difference(Vec a, Vec b) {
+  Vec d;
+  CELLFSI_PETSC(VecDuplicate(a, &d));
+  CELLFSI_PETSC(VecWAXPY(d, -1.0, b, a));
+  PetscReal e = 0, n = 0;
+  CELLFSI_PETSC(VecNorm(d, NORM_2, &e));
+  CELLFSI_PETSC(VecNorm(a, NORM_2, &n));
+  VecDestroy(&d);
+  return e / n;
+}
+
 }  // namespace cellfsi::test
