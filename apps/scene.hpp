@@ -62,7 +62,9 @@ struct SceneSettings {
   bool output_dir_adopt = false;  // write into a non-empty folder cellfsi did not make (apps/run_output.hpp)
   double dt = 5e-4;            // time step [s] (-dt)
   std::vector<BodySettings> bodies;
-  coupling::CouplerOptions coupling;
+  coupling::CouplerOptions coupling;  // coupling.s_interface: the s_I used (chosen by the rule when auto)
+  bool s_interface_auto = true;       // -s_interface auto: s_I chosen from the mesh
+  double s_interface_target = 1e-3;   // -s_interface_target: the area error the choice aims at
   double max_mesh_ratio = 1.0;       // largest Lagrangian / smallest Eulerian element size (paper Remark 3)
   double metrics_average_from = -1;  // start of the averaging window [s]; < 0: half the final time
 
@@ -135,10 +137,10 @@ class Scene {
   /// where the scene has one and, per body, "<body>_<metric>" (solid/body_metrics.hpp).
   std::vector<std::pair<std::string, double>> metrics();
   /// The run's results for summary.json: the last metrics with each body's averages over the oscillatory
-  /// regime (-metrics_average_from) in place of its instantaneous values.
+  /// regime (-metrics_average_from) in place of its instantaneous values, and the s_I used.
   std::vector<std::pair<std::string, double>> summary_metrics();
-  /// Words for summary.json: each body's motion regime over the same window ("<body>_regime") and its
-  /// material law ("<body>_material").
+  /// Words for summary.json: how s_I was set ("s_interface_choice": auto or given), each body's motion
+  /// regime over the same window ("<body>_regime") and its material law ("<body>_material").
   std::vector<std::pair<std::string, std::string>> summary_text() const;
 
  private:

@@ -208,6 +208,11 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
   }
   // The paper's dimensionless numbers (Sec. 3.1-3.2) from the scene: the shear rate of a shear flow, the
   // half-width across the walls.
+  // The s_I used, chosen or given (-s_interface), and the area error an automatic choice aims at.
+  if (!bodies_.empty()) {
+    m.emplace_back("s_interface", s_.coupling.s_interface);
+    if (s_.s_interface_auto) m.emplace_back("s_interface_target", s_.s_interface_target);
+  }
   solid::FlowScales flow;
   flow.viscosity = fluid_->options().viscosity;
   flow.density = fluid_->options().density;
@@ -280,6 +285,7 @@ double Scene::average_from() const {
 
 std::vector<std::pair<std::string, std::string>> Scene::summary_text() const {
   std::vector<std::pair<std::string, std::string>> t;
+  if (!bodies_.empty()) t.emplace_back("s_interface_choice", s_.s_interface_auto ? "auto" : "given");
   for (size_t b = 0; b < bodies_.size(); ++b) {
     t.emplace_back(bodies_[b]->name() + "_regime", trackers_[b].regime(average_from()));
     t.emplace_back(bodies_[b]->name() + "_material", body_settings(bodies_[b]->name()).material);

@@ -527,6 +527,25 @@ TEST_F(CellfsiApp, InterfaceScalingReducesTheAreaError) {
   }
 }
 
+TEST_F(CellfsiApp, AutomaticInterfaceScalingIsChosenFromTheMeshAndWritten) {
+  // Issue 27, item 4: the capsule scene's default -s_interface auto at 48 x 24 quadratic (h = 5e-5 cm, a band
+  // of 3 h): s_I = 6.25e10 (5e-5 / 1.5e-4)^2.8 = 2.884e9 for |r_A| <= 1e-3, 4 times that for 5e-4; the
+  // value used is in summary.json, with how it was set.
+  const std::vector<std::string> run = with({scene("capsule_shear.yaml")}, kCapsule);
+  for (const auto& [target, expected] : {std::pair{"1e-3", 2.8836e9}, std::pair{"5e-4", 4 * 2.8836e9}}) {
+    ASSERT_EQ(cellfsi(with(run, {"-s_interface_target", target}), 120).exit_code, 0) << last_output_;
+    const std::string js = summary();
+    EXPECT_EQ(json_string(js, "s_interface_choice").value_or(""), "auto");
+    EXPECT_NEAR(json_number(js, "s_interface").value_or(0), expected, 1e-3 * expected) << target;
+    EXPECT_NEAR(json_number(js, "s_interface_target").value_or(0), std::stod(target), 1e-15);
+  }
+  // A number is used as given.
+  ASSERT_EQ(cellfsi(with(run, {"-s_interface", "1e10"}), 120).exit_code, 0) << last_output_;
+  EXPECT_EQ(json_string(summary(), "s_interface_choice").value_or(""), "given");
+  EXPECT_EQ(json_number(summary(), "s_interface").value_or(0), 1e10);
+  EXPECT_FALSE(json_number(summary(), "s_interface_target").has_value());
+}
+
 }  // namespace
 
 namespace {
