@@ -81,7 +81,7 @@ def runs_of(args):
         scene, hand, meshes, dt, _ = GROUPS[group]
         T = getattr(args, f"{group}_time")
         body = "rbc" if group == "rbc" else "membrane"
-        for mesh in meshes:
+        for mesh in args.meshes.split(",") if args.meshes else meshes:
             common = ["-fluid_elements", mesh.replace("x", ","), "-dt", dt, "-final_time", f"{T:g}",
                       "-metrics_average_from", f"{T / 2:g}", "-output_every", "0",
                       f"-solid_{body}_elements", "1,0"]
@@ -96,6 +96,7 @@ def main():
     p.add_argument("--shear-time", type=float, default=0.12, help="final time of the shear runs [s]")
     p.add_argument("--migration-time", type=float, default=0.05, help="final time of the migration runs [s]")
     p.add_argument("--rbc-time", type=float, default=0.1, help="final time of the six-RBC runs [s]")
+    p.add_argument("--meshes", help="NXxNY,... for every group instead of its own (e.g. 48x24, for a test)")
     p.add_argument("--runs", default=os.path.join(ROOT, "out", "auto_interface_scaling"))
     p.add_argument("--build", default=os.path.join(ROOT, "build"))
     p.add_argument("--table", default=os.path.join(ROOT, "docs", "validation", "auto_interface_scaling.md"))
