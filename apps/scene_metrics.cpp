@@ -87,11 +87,17 @@ nlohmann::json Scene::metric_state() const {
                           {"cell_x", r.cell_x}});
   nlohmann::json rates = nlohmann::json::array();
   for (const auto& [t, q] : flow_rates_) rates.push_back({t, q});
-  return {{"profile_from", profile_from_},
-          {"profile_count", profile_count_},
-          {"profile_sum", std::move(profile)},
-          {"suspension", std::move(suspension)},
-          {"flow_rates", std::move(rates)}};
+  nlohmann::json state{{"profile_from", profile_from_},
+                       {"profile_count", profile_count_},
+                       {"profile_sum", std::move(profile)},
+                       {"suspension", std::move(suspension)},
+                       {"flow_rates", std::move(rates)}};
+  // s_I as -s_interface_raise has left it (absent from earlier checkpoints: s_I as the options give it).
+  if (coupler_)
+    state["s_interface"] = {{"value", coupler_->interface_scaling()},
+                            {"raise_threshold", raise_threshold_},
+                            {"raises", s_interface_raises_}};
+  return state;
 }
 
 void Scene::restore_metric_state(const nlohmann::json& state) {
@@ -123,6 +129,12 @@ void Scene::restore_metric_state(const nlohmann::json& state) {
     profile_sum_ = std::move(sum);
     suspension_ = std::move(records);
     flow_rates_ = std::move(rates);
+    if (coupler_ && state.contains("s_interface")) {
+      const nlohmann::json& si = state.at("s_interface");
+      coupler_->set_interface_scaling(si.at("value").get<double>());
+      raise_threshold_ = si.at("raise_threshold").get<double>();
+      s_interface_raises_ = si.at("raises").get<int>();
+    }
   } catch (const std::exception& e) {
     throw std::invalid_argument(std::string("option -restart: the checkpoint's scene records are damaged (") +
                                 e.what() + ")");
@@ -208,10 +220,15 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
   }
   // The paper's dimensionless numbers (Sec. 3.1-3.2) from the scene: the shear rate of a shear flow, the
   // half-width across the walls.
-  // The s_I used, chosen or given (-s_interface), and the area error an automatic choice aims at.
+  // The s_I used, chosen or given (-s_interface), the area error an automatic choice aims at, and with
+  // -s_interface_raise the value at the end and how often it was raised.
   if (!bodies_.empty()) {
     m.emplace_back("s_interface", s_.coupling.s_interface);
     if (s_.s_interface_auto) m.emplace_back("s_interface_target", s_.s_interface_target);
+    if (s_.s_interface_raise) {
+      m.emplace_back("s_interface_final", coupler_->interface_scaling());
+      m.emplace_back("s_interface_raises", s_interface_raises_);
+    }
   }
   solid::FlowScales flow;
   flow.viscosity = fluid_->options().viscosity;

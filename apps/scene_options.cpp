@@ -68,6 +68,8 @@ void read_interface_scaling(SceneSettings& s, const OptionTable& t, const std::s
     if (t.given("s_interface_target"))
       t.bad("s_interface_target", option_value_text(s.s_interface_target),
             "only with -s_interface auto (here -s_interface " + text + ")");
+    if (s.s_interface_raise)
+      t.bad("s_interface_raise", "true", "only with -s_interface auto (here -s_interface " + text + ")");
     char* end = nullptr;
     s_i = std::strtod(text.c_str(), &end);
     if (text.empty() || *end != '\0') t.bad("s_interface", text.empty() ? "''" : text, valid);
@@ -118,6 +120,9 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
       .real("s_interface_target", s.s_interface_target,
             "-s_interface auto: the area error |r_A| (paper Eq. 21) to keep over the run",
             between(1e-6, 0.1, "", "(r_A ~ s_I^(-1/2): below 1e-6 needs s_I beyond 1e12 at any mesh)"))
+      .flag("s_interface_raise", s.s_interface_raise,
+            "-s_interface auto: s_I times 4 (halving the drift of r_A) each time a membrane's |r_A| passes half "
+            "the target, then half-way from there to the target, and so on (at most 1e12)")
       .text("s_interface_marking", marking,
             "Functions given s_I: support (every function nonzero on an element the interface crosses) or "
             "central (only those whose support it crosses in an inner element)",

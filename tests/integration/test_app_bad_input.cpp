@@ -100,6 +100,9 @@ TEST_F(CellfsiApp, ValuesThatAreNumbersButNotInputAreRejected) {
       {with(capsule, {"-s_interface", "1e10", "-s_interface_target", "1e-4"}),
        "option -s_interface_target = 0.0001 is invalid; valid: only with -s_interface auto (here "
        "-s_interface 1e10)"},
+      {with(capsule, {"-s_interface", "1e10", "-s_interface_raise"}),
+       "option -s_interface_raise = true is invalid; valid: only with -s_interface auto (here -s_interface "
+       "1e10)"},
       {with(capsule, {"-s_interface_target", "0"}),
        "option -s_interface_target = 0 is invalid; valid: 1e-06 ... 0.1"},
       {with(capsule, {"-solid_membrane_shear_modulus", "1e-310"}),

@@ -117,9 +117,9 @@ TEST_F(CellfsiApp, CoarseCapsuleInclinationWithCentralAndSupportMarking) {
   // is closer to the converged 26.09 deg (paper, 512 x 256 cubic) than the paper's own 17.81 at this mesh;
   // the wider support marking gives 14.1 (docs/validation.md, "Coarse meshes: the s^h marking"). Measured
   // over 0.08-0.12 s with dt 2e-3 (theta is steady from about 0.08 s and does not depend on dt): 18.942 and
-  // 14.142 deg. Pinned to 0.05 deg: a change of the discretisation shows here first. With s_I = 1e10, the value
-  // these were measured with (-s_interface auto chooses 2.0e10 and 4.8e9 for the two markings here: 18.443
-  // and 15.143 deg).
+  // 14.142 deg. Pinned to 0.05 deg: a change of the discretisation shows here first. With s_I = 1e10, the
+  // value these were measured with (-s_interface auto chooses 2.0e10 and 4.8e9 for the two markings here:
+  // 18.443 and 15.143 deg).
   // clang-format off
   const std::vector<std::string> run = {
       scene("capsule_shear.yaml"), "-fluid_elements", "96,48", "-fluid_degree", "2",
@@ -546,6 +546,26 @@ TEST_F(CellfsiApp, AutomaticInterfaceScalingIsChosenFromTheMeshAndWritten) {
   EXPECT_EQ(json_string(summary(), "s_interface_choice").value_or(""), "given");
   EXPECT_EQ(json_number(summary(), "s_interface").value_or(0), 1e10);
   EXPECT_FALSE(json_number(summary(), "s_interface_target").has_value());
+}
+
+TEST_F(CellfsiApp, InterfaceScalingIsRaisedWhenTheAreaErrorPassesHalfTheTarget) {
+  // -s_interface_raise with the target 1e-4 at 48 x 24 quadratic: auto chooses 2.88e11; the first step's
+  // |r_A| (measured 6.0e-5, the start from rest, whatever s_I) passes half the target, and s_I goes to 4
+  // times that, capped at 1e12. Step 2's 8.1e-5 passes the next threshold, 7.5e-5, but s_I is at its cap: one
+  // raise.
+  const std::vector<std::string> run =
+      with({scene("capsule_shear.yaml")},
+           with(kCapsule, {"-final_time", "2e-3", "-s_interface_target", "1e-4", "-s_interface_raise"}));
+  const RunResult r = cellfsi(run, 120);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("s_I raised from 2.88e+11 to 1e+12"), std::string::npos) << r.output;
+  const std::string js = summary();
+  EXPECT_NEAR(json_number(js, "s_interface").value_or(0), 2.8836e11, 1e-3 * 2.8836e11);
+  EXPECT_EQ(json_number(js, "s_interface_final").value_or(0), 1e12);
+  EXPECT_EQ(json_number(js, "s_interface_raises").value_or(0), 1);
+  // Without it, neither is written.
+  ASSERT_EQ(cellfsi(with({scene("capsule_shear.yaml")}, kCapsule), 120).exit_code, 0) << last_output_;
+  EXPECT_FALSE(json_number(summary(), "s_interface_final").has_value());
 }
 
 }  // namespace
