@@ -7,6 +7,7 @@
 #include <array>
 #include <nlohmann/json.hpp>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -147,8 +148,9 @@ class Scene {
  private:
   void restore_flat_metric_state(const std::vector<double>& state);  // checkpoints before the JSON fields
   std::vector<std::pair<std::string, double>> flow_metrics();
-  /// -s_interface_raise: s_I times 4 each time the membranes' largest |r_A| passes the next threshold (half
-  /// the target, then half-way from the last threshold to the target), up to coupling::kMaxInterfaceScaling.
+  /// -s_interface_raise: s_I times 4 each time the membranes' largest |r_A|, growing, passes the next
+  /// threshold (half the target, then half-way from the last threshold to the target), up to
+  /// coupling::kMaxInterfaceScaling.
   void raise_interface_scaling();
   /// A suspension record of the current state (channel flow with membranes; see
   /// solid/suspension_metrics.hpp).
@@ -174,6 +176,7 @@ class Scene {
   std::vector<std::pair<double, double>> flow_rates_;  // channel flows: (time, flow rate) at every record
   int profile_count_ = 0;
   double raise_threshold_ = 0;  // -s_interface_raise: the |r_A| whose passing raises s_I next
+  double raise_previous_ = std::numeric_limits<double>::infinity();  // the largest |r_A| at the last step
   int s_interface_raises_ = 0;
   double profile_from_ = 0;  // the window start the profile is summed from (average_from() of its run)
 };

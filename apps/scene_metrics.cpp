@@ -96,6 +96,7 @@ nlohmann::json Scene::metric_state() const {
   if (coupler_)
     state["s_interface"] = {{"value", coupler_->interface_scaling()},
                             {"raise_threshold", raise_threshold_},
+                            {"raise_previous", std::isfinite(raise_previous_) ? raise_previous_ : -1.0},
                             {"raises", s_interface_raises_}};
   return state;
 }
@@ -133,6 +134,8 @@ void Scene::restore_metric_state(const nlohmann::json& state) {
       const nlohmann::json& si = state.at("s_interface");
       coupler_->set_interface_scaling(si.at("value").get<double>());
       raise_threshold_ = si.at("raise_threshold").get<double>();
+      const double previous = si.at("raise_previous").get<double>();  // < 0: none yet
+      raise_previous_ = previous >= 0 ? previous : std::numeric_limits<double>::infinity();
       s_interface_raises_ = si.at("raises").get<int>();
     }
   } catch (const std::exception& e) {

@@ -121,8 +121,8 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
             "-s_interface auto: the area error |r_A| (paper Eq. 21) to keep over the run",
             between(1e-6, 0.1, "", "(r_A ~ s_I^(-1/2): below 1e-6 needs s_I beyond 1e12 at any mesh)"))
       .flag("s_interface_raise", s.s_interface_raise,
-            "-s_interface auto: s_I times 4 (halving the drift of r_A) each time a membrane's |r_A| passes half "
-            "the target, then half-way from there to the target, and so on (at most 1e12)")
+            "-s_interface auto: s_I times 4 (halving the drift of r_A) each time a membrane's growing |r_A| "
+            "passes half the target, then half-way from there to the target, and so on (at most 1e12)")
       .text("s_interface_marking", marking,
             "Functions given s_I: support (every function nonzero on an element the interface crosses) or "
             "central (only those whose support it crosses in an inner element)",

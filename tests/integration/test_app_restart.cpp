@@ -43,8 +43,8 @@ TEST_F(CellfsiApp, RestartContinuesTheRunAsIfItHadNotStopped) {
 }
 
 TEST_F(CellfsiApp, RestartKeepsTheRaisedInterfaceScaling) {
-  // -s_interface_raise raises s_I in the first step (the test
-  // InterfaceScalingIsRaisedWhenTheAreaErrorPassesHalfTheTarget); the checkpoint after step 2 keeps the
+  // -s_interface_raise raises s_I in the second step (the test
+  // InterfaceScalingIsRaisedWhenTheAreaErrorPassesHalfTheTarget); the checkpoint after it keeps the
   // raised value, the next threshold and the count, so the continued run neither starts again from the
   // automatic value (it would raise it again at once) nor counts anew: 4 steps in one run against 2 + 2.
   const std::vector<std::string> args = with(
