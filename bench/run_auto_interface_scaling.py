@@ -4,10 +4,12 @@ hand-chosen values: short runs of the capsule in shear at the paper's Table 1 me
 migrating capsule (1e9) and the six-RBC channel (1e9), each with -s_interface auto (|r_A| <= 1e-3) and with the
 hand-chosen value. Writes, per run: the s_I used, the largest |r_A| of any membrane over the run and at its end,
 the scene's metrics (theta and omega_TT; the lateral offset; zeta, eta and h_cf) and the coupling iterations per
-step; and, first, the earlier measurements the rule was fitted on.
+step; and, first, the earlier measurements the rule was fitted on. --groups raise: the capsule in shear at 128 x 64
+to 0.4 s with auto, with and without -s_interface_raise (not among the default groups).
 
   bench/run_auto_interface_scaling.py                          # every run, one at a time
   bench/run_auto_interface_scaling.py --groups shear --shear-time 0.2
+  bench/run_auto_interface_scaling.py --groups raise --table docs/validation/auto_interface_scaling_raise.md
   bench/run_auto_interface_scaling.py --report                 # the table from the runs already there
 
 A run whose summary.json says completed is kept. Needs a built cellfsi (scripts/build.sh)."""
@@ -20,14 +22,18 @@ import sys
 from bench_common import ROOT, check_kept_runs, fmt, provenance, run_one, write_table
 from run_channel_rheology import area_row
 
-# group: (scene, hand-chosen s_I, meshes, time step, metrics of summary.json shown)
+# group: (scene, its runs per mesh (VARIANTS, or a hand-chosen s_I), meshes, time step, metrics of summary.json
+# shown). "raise": the capsule in shear long enough for r_A to drift, with and without -s_interface_raise.
 GROUPS = {
-    "shear": ("capsule_shear.yaml", "1e10", ["96x48", "128x64", "192x96", "256x128"], "1e-3",
+    "shear": ("capsule_shear.yaml", ["auto", "1e10"], ["96x48", "128x64", "192x96", "256x128"], "1e-3",
               ["membrane_theta_deg", "membrane_omega_tt"]),
-    "migration": ("capsule_channel_migration.yaml", "1e9", ["128x64", "256x128"], "5e-4",
+    "migration": ("capsule_channel_migration.yaml", ["auto", "1e9"], ["128x64", "256x128"], "5e-4",
                   ["membrane_lateral_offset_final", "membrane_theta_deg"]),
-    "rbc": ("rbc_channel.yaml", "1e9", ["96x32"], "5e-4", ["zeta", "eta", "h_cf"]),
+    "rbc": ("rbc_channel.yaml", ["auto", "1e9"], ["96x32"], "5e-4", ["zeta", "eta", "h_cf"]),
+    "raise": ("capsule_shear.yaml", ["auto", "raise"], ["128x64"], "1e-3",
+              ["membrane_theta_deg", "membrane_omega_tt"]),
 }
+VARIANTS = {"auto": ["-s_interface", "auto"], "raise": ["-s_interface", "auto", "-s_interface_raise"]}
 
 # The rule's basis (coupling/interface_marking.cpp, automatic_interface_scaling): earlier measured |r_A| with
 # hand-chosen s_I, central marking. (what, where it is documented, domain width / elements along x [cm], degree,
@@ -78,15 +84,15 @@ def runs_of(args):
     """(tag, scene, options) of every run of the chosen groups: auto and the hand-chosen s_I per mesh."""
     runs = []
     for group in args.groups.split(","):
-        scene, hand, meshes, dt, _ = GROUPS[group]
+        scene, variants, meshes, dt, _ = GROUPS[group]
         T = getattr(args, f"{group}_time")
         body = "rbc" if group == "rbc" else "membrane"
         for mesh in args.meshes.split(",") if args.meshes else meshes:
             common = ["-fluid_elements", mesh.replace("x", ","), "-dt", dt, "-final_time", f"{T:g}",
                       "-metrics_average_from", f"{T / 2:g}", "-output_every", "0",
                       f"-solid_{body}_elements", "1,0"]
-            for s_i in ("auto", hand):
-                runs.append((f"{group}_{mesh}_{s_i}", scene, common + ["-s_interface", s_i]))
+            for v in variants:
+                runs.append((f"{group}_{mesh}_{v}", scene, common + VARIANTS.get(v, ["-s_interface", v])))
     return runs
 
 
@@ -96,6 +102,7 @@ def main():
     p.add_argument("--shear-time", type=float, default=0.12, help="final time of the shear runs [s]")
     p.add_argument("--migration-time", type=float, default=0.05, help="final time of the migration runs [s]")
     p.add_argument("--rbc-time", type=float, default=0.1, help="final time of the six-RBC runs [s]")
+    p.add_argument("--raise-time", type=float, default=0.4, help="final time of the raise runs [s]")
     p.add_argument("--meshes", help="NXxNY,... for every group instead of its own (e.g. 48x24, for a test)")
     p.add_argument("--runs", default=os.path.join(ROOT, "out", "auto_interface_scaling"))
     p.add_argument("--build", default=os.path.join(ROOT, "build"))
@@ -127,11 +134,14 @@ def main():
                 s = {}
             if s.get("status") != "completed":
                 missing = True
-                lines.append(f"| {tag.split('_')[1]} | - | {options[-1]} | {s.get('status', 'not run')} |" +
+                lines.append(f"| {tag.split('_')[1]} | - | {tag.split('_')[2]} | {s.get('status', 'not run')} |" +
                              " - |" * (len(shown) + 3))
                 continue
             a = area_row(s)
-            lines.append(f"| {tag.split('_')[1]} | {s['s_interface']:.3g} | {s.get('s_interface_choice')} | "
+            chosen = s.get("s_interface_choice")
+            if "s_interface_raises" in s:
+                chosen += f", raised {s['s_interface_raises']:.0f} times to {s['s_interface_final']:.3g}"
+            lines.append(f"| {tag.split('_')[1]} | {s['s_interface']:.3g} | {chosen} | "
                          f"{fmt(a['max_abs_r_A'], '.2e')} | {fmt(final_area_error(args, tag), '.2e')} | " +
                          " | ".join(fmt(s.get(k), '.4g') for k in shown) +
                          f" | {fmt(a['coupling_per_step'], '.2f')} | {fmt(s.get('wall_time_s'), '.0f')} |")
