@@ -7,6 +7,7 @@
 #include <array>
 #include <nlohmann/json.hpp>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -24,8 +25,9 @@ namespace cellfsi::app {
 /// One immersed body (a cell membrane or a nucleus).
 struct BodySettings {
   std::string name;
-  std::string shape = "hollow_ellipse";       // hollow_ellipse | ellipse | rbc | hollow_ellipsoid | ellipsoid
-  std::vector<double> semi_axes{2e-4, 1e-4};  // mid-surface semi-axes [cm] (rbc: none)
+  // hollow_ellipse | ellipse | rbc (2D); hollow_ellipsoid | ellipsoid | rbc_3d (3D)
+  std::string shape = "hollow_ellipse";
+  std::vector<double> semi_axes{2e-4, 1e-4};  // mid-surface semi-axes [cm] (rbc, rbc_3d: none)
   geometry::Vec3 center = geometry::Vec3::Zero();
   double angle_deg = 0;                           // rotation [degrees]: 2D from +x, 3D about `axis`
   geometry::Vec3 axis = geometry::Vec3::UnitZ();  // 3D: rotation axis (unit)
@@ -39,7 +41,8 @@ struct BodySettings {
   double hardening_c3 = 1.0 / 30;        // strain_hardening: C3 / G (Mills et al. 2004)
   double density = 1.1;                  // rho_2 [g/cm^3]
   double inner_viscosity = 0;            // membranes: mu of the fluid inside [g/(cm s)] (0: the fluid's)
-  bool membrane() const { return shape.rfind("hollow", 0) == 0 || shape == "rbc"; }
+  bool membrane() const { return shape.rfind("hollow", 0) == 0 || biconcave(); }
+  bool biconcave() const { return shape == "rbc" || shape == "rbc_3d"; }  // Evans-Fung: no semi-axes
 };
 
 struct SceneSettings {
@@ -62,7 +65,10 @@ struct SceneSettings {
   bool output_dir_adopt = false;  // write into a non-empty folder cellfsi did not make (apps/run_output.hpp)
   double dt = 5e-4;            // time step [s] (-dt)
   std::vector<BodySettings> bodies;
-  coupling::CouplerOptions coupling;
+  coupling::CouplerOptions coupling;  // coupling.s_interface: the s_I used (chosen by the rule when auto)
+  bool s_interface_auto = true;       // -s_interface auto: s_I chosen from the mesh
+  double s_interface_target = 1e-3;   // -s_interface_target: the area error the choice aims at
+  bool s_interface_raise = false;     // -s_interface_raise: s_I raised during the run as r_A drifts
   double max_mesh_ratio = 1.0;       // largest Lagrangian / smallest Eulerian element size (paper Remark 3)
   double metrics_average_from = -1;  // start of the averaging window [s]; < 0: half the final time
 
@@ -135,15 +141,19 @@ class Scene {
   /// where the scene has one and, per body, "<body>_<metric>" (solid/body_metrics.hpp).
   std::vector<std::pair<std::string, double>> metrics();
   /// The run's results for summary.json: the last metrics with each body's averages over the oscillatory
-  /// regime (-metrics_average_from) in place of its instantaneous values.
+  /// regime (-metrics_average_from) in place of its instantaneous values, and the s_I used.
   std::vector<std::pair<std::string, double>> summary_metrics();
-  /// Words for summary.json: each body's motion regime over the same window ("<body>_regime") and its
-  /// material law ("<body>_material").
+  /// Words for summary.json: how s_I was set ("s_interface_choice": auto or given), each body's motion
+  /// regime over the same window ("<body>_regime") and its material law ("<body>_material").
   std::vector<std::pair<std::string, std::string>> summary_text() const;
 
  private:
   void restore_flat_metric_state(const std::vector<double>& state);  // checkpoints before the JSON fields
   std::vector<std::pair<std::string, double>> flow_metrics();
+  /// -s_interface_raise: s_I times 4 each time the membranes' largest |r_A|, growing, passes the next
+  /// threshold (half the target, then half-way from the last threshold to the target), up to
+  /// coupling::kMaxInterfaceScaling.
+  void raise_interface_scaling();
   /// A suspension record of the current state (channel flow with membranes; see
   /// solid/suspension_metrics.hpp).
   void record_suspension();
@@ -167,6 +177,9 @@ class Scene {
   fluid::SectionData profile_sum_;  // velocity summed over the window's steps (points: the last section's)
   std::vector<std::pair<double, double>> flow_rates_;  // channel flows: (time, flow rate) at every record
   int profile_count_ = 0;
+  double raise_threshold_ = 0;  // -s_interface_raise: the |r_A| whose passing raises s_I next
+  double raise_previous_ = std::numeric_limits<double>::infinity();  // the largest |r_A| at the last step
+  int s_interface_raises_ = 0;
   double profile_from_ = 0;  // the window start the profile is summed from (average_from() of its run)
 };
 

@@ -87,11 +87,18 @@ nlohmann::json Scene::metric_state() const {
                           {"cell_x", r.cell_x}});
   nlohmann::json rates = nlohmann::json::array();
   for (const auto& [t, q] : flow_rates_) rates.push_back({t, q});
-  return {{"profile_from", profile_from_},
-          {"profile_count", profile_count_},
-          {"profile_sum", std::move(profile)},
-          {"suspension", std::move(suspension)},
-          {"flow_rates", std::move(rates)}};
+  nlohmann::json state{{"profile_from", profile_from_},
+                       {"profile_count", profile_count_},
+                       {"profile_sum", std::move(profile)},
+                       {"suspension", std::move(suspension)},
+                       {"flow_rates", std::move(rates)}};
+  // s_I as -s_interface_raise has left it (absent from earlier checkpoints: s_I as the options give it).
+  if (coupler_)
+    state["s_interface"] = {{"value", coupler_->interface_scaling()},
+                            {"raise_threshold", raise_threshold_},
+                            {"raise_previous", std::isfinite(raise_previous_) ? raise_previous_ : -1.0},
+                            {"raises", s_interface_raises_}};
+  return state;
 }
 
 void Scene::restore_metric_state(const nlohmann::json& state) {
@@ -123,6 +130,14 @@ void Scene::restore_metric_state(const nlohmann::json& state) {
     profile_sum_ = std::move(sum);
     suspension_ = std::move(records);
     flow_rates_ = std::move(rates);
+    if (coupler_ && state.contains("s_interface")) {
+      const nlohmann::json& si = state.at("s_interface");
+      coupler_->set_interface_scaling(si.at("value").get<double>());
+      raise_threshold_ = si.at("raise_threshold").get<double>();
+      const double previous = si.at("raise_previous").get<double>();  // < 0: none yet
+      raise_previous_ = previous >= 0 ? previous : std::numeric_limits<double>::infinity();
+      s_interface_raises_ = si.at("raises").get<int>();
+    }
   } catch (const std::exception& e) {
     throw std::invalid_argument(std::string("option -restart: the checkpoint's scene records are damaged (") +
                                 e.what() + ")");
@@ -208,6 +223,16 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
   }
   // The paper's dimensionless numbers (Sec. 3.1-3.2) from the scene: the shear rate of a shear flow, the
   // half-width across the walls.
+  // The s_I used, chosen or given (-s_interface), the area error an automatic choice aims at, and with
+  // -s_interface_raise the value at the end and how often it was raised.
+  if (!bodies_.empty()) {
+    m.emplace_back("s_interface", s_.coupling.s_interface);
+    if (s_.s_interface_auto) m.emplace_back("s_interface_target", s_.s_interface_target);
+    if (s_.s_interface_raise) {
+      m.emplace_back("s_interface_final", coupler_->interface_scaling());
+      m.emplace_back("s_interface_raises", s_interface_raises_);
+    }
+  }
   solid::FlowScales flow;
   flow.viscosity = fluid_->options().viscosity;
   flow.density = fluid_->options().density;
@@ -252,6 +277,17 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     // lambda = mu_in / mu_out, where an inner viscosity was given (issue 27).
     if (bs.inner_viscosity > 0)
       m.emplace_back(name + "_viscosity_ratio", bs.inner_viscosity / flow.viscosity);
+    if (bodies_[b]->is_membrane()) {
+      // The mid-surface encloses incompressible fluid: a change of its area/volume is a conservation error
+      // of the coupling (r_A measures the band's own).
+      const double enclosed0 = geometry::membrane_shape(reference, 0).enclosed;
+      m.emplace_back(name + "_enclosed_change",
+                     geometry::membrane_shape(bodies_[b]->current_patch(), 0).enclosed / enclosed0 - 1);
+      // The bending modulus the solid shell implies (incompressible thin plate: E h^3 / (12 (1 - nu^2)) with
+      // E = 3 G, nu = 1/2), in erg.
+      if (reference.physical_dim() == 3)
+        m.emplace_back(name + "_bending_modulus", bs.shear_modulus * std::pow(bs.thickness, 3) / 3);
+    }
     if (!bodies_[b]->is_membrane()) {
       // phi: against the membrane whose enclosed region holds this body's centroid (the nearest such).
       const geometry::Vec3 c = geometry::patch_moments(reference).centroid;
@@ -280,6 +316,7 @@ double Scene::average_from() const {
 
 std::vector<std::pair<std::string, std::string>> Scene::summary_text() const {
   std::vector<std::pair<std::string, std::string>> t;
+  if (!bodies_.empty()) t.emplace_back("s_interface_choice", s_.s_interface_auto ? "auto" : "given");
   for (size_t b = 0; b < bodies_.size(); ++b) {
     t.emplace_back(bodies_[b]->name() + "_regime", trackers_[b].regime(average_from()));
     t.emplace_back(bodies_[b]->name() + "_material", body_settings(bodies_[b]->name()).material);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <iomanip>
 #include <random>
@@ -13,6 +14,7 @@
 #include "apps/scene.hpp"
 #include "common/option_table.hpp"
 #include "coupling/coupled_linear_solver.hpp"
+#include "coupling/interface_marking.hpp"
 #include "solvers/pc_types.hpp"
 
 namespace cellfsi::app {
@@ -29,13 +31,13 @@ Enum enum_of(const std::string& word, const std::vector<std::string>& words) {
 
 const std::vector<std::string> kMarkings{"support", "central"};
 const std::vector<std::string> kAccelerations{"none", "anderson"};
-const std::vector<std::string> kShapes{"hollow_ellipse", "ellipse", "rbc", "hollow_ellipsoid", "ellipsoid"};
+const std::vector<std::string> kShapes{"hollow_ellipse",   "ellipse",   "rbc",
+                                       "hollow_ellipsoid", "ellipsoid", "rbc_3d"};
 const std::vector<std::string> kArrangements{"even", "staggered", "random"};
 const std::vector<std::string> kMaterials{"neo_hookean", "mooney_rivlin", "strain_hardening"};
 // C3 / G of the strain-hardening law: Mills et al. (2004) fitted 1/30; 100 makes the law 600 times stiffer
 // than neo-Hookean at I1 - 3 = 1 (a stretch of 1.9), far beyond any cell.
 constexpr double kMaxHardening = 100;
-constexpr double kMaxInterfaceScaling = 1e12;  // s_I
 constexpr double kMaxOriginOverSize = 1e6;     // |domain origin| / domain extent
 // G [dyn/cm^2]: cells are 1e1 ... 1e5, rubber 1e7; the capsule at 48 x 24, dt 5e-4 ran at 1e9, its coupling
 // diverged at 1e10 and its membrane inverted at 1e11.
@@ -45,12 +47,53 @@ constexpr double kMaxShearModulus = 1e8;
 // per element of a 3D membrane (768 -> 6912).
 constexpr double kBodyBytesPerElement2d = 8e3, kBodyBytesPerElement3d = 24e3;
 
+/// The smallest Eulerian element size [cm] of the scene's mesh (a narrowing: in its throat).
+double smallest_element_size(const SceneSettings& s) {
+  double h = 1e300;
+  for (int d = 0; d < s.dim; ++d) h = std::min(h, s.size[d] / s.elements[d]);
+  if (s.domain == "narrowing") h = std::min(h, s.channel.throat_height / s.elements[1]);
+  return h;
+}
+
+/// s_I from -s_interface: a number in 1 ... kMaxInterfaceScaling, or auto (coupling::
+/// automatic_interface_scaling on the smallest element, for -s_interface_target; capped at the largest
+/// valid value, with a note).
+void read_interface_scaling(SceneSettings& s, const OptionTable& t, const std::string& text) {
+  double& s_i = s.coupling.s_interface;
+  const std::string valid =
+      "auto, or a number 1 ... " + option_value_text(coupling::kMaxInterfaceScaling) +
+      " (the studies use 1e6 ... 1e11; a larger s_I outweighs the rest of the Jacobian by more than its LU "
+      "resolves in double precision: 1e300 failed the factorisation)";
+  s.s_interface_auto = text == "auto";
+  if (!s.s_interface_auto) {
+    if (t.given("s_interface_target"))
+      t.bad("s_interface_target", option_value_text(s.s_interface_target),
+            "only with -s_interface auto (here -s_interface " + text + ")");
+    if (s.s_interface_raise)
+      t.bad("s_interface_raise", "true", "only with -s_interface auto (here -s_interface " + text + ")");
+    char* end = nullptr;
+    s_i = std::strtod(text.c_str(), &end);
+    if (text.empty() || *end != '\0') t.bad("s_interface", text.empty() ? "''" : text, valid);
+    if (!(s_i >= 1 && s_i <= coupling::kMaxInterfaceScaling))
+      t.bad("s_interface", option_value_text(s_i), valid);
+    return;
+  }
+  const double needed = coupling::automatic_interface_scaling(smallest_element_size(s), s.degree,
+                                                              s.coupling.marking, s.s_interface_target);
+  s_i = std::clamp(needed, 1.0, coupling::kMaxInterfaceScaling);
+  if (needed > coupling::kMaxInterfaceScaling)
+    CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
+                              "cellfsi: note: -s_interface auto: the area error %g needs s_I = %.3g at this "
+                              "mesh; using the largest valid, %g\n",
+                              s.s_interface_target, needed, coupling::kMaxInterfaceScaling));
+}
+
 /// The coupling's options (and the scene's body list, averaging window and mesh-ratio limit).
 void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
   coupling::CouplerOptions& c = s.coupling;
   coupling::LinearSolverOptions& l = c.linear;
   std::string marking = kMarkings[static_cast<int>(c.marking)],
-              acceleration = kAccelerations[static_cast<int>(c.acceleration)];
+              acceleration = kAccelerations[static_cast<int>(c.acceleration)], s_interface = "auto";
   // "-solid_bodies ''" would read as no list at all: name the mistake.
   PetscBool has = PETSC_FALSE;
   char value[8] = "";
@@ -75,10 +118,16 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
   bool pc_fused = true;
   OptionTable t("cellfsi immersed bodies and coupling");
   t.texts("solid_bodies", names, "Names of the immersed bodies, e.g. membrane,nucleus", 64)
-      .real("s_interface", c.s_interface, "s_I: s^h on the basis functions at interfaces (paper 3.3)",
-            between(1, kMaxInterfaceScaling, "",
-                    "(the studies use 1e6 ... 1e11; a larger s_I outweighs the rest of the Jacobian by more "
-                    "than its LU resolves in double precision: 1e300 failed the factorisation)"))
+      .text("s_interface", s_interface,
+            "s_I: s^h on the basis functions at interfaces (paper 3.3): auto (chosen from the mesh to keep "
+            "the membranes' area error near -s_interface_target; docs/validation.md, \"The automatic s_I\") "
+            "or a number")
+      .real("s_interface_target", s.s_interface_target,
+            "-s_interface auto: the area error |r_A| (paper Eq. 21) to keep over the run",
+            between(1e-6, 0.1, "", "(r_A ~ s_I^(-1/2): below 1e-6 needs s_I beyond 1e12 at any mesh)"))
+      .flag("s_interface_raise", s.s_interface_raise,
+            "-s_interface auto: s_I times 4 (halving the drift of r_A) each time a membrane's growing |r_A| "
+            "passes half the target, then half-way from there to the target, and so on (at most 1e12)")
       .text("s_interface_marking", marking,
             "Functions given s_I: support (every function nonzero on an element the interface crosses) or "
             "central (only those whose support it crosses in an inner element)",
@@ -161,6 +210,7 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
           "less than -final_time = " + option_value_text(s.final_time) + " s");
   c.marking = enum_of<coupling::Marking>(marking, kMarkings);
   c.acceleration = enum_of<coupling::Acceleration>(acceleration, kAccelerations);
+  read_interface_scaling(s, t, s_interface);
 }
 
 /// The least MemAvailable over the ranks of comm (collective); 1e300 where it is unknown (no check).
@@ -220,7 +270,10 @@ void read_body(SceneSettings& s, const std::string& name) {
   std::string arrangement = kArrangements[0];
   OptionTable t("cellfsi body '" + name + "'", pre);
   const auto dim = [D] { return D; };
-  t.text("shape", b.shape, "Body shape (the first three 2D, the last two 3D)", kShapes)
+  t.text("shape", b.shape,
+         "Body shape (the first three 2D, the last three 3D; rbc_3d: the Evans-Fung RBC, its axis of "
+         "symmetry along z before -angle, docs/geometry.md)",
+         kShapes)
       .reals("semi_axes", axes, "Semi-axes a,b[,c] [cm] (membranes: of the mid-surface)", nullptr,
              positive("[cm]"))
       .reals("center", center, "Centre x,y[,z] [cm] (default: the domain's centre)", dim, finite("[cm]"))
@@ -271,7 +324,7 @@ void read_body(SceneSettings& s, const std::string& name) {
 
   const bool is2d = b.shape == "hollow_ellipse" || b.shape == "ellipse" || b.shape == "rbc";
   if ((D == 2) != is2d) t.bad("shape", b.shape, D == 2 ? "a 2D shape (-dim 2)" : "a 3D shape (-dim 3)");
-  if (b.shape != "rbc") {
+  if (!b.biconcave()) {
     if (!t.given("semi_axes") && D == 3 && axes.size() == 2) axes.push_back(axes[1]);  // c = b
     if (static_cast<int>(axes.size()) != D)
       t.bad("semi_axes", std::to_string(axes.size()) + " values", std::to_string(D) + " values");
@@ -294,6 +347,11 @@ void read_body(SceneSettings& s, const std::string& name) {
     for (double a : b.semi_axes)
       if (!(b.thickness < a))
         t.bad("thickness", option_value_text(b.thickness), "smaller than every semi-axis");
+    // The 3D RBC's two sheets are C0 apart at its dimples: a thicker shell would fold through itself.
+    if (b.shape == "rbc_3d" && !(b.thickness < geometry::EvansFung{}.C0))
+      t.bad("thickness", option_value_text(b.thickness),
+            "smaller than the RBC's thickness at its dimples, C0 = " +
+                option_value_text(geometry::EvansFung{}.C0) + " [cm]");
   }
   if (t.given("inner_viscosity")) {
     // The bounds of -fluid_viscosity (fluid/fluid_options.cpp).

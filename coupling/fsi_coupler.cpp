@@ -100,8 +100,20 @@ void FsiCoupler::update_immersed(bool mark) {
     marked_ = std::move(marked);
     linear_->marking_changed();
   }
+  apply_scaling();
+}
+
+void FsiCoupler::apply_scaling() {
   const std::vector<double> s = scaling_values(fluid_.patch().n_control(), marked_, opt_.s_interface);
   fluid_.set_scaling([&](int node) { return s[node]; });
+}
+
+void FsiCoupler::set_interface_scaling(double s_interface) {
+  check_interface_scaling(s_interface);
+  if (s_interface == opt_.s_interface) return;
+  opt_.s_interface = s_interface;
+  apply_scaling();
+  linear_->marking_changed();
 }
 
 void FsiCoupler::update_viscosity() {

@@ -76,11 +76,16 @@ class FsiCoupler {
   void restart();
   /// One time step of the coupled problem.
   CouplerStats step();
+  /// s_I from now on (checked by check_interface_scaling): s^h of the current marking at once, and the
+  /// coupled preconditioner refreshed at the next step, as for a new marking.
+  void set_interface_scaling(double s_interface);
+  double interface_scaling() const { return opt_.s_interface; }
   /// The linear solver (its PC type, whether it fell back, its KSP).
   const CoupledLinearSolver& linear_solver() const { return *linear_; }
 
  private:
   void update_immersed(bool mark);  // mark: also rebuild s^h from the interface points
+  void apply_scaling();             // s^h on the fluid: s_I on the marked functions, 1 elsewhere
   /// The fluid's viscosity field from the membranes' current insides (with a contrast; between steps, from
   /// the accepted configuration, like the bodies' current_patch()).
   void update_viscosity();

@@ -298,25 +298,41 @@ Patch biconcave_rbc(double h, int n_angular, int degree, const Vec3& center, dou
 // Cells in 3D
 
 namespace {
-/// Radial x polar x azimuth patch: scaled unit spheres interpolated linearly in the radial direction.
-Patch radial_patch_3d(const KnotVector& radial, const Vec3& inner_axes, const Vec3& outer_axes,
-                      const Vec3& center) {
-  const Conic prof = unit_half_circle(), circ = unit_circle();
+/// Patch of revolution about the z axis through `center`: direction 0 through the thickness (or from the
+/// centre), linear between two layers; direction 1 along a profile with knots `profile` and weights
+/// `profile_weights`; direction 2 around the exact unit circle. layer(tau, j) = (sx, sy, z) places the
+/// profile's control point j of the layer at tau in [0, 1] at (sx cos phi, sy sin phi, z): sx = sy = rho for
+/// a surface of revolution, sx != sy for an ellipsoid. Poles (rho = 0) are collapsed control points.
+template <class Layer>
+Patch revolved_patch_3d(const KnotVector& radial, const KnotVector& profile,
+                        const std::vector<double>& profile_weights, Layer layer, const Vec3& center) {
+  const Conic circ = unit_circle();
   const std::vector<double> tau = radial.greville_unwrapped();
-  const int nr = radial.n_basis(), np = prof.knots.n_basis(), na = circ.knots.n_basis();
+  const int nr = radial.n_basis(), np = profile.n_basis(), na = circ.knots.n_basis();
   std::vector<Vec3> cps(nr * np * na);
   std::vector<double> ws(cps.size());
   for (int k = 0; k < na; ++k)
     for (int j = 0; j < np; ++j)
       for (int i = 0; i < nr; ++i) {
-        const double rho = prof.points[j][0], z = prof.points[j][2];
-        const Vec3 unit(rho * circ.points[k][0], rho * circ.points[k][1], z);
-        const Vec3 axes = inner_axes + tau[i] * (outer_axes - inner_axes);
+        const Vec3 q = layer(tau[i], j);
         const int idx = i + nr * (j + np * k);
-        cps[idx] = center + axes.cwiseProduct(unit);
-        ws[idx] = prof.weights[j] * circ.weights[k];
+        cps[idx] = center + Vec3(q[0] * circ.points[k][0], q[1] * circ.points[k][1], q[2]);
+        ws[idx] = profile_weights[j] * circ.weights[k];
       }
-  return Patch({radial, prof.knots, circ.knots}, 3, std::move(cps), std::move(ws));
+  return Patch({radial, profile, circ.knots}, 3, std::move(cps), std::move(ws));
+}
+
+/// Radial x polar x azimuth patch: scaled unit spheres interpolated linearly in the radial direction.
+Patch radial_patch_3d(const KnotVector& radial, const Vec3& inner_axes, const Vec3& outer_axes,
+                      const Vec3& center) {
+  const Conic prof = unit_half_circle();
+  return revolved_patch_3d(
+      radial, prof.knots, prof.weights,
+      [&](double tau, int j) {
+        const Vec3 axes = inner_axes + tau * (outer_axes - inner_axes);
+        return Vec3(axes[0] * prof.points[j][0], axes[1] * prof.points[j][0], axes[2] * prof.points[j][2]);
+      },
+      center);
 }
 }  // namespace
 
@@ -348,6 +364,48 @@ Patch solid_ellipsoid(double a, double b, double c, int n_radial, int n_polar, i
   check_degree(bl, degree, 2);
   Patch p = radial_patch_3d(KnotVector::open_uniform(degree, n_radial), Vec3::Zero(), Vec3(a, b, c), center);
   return elevate_and_refine(std::move(p), {{1, n_polar}, {2, n_azimuth}}, degree);
+}
+
+Patch biconcave_rbc_3d(double h, int n_polar, int n_azimuth, int degree, const Vec3& center,
+                       const EvansFung& shape) {
+  const std::string bl = "biconcave_rbc_3d";
+  check_positive(bl, "h", h);
+  // The two sheets are closest at the dimples, C0 apart: the inner surfaces must not meet there.
+  if (h >= shape.C0)
+    bad(bl, "h", h, "0 < h < C0 = " + std::to_string(shape.C0) + " cm (the dimple's thickness)");
+  check_count(bl, "n_polar", n_polar, 2);
+  check_count(bl, "n_azimuth", n_azimuth, 4);
+  check_degree(bl, degree, 2);
+  // Profile from the south pole (u = 0, t = -pi/2) through the rim (t = 0) to the north pole: (rho, z) =
+  // c(t) of EvansFung, whose x is the distance from the axis. It leaves the axis at a right angle (dz/dt = 0
+  // at t = +-pi/2); interpolating those end slopes keeps the surface smooth at its poles, as the ellipsoid's.
+  const double pi = std::numbers::pi;
+  auto t_of = [pi](double u) { return pi * (u - 0.5); };
+  auto xy = [](const Vec3& v) { return Eigen::VectorXd(v.head<2>()); };
+  const KnotVector kp = KnotVector::open_uniform(degree, n_polar, 0.0, 1.0);
+  Eigen::MatrixXd mid = greville_interpolate_clamped(
+      kp, 2, [&](double u) { return xy(shape.point(t_of(u))); }, pi * xy(shape.tangent(-pi / 2)),
+      pi * xy(shape.tangent(pi / 2)));
+  const int last = kp.n_basis() - 1;
+  mid(0, 0) = mid(last, 0) = 0.0;  // the poles exactly on the axis (cos(+-pi/2) is not 0 in doubles)
+  const auto tau = kp.greville();
+  std::vector<Vec3> normal(kp.n_basis());
+  for (int j = 0; j < kp.n_basis(); ++j) {
+    const Vec3 t = shape.tangent(t_of(tau[j])).normalized();
+    normal[j] = Vec3(t[1], -t[0], 0);  // outward for the profile running south to north
+  }
+  // At the poles and their neighbours the offset is along the axis: every layer, not only the mid-surface,
+  // leaves the axis at a right angle.
+  normal[0] = normal[1] = -Vec3::UnitY(), normal[last] = normal[last - 1] = Vec3::UnitY();
+  Patch p = revolved_patch_3d(
+      KnotVector::open_uniform(degree, 1), kp, std::vector<double>(kp.n_basis(), 1.0),
+      [&](double r, int j) {
+        const double side = (r - 0.5) * h;
+        const double rho = mid(j, 0) + side * normal[j][0], z = mid(j, 1) + side * normal[j][1];
+        return Vec3(rho, rho, z);
+      },
+      center);
+  return elevate_and_refine(std::move(p), {{2, n_azimuth}}, degree);
 }
 
 }  // namespace cellfsi::geometry

@@ -2,8 +2,9 @@
 // Builders of the Eulerian domains and the cell patches of the paper, in CGS units (cm).
 //
 // Parametric directions of the cell patches:
-//  - membranes (hollow ellipse, biconcave RBC, hollow ellipsoid): direction 0 runs through the thickness
-//    (one element), the others around the membrane (closed: first and last control layers coincide);
+//  - membranes (hollow ellipse, biconcave RBC in 2D and 3D, hollow ellipsoid): direction 0 runs through the
+//    thickness (one element), the others around the membrane (closed: first and last control layers
+//    coincide; in 3D direction 1 runs from pole to pole);
 //  - bulky bodies (ellipse/disk, ellipsoid/sphere): direction 0 runs from the centre (a degenerate point)
 //    to the boundary.
 // Conics and quadrics are exact (rational quadratic NURBS, degree-elevated and refined exactly); every
@@ -74,6 +75,17 @@ Patch biconcave_rbc(double h, int n_angular, int degree, const Vec3& center = Ve
 /// 1 x n_polar x n_azimuth elements of degree p >= 2 (polar axis z; n_polar a multiple of 2, n_azimuth of 4).
 Patch hollow_ellipsoid(double a, double b, double c, double h, int n_polar, int n_azimuth, int degree,
                        const Vec3& center = Vec3::Zero());
+
+/// 3D biconcave RBC membrane: the Evans-Fung cross-section (rho, z) = c(t), t in [-pi/2, pi/2] (x of
+/// EvansFung::point is the distance from the axis), revolved exactly (rational quadratic arcs) about the z
+/// axis through `center`, the disc's axis of symmetry. 1 x n_polar x n_azimuth elements of degree p >= 2
+/// (n_polar even, n_azimuth a multiple of 4), poles on the axis as in hollow_ellipsoid. The profile
+/// interpolates c at the Greville points of n_polar uniform elements in t, and c's end slopes (it leaves the
+/// axis at a right angle: the surface is smooth at its poles); thickness h (< C0, the dimple's thickness)
+/// about the mid-surface along the exact normal. Unscaled: mid-surface area about 135 um^2, volume about
+/// 94 um^3 (docs/geometry.md).
+Patch biconcave_rbc_3d(double h, int n_polar, int n_azimuth, int degree, const Vec3& center = Vec3::Zero(),
+                       const EvansFung& shape = {});
 
 /// Solid ellipsoid (a sphere when a == b == c): n_radial x n_polar x n_azimuth elements of degree p >= 2.
 Patch solid_ellipsoid(double a, double b, double c, int n_radial, int n_polar, int n_azimuth, int degree,

@@ -1,6 +1,8 @@
 #include "geometry/projection.hpp"
 
 #include <stdexcept>
+#include <string>
+#include <utility>
 
 #include <Eigen/Sparse>
 
@@ -45,7 +47,11 @@ Eigen::MatrixXd l2_project(const KnotVector& kv, int n_comp, const VectorFunctio
   return c;
 }
 
-Eigen::MatrixXd greville_interpolate(const KnotVector& kv, int n_comp, const VectorFunction& f) {
+namespace {
+/// Collocation at the Greville abscissae; when `ends` is given, the rows of the second and the second-to-last
+/// abscissae prescribe the first derivative at the two ends instead (ends->first, ends->second).
+Eigen::MatrixXd collocate(const KnotVector& kv, int n_comp, const VectorFunction& f,
+                          const std::pair<Eigen::VectorXd, Eigen::VectorXd>* ends, const char* who) {
   const int p = kv.degree();
   const int n = kv.n_basis();
   const std::vector<double> tau = kv.greville();
@@ -53,11 +59,13 @@ Eigen::MatrixXd greville_interpolate(const KnotVector& kv, int n_comp, const Vec
   Eigen::MatrixXd rhs(n, n_comp);
   double N[(kMaxDeriv + 1) * (kMaxDegree + 1)];
   for (int i = 0; i < n; ++i) {
-    const int span = kv.find_span(tau[i]);
-    bspline_basis(kv, span, tau[i], 0, N);
-    for (int j = 0; j <= p; ++j) trip.emplace_back(i, kv.fold(span - p + j), N[j]);
-    const Eigen::VectorXd fu = f(tau[i]);
-    if (fu.size() != n_comp) throw std::invalid_argument("greville_interpolate: wrong number of components");
+    const bool slope = ends && (i == 1 || i == n - 2);
+    const double u = slope ? (i == 1 ? kv.knots().front() : kv.knots().back()) : tau[i];
+    const int span = kv.find_span(u);
+    bspline_basis(kv, span, u, slope ? 1 : 0, N);
+    for (int j = 0; j <= p; ++j) trip.emplace_back(i, kv.fold(span - p + j), N[(slope ? p + 1 : 0) + j]);
+    const Eigen::VectorXd fu = slope ? (i == 1 ? ends->first : ends->second) : f(u);
+    if (fu.size() != n_comp) throw std::invalid_argument(std::string(who) + ": wrong number of components");
     rhs.row(i) = fu.transpose();
   }
   Eigen::SparseMatrix<double> A(n, n);
@@ -65,8 +73,24 @@ Eigen::MatrixXd greville_interpolate(const KnotVector& kv, int n_comp, const Vec
   Eigen::SparseLU<Eigen::SparseMatrix<double>> solver;
   solver.compute(A);
   if (solver.info() != Eigen::Success)
-    throw std::runtime_error("greville_interpolate: collocation matrix is singular");
+    throw std::runtime_error(std::string(who) + ": collocation matrix is singular");
   return solver.solve(rhs);
+}
+}  // namespace
+
+Eigen::MatrixXd greville_interpolate(const KnotVector& kv, int n_comp, const VectorFunction& f) {
+  return collocate(kv, n_comp, f, nullptr, "greville_interpolate");
+}
+
+Eigen::MatrixXd greville_interpolate_clamped(const KnotVector& kv, int n_comp, const VectorFunction& f,
+                                             const Eigen::VectorXd& slope_start,
+                                             const Eigen::VectorXd& slope_end) {
+  if (kv.periodic() || kv.n_basis() < 4)
+    throw std::invalid_argument(
+        "greville_interpolate_clamped: needs an open knot vector with >= 4 functions, got " +
+        std::to_string(kv.n_basis()) + (kv.periodic() ? " (periodic)" : ""));
+  const std::pair<Eigen::VectorXd, Eigen::VectorXd> ends{slope_start, slope_end};
+  return collocate(kv, n_comp, f, &ends, "greville_interpolate_clamped");
 }
 
 Eigen::VectorXd evaluate_spline(const KnotVector& kv, const Eigen::MatrixXd& c, double u, int n_deriv) {

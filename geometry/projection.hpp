@@ -22,6 +22,13 @@ Eigen::MatrixXd l2_project(const KnotVector& kv, int n_comp, const VectorFunctio
 /// their periodic Greville points).
 Eigen::MatrixXd greville_interpolate(const KnotVector& kv, int n_comp, const VectorFunction& f);
 
+/// Interpolation at the Greville abscissae of an open vector with the first derivatives (with respect to
+/// the knot parameter) prescribed at both ends, in place of the values at the second and the second-to-last
+/// abscissae (e.g. a profile leaving an axis of revolution at a right angle). Needs >= 4 basis functions.
+Eigen::MatrixXd greville_interpolate_clamped(const KnotVector& kv, int n_comp, const VectorFunction& f,
+                                             const Eigen::VectorXd& slope_start,
+                                             const Eigen::VectorXd& slope_end);
+
 /// The (folded) spline with coefficients c evaluated at u (derivative order n_deriv <= 2).
 Eigen::VectorXd evaluate_spline(const KnotVector& kv, const Eigen::MatrixXd& c, double u, int n_deriv = 0);
 

@@ -39,7 +39,7 @@ PARSE_DETAIL = re.compile(r" \((Input string|Unknown logical value|Invalid|Unabl
 INVALID = re.compile(r"option -(\S+) = .* is invalid; valid: (.*)$")
 
 SHAPES_2D = ["hollow_ellipse", "ellipse", "rbc"]
-SHAPES_3D = ["hollow_ellipsoid", "ellipsoid"]
+SHAPES_3D = ["hollow_ellipsoid", "ellipsoid", "rbc_3d"]
 DEFAULT_BODY = "body"  # a body of the 2D scene given no shape
 
 

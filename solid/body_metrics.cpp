@@ -220,7 +220,16 @@ void BodyTracker::record(double time, const Patch& current) {
   s.r_p = (boundary - boundary0_) / boundary0_;
   s.centroid = region.centroid;
   const geometry::PrincipalAxes ax = geometry::principal_axes(region, dim_);
-  const double axis = std::atan2(ax.axes(plane_dir_, 0), ax.axes(0, 0));
+  double axis = std::atan2(ax.axes(plane_dir_, 0), ax.axes(0, 0));
+  if (dim_ == 3) {
+    // The long axis in the shear plane, of the second moment's (x, plane_dir) block: an oblate body (an RBC)
+    // has two equal largest moments, and its 3D long axis may be any direction in its disc, out of the plane.
+    geometry::RegionMoments in_plane;
+    const int ix[2] = {0, plane_dir_};
+    for (int r = 0; r < 2; ++r)
+      for (int c = 0; c < 2; ++c) in_plane.second_moment(r, c) = region.second_moment(ix[r], ix[c]);
+    axis = geometry::long_axis_angle(in_plane);
+  }
   s.anisotropy = ax.values[dim_ - 1] > 0 ? ax.values[0] / ax.values[dim_ - 1] - 1 : 0.0;
   if (membrane_) s.stretch = largest_stretch(current);
   std::vector<double> angles = material_angles(current, region.centroid);

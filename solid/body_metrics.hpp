@@ -10,7 +10,8 @@
 //              the outer boundary for a bulky body
 //   theta_deg  inclination: angle from the flow direction (+x) to the long axis (least second moment) of the
 //              region a membrane encloses (of the body itself when bulky), counter-clockwise positive,
-//              unwrapped in time and reported in (-90, 90]
+//              unwrapped in time and reported in (-90, 90]; in 3D the long axis of the second moments'
+//              block in the shear plane (an oblate RBC's 3D long axis may lie anywhere in its disc)
 //   omega_tt   tank-treading frequency of a membrane: mean angular velocity of its material points about the
 //              centroid, in turns per second, positive clockwise (the sense of a shear flow with
 //              gammadot > 0)

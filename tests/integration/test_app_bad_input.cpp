@@ -51,6 +51,16 @@ TEST_F(CellfsiApp, UnknownDomainIsRejected) {
   EXPECT_TRUE(nothing_written());
 }
 
+TEST_F(CellfsiApp, Rbc3dThickerThanItsDimplesIsRejected) {
+  // The 3D RBC's two sheets are C0 = 0.81 um apart at the dimples: a thicker shell would fold through itself.
+  const RunResult r = cellfsi({scene("rbc_shear_3d.yaml"), "-fluid_elements", "12,12,12", "-final_time",
+                               "1e-3", "-solid_rbc_thickness", "1e-4"});
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("-solid_rbc_thickness = 0.0001"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("C0 = 8.1e-05 [cm]"), std::string::npos) << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
 TEST_F(CellfsiApp, MissingSceneFileIsRejected) {
   const std::string missing = scene("no_such_scene.yaml");
   const RunResult r = cellfsi(with({missing}, kTiny));
@@ -91,9 +101,20 @@ TEST_F(CellfsiApp, ValuesThatAreNumbersButNotInputAreRejected) {
   const std::vector<std::string> tiny = with({scene("shear.yaml")}, kTiny);
   const std::vector<std::string> capsule = with({scene("capsule_shear.yaml")}, kCapsule);
   const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
-      {with(capsule, {"-s_interface", "inf"}), "option -s_interface = inf is invalid; valid: 1 ... 1e+12 ("},
+      {with(capsule, {"-s_interface", "inf"}),
+       "option -s_interface = inf is invalid; valid: auto, or a number 1 ... 1e+12 ("},
       {with(capsule, {"-s_interface", "1e300"}),
-       "option -s_interface = 1e+300 is invalid; valid: 1 ... 1e+12"},
+       "option -s_interface = 1e+300 is invalid; valid: auto, or a number 1 ... 1e+12"},
+      {with(capsule, {"-s_interface", "1e10x"}),
+       "option -s_interface = 1e10x is invalid; valid: auto, or a number"},
+      {with(capsule, {"-s_interface", "1e10", "-s_interface_target", "1e-4"}),
+       "option -s_interface_target = 0.0001 is invalid; valid: only with -s_interface auto (here "
+       "-s_interface 1e10)"},
+      {with(capsule, {"-s_interface", "1e10", "-s_interface_raise"}),
+       "option -s_interface_raise = true is invalid; valid: only with -s_interface auto (here -s_interface "
+       "1e10)"},
+      {with(capsule, {"-s_interface_target", "0"}),
+       "option -s_interface_target = 0 is invalid; valid: 1e-06 ... 0.1"},
       {with(capsule, {"-solid_membrane_shear_modulus", "1e-310"}),
        "option -solid_membrane_shear_modulus = 1e-310 is invalid; valid: 1e-06 ... 1e+08 [dyn/cm^2] (a "
        "material constant in CGS units; stiffer than any cell"},

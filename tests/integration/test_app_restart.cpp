@@ -42,6 +42,27 @@ TEST_F(CellfsiApp, RestartContinuesTheRunAsIfItHadNotStopped) {
   EXPECT_EQ(pvd_files(out_ / "solid.pvd").size(), 5u);
 }
 
+TEST_F(CellfsiApp, RestartKeepsTheRaisedInterfaceScaling) {
+  // -s_interface_raise raises s_I in the second step (the test
+  // InterfaceScalingIsRaisedWhenTheAreaErrorPassesHalfTheTarget); the checkpoint after it keeps the
+  // raised value, the next threshold and the count, so the continued run neither starts again from the
+  // automatic value (it would raise it again at once) nor counts anew: 4 steps in one run against 2 + 2.
+  const std::vector<std::string> args = with(
+      {scene("capsule_shear.yaml")}, with(kCapsule, {"-s_interface_target", "1e-4", "-s_interface_raise"}));
+  ASSERT_EQ(cellfsi(with(args, {"-final_time", "2e-3"})).exit_code, 0) << last_output_;
+  const auto straight = last_row(out_ / "metrics.csv");
+  const std::string straight_js = summary();
+  fs::remove_all(out_);
+  ASSERT_EQ(cellfsi(with(args, {"-final_time", "1e-3"})).exit_code, 0) << last_output_;
+  const RunResult r = cellfsi(with(args, {"-final_time", "2e-3", "-restart"}));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find("s_I raised"), std::string::npos) << r.output;
+  const std::string js = summary();
+  EXPECT_EQ(json_number(js, "s_interface_final"), json_number(straight_js, "s_interface_final")) << js;
+  EXPECT_EQ(json_number(js, "s_interface_raises").value_or(0), 1) << js;
+  EXPECT_TRUE(rows_agree(metrics_only(straight), metrics_only(last_row(out_ / "metrics.csv")), 1e-6, 1e-2));
+}
+
 TEST_F(CellfsiApp, RestartsWithAndWithoutOutputKeepTheSeries) {
   // A restart without series output (-output_every 0) must keep the series written before it for the next
   // restart (the checkpoint used to drop them, and the next restart deleted their files).

@@ -335,3 +335,24 @@ TEST(InterfaceMarking, CentralMarkingKeepsTheFunctionsCentredOnTheMembrane) {
     EXPECT_TRUE(std::includes(central.begin(), central.end(), own.begin(), own.end()));
   }
 }
+
+TEST(InterfaceMarking, AutomaticScalingOnTheCapsuleMeshes) {
+  // -s_interface auto on the capsule's box (0.0024 cm wide) at 128 x 64 and 256 x 128, cubic, central
+  // marking, for |r_A| <= 1e-3: s_I = 6.25e10 (5e-5 cm / 5 h)^2.8 (docs/validation.md, "The automatic s_I").
+  const auto automatic = [](int n, int p, coupling::Marking m, double target) {
+    return coupling::automatic_interface_scaling(0.0024 / n, p, m, target);
+  };
+  const coupling::Marking central = coupling::Marking::central;
+  const double coarse = automatic(128, 3, central, 1e-3), fine = automatic(256, 3, central, 1e-3);
+  EXPECT_NEAR(coarse, 1.0752e10, 1e6);
+  EXPECT_NEAR(fine, 7.4879e10, 1e7);
+  // About 7 times more per halving of h (measured: 2.65^2), 4 times more per halving of the target.
+  EXPECT_NEAR(fine / coarse, std::pow(2.0, 2.8), 1e-12);
+  EXPECT_NEAR(automatic(128, 3, central, 5e-4) / coarse, 4, 1e-12);
+  // The band is 2p - 1 elements wide (central) or 2p + 1 (support): quadratics, and the support marking's
+  // wider band of cubics, need (5 / 3)^2.8 and (5 / 7)^2.8 times the central cubics' s_I.
+  EXPECT_NEAR(automatic(128, 2, central, 1e-3) / coarse, std::pow(5.0 / 3, 2.8), 1e-12);
+  EXPECT_NEAR(automatic(128, 3, coupling::Marking::support, 1e-3) / coarse, std::pow(5.0 / 7, 2.8), 1e-12);
+  EXPECT_DOUBLE_EQ(coupling::interface_band_width(1e-5, 3, central), 5e-5);
+  EXPECT_THROW(automatic(128, 3, central, 0), std::invalid_argument);
+}

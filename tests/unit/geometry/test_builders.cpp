@@ -148,6 +148,51 @@ TEST(Builders, EllipsoidShellAndSphereSurfacesAreExactQuadrics) {
   EXPECT_NEAR(ball.point({0.5, 0.3, 0.8}).norm(), 0.5e-4, 1e-17);
 }
 
+TEST(Builders, Rbc3dShellHasItsThicknessAndSmoothPoles) {
+  // The scene's shell (scenes/rbc_shear_3d.yaml: h = 3.16e-5 cm; 1 x 20 x 40 elements, the automatic count at
+  // 16^3), its symmetry axis along z through c.
+  const double h = 3.1623e-5;
+  const Vec3 c(6e-4, 6e-4, 6e-4);
+  const Patch rbc = biconcave_rbc_3d(h, 20, 40, 2, c);
+  EXPECT_EQ(rbc.n_elements(0), 1);
+  EXPECT_EQ(rbc.n_elements(1), 20);
+  EXPECT_EQ(rbc.n_elements(2), 40);
+  // Thickness: the outer face's point against the inner face's at the same surface parameters. The offset is
+  // along the normals at the Greville points, not an exact offset surface: where the profile bends most
+  // (between dimple and rim) the band is thinner. Measured: 4.0 % at 14 elements pole to pole, 1.9 % at 20,
+  // 1.1 % at 28, 0.6 % at 40, 0.3 % at 56.
+  auto thickness_error = [&](const Patch& shell) {
+    double worst = 0;
+    for (int i = 0; i <= 400; ++i)
+      for (double v : {0.0, 0.13, 0.6}) {
+        const double u = i / 400.0;
+        worst = std::max(worst, std::abs((shell.point({1, u, v}) - shell.point({0, u, v})).norm() - h) / h);
+      }
+    return worst;
+  };
+  EXPECT_LT(thickness_error(rbc), 0.02);
+  EXPECT_LT(thickness_error(biconcave_rbc_3d(h, 40, 40, 2, c)), 0.006);
+  // A surface of revolution: the distance from the axis does not depend on the angle around it.
+  for (double u : {0.1, 0.37, 0.5, 0.81}) {
+    const Vec3 a = rbc.point({0.5, u, 0.0}) - c, b = rbc.point({0.5, u, 0.29}) - c;
+    EXPECT_NEAR(a.head<2>().norm(), b.head<2>().norm(), 1e-15);
+    EXPECT_NEAR(a[2], b[2], 1e-15);
+  }
+  // The rim (u = 1/2) is the Evans-Fung radius R0 on the mid-surface; the poles are on the axis, C0/2 from the centre, and every face meets the axis
+  // at a right angle: near a pole the normal is along z.
+  const EvansFung ef;
+  EXPECT_NEAR((rbc.point({0.5, 0.5, 0.3}) - c).norm(), ef.R0, 5e-5 * ef.R0);
+  for (double r : {0.0, 0.5, 1.0})
+    for (double u : {0.0, 1.0}) {
+      const Vec3 pole = rbc.point({r, u, 0.4}) - c;
+      EXPECT_LT(pole.head<2>().norm(), 1e-18);
+      EXPECT_NEAR(std::abs(pole[2]), 0.5 * ef.C0 + (r - 0.5) * h, 1e-15);
+      const MapValues d = rbc.evaluate({r, std::abs(u - 1e-6), 0.4});
+      const Vec3 n = d.dx.col(1).cross(d.dx.col(2)).normalized();
+      EXPECT_GT(std::abs(n[2]), 1 - 1e-8) << "r=" << r << " u=" << u;
+    }
+}
+
 TEST(Builders, NucleusMeshOfThePaper) {
   const Patch nucleus = bulky_ellipse(2e-4, 2e-4, 40, 192, 2);  // CTC inclusion, paper Sec. 4.4
   EXPECT_EQ(nucleus.n_elements(0), 40);
@@ -191,4 +236,7 @@ TEST(Builders, InvalidArgumentsAreNamed) {
   ch.throat_height = 0.003;
   expect_invalid([&] { narrowing_channel(ch, 32, 8, 2); }, "throat_height");
   expect_invalid([] { biconcave_rbc(5e-7, 64, 2, Vec3::Zero(), 0.0, -1.0); }, "area");
+  expect_invalid([] { biconcave_rbc_3d(1e-4, 16, 32, 2); }, "h = 0.0001");  // thicker than the dimple
+  expect_invalid([] { biconcave_rbc_3d(3e-5, 15, 32, 2); }, "n_polar");
+  expect_invalid([] { biconcave_rbc_3d(3e-5, 16, 30, 2); }, "n_azimuth");
 }

@@ -57,6 +57,29 @@ TEST(BodyTracker, RigidRotationGivesTheRateAndKeepsAreaAndPerimeter) {
   EXPECT_NEAR(s.at("average_to"), 0.2, 1e-12);
 }
 
+TEST(BodyTracker, TumblingRbcDiscHasItsInclinationInTheShearPlane) {
+  // A 3D RBC (oblate: its two largest second moments are equal, so its 3D long axis may be any direction in
+  // its disc) standing across the flow, its axis of symmetry along x, turned clockwise about z at 3 turns per
+  // second: theta is that of the disc's section in the shear plane, 90 deg minus the turned angle (before it
+  // was taken from the 3D long axis, which may leave the plane).
+  const Vec3 c(6e-4, 6e-4, 6e-4);
+  const Mat3 stand = Eigen::AngleAxisd(kPi / 2, Vec3::UnitY()).toRotationMatrix();
+  const Patch rbc = geometry::transformed(geometry::biconcave_rbc_3d(3e-5, 8, 16, 2, c), stand, c - stand * c);
+  solid::BodyTracker t(rbc, true);
+  ASSERT_TRUE(t.elongated());
+  const double turns = 3.0, dt = 2e-3;
+  for (int k = 0; k <= 40; ++k) {
+    const Mat3 A = Eigen::AngleAxisd(-2 * kPi * turns * k * dt, Vec3::UnitZ()).toRotationMatrix();
+    t.record(k * dt, geometry::transformed(rbc, A, c - A * c));
+    double expect = 90.0 - 360.0 * turns * k * dt;
+    if (expect <= -90.0) expect += 180.0;
+    EXPECT_NEAR(as_map(t.metrics()).at("theta_deg"), expect, 1e-6) << "step " << k;
+  }
+  const auto s = as_map(t.summary(0.0));
+  EXPECT_NEAR(s.at("omega_tu"), turns, 1e-9);
+  EXPECT_EQ(t.regime(0.0), "tumbling");
+}
+
 TEST(BodyTracker, RestoredStateContinuesTheRecordsExactly) {
   // A checkpoint: a tracker restored from another's state after 60 records gives, after 60 more, the same
   // metrics and summary bit for bit as the tracker that never stopped (the unwrapped angles carry over).
