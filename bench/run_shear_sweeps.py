@@ -6,12 +6,15 @@ collects every run's summary.json, and writes a markdown table and a figure.
     python3 bench/run_shear_sweeps.py bulky      # bulky ellipses a = 1e-4 ... 5.5e-4 cm: Fig. 4a
     python3 bench/run_shear_sweeps.py compound   # compound capsules, nucleus r = 1e-5 ... 7e-5 cm: Fig. 4b-d
     python3 bench/run_shear_sweeps.py viscosity  # the Sec. 3.3 capsule, inner/outer viscosity 1 ... 10 (issue 27)
+    python3 bench/run_shear_sweeps.py viscosity --scene biconcave_capsule_shear.yaml --values 1,5  # the RBC
 
 Options (all have defaults; the paper's resolution is 384x192 cubic, dt 5e-4, which -- mesh and --dt select):
   --mesh NXxNY (256x128)  --degree P (3)  --dt S (1e-3)  --final-time S (0.3)  --average-from S (0.15)
   --values V,V,...  (the sweep's values: cm; viscosity: the ratio lambda)  --jobs N (2)  --runs DIR (out/sweeps)  --build DIR (build)
   --table FILE (docs/validation/shear_<sweep>.md)  --figure FILE (docs/figures/shear_<sweep>.png)
   --report  (no runs: only the table and figure from the runs in --runs)  --extra "OPTIONS" (to every run)
+  --scene FILE  (viscosity only: another scene of scenes/ whose cell is the body 'membrane'; table and figure
+                 get the scene's name: docs/validation/shear_viscosity_<scene>.md)
 A run whose summary.json says "completed" is not run again. Exit code 3 when a run did not complete (it is in
 the table with its status). Figures need python3-matplotlib (installed by
 scripts/install-deps.sh; Debian's /usr/bin/python3)."""
@@ -46,15 +49,22 @@ def value_options(sweep, v):
     return [f"-solid_{body}_semi_axes", f"{v:g},1e-4"]
 
 
+def scene_stem(args):
+    """The --scene file's name without .yaml ("" for the sweep's own scene)."""
+    return os.path.splitext(os.path.basename(args.scene))[0] if args.scene else ""
+
+
 def runs_of(args):
     """(tag, scene, options) of every run of the sweep."""
     scene, values, _, _ = SWEEPS[args.sweep]
+    scene = args.scene or scene
     nx, ny = args.mesh.split("x")
     common = ["-fluid_elements", f"{nx},{ny}", "-fluid_degree", str(args.degree), "-dt", str(args.dt),
               "-final_time", str(args.final_time), "-metrics_average_from", str(args.average_from),
               "-output_every", "0"] + shlex.split(args.extra)
     values = [float(v) for v in args.values.split(",")] if args.values else values
-    out = [(f"{args.sweep}_{args.mesh}_p{args.degree}_{v:g}", scene, value_options(args.sweep, v) + common)
+    name = args.sweep + (f"_{scene_stem(args)}" if args.scene else "")
+    out = [(f"{name}_{args.mesh}_p{args.degree}_{v:g}", scene, value_options(args.sweep, v) + common)
            for v in values]
     if args.sweep == "swelling":  # the paper's red star: the biconcave capsule
         out.append((f"{args.sweep}_{args.mesh}_p{args.degree}_biconcave", "biconcave_capsule_shear.yaml", common))
@@ -140,7 +150,8 @@ def write_figure(args, rows):
             ax.set_xlabel("viscosity ratio lambda")
             ax.set_ylabel(name)
             ax.grid(True, lw=0.3)
-        fig.suptitle(f"The Sec. 3.3 capsule with an inner viscosity ({label}); x: not tank-treading", fontsize=10)
+        who = scene_stem(args).replace("_", " ") if args.scene else "The Sec. 3.3 capsule"
+        fig.suptitle(f"{who} with an inner viscosity ({label}); x: not tank-treading", fontsize=10)
     else:
         body = SWEEPS[args.sweep][2]
         ell = [s for s in done if not s["_scene"].startswith("biconcave")]
@@ -179,11 +190,16 @@ def main():
     p.add_argument("--figure", default="")
     p.add_argument("--extra", default="")
     p.add_argument("--report", action="store_true")
+    p.add_argument("--scene", default="")
     args = p.parse_args()
     if "x" not in args.mesh:
         p.error(f"--mesh {args.mesh} is invalid; valid: NXxNY, e.g. 256x128")
-    args.table = args.table or os.path.join(ROOT, "docs", "validation", f"shear_{args.sweep}.md")
-    args.figure = args.figure or os.path.join(ROOT, "docs", "figures", f"shear_{args.sweep}.png")
+    if args.scene and (args.sweep != "viscosity" or not os.path.isfile(os.path.join(ROOT, "scenes", args.scene))):
+        p.error(f"--scene {args.scene} is invalid; valid: with the viscosity sweep, a 2D shear scene file of "
+                "scenes/ whose cell is the body 'membrane', e.g. biconcave_capsule_shear.yaml")
+    suffix = f"_{scene_stem(args)}" if args.scene else ""
+    args.table = args.table or os.path.join(ROOT, "docs", "validation", f"shear_{args.sweep}{suffix}.md")
+    args.figure = args.figure or os.path.join(ROOT, "docs", "figures", f"shear_{args.sweep}{suffix}.png")
     exe = os.path.join(args.build, "apps", "cellfsi")
     if not args.report and not os.access(exe, os.X_OK):
         sys.exit(f"run_shear_sweeps: {exe} not found; build first (scripts/build.sh)")
