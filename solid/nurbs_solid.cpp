@@ -1,8 +1,10 @@
 #include "solid/nurbs_solid.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 #include "geometry/quadrature.hpp"
 
@@ -224,7 +226,12 @@ std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density) co
       double jac0 = 0;
       QuadratureData d;
       kinematics(c, q.xi, &m, d.x, F, jac0);
-      const Mat3 S = material_->second_piola(F, dim_);
+      Mat3 S;
+      try {
+        S = material_->second_piola(F, dim_);
+      } catch (const std::runtime_error& e) {
+        throw std::runtime_error(e.what() + where_inverted(m, q.xi, d.x, F));
+      }
       d.weight = q.weight * std::abs(jac0);
       d.stress = F * S * F.transpose() / fluid_density;
       d.beta = beta;
@@ -233,6 +240,32 @@ std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density) co
     }
   }
   return out;
+}
+
+std::string NurbsSolid::where_inverted(const Index3& element, const Param& xi, const Vec3& x, const Mat3& F) const {
+  // Says where, and how: which reference direction collapsed (for a membrane direction 0 runs through its
+  // thickness), so that a user can tell a thickness crushed between two close sheets from a sheared surface.
+  thread_local BasisValues bv;
+  thread_local MapValues mv;
+  reference_.basis(xi, 1, bv, &element);
+  reference_.map(bv, mv);
+  char s[400];
+  std::string out = "; body '" + name_ + "', element (";
+  for (int a = 0; a < dim_; ++a)
+    out += std::to_string(element[a]) + (a + 1 < dim_ ? ", " : ") of ");
+  for (int a = 0; a < dim_; ++a)
+    out += std::to_string(reference_.n_elements(a)) + (a + 1 < dim_ ? " x " : "");
+  std::snprintf(s, sizeof s, ", at x = (%.4g, %.4g, %.4g) cm; stretch along the reference directions:", x[0], x[1],
+                x[2]);
+  out += s;
+  for (int a = 0; a < dim_; ++a) {
+    const Vec3 t = mv.dx.col(a);
+    const double n = t.norm();
+    const double stretch = n > 0 ? (F * t).norm() / n : 0.0;
+    std::snprintf(s, sizeof s, "%s%.3g", a ? ", " : " ", stretch);
+    out += s;
+  }
+  return out + (is_membrane() ? " (direction 0: through the membrane's thickness)" : "");
 }
 
 std::vector<Mat3> NurbsSolid::cauchy_stress(const std::vector<Param>& xi) const {

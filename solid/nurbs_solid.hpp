@@ -65,6 +65,9 @@ class NurbsSolid final : public SolidSolver {
 
  private:
   Eigen::MatrixXd displacement_control_alpha() const;  // control variables at t_{n+alpha_f}
+  /// The text appended to an inverted element's error: the body, the element, the point and the stretches.
+  std::string where_inverted(const geometry::Index3& element, const geometry::Param& xi, const Vec3& x,
+                             const Mat3& F) const;
   /// Position and deformation gradient at xi for displacement control variables c.
   void kinematics(const Eigen::MatrixXd& c, const geometry::Param& xi, const geometry::Index3* element,
                   Vec3& x, Mat3& F, double& ref_jacobian) const;

@@ -132,6 +132,42 @@ TEST(NurbsSolid, LinearVelocityFieldsAreFollowedExactly) {
   EXPECT_LT(s.kinematic_update(vs), 1e-12 * r0);
 }
 
+TEST(NurbsSolid, AnInvertedElementIsReportedWithItsBodyElementAndStretches) {
+  // v = L (x - c) with L = diag(-a, 0) squeezes the body in x: F = diag(f, 1) everywhere, f falling each step
+  // (the implicit update slows it, so f < 0 takes a few steps). The error names the body, the element and the
+  // stretch along each reference direction: at element (0, 0) (next to the ellipse's end on the x axis) the
+  // thickness runs along x, so its stretch is |f| = |det F|, and the stretch around the ellipse is about 1.
+  const Vec3 c(1.2e-3, 6e-4, 0);
+  const geometry::Patch e = geometry::hollow_ellipse(2e-4, 1e-4, 5e-7, 32, 2, c, 0.0);
+  solid::NurbsSolid s("capsule", e, membrane_material(), 1.1);
+  const solid::TimeParameters t = solid::TimeParameters::from_rho_inf(0.5, 5e-4);
+  Mat3 L = Mat3::Zero();
+  L(0, 0) = -8000;
+  std::string m;
+  for (int step = 0; step < 10 && m.empty(); ++step) {
+    s.begin_step(t);
+    std::vector<solid::VelocitySample> vs(s.n_points());
+    const std::vector<Vec3> x = s.collocation_points();
+    for (int i = 0; i < s.n_points(); ++i) vs[i].v = L * (x[i] - c), vs[i].grad_v = L;
+    s.kinematic_update(vs);
+    try {
+      s.quadrature_data(1.025);
+    } catch (const std::runtime_error& err) {
+      m = err.what();
+    }
+    s.end_step();
+  }
+  ASSERT_FALSE(m.empty()) << "no inverted element was reported";
+  double det = 0, through = 0, around = 0;
+  ASSERT_EQ(std::sscanf(m.c_str(), "inverted solid element: det F = %lf", &det), 1) << m;
+  EXPECT_LT(det, 0) << m;
+  EXPECT_NE(m.find("; body 'capsule', element (0, 0) of 1 x 32, at x = ("), std::string::npos) << m;
+  EXPECT_NE(m.find("(direction 0: through the membrane's thickness)"), std::string::npos) << m;
+  ASSERT_EQ(std::sscanf(m.c_str() + m.find("directions:") + 11, " %lf, %lf", &through, &around), 2) << m;
+  EXPECT_NEAR(through, -det, 0.05 * std::abs(det)) << m;
+  EXPECT_NEAR(around, 1.0, 0.05) << m;
+}
+
 TEST(NurbsSolid, QuadratureDataOfUndeformedAndRotatedBodies) {
   const double a = 2e-4, b = 1e-4, h = 5e-7, rho1 = 1.025, rho2 = 1.1;
   const geometry::Patch e = geometry::hollow_ellipse(a, b, h, 64, 2);
