@@ -225,6 +225,11 @@ def measure(run):
         rs = [h["r"][i] for i, t in enumerate(h["time"]) if cross[0] <= t <= cross[-1]]
         m["r"], m["r_min"], m["r_max"] = sum(rs) / len(rs), min(rs), max(rs)
         m["window"] = (cross[0], cross[-1])
+        # The axis passed the vertical twice or more after the start: it tumbles, whatever the summary's
+        # classifier said of its own window (it wants a half-turn within the window, or a turn of at least
+        # half the membrane's).
+        if m["regime"] != "tumbling":
+            m["regime"] = f"tumbling (summary: {m['regime']})"
     return m
 
 
@@ -247,7 +252,7 @@ def write_outputs(args, rows, reference_r, command):
     for m in rows:
         lam, r = m["lambda"], m["r"]
         ks, ks0 = ks_motion(r, lam, gd), ks_motion(reference_r, lam, gd)
-        tumbling = m["regime"] == "tumbling"
+        tumbling = m["regime"].startswith("tumbling")
         theta = "(turns)" if tumbling else f"{m['theta']:.2f} +- {m['theta_osc']:.2f}"
         ks_rate = "-"  # the model's turning rate at the run's mean theta, where the axis was not steady
         if not tumbling and m["regime"] != "tank-treading":
@@ -281,8 +286,8 @@ def write_outputs(args, rows, reference_r, command):
             ax.axvline(ks_lambda_c(r), color=color, ls=":", lw=0.8)
     for m in rows:
         ks = ks_motion(m["r"], m["lambda"], gd)
-        mk = {"tank-treading": "o", "swinging": "s", "tumbling": "x"}.get(m["regime"], "d")
-        if m["regime"] != "tumbling":
+        mk = {"tank-treading": "o", "swinging": "s", "tumbling": "x"}.get(m["regime"].split(" ")[0], "d")
+        if not m["regime"].startswith("tumbling"):
             axes[0].plot(m["lambda"], m["theta"], mk, color="tab:blue", ms=7)
             axes[0].errorbar(m["lambda"], m["theta"], yerr=m["theta_osc"], color="tab:blue", capsize=3)
             if ks["theta"] is not None:
@@ -293,7 +298,7 @@ def write_outputs(args, rows, reference_r, command):
             axes[2].plot(m["lambda"], m["omega_tu"], mk, color="tab:blue", ms=7)
             axes[2].plot(m["lambda"], ks["omega_tu"], "+", color="tab:red", ms=10, mew=1.5)
     tt = [m["lambda"] for m in rows if m["regime"] == "tank-treading"]
-    tu = [m["lambda"] for m in rows if m["regime"] == "tumbling"]
+    tu = [m["lambda"] for m in rows if m["regime"].startswith("tumbling")]
     if tt and tu:
         for ax in axes:
             ax.axvspan(max(tt), min(tu), color="tab:blue", alpha=0.08)
