@@ -210,9 +210,14 @@ def measure(run):
          "gammadot": float(options_of(run)["shear_rate"]), "commit": s.get("commit"), "steps": s.get("steps")}
     # the axis's mean rate over the window (deg/s): how fast a not yet steady or slowly turning axis drifts
     m["drift"] = math.degrees(h["axis"][win[-1]] - h["axis"][win[0]]) / (t1 - t0)
-    # Tumbling: the half-periods between the axis's passages through the vertical (the first passage ends the
-    # start from the vertical), and the membrane's rate over those whole half-turns.
-    cross = [c for c in crossings(h["time"], h["axis"]) if c > h["time"][0] + 1e-9]
+    # The axis's passages through the vertical within the window. Two or more: it tumbles (whatever the
+    # summary's classifier said: it wants a whole half-turn from the window's start, or a turn of at least half
+    # the membrane's), and omega_TU, omega_TT and r are taken over the whole half-turns between the first and
+    # the last passage.
+    cross = [c for c in crossings(h["time"], h["axis"]) if t0 <= c <= t1]
+    m["passages"] = cross
+    if m["omega_tu"] is None and s.get("membrane_omega_tu_half_turns"):
+        m["omega_tu"] = s.get("membrane_omega_tu")
     if len(cross) >= 2:
         m["half_periods"] = [b - a for a, b in zip(cross, cross[1:])]
         span = cross[-1] - cross[0]
@@ -226,9 +231,6 @@ def measure(run):
         rs = [h["r"][i] for i, t in enumerate(h["time"]) if cross[0] <= t <= cross[-1]]
         m["r"], m["r_min"], m["r_max"] = sum(rs) / len(rs), min(rs), max(rs)
         m["window"] = (cross[0], cross[-1])
-        # The axis passed the vertical twice or more after the start: it tumbles, whatever the summary's
-        # classifier said of its own window (it wants a half-turn within the window, or a turn of at least
-        # half the membrane's).
         if m["regime"] != "tumbling":
             m["regime"] = f"tumbling (summary: {m['regime']})"
     return m
@@ -246,25 +248,29 @@ def write_outputs(args, rows, reference_r, command):
              " of the ellipse with the membrane's enclosed second moments, mean and range over the window), theta, the"
              " membrane's turn rate omega_TT, the axis's omega_TU and the axis drift. Computed: the 2D Keller-Skalak"
              f" model (fixed-shape ellipse, tank-treading membrane, unbounded shear gammadot = {gd:g} 1/s) for the"
-             f" measured r, and for the reference shape r = {reference_r:g}. Tumbling rows: omega_TT and omega_TU over"
-             " the whole half-turns between the axis's passages through the vertical (the window column).", "",
+             f" measured r, and for the reference shape r = {reference_r:g}. The window is the run's averaging"
+             " window; where the axis passed the vertical twice or more in it, the rows give omega_TT, omega_TU and r"
+             " over the whole half-turns between the first and the last passage (that span is the window column).",
+             "",
              "| lambda | window s | r measured (range) | regime | KS regime (r) | lambda_c = 2/(1-r) |"
              " theta deg | KS theta (r) | KS theta (r = 0.5) | omega_TT 1/s | KS omega_TT (r) | omega_TU 1/s |"
-             " KS omega_TU (r) | axis drift deg/s | KS dtheta/dt at theta deg/s |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             " KS omega_TU (r) | axis drift deg/s | KS dtheta/dt at theta deg/s | vertical passages s |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for m in rows:
         lam, r = m["lambda"], m["r"]
         ks, ks0 = ks_motion(r, lam, gd), ks_motion(reference_r, lam, gd)
         tumbling = m["regime"].startswith("tumbling")
-        theta = "(turns)" if tumbling else f"{m['theta']:.2f} +- {m['theta_osc']:.2f}"
+        turning = tumbling or m["passages"]  # a mean inclination means nothing while the axis turns past 90 deg
+        theta = "(turns)" if turning else f"{m['theta']:.2f} +- {m['theta_osc']:.2f}"
         ks_rate = "-"  # the model's turning rate at the run's mean theta, where the axis was not steady
-        if not tumbling and m["regime"] != "tank-treading":
+        if not turning and m["regime"] != "tank-treading":
             ks_rate = f"{math.degrees(gd / 2 * (1 - ks_B(r, lam) * math.cos(2 * math.radians(m['theta'])))):.1f}"
         lines.append(
             f"| {lam:g} | {m['window'][0]:.3f}-{m['window'][1]:.3f} | {r:.3f} ({m['r_min']:.3f}-{m['r_max']:.3f}) |"
             f" {m['regime']} | {ks['regime']} | {ks_lambda_c(r):.2f} | {theta} | {fmt(ks['theta'], '.2f')} |"
             f" {fmt(ks0['theta'], '.2f')} | {m['omega_tt']:.3f} | {ks['omega_tt']:.3f} |"
-            f" {fmt(m['omega_tu'], '.3f')} | {ks['omega_tu']:.3f} | {-m['drift']:.1f} | {ks_rate} |")
+            f" {fmt(m['omega_tu'], '.3f')} | {ks['omega_tu']:.3f} | {-m['drift']:.1f} | {ks_rate} |"
+            f" {', '.join(f'{c:.3f}' for c in m['passages']) or '-'} |")
     lines += ["", "Axis drift and the model's dtheta/dt are clockwise positive (deg/s); the model's rate is taken at"
               " the run's mean theta and measured r, for the runs whose axis was not steady. Half-periods of the"
               " tumbling runs"
@@ -275,6 +281,12 @@ def write_outputs(args, rows, reference_r, command):
     plt = pyplot("keller_skalak_2d")
     if plt is None:
         return
+    # The figure shows each lambda's latest window (its longest run); the table has them all.
+    latest = {}
+    for m in rows:
+        if m["lambda"] not in latest or m["window"][1] > latest[m["lambda"]]["window"][1]:
+            latest[m["lambda"]] = m
+    rows = [latest[x] for x in sorted(latest)]
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.2))
     lams = [1 + 0.02 * i for i in range(int((max(12, max(m["lambda"] for m in rows) + 1) - 1) / 0.02) + 1)]
     rs = sorted({round(m["r"], 3) for m in rows if m["regime"] == "tank-treading"})
@@ -291,7 +303,7 @@ def write_outputs(args, rows, reference_r, command):
     for m in rows:
         ks = ks_motion(m["r"], m["lambda"], gd)
         mk = {"tank-treading": "o", "swinging": "s", "tumbling": "x"}.get(m["regime"].split(" ")[0], "d")
-        if not m["regime"].startswith("tumbling"):
+        if not m["regime"].startswith("tumbling") and not m["passages"]:
             axes[0].plot(m["lambda"], m["theta"], mk, color="tab:blue", ms=7)
             axes[0].errorbar(m["lambda"], m["theta"], yerr=m["theta_osc"], color="tab:blue", capsize=3)
             if ks["theta"] is not None:
@@ -314,8 +326,9 @@ def write_outputs(args, rows, reference_r, command):
         ax.set_ylabel(name)
         ax.grid(True, lw=0.3)
     axes[0].legend(fontsize=7)
-    fig.suptitle("Capsule (blue: o tank-treading, s swinging, x tumbling; shaded: last TT to first TU run) against 2D"
-                 " Keller-Skalak (lines; red +: at each run's measured r; dotted: lambda_c = 2/(1-r))", fontsize=9)
+    fig.suptitle("Capsule, each lambda's latest window (blue: o tank-treading, s swinging, x tumbling; shaded: last"
+                 " TT to first TU) against 2D Keller-Skalak (lines; red +: at each run's measured r; dotted: lambda_c"
+                 " = 2/(1-r))", fontsize=9)
     save_figure(fig, args.figure, "keller_skalak_2d")
 
 
