@@ -5,7 +5,12 @@ shape (the axis ratio r = b/a of the ellipse with the enclosed region's second m
 for that r and writes a table and a figure.
 
     /usr/bin/python3 bench/keller_skalak_2d.py --runs /work/main/out/sweeps_viscosity out/sweeps_viscosity_long
+    /usr/bin/python3 bench/keller_skalak_2d.py --runs ... --from 8=1.3   # lambda = 8 runs from 1.3 s to their end
     /usr/bin/python3 bench/keller_skalak_2d.py --check   # only the formulas' checks
+
+Each run is measured over its summary's averaging window (or from --from's time), from the tracker's records in
+its checkpoint, by the summary's own formulas (checked against summary.json on every run). A run that repeats
+another's lambda gets a row of its own.
 
 The model (derived in docs/validation.md, "The Sec. 3.3 capsule against Keller-Skalak theory"): an ellipse with
 semi-axes a >= b, r = b/a, at angle theta to the flow u = (gammadot y, 0), outer viscosity mu, inner lambda mu,
@@ -196,27 +201,62 @@ def crossings(times, axis, ref=math.pi / 2):
     return out
 
 
-def measure(run):
+def wrap_deg(x):
+    """An axis angle (deg) in (-90, 90]."""
+    return x - 180 * math.ceil((x - 90) / 180)
+
+
+def window_stats(h, t0, t1):
+    """The summary's window measures, from the tracker's records in [t0, t1]: the time-mean inclination (deg, in
+    (-90, 90]), its half peak-to-peak, the membrane's mean turn rate (turns/s, clockwise) and the regime, by the
+    rules of solid/body_metrics.cpp (motion_regime, swing_deg 2)."""
+    win = [i for i, t in enumerate(h["time"]) if t0 <= t <= t1]
+    t, ax, mat = [h["time"][i] for i in win], [h["axis"][i] for i in win], [h["material"][i] for i in win]
+    T = t[-1] - t[0]
+    mean = sum(0.5 * (ax[i] + ax[i - 1]) * (t[i] - t[i - 1]) for i in range(1, len(t))) / T
+    turned, moved = abs(ax[-1] - ax[0]), abs(mat[-1] - mat[0])
+    half_range = 0.5 * math.degrees(max(ax) - min(ax))
+    if turned >= math.pi * (1 - 1e-12) or (turned >= math.pi / 4 and turned >= 0.5 * moved):
+        regime = "tumbling"
+    elif moved < math.pi / 2:
+        regime = "steady"
+    else:
+        regime = "swinging" if half_range >= 2.0 else "tank-treading"
+    return {"theta": wrap_deg(math.degrees(mean)), "theta_osc": half_range,
+            "omega_tt": -(mat[-1] - mat[0]) / (2 * math.pi * T), "regime": regime, "window": (t[0], t[-1]),
+            "index": win}
+
+
+def measure(run, start=None):
+    """The run's measures over its summary's averaging window, or from `start` (s) to its end."""
     with open(os.path.join(run, "summary.json")) as f:
         s = json.load(f)
     h = history_of(run)
     t0, t1 = s["membrane_average_from"], s["membrane_average_to"]
-    win = [i for i, t in enumerate(h["time"]) if t0 <= t <= t1]
+    w = window_stats(h, t0, t1)
+    # The script's window measures are the summary's (same records, same formulas): checked on every run.
+    if abs(wrap_deg(w["theta"] - s["membrane_theta_deg"])) > 1e-6 or abs(w["omega_tt"] - s["membrane_omega_tt"]) > 1e-9:
+        sys.exit(f"keller_skalak_2d: {run}: the tracker's records do not give the summary's theta and omega_TT")
+    if start is not None:
+        w = window_stats(h, start, t1)
+        t0 = w["window"][0]
+    win = w["index"]
     rs = [h["r"][i] for i in win]
-    m = {"run": run, "lambda": s.get("membrane_viscosity_ratio", 1.0), "window": (t0, t1),
-         "r": sum(rs) / len(rs), "r_min": min(rs), "r_max": max(rs), "regime": s.get("membrane_regime"),
-         "theta": s.get("membrane_theta_deg"), "theta_osc": s.get("membrane_theta_oscillation_deg"),
-         "omega_tt": s.get("membrane_omega_tt"), "omega_tu": None, "half_periods": [],
-         "gammadot": float(options_of(run)["shear_rate"]), "commit": s.get("commit"), "steps": s.get("steps")}
+    m = {"run": run, "lambda": s.get("membrane_viscosity_ratio", 1.0), "window": w["window"],
+         "r": sum(rs) / len(rs), "r_min": min(rs), "r_max": max(rs),
+         "regime": s.get("membrane_regime") if start is None else w["regime"],
+         "theta": w["theta"], "theta_osc": w["theta_osc"], "omega_tt": w["omega_tt"], "omega_tu": None,
+         "half_periods": [], "gammadot": float(options_of(run)["shear_rate"]), "commit": s.get("commit"),
+         "steps": s.get("steps")}
     # the axis's mean rate over the window (deg/s): how fast a not yet steady or slowly turning axis drifts
-    m["drift"] = math.degrees(h["axis"][win[-1]] - h["axis"][win[0]]) / (t1 - t0)
+    m["drift"] = math.degrees(h["axis"][win[-1]] - h["axis"][win[0]]) / (m["window"][1] - m["window"][0])
     # The axis's passages through the vertical within the window. Two or more: it tumbles (whatever the
     # summary's classifier said: it wants a whole half-turn from the window's start, or a turn of at least half
     # the membrane's), and omega_TU, omega_TT and r are taken over the whole half-turns between the first and
     # the last passage.
     cross = [c for c in crossings(h["time"], h["axis"]) if t0 <= c <= t1]
     m["passages"] = cross
-    if m["omega_tu"] is None and s.get("membrane_omega_tu_half_turns"):
+    if start is None and s.get("membrane_omega_tu_half_turns"):
         m["omega_tu"] = s.get("membrane_omega_tu")
     if len(cross) >= 2:
         m["half_periods"] = [b - a for a, b in zip(cross, cross[1:])]
@@ -341,8 +381,12 @@ def main():
     p.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "shear_viscosity_theory.png"))
     p.add_argument("--reference-r", type=float, default=0.5,
                    help="the capsule's reference axis ratio (scene: 1e-4/2e-4)")
+    p.add_argument("--from", dest="starts", action="append", default=[], metavar="LAMBDA=T",
+                   help="measure the runs of this lambda from T s to their end (when T lies in their averaging"
+                   " window), e.g. after a transient; repeatable")
     p.add_argument("--check", action="store_true", help="only check the formulas")
     args = p.parse_args()
+    starts = {float(x.split("=")[0]): float(x.split("=")[1]) for x in args.starts}
     print("keller_skalak_2d: checks of the formulas")
     failures = check_formulas()
     if failures:
@@ -354,7 +398,12 @@ def main():
         for name in sorted(os.listdir(d)):
             run = os.path.join(d, name)
             if os.path.isfile(os.path.join(run, "summary.json")) and os.path.isdir(os.path.join(run, "checkpoint")):
-                rows.append(measure(run))
+                with open(os.path.join(run, "summary.json")) as f:
+                    s = json.load(f)
+                lam = s.get("membrane_viscosity_ratio", 1.0)
+                t0, t1 = s["membrane_average_from"], s["membrane_average_to"]
+                start = starts.get(lam)
+                rows.append(measure(run, start if start is not None and t0 < start < t1 else None))
     if not rows:
         sys.exit("keller_skalak_2d: no runs with summary.json and checkpoint/ in " + " ".join(args.runs))
     rows.sort(key=lambda m: (m["lambda"], m["window"][1]))
