@@ -5,10 +5,10 @@ shape (the axis ratio r = b/a of the ellipse with the enclosed region's second m
 for that r and writes a table and a figure.
 
     /usr/bin/python3 bench/keller_skalak_2d.py --runs /work/main/out/sweeps_viscosity out/sweeps_viscosity_long
-    /usr/bin/python3 bench/keller_skalak_2d.py --runs ... --from 8=1.3   # lambda = 8 runs from 1.3 s to their end
+    /usr/bin/python3 bench/keller_skalak_2d.py --runs ... --window 8=0.17:1.23 --window 8=1.3:   # two phases
     /usr/bin/python3 bench/keller_skalak_2d.py --check   # only the formulas' checks
 
-Each run is measured over its summary's averaging window (or from --from's time), from the tracker's records in
+Each run is measured over its summary's averaging window (or over --window's), from the tracker's records in
 its checkpoint, by the summary's own formulas (checked against summary.json on every run). A run that repeats
 another's lambda gets a row of its own.
 
@@ -227,8 +227,8 @@ def window_stats(h, t0, t1):
             "index": win}
 
 
-def measure(run, start=None):
-    """The run's measures over its summary's averaging window, or from `start` (s) to its end."""
+def measure(run, window=None):
+    """The run's measures over its summary's averaging window, or over `window` (t0, t1) in s."""
     with open(os.path.join(run, "summary.json")) as f:
         s = json.load(f)
     h = history_of(run)
@@ -237,14 +237,14 @@ def measure(run, start=None):
     # The script's window measures are the summary's (same records, same formulas): checked on every run.
     if abs(wrap_deg(w["theta"] - s["membrane_theta_deg"])) > 1e-6 or abs(w["omega_tt"] - s["membrane_omega_tt"]) > 1e-9:
         sys.exit(f"keller_skalak_2d: {run}: the tracker's records do not give the summary's theta and omega_TT")
-    if start is not None:
-        w = window_stats(h, start, t1)
-        t0 = w["window"][0]
+    if window is not None:
+        w = window_stats(h, *window)
+        t0, t1 = w["window"]
     win = w["index"]
     rs = [h["r"][i] for i in win]
     m = {"run": run, "lambda": s.get("membrane_viscosity_ratio", 1.0), "window": w["window"],
          "r": sum(rs) / len(rs), "r_min": min(rs), "r_max": max(rs),
-         "regime": s.get("membrane_regime") if start is None else w["regime"],
+         "regime": s.get("membrane_regime") if window is None else w["regime"],
          "theta": w["theta"], "theta_osc": w["theta_osc"], "omega_tt": w["omega_tt"], "omega_tu": None,
          "half_periods": [], "gammadot": float(options_of(run)["shear_rate"]), "commit": s.get("commit"),
          "steps": s.get("steps")}
@@ -256,7 +256,7 @@ def measure(run, start=None):
     # the last passage.
     cross = [c for c in crossings(h["time"], h["axis"]) if t0 <= c <= t1]
     m["passages"] = cross
-    if start is None and s.get("membrane_omega_tu_half_turns"):
+    if window is None and s.get("membrane_omega_tu_half_turns"):
         m["omega_tu"] = s.get("membrane_omega_tu")
     if len(cross) >= 2:
         m["half_periods"] = [b - a for a, b in zip(cross, cross[1:])]
@@ -381,12 +381,17 @@ def main():
     p.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "shear_viscosity_theory.png"))
     p.add_argument("--reference-r", type=float, default=0.5,
                    help="the capsule's reference axis ratio (scene: 1e-4/2e-4)")
-    p.add_argument("--from", dest="starts", action="append", default=[], metavar="LAMBDA=T",
-                   help="measure the runs of this lambda from T s to their end (when T lies in their averaging"
-                   " window), e.g. after a transient; repeatable")
+    p.add_argument("--window", dest="windows", action="append", default=[], metavar="LAMBDA=T0:T1",
+                   help="measure the runs of this lambda that reach T1 over [T0, T1] s instead of their averaging"
+                   " window (a row per window; T1 empty: to the run's end), e.g. a tumbling phase and what came"
+                   " after it; repeatable")
     p.add_argument("--check", action="store_true", help="only check the formulas")
     args = p.parse_args()
-    starts = {float(x.split("=")[0]): float(x.split("=")[1]) for x in args.starts}
+    windows = {}
+    for x in args.windows:
+        lam, span = x.split("=")
+        a, b = span.split(":")
+        windows.setdefault(float(lam), []).append((float(a), float(b) if b else None))
     print("keller_skalak_2d: checks of the formulas")
     failures = check_formulas()
     if failures:
@@ -401,9 +406,12 @@ def main():
                 with open(os.path.join(run, "summary.json")) as f:
                     s = json.load(f)
                 lam = s.get("membrane_viscosity_ratio", 1.0)
-                t0, t1 = s["membrane_average_from"], s["membrane_average_to"]
-                start = starts.get(lam)
-                rows.append(measure(run, start if start is not None and t0 < start < t1 else None))
+                t1 = s["membrane_average_to"]
+                # the windows this run reaches (its last record is at its summary's t1)
+                mine = [(a, b if b is not None else t1) for a, b in windows.get(lam, []) if (b or t1) <= t1 + 1e-9
+                        and a < t1]
+                for w in mine or [None]:
+                    rows.append(measure(run, w))
     if not rows:
         sys.exit("keller_skalak_2d: no runs with summary.json and checkpoint/ in " + " ".join(args.runs))
     rows.sort(key=lambda m: (m["lambda"], m["window"][1]))
