@@ -81,14 +81,14 @@ def ks_motion(r, lam, gammadot):
 # ------------------------------------------------------------------------------------ checks of the formulas
 
 
-def mfs_check(r, lam, theta, n=400, m=200, shrink=0.6):
+def mfs_check(r, lam, theta, n=400, m=200, shrink=0.6, nu_factor=1.0):
     """The outer Stokes flow of the model's motion, solved by the method of fundamental solutions (2D
     Stokeslets inside the ellipse, least squares on n boundary points, zero net force): returns (torque on
     the cell / (mu gammadot A), |power - dissipation| / dissipation, boundary-velocity residual). Independent
     of the derivation: it only uses the membrane's velocity field and the Stokes equations."""
     import numpy as np
     a, b, mu, gd = 1.0, r, 1.0, 1.0
-    nu = -gd * ks_K(r, lam) * math.cos(2 * theta)
+    nu = -gd * ks_K(r, lam) * math.cos(2 * theta) * nu_factor  # nu_factor != 1: a control that must fail
     thdot = -gd / 2 * (1 - ks_B(r, lam) * math.cos(2 * theta))
     c, s = math.cos(theta), math.sin(theta)
     R = np.array([[c, -s], [s, c]])
@@ -157,6 +157,10 @@ def check_formulas(verbose=True):
         need(abs(torque) < 1e-3 and power < 1e-3,
              f"Stokes flow (MFS) at r = {r}, lambda = {lam}, theta = {theta}: torque/(mu gammadot A) = {torque:.1e},"
              f" |P_out - D_in|/D_in = {power:.1e} (boundary residual {res:.1e})")
+    # the control: with the membrane 10 % too fast the energy balance must fail
+    for r, lam, theta in ((0.5, 1, 0.3), (0.5, 3, 0.2), (0.45, 5, -0.4)):
+        power = mfs_check(r, lam, theta, nu_factor=1.1)[1]
+        need(power > 0.05, f"control: nu 10 % too fast at r = {r}, lambda = {lam}: |P_out - D_in|/D_in = {power:.3f}")
     return failures
 
 
