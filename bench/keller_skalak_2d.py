@@ -251,6 +251,7 @@ def measure(run, window=None):
          "regime": s.get("membrane_regime") if window is None else w["regime"],
          "theta": w["theta"], "theta_osc": w["theta_osc"], "omega_tt": w["omega_tt"], "omega_tu": None,
          "half_periods": [], "gammadot": float(options_of(run)["shear_rate"]), "commit": s.get("commit"),
+         "mesh": options_of(run)["fluid_elements"].replace(",", "x"),
          "steps": s.get("steps")}
     # the axis's mean rate over the window (deg/s): how fast a not yet steady or slowly turning axis drifts
     m["drift"] = math.degrees(h["axis"][win[-1]] - h["axis"][win[0]]) / (m["window"][1] - m["window"][0])
@@ -296,10 +297,10 @@ def write_outputs(args, rows, reference_r, command):
              " window; where the axis passed the vertical twice or more in it, the rows give omega_TT, omega_TU and r"
              " over the whole half-turns between the first and the last passage (that span is the window column).",
              "",
-             "| lambda | window s | r measured (range) | regime | KS regime (r) | lambda_c = 2/(1-r) |"
+             "| lambda | mesh | window s | r measured (range) | regime | KS regime (r) | lambda_c = 2/(1-r) |"
              " theta deg | KS theta (r) | KS theta (r = 0.5) | omega_TT 1/s | KS omega_TT (r) | omega_TU 1/s |"
              " KS omega_TU (r) | axis drift deg/s | KS dtheta/dt at theta deg/s | vertical passages s |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for m in rows:
         lam, r = m["lambda"], m["r"]
         ks, ks0 = ks_motion(r, lam, gd), ks_motion(reference_r, lam, gd)
@@ -310,7 +311,8 @@ def write_outputs(args, rows, reference_r, command):
         if not turning and m["regime"] != "tank-treading":
             ks_rate = f"{math.degrees(gd / 2 * (1 - ks_B(r, lam) * math.cos(2 * math.radians(m['theta'])))):.1f}"
         lines.append(
-            f"| {lam:g} | {m['window'][0]:.3f}-{m['window'][1]:.3f} | {r:.3f} ({m['r_min']:.3f}-{m['r_max']:.3f}) |"
+            f"| {lam:g} | {m['mesh']} | {m['window'][0]:.3f}-{m['window'][1]:.3f} |"
+            f" {r:.3f} ({m['r_min']:.3f}-{m['r_max']:.3f}) |"
             f" {m['regime']} | {ks['regime']} | {ks_lambda_c(r):.2f} | {theta} | {fmt(ks['theta'], '.2f')} |"
             f" {fmt(ks0['theta'], '.2f')} | {m['omega_tt']:.3f} | {ks['omega_tt']:.3f} |"
             f" {fmt(m['omega_tu'], '.3f')} | {ks['omega_tu']:.3f} | {-m['drift']:.1f} | {ks_rate} |"
@@ -325,9 +327,9 @@ def write_outputs(args, rows, reference_r, command):
     plt = pyplot("keller_skalak_2d")
     if plt is None:
         return
-    # The figure shows each lambda's latest window (its longest run); the table has them all.
+    # The figure shows each lambda's latest window (its longest run) on the first run's mesh; the table has them all.
     latest = {}
-    for m in rows:
+    for m in (m for m in rows if m["mesh"] == rows[0]["mesh"]):
         if m["lambda"] not in latest or m["window"][1] > latest[m["lambda"]]["window"][1]:
             latest[m["lambda"]] = m
     rows = [latest[x] for x in sorted(latest)]
