@@ -107,6 +107,14 @@ def scene_dt():
     sys.exit(f"{TOOL}: scenes/{SCENE} has no dt")
 
 
+def scene_mesh():
+    with open(os.path.join(ROOT, "scenes", SCENE)) as f:
+        for line in f:
+            if line.startswith("fluid_elements:"):
+                return line.split(":")[1].strip().replace(",", "x")
+    return "the scene's"
+
+
 def inverted(args, tag):
     s = summary_of(args, tag)
     return bool(s) and "inverted" in str(s.get("status"))
@@ -214,6 +222,10 @@ def predicted(res, law, F, key):
 
 def table(args, runs, res, command):
     lines = [provenance(args, command), ""]
+    elements = next((row["elements"] for law in args.laws for row in res[law]["runs"] if "elements" in row), None)
+    lines += [f"Mesh: fluid {args.mesh or scene_mesh()} quadratic elements, membrane "
+              f"{' x '.join(str(int(e)) for e in elements) if elements else '-'} (automatic); G h of the runs "
+              f"{fmt(res[args.laws[0]]['G_h_run_uN_per_m'], '.2f')} uN/m.", ""]
     complete = True
     lines += ["Runs (the scene's G h; equilibrium: the first time neither diameter changed by more than "
               "-equilibrium_tolerance over -equilibrium_window):", "",
