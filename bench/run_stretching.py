@@ -5,6 +5,7 @@ surface shear modulus G h of each law to the experimental means of Mills et al. 
 and a figure of the axial and transverse diameters D_A, D_T against the force with the data's spread.
 
     python3 bench/run_stretching.py                  # both laws, the default forces, the scene's mesh and dt
+    python3 bench/run_stretching.py --mesh 24x8x12 --runs out/stretching_24x8x12 --table T.md --figure F.png
 
 The fit. At a fixed thickness h every stress of a law scales with G (strain_hardening: with C3 / G fixed), and the
 fluid changes only how fast the cell comes to rest, so the equilibrium diameters depend on F / (G h) alone: the
@@ -15,11 +16,12 @@ only the G h' for which every data force maps inside the simulated range are con
 law at its G h fitted to D_A.
 
 Options: --forces PN,PN (every law; default per law, FORCES below) --laws LAW,LAW (neo_hookean,strain_hardening) --mesh NXxNYxNZ
-  (the scene's: 24x8x12) --dt S (the scene's, 1e-3; a run whose membrane inverts is run again at dt / 2, then
+  (36x12x18, the scene's) --dt S (the scene's, 1e-3; a run whose membrane inverts is run again at dt / 2, then
   dt / 4) --final-time S (the scene's) --extra 'OPTIONS' (to every run)
   --runs DIR (out/stretching) --build DIR (build) --results FILE (docs/validation/stretching.json)
   --table FILE (docs/validation/stretching.md) --figure FILE (docs/figures/stretching.png) --report (no runs)
-A run whose summary.json says "completed" is not run again (one made with other options is refused). Exit code 3
+A run whose summary.json says "completed", or that inverted (then the next dt runs), is not run again (one made
+with other options is refused). Exit code 3
 when a run did not complete."""
 import argparse
 import json
@@ -309,7 +311,7 @@ def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--forces", default="")
     p.add_argument("--laws", default="neo_hookean,strain_hardening")
-    p.add_argument("--mesh", default="")
+    p.add_argument("--mesh", default="36x12x18")
     p.add_argument("--dt", type=float, default=0)
     p.add_argument("--final-time", type=float, default=0)
     p.add_argument("--extra", default="")
@@ -332,7 +334,9 @@ def main():
     if not args.report:
         for _, _, attempts in runs:  # one at a time: each run takes the machine's share of one core
             for tag, scene, options in attempts:
-                print(f"{TOOL}: {tag}: {run_one(args, tag, scene, options)[1]}", flush=True)
+                # An attempt that inverted is not run again: the next, at half its dt, is.
+                status = "kept (inverted)" if inverted(args, tag) else run_one(args, tag, scene, options)[1]
+                print(f"{TOOL}: {tag}: {status}", flush=True)
                 if not inverted(args, tag):
                     break
     res = results(args, runs)
