@@ -278,6 +278,17 @@ int FluidRun::step_loop() {
       if (written) write_series();
       if (settings_.checkpoint_every > 0 && k % settings_.checkpoint_every == 0 && k < n_steps_)
         write_checkpoint_after(k);
+      // -equilibrium_stop: every stretched body at rest ends the run here, as if -final_time were now (the
+      // checkpoint and the summary follow in finish(); a -restart with a later -final_time goes on).
+      if (settings_.equilibrium_stop && k < n_steps_ && scene_->at_equilibrium()) {
+        CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
+                                  "cellfsi: equilibrium reached at t = %g s (step %d of %d): the run ends "
+                                  "(-equilibrium_stop)\n",
+                                  scene_->fluid().time(), k, n_steps_));
+        if (series_ && !written) write_series();
+        n_steps_ = k;
+        break;
+      }
       // A stop request (SIGINT, SIGTERM, SIGHUP, SIGUSR1, SIGPIPE; apps/interrupt.hpp) ends the run after
       // this step.
       if (const int sig = agreed_stop_signal(PETSC_COMM_WORLD); sig != 0 && k < n_steps_)

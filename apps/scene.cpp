@@ -113,11 +113,27 @@ std::shared_ptr<const solid::Material> make_material(const BodySettings& b) {
   return std::make_shared<solid::DeviatoricNeoHookean>(b.shear_modulus);
 }
 
+std::vector<solid::PatchLoad> stretch_loads(const BodySettings& b, const geometry::Patch& reference) {
+  if (!b.stretched || b.stretch_force == 0) return {};
+  const std::array<Vec3, 2> ends = solid::membrane_ends(reference, b.stretch_axis);
+  const double r = b.stretch_patch / 2;
+  return {{ends[0], r, -b.stretch_force * b.stretch_axis}, {ends[1], r, b.stretch_force * b.stretch_axis}};
+}
+
 std::vector<std::unique_ptr<solid::NurbsSolid>> build_bodies(const SceneSettings& s) {
   std::vector<std::unique_ptr<solid::NurbsSolid>> out;
-  for (const BodySettings& b : s.bodies)
-    out.push_back(
-        std::make_unique<solid::NurbsSolid>(b.name, build_body_patch(s, b), make_material(b), b.density));
+  for (const BodySettings& b : s.bodies) {
+    geometry::Patch patch = build_body_patch(s, b);
+    const std::vector<solid::PatchLoad> loads = stretch_loads(b, patch);
+    out.push_back(std::make_unique<solid::NurbsSolid>(b.name, std::move(patch), make_material(b), b.density));
+    try {
+      out.back()->set_loads(loads);
+    } catch (const std::invalid_argument& e) {
+      bad_option("solid_" + b.name + "_stretch_patch", option_value_text(b.stretch_patch),
+                 std::string("a contact diameter whose two patches hold material and do not overlap (") +
+                     e.what() + ")");
+    }
+  }
   return out;
 }
 
@@ -215,7 +231,11 @@ void Scene::attach_bodies(std::vector<solid::SolidSolver*> bodies) {
   for (solid::SolidSolver* b : bodies_) {
     trackers_.emplace_back(b->reference_patch(), b->is_membrane(), plane);
     trackers_.back().record(fluid_->time(), b->current_patch());
+    equilibrium_.emplace_back();
+    if (body_settings(b->name()).stretched)
+      equilibrium_.back().emplace(s_.equilibrium_tolerance, s_.equilibrium_window);
   }
+  record_diameters();
   suspension_on_ =
       s_.flow == "poiseuille" && s_.domain == "rectangle" && s_.dim == 2 && wall_dir_ == 1 &&
       std::any_of(bodies_.begin(), bodies_.end(), [](const auto* b) { return b->is_membrane(); });
@@ -269,6 +289,7 @@ SceneStep Scene::step() {
   if (st.converged) {
     for (size_t b = 0; b < bodies_.size(); ++b)
       trackers_[b].record(fluid_->time(), bodies_[b]->current_patch());
+    record_diameters();
     if (suspension_on_) record_suspension();
     accumulate_profile();
     if (s_.s_interface_raise) raise_interface_scaling();
@@ -301,6 +322,23 @@ void Scene::raise_interface_scaling() {
                             "cellfsi: note: |r_A| = %.3g at t = %g s: s_I raised from %.3g to %.3g "
                             "(-s_interface_raise; next at |r_A| = %.3g)\n",
                             r_a, fluid_->time(), before, s_i, raise_threshold_));
+}
+
+void Scene::record_diameters() {
+  for (size_t b = 0; b < bodies_.size(); ++b)
+    if (equilibrium_[b])
+      equilibrium_[b]->record(fluid_->time(),
+                              solid::stretch_diameters(solid::mid_surface_points(bodies_[b]->current_patch()),
+                                                       body_settings(bodies_[b]->name()).stretch_axis));
+}
+
+bool Scene::at_equilibrium() const {
+  bool any = false;
+  for (const auto& e : equilibrium_) {
+    if (e && !e->reached()) return false;
+    any = any || e.has_value();
+  }
+  return any;
 }
 
 const BodySettings& Scene::body_settings(const std::string& name) const {

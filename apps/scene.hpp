@@ -9,6 +9,7 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,7 @@
 #include "fluid/fluid_solver.hpp"
 #include "geometry/builders.hpp"
 #include "solid/body_metrics.hpp"
+#include "solid/external_load.hpp"
 #include "solid/nurbs_solid.hpp"
 #include "solid/suspension_metrics.hpp"
 
@@ -41,6 +43,13 @@ struct BodySettings {
   double hardening_c3 = 1.0 / 30;        // strain_hardening: C3 / G (Mills et al. 2004)
   double density = 1.1;                  // rho_2 [g/cm^3]
   double inner_viscosity = 0;            // membranes: mu of the fluid inside [g/(cm s)] (0: the fluid's)
+  // The optical-tweezers stretching test (membranes; solid/external_load.hpp): a force stretch_force [dyn] on
+  // the material within stretch_patch / 2 [cm] of each end of the mid-surface along stretch_axis (+ at the
+  // far end, - at the near one). `stretched`: -solid_NAME_stretch_force given (0 too), the diameters measured.
+  bool stretched = false;
+  double stretch_force = 0;
+  double stretch_patch = 2e-4;
+  geometry::Vec3 stretch_axis = geometry::Vec3::UnitX();
   bool membrane() const { return shape.rfind("hollow", 0) == 0 || biconcave(); }
   bool biconcave() const { return shape == "rbc" || shape == "rbc_3d"; }  // Evans-Fung: no semi-axes
 };
@@ -71,6 +80,11 @@ struct SceneSettings {
   bool s_interface_raise = false;     // -s_interface_raise: s_I raised during the run as r_A drifts
   double max_mesh_ratio = 1.0;       // largest Lagrangian / smallest Eulerian element size (paper Remark 3)
   double metrics_average_from = -1;  // start of the averaging window [s]; < 0: half the final time
+  // Stretched bodies: equilibrium when neither diameter changed by more than the tolerance (relative) over
+  // the window [s]; with equilibrium_stop the run ends there.
+  double equilibrium_tolerance = 1e-3;
+  double equilibrium_window = 1e-3;
+  bool equilibrium_stop = false;
 
   /// Reads every scene option (see -help) and validates; throws std::invalid_argument naming option, value
   /// and range.
@@ -92,7 +106,9 @@ std::array<int, 3> body_element_counts(const SceneSettings& s, const BodySetting
 geometry::Patch build_body_patch(const SceneSettings& s, const BodySettings& b);
 /// A body's material law (-solid_NAME_material and its constants; docs/materials.md).
 std::shared_ptr<const solid::Material> make_material(const BodySettings& b);
-/// The scene's bodies as NurbsSolid (the solid side of a run).
+/// A body's external loads: the stretching test's two forces (none when not stretched).
+std::vector<solid::PatchLoad> stretch_loads(const BodySettings& b, const geometry::Patch& reference);
+/// The scene's bodies as NurbsSolid (the solid side of a run), with their loads.
 std::vector<std::unique_ptr<solid::NurbsSolid>> build_bodies(const SceneSettings& s);
 /// The placement checks of docs/design.md §4 (inside the domain, no overlap, Lagrangian elements no larger
 /// than max_mesh_ratio times the Eulerian ones); throws std::invalid_argument naming the option to change.
@@ -143,6 +159,9 @@ class Scene {
   /// The run's results for summary.json: the last metrics with each body's averages over the oscillatory
   /// regime (-metrics_average_from) in place of its instantaneous values, and the s_I used.
   std::vector<std::pair<std::string, double>> summary_metrics();
+  /// True when the scene has stretched bodies (-solid_NAME_stretch_force) and every one of them has reached
+  /// equilibrium (-equilibrium_tolerance over -equilibrium_window).
+  bool at_equilibrium() const;
   /// Words for summary.json: how s_I was set ("s_interface_choice": auto or given), each body's motion
   /// regime over the same window ("<body>_regime") and its material law ("<body>_material").
   std::vector<std::pair<std::string, std::string>> summary_text() const;
@@ -170,6 +189,9 @@ class Scene {
   std::vector<solid::SolidSolver*> bodies_;
   std::unique_ptr<coupling::FsiCoupler> coupler_;
   std::vector<solid::BodyTracker> trackers_;
+  // Per body: the stretching test's diameters and equilibrium (stretched bodies only).
+  std::vector<std::optional<solid::EquilibriumMonitor>> equilibrium_;
+  void record_diameters();
   std::vector<std::pair<std::string, double>> last_;
   std::function<geometry::Vec3(const geometry::Vec3&)> undisturbed_;
   bool suspension_on_ = false;  // a plane channel (Poiseuille, 2D) with membranes: rheology recorded

@@ -87,11 +87,15 @@ nlohmann::json Scene::metric_state() const {
                           {"cell_x", r.cell_x}});
   nlohmann::json rates = nlohmann::json::array();
   for (const auto& [t, q] : flow_rates_) rates.push_back({t, q});
+  nlohmann::json equilibrium = nlohmann::json::array();
+  for (const auto& e : equilibrium_)
+    equilibrium.push_back(e ? nlohmann::json(e->state()) : nlohmann::json(nullptr));
   nlohmann::json state{{"profile_from", profile_from_},
                        {"profile_count", profile_count_},
                        {"profile_sum", std::move(profile)},
                        {"suspension", std::move(suspension)},
-                       {"flow_rates", std::move(rates)}};
+                       {"flow_rates", std::move(rates)},
+                       {"equilibrium", std::move(equilibrium)}};
   // s_I as -s_interface_raise has left it (absent from earlier checkpoints: s_I as the options give it).
   if (coupler_)
     state["s_interface"] = {{"value", coupler_->interface_scaling()},
@@ -127,6 +131,16 @@ void Scene::restore_metric_state(const nlohmann::json& state) {
     }
     std::vector<std::pair<double, double>> rates;
     for (const auto& tq : state.at("flow_rates")) rates.emplace_back(tq.at(0), tq.at(1));
+    // The stretching test's records (absent from earlier checkpoints, which had no stretched body).
+    if (state.contains("equilibrium")) {
+      const nlohmann::json& eq = state.at("equilibrium");
+      if (eq.size() != equilibrium_.size()) throw std::runtime_error("equilibrium records of another scene");
+      for (std::size_t b = 0; b < equilibrium_.size(); ++b) {
+        if (eq[b].is_null() != !equilibrium_[b])
+          throw std::runtime_error("equilibrium records of another scene");
+        if (equilibrium_[b]) equilibrium_[b]->restore(eq[b].get<std::vector<double>>());
+      }
+    }
     profile_sum_ = std::move(sum);
     suspension_ = std::move(records);
     flow_rates_ = std::move(rates);
@@ -274,6 +288,17 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     if (bs.material == "mooney_rivlin")
       m.emplace_back(name + "_mooney_rivlin_fraction", bs.mooney_rivlin_fraction);
     if (bs.material == "strain_hardening") m.emplace_back(name + "_hardening_c3", bs.hardening_c3);
+    if (equilibrium_[b]) {
+      // The stretching test: the pull, the final diameters and when equilibrium came (NaN: not reached).
+      m.emplace_back(name + "_stretch_force", bs.stretch_force);
+      m.emplace_back(name + "_stretch_patch", bs.stretch_patch);
+      m.emplace_back(name + "_axial_diameter", equilibrium_[b]->last().axial);
+      m.emplace_back(name + "_transverse_diameter", equilibrium_[b]->last().transverse);
+      m.emplace_back(name + "_equilibrium_time", equilibrium_[b]->time());
+      // Equal and opposite forces: the centroid stays where it was (the distance it moved) [cm].
+      const auto track = trackers_[b].centroid_track();
+      m.emplace_back(name + "_centroid_shift", (track.back().second - track.front().second).norm());
+    }
     // lambda = mu_in / mu_out, where an inner viscosity was given (issue 27).
     if (bs.inner_viscosity > 0)
       m.emplace_back(name + "_viscosity_ratio", bs.inner_viscosity / flow.viscosity);
@@ -329,6 +354,12 @@ std::vector<std::pair<std::string, double>> Scene::metrics() {
   for (size_t b = 0; b < bodies_.size(); ++b) {
     for (const auto& [k, v] : trackers_[b].metrics()) last_.emplace_back(bodies_[b]->name() + "_" + k, v);
     for (const auto& [k, v] : shape_symmetry(b)) last_.emplace_back(bodies_[b]->name() + "_" + k, v);
+    if (equilibrium_[b]) {
+      // The stretching test: D_A, D_T [cm] and their largest relative change over the equilibrium window.
+      last_.emplace_back(bodies_[b]->name() + "_axial_diameter", equilibrium_[b]->last().axial);
+      last_.emplace_back(bodies_[b]->name() + "_transverse_diameter", equilibrium_[b]->last().transverse);
+      last_.emplace_back(bodies_[b]->name() + "_diameter_change", equilibrium_[b]->last_change());
+    }
   }
   return last_;
 }

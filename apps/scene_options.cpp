@@ -263,7 +263,8 @@ void read_body(SceneSettings& s, const std::string& name) {
   BodySettings b;
   b.name = name;
   const std::string pre = "solid_" + name + "_";
-  std::vector<double> axes = b.semi_axes, center, axis{b.axis[0], b.axis[1], b.axis[2]};
+  std::vector<double> axes = b.semi_axes, center, axis{b.axis[0], b.axis[1], b.axis[2]},
+                      stretch_axis{b.stretch_axis[0], b.stretch_axis[1], b.stretch_axis[2]};
   std::vector<int> elements(b.elements.begin(), b.elements.begin() + D);
   int count = 1, seed = 1;
   double spread = 0;
@@ -308,6 +309,19 @@ void read_body(SceneSettings& s, const std::string& name) {
       .real("inner_viscosity", b.inner_viscosity,
             "Membranes: viscosity mu of the fluid inside (a cytosol; for a compound cell, around the "
             "nucleus) [g/(cm s)], the units of -fluid_viscosity (0: the fluid's, no contrast)")
+      .real(
+          "stretch_force", b.stretch_force,
+          "Membranes: the optical-tweezers stretching test (docs/validation.md): a force F [dyn] on each end "
+          "of the membrane along -stretch_axis, +F at the far end, -F at the near one, spread evenly over "
+          "the material within -stretch_patch of the end (1 pN = 1e-7 dyn; Mills et al. 2004 pulled up to "
+          "1.93e-5). Given (0 too), the diameters along and across the axis and the time to equilibrium are "
+          "measured",
+          non_negative("[dyn]"))
+      .real("stretch_patch", b.stretch_patch,
+            "Contact diameter d of each bead [cm]: the force acts on the material (both faces) within d/2 of "
+            "the end of the mid-surface",
+            positive("[cm]"))
+      .reals("stretch_axis", stretch_axis, "Direction x,y,z of the stretch (normalised)", nullptr, finite())
       .integer("count", count,
                "Copies of the body (NAME_1 ... NAME_N) spread evenly along x, the periodic flow direction; "
                "-center gives the row's y (and z)",
@@ -362,6 +376,25 @@ void read_body(SceneSettings& s, const std::string& name) {
             "only for a membrane (shape hollow_ellipse, rbc or hollow_ellipsoid): a bulky " + b.shape +
                 " (e.g. a nucleus) is solid throughout and encloses no fluid");
   }
+  // The stretching test: a membrane's ends; its other options only with the force.
+  b.stretched = t.given("stretch_force");
+  if (b.stretched && !b.membrane())
+    t.bad(
+        "stretch_force", option_value_text(b.stretch_force),
+        "only for a membrane (shape hollow_ellipse, rbc, hollow_ellipsoid or rbc_3d): its ends are those of "
+        "its mid-surface");
+  std::string axis_text;
+  for (std::size_t k = 0; k < stretch_axis.size(); ++k)
+    axis_text += (k ? "," : "") + option_value_text(stretch_axis[k]);
+  const std::string only_stretched = "only with -" + pre + "stretch_force (the stretching test)";
+  if (t.given("stretch_patch") && !b.stretched)
+    t.bad("stretch_patch", option_value_text(b.stretch_patch), only_stretched);
+  if (t.given("stretch_axis") && !b.stretched) t.bad("stretch_axis", axis_text, only_stretched);
+  if (stretch_axis.size() != 3) t.bad("stretch_axis", axis_text, "3 values x,y,z");
+  const Vec3 sa(stretch_axis[0], stretch_axis[1], stretch_axis[2]);
+  if (!(sa.norm() > 0)) t.bad("stretch_axis", axis_text, "a nonzero direction");
+  if (D == 2 && sa[2] != 0) t.bad("stretch_axis", axis_text, "a direction in the plane (z = 0) in 2D");
+  b.stretch_axis = sa.normalized();
   // A law's constant given to another law would do nothing.
   const std::string law_now = " (the material is " + b.material + ")";
   if (t.given("mooney_rivlin_fraction") && b.material != "mooney_rivlin")
@@ -544,7 +577,16 @@ SceneSettings SceneSettings::from_options(const std::string& default_name, bool 
       .text("output_dir", s.output_dir, "Output folder (default out/<scene>)")
       .flag("output_dir_adopt", s.output_dir_adopt,
             "Write into an existing non-empty folder that cellfsi did not make (no file of the names cellfsi "
-            "writes may be in it; cellfsi then marks it as its own)");
+            "writes may be in it; cellfsi then marks it as its own)")
+      .real("equilibrium_tolerance", s.equilibrium_tolerance,
+            "Stretched bodies (-solid_NAME_stretch_force): at equilibrium once neither diameter has changed "
+            "by more than this fraction of itself over -equilibrium_window",
+            between(1e-8, 1))
+      .real("equilibrium_window", s.equilibrium_window,
+            "Stretched bodies: the window of the equilibrium test [s]", positive("[s]"))
+      .flag("equilibrium_stop", s.equilibrium_stop,
+            "Stretched bodies: end the run (completed) at the step where every stretched body is at "
+            "equilibrium, before -final_time");
   t.read();
   if (s.name.empty()) t.bad("scene", "''", "a non-empty name");
   if (s.domain == "box" && s.dim != 3) t.bad("domain", "box", "box needs -dim 3");
@@ -615,6 +657,15 @@ SceneSettings SceneSettings::from_options(const std::string& default_name, bool 
       if (o.name == name) bad_option("solid_bodies", name, "distinct names");
     read_body(s, name);
   }
+  const bool stretched =
+      std::any_of(s.bodies.begin(), s.bodies.end(), [](const BodySettings& b) { return b.stretched; });
+  const std::string only_stretched = "only with a stretched body (-solid_NAME_stretch_force)";
+  if (!stretched && t.given("equilibrium_tolerance"))
+    t.bad("equilibrium_tolerance", option_value_text(s.equilibrium_tolerance), only_stretched);
+  if (!stretched && t.given("equilibrium_window"))
+    t.bad("equilibrium_window", option_value_text(s.equilibrium_window), only_stretched);
+  if (!stretched && t.given("equilibrium_stop"))
+    t.bad("equilibrium_stop", s.equilibrium_stop ? "true" : "false", only_stretched);
   if (fluid_side) check_memory(s);
   return s;
 }

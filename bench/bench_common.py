@@ -29,6 +29,15 @@ def run_one(args, tag, scene, options):
     return tag, f"exit {rc}"
 
 
+def summary_of(args, tag):
+    """The run's summary.json (in args.runs/tag) as a dict, or None when it is missing or unreadable."""
+    try:
+        with open(os.path.join(args.runs, tag, "summary.json")) as f:
+            return json.load(f)
+    except (OSError, ValueError):
+        return None
+
+
 def option_values(words):
     """-name -> its last value (None for a flag) among command-line words, as PETSc reads them."""
     values, name = {}, None

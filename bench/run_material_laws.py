@@ -15,13 +15,12 @@ A run whose summary.json says "completed" is not run again. Exit code 3 when a r
 import argparse
 import concurrent.futures
 import csv
-import json
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bench_common import (ROOT, check_kept_runs, fmt, provenance, pyplot, run_one, save_figure,  # noqa: E402
-                          write_table)
+                          summary_of, write_table)
 
 TOOL = "run_material_laws.py"
 # name in the table: the body's options (the body is "membrane" in the capsule, "rbc" in the channel)
@@ -70,14 +69,6 @@ def runs_of(args):
                          "-solid_rbc_elements", "1,0"] + law_options("rbc", words),
                         ("channel", name, 7500.0)))
     return out
-
-
-def summary_of(args, tag):
-    try:
-        with open(os.path.join(args.runs, tag, "summary.json")) as f:
-            return json.load(f)
-    except (OSError, ValueError):
-        return None
 
 
 def series(args, tag, key):

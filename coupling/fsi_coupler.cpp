@@ -87,6 +87,7 @@ void FsiCoupler::update_immersed(bool mark) {
       ip.stiffness_viscosity = q[i].shear_modulus * tp_.gamma * tp_.dt * tp_.alpha_f / (tp_.alpha_m * rho1);
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) ip.stress[r][c] = q[i].stress(r, c);
+      for (int c = 0; c < 3; ++c) ip.force[c] = q[i].force[c];
       data.push_back(ip);
     }
     const std::vector<geometry::Vec3> pts = bodies_[b]->interface_points();

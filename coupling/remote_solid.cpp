@@ -25,10 +25,10 @@ std::string decode(const std::vector<double>& d) {
 constexpr std::size_t kVecSize = 3;                       // a Vec3, or a Param
 constexpr std::size_t kMatSize = 9;                       // a Mat3, row by row
 constexpr std::size_t kSampleSize = kVecSize + kMatSize;  // VelocitySample: v, grad_v
-// QuadratureData: x, weight, stress, beta, shear_modulus.
+// QuadratureData: x, weight, stress, beta, shear_modulus, force.
 constexpr std::size_t kQuadratureWeight = kVecSize, kQuadratureStress = kQuadratureWeight + 1,
                       kQuadratureBeta = kQuadratureStress + kMatSize, kQuadratureShear = kQuadratureBeta + 1,
-                      kQuadratureSize = kQuadratureShear + 1;
+                      kQuadratureForce = kQuadratureShear + 1, kQuadratureSize = kQuadratureForce + kVecSize;
 
 void put(std::vector<double>& out, const solid::Vec3& v) {
   out.insert(out.end(), v.data(), v.data() + kVecSize);
@@ -73,6 +73,7 @@ void put(std::vector<double>& out, const solid::QuadratureData& q) {
   put(out, q.stress);
   out.push_back(q.beta);
   out.push_back(q.shear_modulus);
+  put(out, q.force);
 }
 std::vector<solid::QuadratureData> unpack_quadrature(const std::vector<double>& d) {
   std::vector<solid::QuadratureData> q(d.size() / kQuadratureSize);
@@ -83,6 +84,7 @@ std::vector<solid::QuadratureData> unpack_quadrature(const std::vector<double>& 
     q[i].stress = mat(p + kQuadratureStress);
     q[i].beta = p[kQuadratureBeta];
     q[i].shear_modulus = p[kQuadratureShear];
+    q[i].force = vec(p + kQuadratureForce);
   }
   return q;
 }

@@ -314,13 +314,13 @@ void immersed_residual(const VmsParameters& prm, const PointBasis& basis, const 
                        const ImmersedPoint& ip, double* R) {
   assert(prm.dim == 2 || prm.dim == 3);
   const int d = prm.dim, nc = d + 1;
-  Vec3 mass{};  // -weight beta (vdot + (v.grad) v - g)
+  Vec3 mass{};  // -weight (beta (vdot + (v.grad) v - g) + force)
   Mat3 flux{};  // weight (stress - nu (dv + dv^T))
   for (int i = 0; i < d; ++i) {
     double m = f.vdot[i] - prm.g[i];
     if (!prm.stokes)
       for (int j = 0; j < d; ++j) m += f.v[j] * f.dv[i][j];
-    mass[i] = -ip.weight * ip.beta * m;
+    mass[i] = -ip.weight * ip.beta * m - ip.weight * ip.force[i];
     for (int j = 0; j < d; ++j)
       flux[i][j] = ip.weight * (ip.stress[i][j] - prm.nu * (f.dv[i][j] + f.dv[j][i]));
   }

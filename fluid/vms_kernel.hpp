@@ -149,12 +149,16 @@ struct ImmersedPoint {
   /// block-iterative loop diverges for any realistic stiffness; the residual, and so the solution, does not
   /// depend on it.
   double stiffness_viscosity = 0;
+  /// An external force on the solid (an optical tweezers' bead): (1/rho_1) times its density per unit
+  /// reference volume [cm/s^2], weighed like the other terms (solid/external_load.hpp). Zero: no load.
+  std::array<double, 3> force{};
 };
 
 /// Adds the Eq. (10) terms of one immersed point to the momentum rows of R (continuity rows untouched):
 ///   R^M_{A,i} += weight * [ -beta N_A (vdot_i + (v.grad)v_i - g_i) - nu d_j N_A (d_j v_i + d_i v_j)
-///                           + d_j N_A stress_ij ]
-/// (the convective term is dropped in Stokes mode). basis and f are the Eulerian basis and fields at the
+///                           + d_j N_A stress_ij - N_A force_i ]
+/// (the convective term is dropped in Stokes mode; the force, like g, is a load: R = B - L, so summed over
+/// A, with sum_A N_A = 1, it gives -weight force). basis and f are the Eulerian basis and fields at the
 /// point.
 void immersed_residual(const VmsParameters& prm, const PointBasis& basis, const PointFields& f,
                        const ImmersedPoint& ip, double* R);

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -211,34 +212,57 @@ void NurbsSolid::kinematics(const Eigen::MatrixXd& c, const Param& xi, const Ind
   ref_jacobian = dXdxi.determinant();
 }
 
-std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density) const {
-  if (!(fluid_density > 0)) throw std::invalid_argument("quadrature_data: fluid density must be > 0");
-  const Eigen::MatrixXd c = displacement_control_alpha();
-  const double beta = 1.0 - density_ / fluid_density;
-  std::vector<QuadratureData> out;
+void NurbsSolid::for_each_quadrature_point(
+    const Eigen::MatrixXd& c, const std::function<void(const Vec3&, const Mat3&, double)>& visit) const {
   std::vector<geometry::QuadraturePoint> qp;
   const Index3 ng = geometry::default_gauss(reference_);
   for (int e = 0; e < reference_.n_elements(); ++e) {
     const Index3 m = reference_.element_multi_index(e);
     geometry::element_quadrature(reference_, m, ng, qp);
     for (const auto& q : qp) {
+      Vec3 x;
       Mat3 F;
       double jac0 = 0;
-      QuadratureData d;
-      kinematics(c, q.xi, &m, d.x, F, jac0);
-      Mat3 S;
+      kinematics(c, q.xi, &m, x, F, jac0);
       try {
-        S = material_->second_piola(F, dim_);
-      } catch (const std::runtime_error& e) {
-        throw std::runtime_error(e.what() + where_inverted(m, q.xi, d.x, F));
+        visit(x, F, q.weight * std::abs(jac0));
+      } catch (const std::runtime_error& e) {  // an inverted element (the material refuses det F <= 0)
+        throw std::runtime_error(e.what() + where_inverted(m, q.xi, x, F));
       }
-      d.weight = q.weight * std::abs(jac0);
-      d.stress = F * S * F.transpose() / fluid_density;
-      d.beta = beta;
-      d.shear_modulus = material_->tangent_shear_modulus();
-      out.push_back(d);
     }
   }
+}
+
+void NurbsSolid::set_loads(const std::vector<PatchLoad>& loads) {
+  // The quadrature points in the reference configuration (zero displacement), in quadrature_data()'s order.
+  std::vector<Vec3> X;
+  std::vector<double> w;
+  for_each_quadrature_point(Eigen::MatrixXd::Zero(n_reduced_, dim_),
+                            [&](const Vec3& x, const Mat3&, double weight) {
+                              X.push_back(x);
+                              w.push_back(weight);
+                            });
+  try {
+    load_density_ = loads.empty() ? std::vector<Vec3>{} : solid::load_densities(X, w, loads);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("body '" + name_ + "': " + e.what());
+  }
+}
+
+std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density) const {
+  if (!(fluid_density > 0)) throw std::invalid_argument("quadrature_data: fluid density must be > 0");
+  const double beta = 1.0 - density_ / fluid_density;
+  std::vector<QuadratureData> out;
+  for_each_quadrature_point(displacement_control_alpha(), [&](const Vec3& x, const Mat3& F, double weight) {
+    QuadratureData d;
+    d.x = x;
+    d.weight = weight;
+    d.stress = F * material_->second_piola(F, dim_) * F.transpose() / fluid_density;
+    d.beta = beta;
+    d.shear_modulus = material_->tangent_shear_modulus();
+    if (!load_density_.empty()) d.force = load_density_[out.size()] / fluid_density;
+    out.push_back(d);
+  });
   return out;
 }
 

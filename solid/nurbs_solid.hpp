@@ -8,11 +8,13 @@
 // last control layers coincide) those two layers are one unknown, and the duplicate Greville point is
 // dropped, so the system stays square. Degenerate points (a disk's centre, a sphere's poles) need nothing
 // special: their Greville points coincide in space, receive the same velocity, and so move together.
+#include <functional>
 #include <memory>
 
 #include <Eigen/Sparse>
 
 #include "geometry/patch.hpp"
+#include "solid/external_load.hpp"
 #include "solid/material.hpp"
 #include "solid/solid_solver.hpp"
 
@@ -47,6 +49,14 @@ class NurbsSolid final : public SolidSolver {
   geometry::Patch current_patch() const override;
   std::vector<Mat3> cauchy_stress(const std::vector<geometry::Param>& xi) const override;
 
+  /// External loads (solid/external_load.hpp), replacing any earlier ones: each force spread over the
+  /// quadrature points of its patch, carried by quadrature_data() as QuadratureData::force. Throws
+  /// std::invalid_argument when a patch holds no quadrature point or two patches overlap.
+  void set_loads(const std::vector<PatchLoad>& loads);
+  /// The external force per unit reference volume at each quadrature point, in quadrature_data()'s order
+  /// [dyn/cm^3] (empty: no load).
+  const std::vector<Vec3>& load_densities() const { return load_density_; }
+
   int n_points() const { return static_cast<int>(reference_points_.size()); }
   const std::vector<Vec3>& reference_points() const { return reference_points_; }
   const geometry::Patch& reference() const { return reference_; }
@@ -71,6 +81,10 @@ class NurbsSolid final : public SolidSolver {
   /// Position and deformation gradient at xi for displacement control variables c.
   void kinematics(const Eigen::MatrixXd& c, const geometry::Param& xi, const geometry::Index3* element,
                   Vec3& x, Mat3& F, double& ref_jacobian) const;
+  /// The quadrature points in their fixed order (elements in turn, Gauss points within each): position,
+  /// deformation gradient for displacement control variables c, and reference volume weight.
+  void for_each_quadrature_point(const Eigen::MatrixXd& c,
+                                 const std::function<void(const Vec3&, const Mat3&, double)>& visit) const;
   std::string name_;
   geometry::Patch reference_;
   std::shared_ptr<const Material> material_;
@@ -87,6 +101,7 @@ class NurbsSolid final : public SolidSolver {
   Eigen::SparseLU<Eigen::SparseMatrix<double>> factor_;
   Eigen::MatrixXd u_, u_n_, rate_n_;  // at the collocation points (n_points x dim)
   Eigen::MatrixXd c_, c_n_;           // control variables (n_reduced x dim)
+  std::vector<Vec3> load_density_;    // external force per reference volume at the quadrature points
 };
 
 }  // namespace cellfsi::solid

@@ -29,13 +29,14 @@ struct VelocitySample {
   Mat3 grad_v = Mat3::Zero();
 };
 
-/// One solid quadrature point as the fluid needs it (paper Eq. (10)).
+/// One solid quadrature point as the fluid needs it (paper Eq. (10), and an external load on the body).
 struct QuadratureData {
   Vec3 x = Vec3::Zero();       // current position (at t_{n+alpha_f})
   double weight = 0;           // quadrature weight in the reference configuration
   Mat3 stress = Mat3::Zero();  // (1/rho_1) F S F^T, symmetric
   double beta = 0;             // 1 - rho_2 / rho_1
   double shear_modulus = 0;    // of the linearised material (for the coupling's approximate tangent)
+  Vec3 force = Vec3::Zero();   // (1/rho_1) external force per unit reference volume (solid/external_load.hpp)
 };
 
 class SolidSolver {

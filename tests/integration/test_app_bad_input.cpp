@@ -437,6 +437,34 @@ TEST_F(CellfsiApp, BadInnerViscositiesAreRejected) {
   expect_each_refused(with({scene("capsule_shear.yaml")}, kCapsule), cases);
 }
 
+TEST_F(CellfsiApp, BadStretchingTestsAreRejected) {
+  // Issue 28, item 4: a pull that is not one, the test's options without the pull, a direction that is none
+  // or leaves the plane, a bulky body (no mid-surface ends), a contact patch holding no material or so large
+  // that the two overlap (found when the body is built, still before any work), and the equilibrium options
+  // without a stretched body.
+  const std::string f = "-solid_membrane_stretch_force";
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{f, "-1e-5"}, f + " = -1e-05 is invalid; valid: >= 0 [dyn]"},
+      {{"-solid_membrane_stretch_patch", "1e-4"},
+       "-solid_membrane_stretch_patch = 0.0001 is invalid; valid: only with -solid_membrane_stretch_force"},
+      {{f, "1e-5", "-solid_membrane_stretch_axis", "0,0,0"},
+       "-solid_membrane_stretch_axis = 0,0,0 is invalid; valid: a nonzero direction"},
+      {{f, "1e-5", "-solid_membrane_stretch_axis", "1,0,1"},
+       "-solid_membrane_stretch_axis = 1,0,1 is invalid; valid: a direction in the plane (z = 0) in 2D"},
+      {{"-solid_bodies", "membrane,nucleus", "-solid_nucleus_shape", "ellipse", "-solid_nucleus_semi_axes",
+        "5e-5,5e-5", "-solid_nucleus_stretch_force", "1e-5"},
+       "-solid_nucleus_stretch_force = 1e-05 is invalid; valid: only for a membrane"},
+      {{f, "1e-5", "-solid_membrane_stretch_patch", "1e-9"},
+       "-solid_membrane_stretch_patch = 1e-09 is invalid; valid: a contact diameter whose two patches hold "
+       "material and do not overlap"},
+      {{f, "1e-5", "-solid_membrane_stretch_patch", "1e-2"}, "overlap"},
+      {{"-equilibrium_stop"},
+       "-equilibrium_stop = true is invalid; valid: only with a stretched body (-solid_NAME_stretch_force)"},
+      {{"-equilibrium_window", "1e-3"},
+       "-equilibrium_window = 0.001 is invalid; valid: only with a stretched"}};
+  expect_each_refused(with({scene("capsule_shear.yaml")}, kCapsule), cases);
+}
+
 TEST_F(CellfsiApp, MpmdBadInputStopsBothSidesWithOneMessage) {
   const std::vector<std::string> args =
       with({scene("capsule_shear.yaml"), "-solid_membrane_center", "0.0012,0.00005"}, kCapsule);

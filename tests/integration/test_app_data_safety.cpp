@@ -233,6 +233,7 @@ const std::vector<SceneCase> kEveryScene = {
      {"-fluid_elements", "12,12,12", "-solid_membrane_elements", "1,0,0", "-solid_nucleus_elements", "0,0,0",
       "-final_time", "5e-4", "-output_every", "0"}},
     {"rbc_shear_3d.yaml", {"-fluid_elements", "12,12,12", "-final_time", "1e-3", "-output_every", "0"}},
+    {"rbc_stretch_3d.yaml", {"-fluid_elements", "12,4,6", "-final_time", "2e-3", "-output_every", "0"}},
     {"rbc_channel.yaml",
      {"-fluid_elements", "96,32", "-fluid_degree", "2", "-solid_rbc_elements", "1,0", "-final_time", "5e-4",
       "-output_every", "0"}},

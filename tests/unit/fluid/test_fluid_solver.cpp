@@ -482,6 +482,66 @@ TEST(FluidSolver, ImmersedPointsWithTheFluidStressLeaveTheResidualUnchanged) {
   CELLFSI_PETSC(VecDestroy(&F1));
 }
 
+TEST(FluidSolver, ImmersedForcesEnterTheMomentumRowsAsTheirTotal) {
+  // An external force on a solid (solid/external_load.hpp: the stretching test's beads) is a load on the
+  // momentum equation where the solid's points are. With sum_A N_A = 1 the momentum rows of the residual add
+  // up to -sum_q w_q force_q per component (R = B - L), wherever the points lie in their elements; two
+  // opposite patches add up to nothing. Fluid at rest, beta = 0, no stress: only the force is left.
+  const double lx = 0.0024, ly = 0.0012;
+  // Points within |y| < ly / 8, away from the walls' rows (the wall functions live in the outer elements).
+  const geometry::Patch box = geometry::rectangle(lx, ly, 6, 4, 2, {true, false}, Vec3(0, -ly / 2, 0));
+  FluidSolver fs(PETSC_COMM_WORLD, box, FluidOptions{});
+  fs.set_initial_velocity([](const Vec3&) { return Vec3(Vec3::Zero()); });
+  Vec U, F0, F1;
+  CELLFSI_PETSC(VecDuplicate(fs.solution(), &U));
+  CELLFSI_PETSC(VecCopy(fs.solution(), U));
+  CELLFSI_PETSC(VecDuplicate(U, &F0));
+  CELLFSI_PETSC(VecDuplicate(U, &F1));
+  fs.evaluate_residual(U, F0);
+  // The sums of the x and y momentum rows of F1 - F0 (one rank: the local array is the whole vector,
+  // unknowns interleaved v_x, v_y, p per node).
+  auto momentum_sums = [&]() {
+    fs.evaluate_residual(U, F1);
+    CELLFSI_PETSC(VecAXPY(F1, -1.0, F0));
+    const PetscScalar* a = nullptr;
+    PetscInt n = 0;
+    CELLFSI_PETSC(VecGetLocalSize(F1, &n));
+    CELLFSI_PETSC(VecGetArrayRead(F1, &a));
+    Vec3 sum = Vec3::Zero();
+    for (PetscInt i = 0; i < n; ++i)
+      if (i % 3 < 2) sum[i % 3] += a[i];
+    CELLFSI_PETSC(VecRestoreArrayRead(F1, &a));
+    return sum;
+  };
+  auto patch = [&](double x0, double sign) {
+    std::vector<fluid::ImmersedPointData> pts;
+    for (int i = 0; i < 6; ++i) {
+      fluid::ImmersedPointData d;
+      d.x = Vec3(x0 + lx * 0.013 * i, ly * (0.02 * i - 0.06), 0);
+      d.data.weight = 1e-9 * (1 + 0.3 * i);
+      d.data.force = {sign * 2.0e3, sign * -0.5e3, 0.0};
+      pts.push_back(d);
+    }
+    return pts;
+  };
+  std::vector<fluid::ImmersedPointData> one = patch(0.31 * lx, 1.0);
+  Vec3 expected = Vec3::Zero();
+  for (const auto& d : one) expected -= d.data.weight * Vec3(d.data.force[0], d.data.force[1], 0);
+  fs.set_immersed_points(one);
+  const Vec3 got = momentum_sums();
+  std::printf("  one patch: momentum rows sum to (%.15g, %.15g), expected (%.15g, %.15g)\n", got[0], got[1],
+              expected[0], expected[1]);
+  EXPECT_NEAR(got[0], expected[0], 1e-12 * expected.norm());
+  EXPECT_NEAR(got[1], expected[1], 1e-12 * expected.norm());
+  std::vector<fluid::ImmersedPointData> both = one, other = patch(0.67 * lx, -1.0);
+  both.insert(both.end(), other.begin(), other.end());
+  fs.set_immersed_points(both);
+  EXPECT_LT(momentum_sums().norm(), 1e-12 * expected.norm());
+  CELLFSI_PETSC(VecDestroy(&U));
+  CELLFSI_PETSC(VecDestroy(&F0));
+  CELLFSI_PETSC(VecDestroy(&F1));
+}
+
 TEST(FluidParallel, SameProblemOnOneAndTwoRanksAgrees) {
   // A non-trivial Navier-Stokes shear flow (perturbed initial state) on PETSC_COMM_SELF and PETSC_COMM_WORLD;
   // when run on 2 ranks the two solutions must agree to 1e-10 (tight solves remove the preconditioner's

@@ -168,8 +168,8 @@ std::vector<double> reference_immersed(const Case& c, const PointFields& f, cons
         stress += c.dN[A * 3 + j] * ip.stress[i][j];
       }
       if (c.prm.stokes) v_grad_v = 0;
-      R[A * nc + i] =
-          ip.weight * (-ip.beta * c.N[A] * (f.vdot[i] + v_grad_v - c.prm.g[i]) - c.prm.nu * visc + stress);
+      R[A * nc + i] = ip.weight * (-ip.beta * c.N[A] * (f.vdot[i] + v_grad_v - c.prm.g[i]) - c.prm.nu * visc +
+                                   stress - c.N[A] * ip.force[i]);
     }
   return R;
 }
@@ -184,6 +184,8 @@ ImmersedPoint make_immersed_point(const Case& c, unsigned seed) {
   const double scale = c.prm.nu * c.sc.velocity / c.sc.length;
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j <= i; ++j) ip.stress[i][j] = ip.stress[j][i] = scale * uni(rng);
+  // An external load (the stretching test's bead) on the same scale as the stress's divergence.
+  for (int i = 0; i < c.prm.dim; ++i) ip.force[i] = scale / c.sc.length * uni(rng);
   return ip;
 }
 
