@@ -384,8 +384,10 @@ void read_body(SceneSettings& s, const std::string& name) {
         "only for a membrane (shape hollow_ellipse, rbc, hollow_ellipsoid or rbc_3d): its ends are those of "
         "its mid-surface");
   std::string axis_text;
-  for (std::size_t k = 0; k < stretch_axis.size(); ++k)
-    axis_text += (k ? "," : "") + option_value_text(stretch_axis[k]);
+  for (std::size_t k = 0; k < stretch_axis.size(); ++k) {
+    if (k) axis_text += ',';  // not (k ? "," : "") + ...: GCC 12 warns falsely (-Wrestrict) on that
+    axis_text += option_value_text(stretch_axis[k]);
+  }
   const std::string only_stretched = "only with -" + pre + "stretch_force (the stretching test)";
   if (t.given("stretch_patch") && !b.stretched)
     t.bad("stretch_patch", option_value_text(b.stretch_patch), only_stretched);
