@@ -11,6 +11,7 @@ packages=(
   libopenmpi-dev openmpi-bin
   libeigen3-dev              # (and its FFT module: solvers/fourier_bulk.cpp)
   liblapack-dev              # banded LU of the Fourier bulk solver (zgbtrf)
+  libscotch-dev              # nested-dissection ordering of the region's LU (solvers/nested_dissection.hpp)
   libcgal-dev
   libvtk9-dev
   libyaml-cpp-dev            # scene files checked before PETSc reads them

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "common/petsc_error.hpp"
+#include "solvers/nested_dissection.hpp"
 
 namespace cellfsi::solvers {
 
@@ -236,6 +237,7 @@ void register_pc_types() {
   if (done) return;
   CELLFSI_PETSC(PCRegister(kPCFourier, create_fourier));
   CELLFSI_PETSC(PCRegister(kPCBand, create_band));
+  register_orderings();  // the region's LU orders by -..._pc_factor_mat_ordering_type cellfsi_nd
   done = true;
 }
 

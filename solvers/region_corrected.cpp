@@ -5,6 +5,7 @@
 
 #include "common/petsc_error.hpp"
 #include "solvers/near_operator.hpp"
+#include "solvers/nested_dissection.hpp"
 
 namespace cellfsi::solvers {
 
@@ -17,7 +18,9 @@ RegionCorrectedSolver::RegionCorrectedSolver(std::array<int, 3> n, std::array<bo
       periodic_(periodic),
       dof_(dof),
       prefix_(std::move(prefix)),
-      comm_(comm) {}
+      comm_(comm) {
+  register_orderings();  // the region's default ordering on one rank
+}
 
 RegionCorrectedSolver::~RegionCorrectedSolver() {
   release_region();
@@ -28,6 +31,7 @@ RegionCorrectedSolver::~RegionCorrectedSolver() {
 void RegionCorrectedSolver::release_region() {
   ISDestroy(&is_);
   MatDestroy(&JR_);
+  MatDestroy(&JR_aij_);
   MatDestroy(&J_rows_);
   ISDestroy(&all_);
   KSPDestroy(&region_ksp_);
@@ -126,7 +130,15 @@ void RegionCorrectedSolver::set_operator(Mat J) {
     CELLFSI_PETSC(KSPGetPC(region_ksp_, &pc));
     CELLFSI_PETSC(PCSetType(pc, PCLU));
     CELLFSI_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+    PetscMPIInt size = 1;
+    CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
+    // In 3D on one rank MUMPS takes an ordering from PETSc: SCOTCH's nested dissection leaves narrower fronts
+    // than the orderings of Debian's MUMPS (solvers/nested_dissection.hpp; 11 % off the LU at 64^3). In 2D the
+    // region is small and MUMPS' own choice is as good: there the ordering and the AIJ copy cost 3 % of the
+    // default scene (docs/performance.md §12). -..._pc_factor_mat_ordering_type external|cellfsi_nd chooses.
+    if (size == 1 && n_[2] > 1) CELLFSI_PETSC(PCFactorSetMatOrderingType(pc, kMatOrderingNestedDissection));
     CELLFSI_PETSC(KSPSetFromOptions(region_ksp_));
+    aij_ = needs_aij(pc, size);
     region_ = std::move(region);
   } else if (n_region_ > 0) {
     PetscMPIInt size = 1;
@@ -142,7 +154,12 @@ void RegionCorrectedSolver::set_operator(Mat J) {
     CELLFSI_PETSC(MatCreateSubMatrix(rows_of, is_, all_, reuse, &J_rows_));
   }
   if (n_region_ == 0) return;
-  CELLFSI_PETSC(KSPSetOperators(region_ksp_, JR_, JR_));
+  if (aij_) {
+    MatDestroy(&JR_aij_);
+    CELLFSI_PETSC(MatConvert(JR_, MATAIJ, MAT_INITIAL_MATRIX, &JR_aij_));
+  }
+  Mat factored = aij_ ? JR_aij_ : JR_;
+  CELLFSI_PETSC(KSPSetOperators(region_ksp_, factored, factored));
   CELLFSI_PETSC(KSPSetUp(region_ksp_));
   PC pc;
   CELLFSI_PETSC(KSPGetPC(region_ksp_, &pc));
@@ -156,6 +173,29 @@ void RegionCorrectedSolver::set_operator(Mat J) {
     throw std::runtime_error(
         "RegionCorrectedSolver: the LU factorisation of the region (" + std::to_string(n_region_) +
         " unknowns) failed: " + (reason != PC_NOERROR ? PCFailedReasons[reason] : "on another rank"));
+}
+
+bool RegionCorrectedSolver::needs_aij(PC pc, int size) const {
+  PetscBool factor = PETSC_FALSE;
+  CELLFSI_PETSC(PetscObjectTypeCompareAny(reinterpret_cast<PetscObject>(pc), &factor, PCLU, PCCHOLESKY, ""));
+  if (!factor) return false;  // another PC chosen by options: it gets the region as extracted (BAIJ)
+  MatSolverType type = nullptr;
+  CELLFSI_PETSC(PCFactorGetMatSolverType(pc, &type));
+  PetscBool available = PETSC_TRUE;
+  if (type) CELLFSI_PETSC(MatGetFactorAvailable(JR_, type, MAT_FACTOR_LU, &available));
+  if (!available) return true;  // e.g. SuperLU_DIST, which factorises AIJ only
+  PetscBool mumps = PETSC_FALSE;
+  if (type) CELLFSI_PETSC(PetscStrcmp(type, MATSOLVERMUMPS, &mumps));
+  if (!mumps || size > 1) return false;
+  // PETSc passes an ordering to MUMPS from an AIJ matrix only: convert unless MUMPS orders by itself.
+  char ordering[64] = "";
+  PetscBool set = PETSC_FALSE;
+  CELLFSI_PETSC(PetscOptionsGetString(nullptr, (prefix_ + "region_").c_str(), "-pc_factor_mat_ordering_type",
+                                      ordering, sizeof ordering, &set));
+  if (!set) return n_[2] > 1;  // the default above
+  PetscBool external = PETSC_FALSE;
+  CELLFSI_PETSC(PetscStrcmp(ordering, MATORDERINGEXTERNAL, &external));
+  return !external;
 }
 
 void RegionCorrectedSolver::region_solve(Vec r, Vec x) {

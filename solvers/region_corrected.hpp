@@ -74,6 +74,9 @@ class RegionCorrectedSolver {
 
  private:
   void region_solve(Vec r, Vec x);  // x += R^T J_R^{-1} R r
+  // Whether the region's factorisation (as the options chose it) needs J_R as AIJ: a solver without BAIJ
+  // (SuperLU_DIST), or MUMPS on one rank with an ordering from PETSc, which it reads from AIJ only.
+  bool needs_aij(PC pc, int size) const;
   void release_region();
   FourierBulkSolver bulk_;
   std::array<int, 3> n_{}, degree_{};
@@ -90,6 +93,8 @@ class RegionCorrectedSolver {
   int n_differing_ = 0;
   IS is_ = nullptr;
   Mat JR_ = nullptr;      // J on region x region
+  Mat JR_aij_ = nullptr;  // JR_ as AIJ, when the factorisation needs it (aij_)
+  bool aij_ = false;
   Mat J_rows_ = nullptr;  // J's rows of the region, every column
   IS all_ = nullptr;
   KSP region_ksp_ = nullptr;

@@ -8,11 +8,13 @@
 #include <limits>
 #include <memory>
 #include <random>
+#include <string>
 
 #include "common/petsc_error.hpp"
 #include "fluid/fluid_solver.hpp"
 #include "solvers/fourier_bulk.hpp"
 #include "solvers/near_operator.hpp"
+#include "solvers/nested_dissection.hpp"
 #include "solvers/region_corrected.hpp"
 #include "geometry/builders.hpp"
 #include "test_operators.hpp"
@@ -290,6 +292,9 @@ struct RegionSolve {
   PetscInt region = 0;
   double residual = 1;
   std::vector<double> x;  // natural ordering, on rank 0
+  std::string region_type;  // the factorised region's matrix type
+  PetscInt mumps_ordering = -1;  // MUMPS' INFOG(7): the ordering it used (1: the one PETSc gave)
+  double mumps_operations = 0;   // MUMPS' RINFOG(1): operations of the elimination
 };
 
 /// The 2D shear box (32 x 16 cubic) with s_I = 1e10 on a ring of control values and 40 immersed points on
@@ -341,6 +346,18 @@ RegionSolve solve_ring(MPI_Comm comm, bool corrected) {
     if (!corrected) pc_solver.set_region(1e300, 0);
     pc_solver.set_operator(J);
     out.region = pc_solver.n_region();
+    if (KSP region_ksp = pc_solver.region_ksp()) {
+      Mat op, factor;
+      PC pc;
+      MatType type;
+      CELLFSI_PETSC(KSPGetOperators(region_ksp, &op, nullptr));
+      CELLFSI_PETSC(MatGetType(op, &type));
+      out.region_type = type;
+      CELLFSI_PETSC(KSPGetPC(region_ksp, &pc));
+      CELLFSI_PETSC(PCFactorGetMatrix(pc, &factor));
+      CELLFSI_PETSC(MatMumpsGetInfog(factor, 7, &out.mumps_ordering));
+      CELLFSI_PETSC(MatMumpsGetRinfog(factor, 1, &out.mumps_operations));
+    }
     const FgmresResult f = fgmres_with(pc_solver, J, r, x, 200);
     out.iterations = f.iterations;
     out.reason = f.reason;
@@ -372,6 +389,36 @@ TEST(RegionCorrectedSolver, SolvesTheJacobianWithAnInterfaceBandInAFewIterations
       EXPECT_TRUE(s.reason < 0 || s.iterations > 50) << "without the region correction: " << s.iterations;
     }
   }
+}
+
+TEST(RegionCorrectedSolver, OrdersTheRegionByNestedDissectionWhenAskedWithTheSameAnswer) {
+  // In 2D the region stays BAIJ and MUMPS orders it itself (its default; in 3D on one rank the default is
+  // cellfsi_nd). With -..._pc_factor_mat_ordering_type cellfsi_nd it goes to MUMPS as AIJ with SCOTCH's
+  // nested dissection (solvers/nested_dissection.hpp). Either way the LU is exact, so FGMRES takes the same
+  // iterations to the same solution.
+  const RegionSolve own = solve_ring(PETSC_COMM_SELF, true);
+  RegionSolve nd;
+  {
+    const char* name = "-test_region_region_pc_factor_mat_ordering_type";
+    CELLFSI_PETSC(PetscOptionsSetValue(nullptr, name, solvers::kMatOrderingNestedDissection));
+    nd = solve_ring(PETSC_COMM_SELF, true);
+    PetscOptionsClearValue(nullptr, name);
+  }
+  EXPECT_EQ(own.region_type, MATSEQBAIJ);
+  EXPECT_NE(own.mumps_ordering, 1);
+  EXPECT_EQ(nd.region_type, MATSEQAIJ);
+  EXPECT_EQ(nd.mumps_ordering, 1);
+  EXPECT_GT(nd.mumps_operations, 0);
+  EXPECT_LT(nd.mumps_operations, 2 * own.mumps_operations);  // not a bad order (2D ring: similar counts)
+  EXPECT_EQ(nd.iterations, own.iterations);
+  EXPECT_LT(nd.residual, 1e-9);
+  ASSERT_EQ(nd.x.size(), own.x.size());
+  double diff = 0, norm = 0;
+  for (std::size_t i = 0; i < nd.x.size(); ++i) {
+    diff = std::max(diff, std::abs(nd.x[i] - own.x[i]));
+    norm = std::max(norm, std::abs(own.x[i]));
+  }
+  EXPECT_LT(diff, 1e-8 * norm);
 }
 
 TEST(NearOperator, IsTheAssembledRowsNearTheCellsAndTheStencilElsewhere) {
