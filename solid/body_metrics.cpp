@@ -358,7 +358,22 @@ std::string motion_regime(bool round, bool membrane, const std::vector<double>& 
   // A round body's axis says nothing (a circle squeezed through a narrowing swaps its long axis without
   // turning): its material decides.
   if (round) return moved < kPi / 2 ? "steady" : membrane ? "tank-treading" : "tumbling";
-  if (turned >= kPi * (1 - 1e-12) || (turned >= kPi / 4 && turned >= 0.5 * moved)) return "tumbling";
+  // Net passages of the axis through the vertical (pi/2 + k pi): the change of the side it is on, between the
+  // first and the last record at least 1 deg clear of a vertical (a body started with its axis across the
+  // flow, at 90 deg exactly, has not passed it by turning away; a flip back and forth nets nothing).
+  const double clear = kPi / 180;
+  long first_side = 0, last_side = 0;
+  bool any_clear = false;
+  for (const double a : axis) {
+    const double k = std::floor((a - kPi / 2) / kPi);  // the vertical below a is pi/2 + k pi
+    const double from_vertical = std::min(a - (kPi / 2 + k * kPi), kPi / 2 + (k + 1) * kPi - a);
+    if (from_vertical < clear) continue;
+    last_side = std::lround(k);
+    if (!any_clear) first_side = last_side, any_clear = true;
+  }
+  const bool passed_vertical = any_clear && last_side != first_side;
+  if (turned >= kPi * (1 - 1e-12) || passed_vertical || (turned >= kPi / 4 && turned >= 0.5 * moved))
+    return "tumbling";
   if (moved < kPi / 2) return "steady";
   const auto [lo, hi] = std::minmax_element(axis.begin(), axis.end());
   return 0.5 * (*hi - *lo) * 180 / kPi >= swing_deg ? "swinging" : "tank-treading";

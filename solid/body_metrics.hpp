@@ -100,17 +100,6 @@ class BodyTracker {
   std::vector<Sample> history_;
 };
 
-/// How a body moves over a window of time (paper Sec. 3.2), from its long axis and its material:
-///   round      -> a body without a long axis of its own (reference shape round): "steady" when its material
-///                 turned by less than a quarter turn (e.g. a circular cell pushed through a narrowing),
-///                 else "tumbling" when bulky (it turns as a whole, as the paper's inclusions) and
-///                 "tank-treading" when a membrane;
-///   tumbling   -> the long axis turned through at least half a turn (pi: the axis has no sign), or, in a
-///                 window shorter than that, by at least 45 deg and at least half as far as the material;
-///   steady     -> the material turned by less than a quarter turn (no rotation to speak of);
-///   swinging   -> the axis oscillates by at least `swing_deg` (half peak-to-peak) while the material turns;
-///   tank-treading -> otherwise: the axis stays (oscillating by less), the material turns.
-/// `axis` and `material` are unwrapped angles [rad] at the window's records (at least two).
 /// Lateral migration across a channel (paper Sec. 4.2) from a centroid track: the offset from the centre line
 /// `mid` along direction `dir` at the first and last record, and the first time the offset fell below
 /// `fraction` of its initial magnitude (NaN if it never did; 0 for a body starting on the line).
@@ -128,6 +117,21 @@ Migration lateral_migration(const std::vector<std::pair<double, geometry::Vec3>>
 /// line across the flow (axis 1) only the ellipse is: the pair tells them apart (paper Sec. 4.2).
 double mirror_asymmetry(const std::vector<geometry::Vec3>& curve, const geometry::Vec3& centre, int axis);
 
+/// How a body moves over a window of time (paper Sec. 3.2), from its long axis and its material:
+///   round      -> a body without a long axis of its own (reference shape round): "steady" when its material
+///                 turned by less than a quarter turn (e.g. a circular cell pushed through a narrowing),
+///                 else "tumbling" when bulky (it turns as a whole, as the paper's inclusions) and
+///                 "tank-treading" when a membrane;
+///   tumbling   -> the long axis turned through at least half a turn (pi: the axis has no sign); or it
+///                 passed the vertical (theta = -+90 deg) in the window more often one way than the other
+///                 (between records at least 1 deg clear of it), which a swinging or tank-treading axis never
+///                 does: a membrane whose material turns faster than its axis, caught by the window on either
+///                 side of one passage, is tumbling too; or, in a window shorter than half a turn, it turned by
+///                 at least 45 deg and at least half as far as the material;
+///   steady     -> the material turned by less than a quarter turn (no rotation to speak of);
+///   swinging   -> the axis oscillates by at least `swing_deg` (half peak-to-peak) while the material turns;
+///   tank-treading -> otherwise: the axis stays (oscillating by less), the material turns.
+/// `axis` and `material` are unwrapped angles [rad] at the window's records (at least two).
 std::string motion_regime(bool round, bool membrane, const std::vector<double>& axis,
                           const std::vector<double>& material, double swing_deg = 2.0);
 

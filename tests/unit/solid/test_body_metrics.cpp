@@ -214,6 +214,25 @@ TEST(MotionRegime, DecidedFromTheAxisAndTheMaterial) {
   const std::vector<double> part(turn.begin(), turn.begin() + 130);
   EXPECT_EQ(solid::motion_regime(false, true, part, part), "tumbling");
   EXPECT_EQ(solid::motion_regime(false, true, fixed, still), "steady");
+  // A membrane whose material turns 4 times faster than its axis, caught across one passage of the vertical
+  // (axis from -60 to -130 deg: 70 deg, less than half the material's turn), is tumbling; the same axis
+  // range on the near side of the vertical (-10 to -80 deg) is not. Lambda = 6 in docs/validation.md was
+  // called swinging over such a window before this rule.
+  std::vector<double> across, near, fast;
+  for (int k = 0; k <= 100; ++k) {
+    across.push_back((-60.0 - 0.7 * k) * kPi / 180);
+    near.push_back((-10.0 - 0.7 * k) * kPi / 180);
+    fast.push_back(4 * across.back());
+  }
+  EXPECT_EQ(solid::motion_regime(false, true, across, fast), "tumbling");
+  EXPECT_NE(solid::motion_regime(false, true, near, fast), "tumbling");
+  // An axis that starts across the flow (90 deg, exactly or a hair beyond) and turns to tank-tread has not
+  // passed the vertical.
+  for (const double start : {90.0, 90.0 + 1e-9}) {
+    std::vector<double> settle;
+    for (int k = 0; k <= 100; ++k) settle.push_back((start - 0.7 * k) * kPi / 180);
+    EXPECT_NE(solid::motion_regime(false, true, settle, fast), "tumbling") << start;
+  }
   // A body round in its reference shape has no axis of its own: a bulky one turns as a whole.
   EXPECT_EQ(solid::motion_regime(true, false, still, material), "tumbling");
   EXPECT_EQ(solid::motion_regime(true, true, still, material), "tank-treading");
