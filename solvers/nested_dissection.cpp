@@ -51,8 +51,13 @@ PetscErrorCode order_nested_dissection(Mat A, MatOrderingType, IS* row, IS* col)
   const PetscInt* ia = nullptr;
   const PetscInt* ja = nullptr;
   PetscBool done = PETSC_FALSE;
-  PetscCall(MatGetRowIJ(A, 0, PETSC_FALSE, PETSC_FALSE, &n, &ia, &ja, &done));
+  // PETSc orders a blocked matrix (BAIJ) by block rows: its structure is then read block-compressed (the 4th
+  // argument of MatGetRowIJ is that for BAIJ), and each block row is a node.
+  PetscBool blocked = PETSC_FALSE;
+  PetscCall(PetscObjectTypeCompareAny(reinterpret_cast<PetscObject>(A), &blocked, MATSEQBAIJ, MATSEQSBAIJ, ""));
+  PetscCall(MatGetRowIJ(A, 0, PETSC_FALSE, blocked, &n, &ia, &ja, &done));
   PetscCheck(done, PETSC_COMM_SELF, PETSC_ERR_SUP, "cellfsi_nd: the matrix type gives no row structure");
+  if (blocked) bs = 1;
   PetscCheck(bs >= 1 && n % bs == 0, PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ,
              "cellfsi_nd: %" PetscInt_FMT " rows are not whole blocks of %" PetscInt_FMT, n, bs);
   const PetscInt n_nodes = n / bs;
@@ -68,7 +73,7 @@ PetscErrorCode order_nested_dissection(Mat A, MatOrderingType, IS* row, IS* col)
     }
   }
   PetscInt n_restored = 0;
-  PetscCall(MatRestoreRowIJ(A, 0, PETSC_FALSE, PETSC_FALSE, &n_restored, &ia, &ja, &done));
+  PetscCall(MatRestoreRowIJ(A, 0, PETSC_FALSE, blocked, &n_restored, &ia, &ja, &done));
   std::vector<int> xadj(n_nodes + 1, 0), adj;
   for (PetscInt a = 0; a < n_nodes; ++a) {
     auto& v = neighbours[a];

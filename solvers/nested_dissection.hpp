@@ -9,8 +9,8 @@
 // operations and 49 s, this ordering 1.60e12 and 39 s; SuperLU_DIST with (Par)METIS 1.5e12.
 //
 // The graph is that of nodes (rows grouped by the matrix's block size, e.g. 4 unknowns per node of the
-// Navier-Stokes box), so a node's unknowns stay together and SCOTCH orders 4 times fewer vertices; the
-// pattern is made symmetric (A + A^T). PETSc hands the ordering to MUMPS only on one rank and for an AIJ
+// Navier-Stokes box; a BAIJ matrix, which PETSc orders by block rows, by its block rows), so a node's
+// unknowns stay together and SCOTCH orders 4 times fewer vertices; the pattern is made symmetric (A + A^T). PETSc hands the ordering to MUMPS only on one rank and for an AIJ
 // matrix (MatLUFactorSymbolic_AIJMUMPS with centralized input); RegionCorrectedSolver converts the region to
 // AIJ when this ordering is asked for.
 #include <petscmat.h>

@@ -139,3 +139,39 @@ TEST(NestedDissection, GivesMumpsFewerEntriesThanTheNaturalOrderWithTheSameSolut
   MatDestroy(&A);
   MatDestroy(&B);
 }
+
+TEST(NestedDissection, OrdersABlockedMatrixByItsBlockRowsForPetscsOwnLU) {
+  // On a BAIJ matrix PETSc orders block rows: the ordering is then one of nodes, and PETSc's own LU with it
+  // solves exactly (a user who picks -..._pc_factor_mat_solver_type petsc keeps the region's default order).
+  solvers::register_orderings();
+  Grid g;
+  g.nx = 12;
+  g.ny = 9;
+  std::mt19937 rng(3);
+  Mat A = g.assemble(rng, [](int, int) { return true; }, [](int, int) { return 1.0; });
+  IS row, col;
+  CELLFSI_PETSC(MatGetOrdering(A, solvers::kMatOrderingNestedDissection, &row, &col));
+  PetscInt n = 0;
+  CELLFSI_PETSC(ISGetSize(row, &n));
+  EXPECT_EQ(n, g.nx * g.ny);  // block rows
+  ISDestroy(&row);
+  ISDestroy(&col);
+  KSP ksp;
+  PC pc;
+  CELLFSI_PETSC(KSPCreate(PETSC_COMM_SELF, &ksp));
+  CELLFSI_PETSC(KSPSetOperators(ksp, A, A));
+  CELLFSI_PETSC(KSPSetType(ksp, KSPPREONLY));
+  CELLFSI_PETSC(KSPGetPC(ksp, &pc));
+  CELLFSI_PETSC(PCSetType(pc, PCLU));
+  CELLFSI_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERPETSC));
+  CELLFSI_PETSC(PCFactorSetMatOrderingType(pc, solvers::kMatOrderingNestedDissection));
+  Vec b, x;
+  CELLFSI_PETSC(MatCreateVecs(A, &x, &b));
+  CELLFSI_PETSC(VecSet(b, 1.0));
+  CELLFSI_PETSC(KSPSolve(ksp, b, x));
+  EXPECT_LT(cellfsi::test::relative_residual(A, x, b), 1e-12);
+  VecDestroy(&b);
+  VecDestroy(&x);
+  KSPDestroy(&ksp);
+  MatDestroy(&A);
+}
