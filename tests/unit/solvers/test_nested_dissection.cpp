@@ -15,6 +15,7 @@
 
 namespace solvers = cellfsi::solvers;
 using cellfsi::test::Grid;
+using cellfsi::test::kBs;
 
 namespace {
 
@@ -95,6 +96,15 @@ LuRun lu_solve(Mat A, const char* package, const char* ordering) {
   return out;
 }
 
+/// The fluid Jacobian's shape on an nx x ny grid of nodes: SeqBAIJ blocks of kBs unknowns, every cell filled.
+Mat full_grid(int nx, int ny, unsigned seed) {
+  Grid g;
+  g.nx = nx;
+  g.ny = ny;
+  std::mt19937 rng(seed);
+  return g.assemble(rng, [](int, int) { return true; }, [](int, int) { return 1.0; });
+}
+
 }  // namespace
 
 TEST(NestedDissection, IsAPermutationThatOrdersASeparatorLast) {
@@ -126,13 +136,18 @@ TEST(NestedDissection, GivesMumpsFewerEntriesThanTheNaturalOrderWithTheSameSolut
   // the order PETSc gives (INFOG(7) = 1), keeps a node's unknowns together, stores fewer entries than with
   // the natural (banded) order, and solves exactly.
   solvers::register_orderings();
-  Grid g;
-  g.nx = 40;
-  g.ny = 40;
-  std::mt19937 rng(7);
-  Mat B = g.assemble(rng, [](int, int) { return true; }, [](int, int) { return 1.0; });
+  Mat B = full_grid(40, 40, 7);
   Mat A;
   CELLFSI_PETSC(MatConvert(B, MATAIJ, MAT_INITIAL_MATRIX, &A));
+  IS row, col;
+  CELLFSI_PETSC(MatGetOrdering(A, solvers::kMatOrderingNestedDissection, &row, &col));
+  const PetscInt* position = nullptr;
+  CELLFSI_PETSC(ISGetIndices(row, &position));
+  for (PetscInt r = 0; r < 40 * 40 * kBs; ++r)  // a node's unknowns: consecutive positions, in their order
+    ASSERT_EQ(position[r], position[r - r % kBs] + r % kBs) << "row " << r;
+  CELLFSI_PETSC(ISRestoreIndices(row, &position));
+  ISDestroy(&row);
+  ISDestroy(&col);
   const LuRun nd = lu_solve(A, MATSOLVERMUMPS, solvers::kMatOrderingNestedDissection);
   const LuRun natural = lu_solve(A, MATSOLVERMUMPS, MATORDERINGNATURAL);
   EXPECT_EQ(nd.ordering_used, 1);
@@ -148,16 +163,12 @@ TEST(NestedDissection, OrdersABlockedMatrixByItsBlockRowsForPetscsOwnLU) {
   // On a BAIJ matrix PETSc orders block rows: the ordering is then one of nodes, and PETSc's own LU with it
   // solves exactly (a user who picks -..._pc_factor_mat_solver_type petsc keeps the region's default order).
   solvers::register_orderings();
-  Grid g;
-  g.nx = 12;
-  g.ny = 9;
-  std::mt19937 rng(3);
-  Mat A = g.assemble(rng, [](int, int) { return true; }, [](int, int) { return 1.0; });
+  Mat A = full_grid(12, 9, 3);
   IS row, col;
   CELLFSI_PETSC(MatGetOrdering(A, solvers::kMatOrderingNestedDissection, &row, &col));
   PetscInt n = 0;
   CELLFSI_PETSC(ISGetSize(row, &n));
-  EXPECT_EQ(n, g.nx * g.ny);  // block rows
+  EXPECT_EQ(n, 12 * 9);  // block rows
   ISDestroy(&row);
   ISDestroy(&col);
   EXPECT_LT(lu_solve(A, MATSOLVERPETSC, solvers::kMatOrderingNestedDissection).residual, 1e-12);
