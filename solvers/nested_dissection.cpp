@@ -1,6 +1,7 @@
 #include "solvers/nested_dissection.hpp"
 
 #include <algorithm>
+#include <new>
 #include <stdexcept>
 #include <string>
 
@@ -23,7 +24,11 @@ std::vector<int> nested_dissection(const std::vector<int>& xadj, const std::vect
   // SCOTCH's structures are allocated by SCOTCH: their size is the library's, not the header's.
   SCOTCH_Graph* graph = SCOTCH_graphAlloc();
   SCOTCH_Strat* strategy = SCOTCH_stratAlloc();
-  if (!graph || !strategy) throw std::bad_alloc();
+  if (!graph || !strategy) {
+    if (graph) SCOTCH_memFree(graph);
+    if (strategy) SCOTCH_memFree(strategy);
+    throw std::bad_alloc();
+  }
   int err = SCOTCH_graphInit(graph);
   if (!err) {
     SCOTCH_stratInit(strategy);
