@@ -7,13 +7,15 @@
 //   bench/saved_matrix_solve -f region.bin -rhs rhs.bin -ksp_type gmres -pc_type ilu ...
 //
 // (the run appends one matrix and right-hand side per region solve; the first of each is read). Without
-// -rhs the right-hand side is random. The matrix is read as AIJ unless -mat_type says otherwise.
+// -rhs the right-hand side is random. The matrix is read as AIJ unless -mat_type says otherwise. The region's
+// ordering cellfsi_nd (solvers/nested_dissection.hpp) is registered: -pc_factor_mat_ordering_type cellfsi_nd.
 #include <petscksp.h>
 
 #include <cstdio>
 #include <exception>
 
 #include "common/petsc_error.hpp"
+#include "solvers/nested_dissection.hpp"
 
 namespace {
 
@@ -82,6 +84,7 @@ int main(int argc, char** argv) {
   if (PetscInitialize(&argc, &argv, nullptr, nullptr) != 0) return 1;
   int rc = 1;
   try {
+    cellfsi::solvers::register_orderings();  // -pc_factor_mat_ordering_type cellfsi_nd
     rc = run();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "saved_matrix_solve: %s\n", e.what());
