@@ -8,14 +8,15 @@
 //
 // (the run appends one matrix and right-hand side per region solve; the first of each is read). Without
 // -rhs the right-hand side is random. The matrix is read as AIJ unless -mat_type says otherwise. The region's
-// ordering cellfsi_nd (solvers/nested_dissection.hpp) is registered: -pc_factor_mat_ordering_type cellfsi_nd.
+// ordering cellfsi_nd (solvers/nested_dissection.hpp) is registered: -pc_factor_mat_ordering_type cellfsi_nd;
+// so is the LU in single precision (solvers/single_precision_lu.hpp): -ksp_type fgmres -pc_type cellfsi_lu_single.
 #include <petscksp.h>
 
 #include <cstdio>
 #include <exception>
 
 #include "common/petsc_error.hpp"
-#include "solvers/nested_dissection.hpp"
+#include "solvers/pc_types.hpp"
 
 namespace {
 
@@ -84,7 +85,8 @@ int main(int argc, char** argv) {
   if (PetscInitialize(&argc, &argv, nullptr, nullptr) != 0) return 1;
   int rc = 1;
   try {
-    cellfsi::solvers::register_orderings();  // -pc_factor_mat_ordering_type cellfsi_nd
+    // -pc_factor_mat_ordering_type cellfsi_nd, -pc_type cellfsi_lu_single
+    cellfsi::solvers::register_pc_types();
     rc = run();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "saved_matrix_solve: %s\n", e.what());

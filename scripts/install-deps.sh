@@ -12,6 +12,7 @@ packages=(
   libeigen3-dev              # (and its FFT module: solvers/fourier_bulk.cpp)
   liblapack-dev              # banded LU of the Fourier bulk solver (zgbtrf)
   libscotch-dev              # nested-dissection ordering of the region's LU (solvers/nested_dissection.hpp)
+  libmumps-dev               # MUMPS in single precision for the 3D region's LU (solvers/single_precision_lu.hpp)
   libcgal-dev
   libvtk9-dev
   libyaml-cpp-dev            # scene files checked before PETSc reads them

@@ -46,6 +46,20 @@ std::vector<int> nested_dissection(const std::vector<int>& xadj, const std::vect
   return position;
 }
 
+std::vector<int> nested_dissection(std::vector<std::vector<int>> neighbours) {
+  const auto n = static_cast<int>(neighbours.size());
+  std::vector<int> xadj(n + 1, 0), adj;
+  for (int a = 0; a < n; ++a) {
+    auto& v = neighbours[a];
+    std::sort(v.begin(), v.end());
+    v.erase(std::unique(v.begin(), v.end()), v.end());
+    adj.insert(adj.end(), v.begin(), v.end());
+    xadj[a + 1] = static_cast<int>(adj.size());
+    std::vector<int>().swap(v);
+  }
+  return nested_dissection(xadj, adj);
+}
+
 namespace {
 
 // The MatOrdering: the node graph of A (rows grouped by A's block size), ordered by nested_dissection.
@@ -79,18 +93,9 @@ PetscErrorCode order_nested_dissection(Mat A, MatOrderingType, IS* row, IS* col)
   }
   PetscInt n_restored = 0;
   PetscCall(MatRestoreRowIJ(A, 0, PETSC_FALSE, blocked, &n_restored, &ia, &ja, &done));
-  std::vector<int> xadj(n_nodes + 1, 0), adj;
-  for (PetscInt a = 0; a < n_nodes; ++a) {
-    auto& v = neighbours[a];
-    std::sort(v.begin(), v.end());
-    v.erase(std::unique(v.begin(), v.end()), v.end());
-    adj.insert(adj.end(), v.begin(), v.end());
-    xadj[a + 1] = static_cast<int>(adj.size());
-    std::vector<int>().swap(v);
-  }
   std::vector<int> position;
   try {
-    position = nested_dissection(xadj, adj);
+    position = nested_dissection(std::move(neighbours));
   } catch (const std::exception& e) {
     SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "%s", e.what());
   }

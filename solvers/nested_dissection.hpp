@@ -29,4 +29,8 @@ void register_orderings();
 /// position[v], the place of vertex v in the elimination order (a permutation of 0..n-1).
 std::vector<int> nested_dissection(const std::vector<int>& xadj, const std::vector<int>& adj);
 
+/// The same from neighbour lists (neighbours[v]: v's neighbours, repeats allowed, every edge in both lists;
+/// the lists are consumed).
+std::vector<int> nested_dissection(std::vector<std::vector<int>> neighbours);
+
 }  // namespace cellfsi::solvers

@@ -27,7 +27,12 @@ struct Context {
   std::unique_ptr<BandSchurSolver> band;
   PetscBool fused = PETSC_TRUE;  // BandSchurSolver::set_fused_solve
   PetscReal blr = 1e-10;         // BandSchurSolver::set_blr_tolerance
+  // cellfsi_lu_single
+  std::unique_ptr<SinglePrecisionLU> single;
+  PetscInt ordering = 0;  // index in kSingleOrderings
 };
+
+const char* const kSingleOrderings[] = {kMatOrderingNestedDissection, "mumps"};
 
 PetscErrorCode destroy_context(void* p) {
   delete static_cast<Context*>(p);
@@ -77,7 +82,12 @@ PetscErrorCode set_up(PC pc) {
     Context* c = context(pc);
     Mat P = nullptr;
     CELLFSI_PETSC(PCGetOperators(pc, nullptr, &P));
-    if (pc_is(pc, kPCFourier)) {
+    if (pc_is(pc, kPCLUSingle)) {
+      if (!c->single)
+        c->single = std::make_unique<SinglePrecisionLU>(PetscObjectComm(reinterpret_cast<PetscObject>(pc)));
+      c->single->set_ordering(kSingleOrderings[c->ordering]);
+      c->single->factor(P);
+    } else if (pc_is(pc, kPCFourier)) {
       if (!c->fourier || !c->fourier->bulk().built())
         throw std::logic_error(
             "cellfsi_fourier: set up before its box and bulk operator were given (solvers::pc_fourier_set_box "
@@ -96,7 +106,9 @@ PetscErrorCode set_up(PC pc) {
 PetscErrorCode apply(PC pc, Vec r, Vec x) {
   return guarded(pc, [&] {
     Context* c = context(pc);
-    if (pc_is(pc, kPCFourier))
+    if (pc_is(pc, kPCLUSingle))
+      c->single->solve(r, x);
+    else if (pc_is(pc, kPCFourier))
       c->fourier->apply(r, x);
     else
       c->band->solve(r, x);
@@ -108,7 +120,17 @@ PetscErrorCode view(PC pc, PetscViewer v) {
   PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(v), PETSCVIEWERASCII, &ascii));
   if (!ascii) return 0;
   const Context* c = context(pc);
-  if (pc_is(pc, kPCFourier)) {
+  if (pc_is(pc, kPCLUSingle)) {
+    PetscCall(
+        PetscViewerASCIIPrintf(v, "  MUMPS LU in single precision, ordering %s\n", kSingleOrderings[c->ordering]));
+    if (c->single && c->single->factored())
+      PetscCall(PetscViewerASCIIPrintf(v,
+                                       "  %" PetscInt_FMT " unknowns, %.3e operations, %lld entries in the factors "
+                                       "(%.1f MB), %d analyses\n",
+                                       c->single->size(), c->single->operations(), c->single->factor_entries(),
+                                       4.0 * static_cast<double>(c->single->factor_entries()) / 1048576.0,
+                                       c->single->analyses()));
+  } else if (pc_is(pc, kPCFourier)) {
     PetscCall(PetscViewerASCIIPrintf(v, "  region: nodes deviating by more than %g from the bulk operator, grown "
                                         "by %" PetscInt_FMT " layers; %" PetscInt_FMT " region solve(s) per "
                                         "application\n",
@@ -161,6 +183,14 @@ PetscErrorCode set_from_options(PetscObject obj, PetscOptionItems* PetscOptionsO
               "-%spc_fourier_threshold %g is invalid. Valid values are > 0", prefix_of(pc).c_str(),
               static_cast<double>(c->threshold));
     PetscCall(guarded(pc, [&] { apply_fourier_options(*c); }));
+    PetscOptionsHeadEnd();
+  } else if (pc_is(pc, kPCLUSingle)) {
+    PetscOptionsHeadBegin(PetscOptionsObject, "cellfsi_lu_single options");
+    PetscCall(PetscOptionsEList("-pc_lu_single_ordering",
+                                "Fill-reducing ordering: SCOTCH's nested dissection of the node graph, or MUMPS' "
+                                "own choice",
+                                "solvers/single_precision_lu.hpp", kSingleOrderings, 2, kSingleOrderings[c->ordering],
+                                &c->ordering, nullptr));
     PetscOptionsHeadEnd();
   } else if (pc_is(pc, kPCBand)) {
     PetscOptionsHeadBegin(PetscOptionsObject, "cellfsi_band options");
@@ -224,6 +254,10 @@ PetscErrorCode create_band(PC pc) {
   return create(pc, kPCBand, "cellfsi kept part LU + band Schur complement (solvers/band_schur.hpp)");
 }
 
+PetscErrorCode create_lu_single(PC pc) {
+  return create(pc, kPCLUSingle, "cellfsi LU in single precision (solvers/single_precision_lu.hpp)");
+}
+
 Context& context_of_type(PC pc, const char* type, const char* caller) {
   Context* c = pc_is(pc, type) ? context(pc) : nullptr;
   if (!c) throw std::logic_error(std::string(caller) + ": the PC is not of type " + type);
@@ -237,6 +271,7 @@ void register_pc_types() {
   if (done) return;
   CELLFSI_PETSC(PCRegister(kPCFourier, create_fourier));
   CELLFSI_PETSC(PCRegister(kPCBand, create_band));
+  CELLFSI_PETSC(PCRegister(kPCLUSingle, create_lu_single));
   register_orderings();  // the region's LU orders by -..._pc_factor_mat_ordering_type cellfsi_nd
   done = true;
 }
@@ -279,5 +314,9 @@ void pc_band_set_split(PC pc, Mat fixed, IS band) {
 }
 
 const BandSchurSolver* pc_band_solver(PC pc) { return pc_is(pc, kPCBand) ? context(pc)->band.get() : nullptr; }
+
+const SinglePrecisionLU* pc_lu_single_solver(PC pc) {
+  return pc_is(pc, kPCLUSingle) ? context(pc)->single.get() : nullptr;
+}
 
 }  // namespace cellfsi::solvers

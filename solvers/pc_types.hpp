@@ -4,7 +4,10 @@
 //                                       where the operator differs from it (solvers/region_corrected.hpp)
 //   -coupling_pc_type cellfsi_band      the kept part's LU with the band's Schur complement: the exact
 //                                       inverse of kept part + band (solvers/band_schur.hpp; one rank)
-// -ksp_view shows them with their sizes; their options (-pc_fourier_*, -pc_band_*) are read by
+//   -..._pc_type cellfsi_lu_single      a sparse LU in single precision (MUMPS smumps) of any AIJ or BAIJ
+//                                       operator, as a preconditioner (solvers/single_precision_lu.hpp): the
+//                                       3D default of cellfsi_fourier's region (-coupling_fourier_region_pc_type)
+// -ksp_view shows them with their sizes; their options (-pc_fourier_*, -pc_band_*, -pc_lu_single_*) are read by
 // PCSetFromOptions and listed by -help.
 //
 // What the operator's entries do not tell them comes from the owner of the operator (in cellfsi the coupling
@@ -14,7 +17,8 @@
 //                    (pc_fourier_set_bulk, which builds the FFT solver at once and reports its uniformity);
 //   cellfsi_band:    the kept part and the band's unknowns (pc_band_set_split, which factorises at once).
 // PCSetUp (KSP calls it whenever the operator's entries changed) then factorises only what depends on the
-// whole operator: the region's LU, or the band's Schur complement.
+// whole operator: the region's LU, or the band's Schur complement. cellfsi_lu_single needs nothing but its
+// operator.
 //
 // Implementation: each type is a PCSHELL underneath, renamed (public PETSc API only: PCSetType,
 // PetscObjectChangeTypeName, PetscObjectCompose, PetscObjectAddOptionsHandler); the solver object is
@@ -26,11 +30,13 @@
 
 #include "solvers/band_schur.hpp"
 #include "solvers/region_corrected.hpp"
+#include "solvers/single_precision_lu.hpp"
 
 namespace cellfsi::solvers {
 
 inline constexpr const char* kPCFourier = "cellfsi_fourier";
 inline constexpr const char* kPCBand = "cellfsi_band";
+inline constexpr const char* kPCLUSingle = "cellfsi_lu_single";
 
 /// Registers the types with PETSc (once; later calls do nothing). After PetscInitialize.
 void register_pc_types();
@@ -61,5 +67,8 @@ const RegionCorrectedSolver* pc_fourier_solver(PC pc);
 void pc_band_set_split(PC pc, Mat fixed, IS band);
 /// cellfsi_band: its solver (null for another type).
 const BandSchurSolver* pc_band_solver(PC pc);
+
+/// cellfsi_lu_single: its solver (null for another type or before the first set-up).
+const SinglePrecisionLU* pc_lu_single_solver(PC pc);
 
 }  // namespace cellfsi::solvers

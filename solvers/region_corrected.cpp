@@ -6,6 +6,7 @@
 #include "common/petsc_error.hpp"
 #include "solvers/near_operator.hpp"
 #include "solvers/nested_dissection.hpp"
+#include "solvers/pc_types.hpp"
 
 namespace cellfsi::solvers {
 
@@ -19,7 +20,7 @@ RegionCorrectedSolver::RegionCorrectedSolver(std::array<int, 3> n, std::array<bo
       dof_(dof),
       prefix_(std::move(prefix)),
       comm_(comm) {
-  register_orderings();  // the region's default ordering on one rank
+  register_pc_types();  // the region's default solver in 3D (cellfsi_lu_single) and ordering (cellfsi_nd)
 }
 
 RegionCorrectedSolver::~RegionCorrectedSolver() {
@@ -128,16 +129,28 @@ void RegionCorrectedSolver::set_operator(Mat J) {
     CELLFSI_PETSC(KSPSetType(region_ksp_, KSPPREONLY));
     PC pc;
     CELLFSI_PETSC(KSPGetPC(region_ksp_, &pc));
-    CELLFSI_PETSC(PCSetType(pc, PCLU));
-    CELLFSI_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
     PetscMPIInt size = 1;
     CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
-    // In 3D on one rank MUMPS takes an ordering from PETSc: SCOTCH's nested dissection leaves narrower fronts
-    // than the orderings of Debian's MUMPS (solvers/nested_dissection.hpp; 11 % off the LU at 64^3). In 2D the
-    // region is small and MUMPS' own choice is as good: there the ordering and the AIJ copy cost 3 % of the
-    // default scene (docs/performance.md §12). -..._pc_factor_mat_ordering_type external|cellfsi_nd chooses.
-    if (size == 1 && n_[2] > 1) CELLFSI_PETSC(PCFactorSetMatOrderingType(pc, kMatOrderingNestedDissection));
+    // In 3D the region's LU is half of a step at 64^3, redone every step: in single precision it costs half
+    // (solvers/single_precision_lu.hpp, SCOTCH's nested dissection on any number of ranks), and the outer
+    // FGMRES makes up the precision (docs/performance.md §13). In 2D the region is small: MUMPS in double
+    // precision with its own ordering (SCOTCH's ordering and the AIJ copy cost 3 % of the default scene, §12).
+    CELLFSI_PETSC(PCSetType(pc, n_[2] > 1 ? kPCLUSingle : PCLU));
     CELLFSI_PETSC(KSPSetFromOptions(region_ksp_));
+    PetscBool factor = PETSC_FALSE;
+    CELLFSI_PETSC(PetscObjectTypeCompareAny(reinterpret_cast<PetscObject>(pc), &factor, PCLU, PCCHOLESKY, ""));
+    if (factor) {
+      // A factorisation chosen by options (-..._pc_type lu): MUMPS unless another package is named, and in 3D
+      // on one rank SCOTCH's ordering handed to it by PETSc (11 % off the LU at 64^3, §12) unless another
+      // ordering is named (external: MUMPS' own).
+      const std::string region_prefix = prefix_ + "region_";
+      PetscBool package = PETSC_FALSE, ordering = PETSC_FALSE;
+      CELLFSI_PETSC(PetscOptionsHasName(nullptr, region_prefix.c_str(), "-pc_factor_mat_solver_type", &package));
+      CELLFSI_PETSC(PetscOptionsHasName(nullptr, region_prefix.c_str(), "-pc_factor_mat_ordering_type", &ordering));
+      if (!package) CELLFSI_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+      if (!ordering && size == 1 && n_[2] > 1)
+        CELLFSI_PETSC(PCFactorSetMatOrderingType(pc, kMatOrderingNestedDissection));
+    }
     aij_ = needs_aij(pc, size);
     region_ = std::move(region);
   } else if (n_region_ > 0) {

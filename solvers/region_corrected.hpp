@@ -16,7 +16,9 @@
 // with R the restriction to the region's unknowns (set_region_solves(2) puts a region solve first too: fewer
 // Krylov iterations, each dearer). `set_operator(J)` finds the region (nodes whose rows of J differ from A by
 // more than `threshold` of the row's largest entry of A, grown by `overlap` node layers in every direction)
-// and factorises J_R with MUMPS (options prefix given at construction + "region_").
+// and factorises J_R (options prefix given at construction + "region_"): in 3D by MUMPS in single precision
+// (cellfsi_lu_single, solvers/single_precision_lu.hpp; the FGMRES around this preconditioner makes up the
+// precision, with the same iterations: docs/performance.md §13), in 2D by MUMPS in double precision.
 //
 // Measured on the 3D compound capsule at 32^3 quadratic (3 steps, one rank; docs/performance.md): the
 // region is the 3700 nodes of the s_I band and the immersed points, 14.7 k unknowns; 6 FGMRES iterations per

@@ -58,10 +58,7 @@ TEST_P(BandSchurSolverModes, InvertsFixedPlusAnyBandAfterOneFactorisation) {
 
   Vec r;
   CELLFSI_PETSC(MatCreateVecs(fixed, &r, nullptr));
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  for (PetscInt k = 0; k < g.n(); ++k) CELLFSI_PETSC(VecSetValue(r, k, u(rng), INSERT_VALUES));
-  CELLFSI_PETSC(VecAssemblyBegin(r));
-  CELLFSI_PETSC(VecAssemblyEnd(r));
+  cellfsi::test::fill_random(r, rng);
 
   // Three different band parts, the last two with a moving strip of cells scaled by 1e10 (like s_I), with the
   // one factorisation of the fixed part. Measured: 2e-16 in every round (both solve modes); the tolerance

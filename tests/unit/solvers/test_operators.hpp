@@ -1,12 +1,19 @@
 #pragma once
 // What the solver tests share: a test operator shaped like the fluid's Jacobian (SeqBAIJ blocks of 3 unknowns
-// on a grid of nodes, with the 9-point block stencil as structure) and the relative residual of a solution.
-#include <petscmat.h>
+// on a grid of nodes, with the 9-point block stencil as structure), random vectors, a KSP's view and the
+// relative residual of a solution.
+#include <petscksp.h>
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
 
 #include <random>
 #include <vector>
 
 #include "common/petsc_error.hpp"
+#include "solvers/pc_types.hpp"
 
 namespace cellfsi::test {
 
@@ -50,6 +57,40 @@ struct Grid {
     return A;
   }
 };
+
+/// Registers cellfsi's PC types, and PETSc's error messages go into the exceptions (as in the executables).
+inline void set_up_pc_types_once() {
+  static const bool done = [] {
+    cellfsi::record_petsc_errors();
+    cellfsi::solvers::register_pc_types();
+    return true;
+  }();
+  (void)done;
+}
+
+/// Fills a sequential vector with values uniform in [-1, 1] from rng.
+inline void fill_random(Vec v, std::mt19937& rng) {
+  PetscInt n = 0;
+  CELLFSI_PETSC(VecGetSize(v, &n));
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (PetscInt k = 0; k < n; ++k) CELLFSI_PETSC(VecSetValue(v, k, u(rng), INSERT_VALUES));
+  CELLFSI_PETSC(VecAssemblyBegin(v));
+  CELLFSI_PETSC(VecAssemblyEnd(v));
+}
+
+/// What KSPView prints (through an ASCII viewer on a file, as -ksp_view does on the console).
+inline std::string view_text(KSP ksp) {
+  const std::string path = "solvers_test_view.txt";
+  PetscViewer v;
+  CELLFSI_PETSC(PetscViewerASCIIOpen(PETSC_COMM_SELF, path.c_str(), &v));
+  CELLFSI_PETSC(KSPView(ksp, v));
+  PetscViewerDestroy(&v);
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  std::remove(path.c_str());
+  return text.str();
+}
 
 /// |A x - r| / |r|.
 inline double relative_residual(Mat A, Vec x, Vec r) {

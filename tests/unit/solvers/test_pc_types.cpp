@@ -17,6 +17,8 @@
 
 using cellfsi::test::Grid;
 using cellfsi::test::kBs;
+using cellfsi::test::view_text;
+constexpr auto set_up_once = cellfsi::test::set_up_pc_types_once;
 namespace solvers = cellfsi::solvers;
 
 namespace {
@@ -29,30 +31,6 @@ struct ScopedOption {
   }
   ~ScopedOption() { PetscOptionsClearValue(nullptr, name.c_str()); }
 };
-
-/// What KSPView prints (through an ASCII viewer on a file, as -ksp_view does on the console).
-std::string view_text(KSP ksp) {
-  const std::string path = "pc_types_view.txt";
-  PetscViewer v;
-  CELLFSI_PETSC(PetscViewerASCIIOpen(PETSC_COMM_SELF, path.c_str(), &v));
-  CELLFSI_PETSC(KSPView(ksp, v));
-  PetscViewerDestroy(&v);
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  std::remove(path.c_str());
-  return text.str();
-}
-
-/// Registers the types, and PETSc's error messages go into the exceptions (as in the executables).
-void set_up_once() {
-  static const bool done = [] {
-    cellfsi::record_petsc_errors();
-    solvers::register_pc_types();
-    return true;
-  }();
-  (void)done;
-}
 
 /// The band problem of test_band_schur.cpp: a kept part outside the cells 5 <= i < 9, a band part on them
 /// (one strip scaled by 1e10, like s_I), and the band's unknowns.
@@ -76,10 +54,7 @@ struct BandProblem {
     CELLFSI_PETSC(ISCreateGeneral(PETSC_COMM_SELF, static_cast<PetscInt>(idx.size()), idx.data(),
                                   PETSC_COPY_VALUES, &band));
     CELLFSI_PETSC(MatCreateVecs(K, &x, &r));
-    std::uniform_real_distribution<double> u(-1.0, 1.0);
-    for (PetscInt k = 0; k < g.n(); ++k) CELLFSI_PETSC(VecSetValue(r, k, u(rng), INSERT_VALUES));
-    CELLFSI_PETSC(VecAssemblyBegin(r));
-    CELLFSI_PETSC(VecAssemblyEnd(r));
+    cellfsi::test::fill_random(r, rng);
   }
   ~BandProblem() {
     MatDestroy(&fixed);
