@@ -724,6 +724,15 @@ TEST_F(CellfsiApp, RegionLUInSinglePrecisionGivesTheDoubleOnesAnswerIn3D) {
   EXPECT_TRUE(rows_agree(metrics_only(single), metrics_only(last_row(out_ / "metrics.csv")), 1e-9, 1e-3));
   for (const char* key : {"coupling_iterations", "linear_iterations"})
     EXPECT_EQ(json_number(single_summary, key), json_number(summary(), key)) << key;
+  // A factorisation option for the region, which the single-precision LU does not read: one error saying so.
+  const RunResult r = cellfsi({scene("compound_capsule_shear_3d.yaml"), "-fluid_elements", "12,12,12",
+                               "-solid_membrane_elements", "1,0,0", "-solid_nucleus_elements", "0,0,0",
+                               "-final_time", "5e-4", "-output_every", "0",
+                               "-coupling_fourier_region_mat_mumps_icntl_14", "40"},
+                              120);
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
+  EXPECT_NE(r.output.find("-coupling_fourier_region_pc_type lu"), std::string::npos) << r.output;
 }
 
 TEST_F(CellfsiApp, BulkStencilOnOneAndTwoRanksAgreesWithTheWholeJacobian) {
