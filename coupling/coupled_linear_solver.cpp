@@ -505,6 +505,14 @@ int CoupledLinearSolver::solve(Vec X, Vec F, Vec dX, bool first_iteration, Solve
     solves_since_refresh_ = steps_since_refresh_ = 0;
     PC pc;
     CELLFSI_PETSC(KSPGetPC(ksp_, &pc));
+    const solvers::RegionCorrectedSolver* fourier = solvers::pc_fourier_solver(pc);
+    if (fourier && !fourier->single_precision_failure().empty() && !single_failure_reported_) {
+      single_failure_reported_ = true;
+      CELLFSI_PETSC(PetscPrintf(fluid_.comm(),
+                                "cellfsi: the region's LU in single precision failed (%s); the region is factorised "
+                                "in double precision from now on (-coupling_fourier_region_pc_type lu)\n",
+                                fourier->single_precision_failure().c_str()));
+    }
     if (opt_.monitor && solvers::pc_fourier_solver(pc))
       CELLFSI_PETSC(PetscPrintf(fluid_.comm(),
                                 "  Fourier solver: %d nodes differ from the bulk, region %" PetscInt_FMT

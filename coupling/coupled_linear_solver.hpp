@@ -138,6 +138,7 @@ class CoupledLinearSolver {
   MatNullSpace null_space_ = nullptr, transpose_null_space_ = nullptr;  // the fluid Jacobian's, for near_op_
   int steps_since_refresh_ = 0, solves_since_refresh_ = 0, steps_since_factor_ = 0, solves_since_pc_ = 1 << 30;
   bool bulk_built_ = false;
+  bool single_failure_reported_ = false;  // the region's single-precision LU failed, and the console was told
 };
 
 }  // namespace cellfsi::coupling

@@ -124,34 +124,9 @@ void RegionCorrectedSolver::set_operator(Mat J) {
     CELLFSI_PETSC(VecSetType(rR_, VECSTANDARD));
     CELLFSI_PETSC(VecDuplicate(rR_, &xR_));
     CELLFSI_PETSC(VecScatterCreate(res_, is_, rR_, nullptr, &to_region_));
-    CELLFSI_PETSC(KSPCreate(comm_, &region_ksp_));
-    CELLFSI_PETSC(KSPSetOptionsPrefix(region_ksp_, (prefix_ + "region_").c_str()));
-    CELLFSI_PETSC(KSPSetType(region_ksp_, KSPPREONLY));
-    PC pc;
-    CELLFSI_PETSC(KSPGetPC(region_ksp_, &pc));
     PetscMPIInt size = 1;
     CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
-    // In 3D the region's LU is half of a step at 64^3, redone every step: in single precision it costs half
-    // (solvers/single_precision_lu.hpp, SCOTCH's nested dissection on any number of ranks), and the outer
-    // FGMRES makes up the precision (docs/performance.md §13). In 2D the region is small: MUMPS in double
-    // precision with its own ordering (SCOTCH's ordering and the AIJ copy cost 3 % of the default scene, §12).
-    CELLFSI_PETSC(PCSetType(pc, n_[2] > 1 ? kPCLUSingle : PCLU));
-    CELLFSI_PETSC(KSPSetFromOptions(region_ksp_));
-    PetscBool factor = PETSC_FALSE;
-    CELLFSI_PETSC(PetscObjectTypeCompareAny(reinterpret_cast<PetscObject>(pc), &factor, PCLU, PCCHOLESKY, ""));
-    if (factor) {
-      // A factorisation chosen by options (-..._pc_type lu): MUMPS unless another package is named, and in 3D
-      // on one rank SCOTCH's ordering handed to it by PETSc (11 % off the LU at 64^3, §12) unless another
-      // ordering is named (external: MUMPS' own).
-      const std::string region_prefix = prefix_ + "region_";
-      PetscBool package = PETSC_FALSE, ordering = PETSC_FALSE;
-      CELLFSI_PETSC(PetscOptionsHasName(nullptr, region_prefix.c_str(), "-pc_factor_mat_solver_type", &package));
-      CELLFSI_PETSC(PetscOptionsHasName(nullptr, region_prefix.c_str(), "-pc_factor_mat_ordering_type", &ordering));
-      if (!package) CELLFSI_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
-      if (!ordering && size == 1 && n_[2] > 1)
-        CELLFSI_PETSC(PCFactorSetMatOrderingType(pc, kMatOrderingNestedDissection));
-    }
-    aij_ = needs_aij(pc, size);
+    create_region_ksp(size);
     region_ = std::move(region);
   } else if (n_region_ > 0) {
     PetscMPIInt size = 1;
@@ -173,9 +148,26 @@ void RegionCorrectedSolver::set_operator(Mat J) {
   }
   Mat factored = aij_ ? JR_aij_ : JR_;
   CELLFSI_PETSC(KSPSetOperators(region_ksp_, factored, factored));
-  CELLFSI_PETSC(KSPSetUp(region_ksp_));
   PC pc;
   CELLFSI_PETSC(KSPGetPC(region_ksp_, &pc));
+  try {
+    CELLFSI_PETSC(KSPSetUp(region_ksp_));
+  } catch (const std::runtime_error& e) {
+    // The LU in single precision failed (MUMPS' error on every rank, so every rank is here): a region
+    // singular to single precision but not to double. From now on the region is factorised in double
+    // precision.
+    if (!pc_is(pc, kPCLUSingle)) throw;
+    single_failure_ = e.what();
+    PetscMPIInt size = 1;
+    CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
+    KSPDestroy(&region_ksp_);
+    create_region_ksp(size);
+    if (aij_) CELLFSI_PETSC(MatConvert(JR_, MATAIJ, MAT_INITIAL_MATRIX, &JR_aij_));
+    factored = aij_ ? JR_aij_ : JR_;
+    CELLFSI_PETSC(KSPSetOperators(region_ksp_, factored, factored));
+    CELLFSI_PETSC(KSPSetUp(region_ksp_));
+    CELLFSI_PETSC(KSPGetPC(region_ksp_, &pc));
+  }
   // This rank's reason, and whether any rank failed: every rank throws, or none does (one alone would leave
   // the others waiting in the next collective call).
   PCFailedReason reason = PC_NOERROR;
@@ -186,6 +178,40 @@ void RegionCorrectedSolver::set_operator(Mat J) {
     throw std::runtime_error(
         "RegionCorrectedSolver: the LU factorisation of the region (" + std::to_string(n_region_) +
         " unknowns) failed: " + (reason != PC_NOERROR ? PCFailedReasons[reason] : "on another rank"));
+}
+
+void RegionCorrectedSolver::create_region_ksp(int size) {
+  CELLFSI_PETSC(KSPCreate(comm_, &region_ksp_));
+  CELLFSI_PETSC(KSPSetOptionsPrefix(region_ksp_, (prefix_ + "region_").c_str()));
+  CELLFSI_PETSC(KSPSetType(region_ksp_, KSPPREONLY));
+  PC pc;
+  CELLFSI_PETSC(KSPGetPC(region_ksp_, &pc));
+  // In 3D the region's LU is half of a step at 64^3, redone every step: in single precision it costs half
+  // (solvers/single_precision_lu.hpp, SCOTCH's nested dissection on any number of ranks), and the outer
+  // FGMRES makes up the precision (docs/performance.md §13). In 2D the region is small: MUMPS in double
+  // precision with its own ordering (SCOTCH's ordering and the AIJ copy cost 3 % of the default scene, §12).
+  // After a failure of the single-precision LU (set_operator), double precision whatever the options say.
+  const bool single = n_[2] > 1 && single_failure_.empty();
+  CELLFSI_PETSC(PCSetType(pc, single ? kPCLUSingle : PCLU));
+  CELLFSI_PETSC(KSPSetFromOptions(region_ksp_));
+  if (!single_failure_.empty() && pc_is(pc, kPCLUSingle)) CELLFSI_PETSC(PCSetType(pc, PCLU));
+  PetscBool factor = PETSC_FALSE;
+  CELLFSI_PETSC(PetscObjectTypeCompareAny(reinterpret_cast<PetscObject>(pc), &factor, PCLU, PCCHOLESKY, ""));
+  if (factor) {
+    // A factorisation chosen by options (-..._pc_type lu): MUMPS unless another package is named, and in 3D
+    // on one rank SCOTCH's ordering handed to it by PETSc (11 % off the LU at 64^3, §12) unless another
+    // ordering is named (external: MUMPS' own).
+    const std::string region_prefix = prefix_ + "region_";
+    PetscBool package = PETSC_FALSE, ordering = PETSC_FALSE;
+    CELLFSI_PETSC(
+        PetscOptionsHasName(nullptr, region_prefix.c_str(), "-pc_factor_mat_solver_type", &package));
+    CELLFSI_PETSC(
+        PetscOptionsHasName(nullptr, region_prefix.c_str(), "-pc_factor_mat_ordering_type", &ordering));
+    if (!package) CELLFSI_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+    if (!ordering && size == 1 && n_[2] > 1)
+      CELLFSI_PETSC(PCFactorSetMatOrderingType(pc, kMatOrderingNestedDissection));
+  }
+  aij_ = needs_aij(pc, size);
 }
 
 bool RegionCorrectedSolver::needs_aij(PC pc, int size) const {

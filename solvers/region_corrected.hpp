@@ -18,7 +18,8 @@
 // more than `threshold` of the row's largest entry of A, grown by `overlap` node layers in every direction)
 // and factorises J_R (options prefix given at construction + "region_"): in 3D by MUMPS in single precision
 // (cellfsi_lu_single, solvers/single_precision_lu.hpp; the FGMRES around this preconditioner makes up the
-// precision, with the same iterations: docs/performance.md §13), in 2D by MUMPS in double precision.
+// precision, with the same iterations: docs/performance.md §13; should it fail, in double precision from then
+// on), in 2D by MUMPS in double precision.
 //
 // Measured on the 3D compound capsule at 32^3 quadratic (3 steps, one rank; docs/performance.md): the
 // region is the 3700 nodes of the s_I band and the immersed points, 14.7 k unknowns; 6 FGMRES iterations per
@@ -73,9 +74,15 @@ class RegionCorrectedSolver {
   KSP region_ksp() const { return region_ksp_; }
   /// Nodes whose rows of J differ from the bulk operator by more than the threshold (before the growth).
   int n_differing_nodes() const { return n_differing_; }
+  /// Why the region's LU in single precision failed, if it did (it is then in double precision for the rest
+  /// of the run); empty otherwise.
+  const std::string& single_precision_failure() const { return single_failure_; }
 
  private:
   void region_solve(Vec r, Vec x);  // x += R^T J_R^{-1} R r
+  // The region's KSP with its default factorisation (in 3D in single precision until that fails once), then
+  // the options; sets aij_.
+  void create_region_ksp(int size);
   // Whether the region's factorisation (as the options chose it) needs J_R as AIJ: a solver without BAIJ
   // (SuperLU_DIST), or MUMPS on one rank with an ordering from PETSc, which it reads from AIJ only.
   bool needs_aij(PC pc, int size) const;
@@ -97,6 +104,7 @@ class RegionCorrectedSolver {
   Mat JR_ = nullptr;      // J on region x region
   Mat JR_aij_ = nullptr;  // JR_ as AIJ, when the factorisation needs it (aij_)
   bool aij_ = false;
+  std::string single_failure_;  // the single-precision LU's failure, if any
   Mat J_rows_ = nullptr;  // J's rows of the region, every column
   IS all_ = nullptr;
   KSP region_ksp_ = nullptr;

@@ -421,6 +421,60 @@ TEST(RegionCorrectedSolver, OrdersTheRegionByNestedDissectionWhenAskedWithTheSam
   EXPECT_LT(diff, 1e-8 * norm);
 }
 
+TEST(RegionCorrectedSolver, FactorisesInDoublePrecisionWhenTheSingleOneFails) {
+  // In 3D the region's LU is in single precision (cellfsi_lu_single). A region singular to single precision but
+  // not to double: one node's two rows replaced by c [1 1; 1 1 + 1e-9] (float rounds 1 + 1e-9 to 1, so MUMPS'
+  // smumps meets a zero pivot). The solver then factorises it in double precision, for this and every later
+  // region, says why, and FGMRES solves J as it would have.
+  cellfsi::test::set_up_pc_types_once();
+  const std::array<int, 3> n{6, 5, 6};
+  const std::array<bool, 3> periodic{true, false, true};
+  const int dof = 2;
+  Mat A = invariant_operator(n, periodic, 1, dof, 17);
+  for (const double gap : {1e-3, 1e-9}) {
+    SCOPED_TRACE(gap);
+    Mat J;
+    CELLFSI_PETSC(MatDuplicate(A, MAT_COPY_VALUES, &J));
+    const PetscInt node = 2 + n[0] * (2 + n[1] * 3), rows[2] = {node * dof, node * dof + 1};
+    CELLFSI_PETSC(MatSetOption(J, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
+    CELLFSI_PETSC(MatZeroRows(J, 2, rows, 0.0, nullptr, nullptr));
+    const double c = 1e6, block[4] = {c, c, c, c * (1 + gap)};
+    CELLFSI_PETSC(MatSetValues(J, 2, rows, 2, rows, block, INSERT_VALUES));
+    CELLFSI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+    CELLFSI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+    RegionCorrectedSolver solver(n, periodic, {1, 1, 1}, dof, "test_fallback_");
+    solver.set_bulk(A, false);
+    solver.set_operator(J);
+    EXPECT_EQ(solver.n_region(), dof);
+    PC pc;
+    CELLFSI_PETSC(KSPGetPC(solver.region_ksp(), &pc));
+    const bool single = solvers::pc_is(pc, solvers::kPCLUSingle);
+    if (gap == 1e-3) {
+      EXPECT_TRUE(single);
+      EXPECT_TRUE(solver.single_precision_failure().empty());
+    } else {
+      EXPECT_FALSE(single);
+      EXPECT_NE(solver.single_precision_failure().find("INFOG(1) = -10"), std::string::npos)
+          << solver.single_precision_failure();
+      // A later region stays in double precision.
+      solver.set_operator(A);
+      solver.set_operator(J);
+      CELLFSI_PETSC(KSPGetPC(solver.region_ksp(), &pc));
+      EXPECT_FALSE(solvers::pc_is(pc, solvers::kPCLUSingle));
+    }
+    Vec b = random_vector(J, 3), x;
+    CELLFSI_PETSC(VecDuplicate(b, &x));
+    const FgmresResult f = fgmres_with(solver, J, b, x, 100);
+    EXPECT_GT(f.reason, 0);
+    // To the attainable accuracy: the near-singular block has a condition number of 4e9 (measured: 8e-8).
+    EXPECT_LT(relative_residual(J, x, b), gap == 1e-3 ? 1e-9 : 1e-6);
+    VecDestroy(&b);
+    VecDestroy(&x);
+    MatDestroy(&J);
+  }
+  MatDestroy(&A);
+}
+
 TEST(NearOperator, IsTheAssembledRowsNearTheCellsAndTheStencilElsewhere) {
   // A bulk operator A (a quadratic-like stencil in a channel, walls across) and J = A changed on a patch of
   // nodes, as the cells change the Jacobian. The operator from J's rows on a set of nodes around the patch
