@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <stdexcept>
+#include <string>
 
 #include "common/petsc_error.hpp"
 #include "solvers/nested_dissection.hpp"
@@ -155,21 +156,34 @@ void SinglePrecisionLU::analyse() {
     std::vector<int> rows(rank == 0 ? offsets[size] : 0), cols(rows.size());
     MPI_Gatherv(irn_.data(), n_local, MPI_INT, rows.data(), counts.data(), offsets.data(), MPI_INT, 0, comm_);
     MPI_Gatherv(jcn_.data(), n_local, MPI_INT, cols.data(), counts.data(), offsets.data(), MPI_INT, 0, comm_);
+    std::string failure;  // the host's, told to every rank: all throw, or none waits in MUMPS alone
     if (rank == 0) {
-      const int n_nodes = static_cast<int>(n_ / bs_);
-      std::vector<std::vector<int>> neighbours(n_nodes);
-      for (std::size_t k = 0; k < rows.size(); ++k) {
-        const int a = (rows[k] - 1) / static_cast<int>(bs_), b = (cols[k] - 1) / static_cast<int>(bs_);
-        if (a == b) continue;
-        neighbours[a].push_back(b);
-        neighbours[b].push_back(a);
+      try {
+        const int n_nodes = static_cast<int>(n_ / bs_);
+        std::vector<std::vector<int>> neighbours(n_nodes);
+        for (std::size_t k = 0; k < rows.size(); ++k) {
+          const int a = (rows[k] - 1) / static_cast<int>(bs_), b = (cols[k] - 1) / static_cast<int>(bs_);
+          if (a == b) continue;
+          neighbours[a].push_back(b);
+          neighbours[b].push_back(a);
+        }
+        std::vector<int>().swap(rows);
+        std::vector<int>().swap(cols);
+        const std::vector<int> position = nested_dissection(std::move(neighbours));
+        perm_in_.resize(n_);
+        for (PetscInt i = 0; i < n_; ++i)
+          perm_in_[i] = static_cast<int>(position[i / bs_] * bs_ + i % bs_ + 1);
+        id.perm_in = perm_in_.data();
+      } catch (const std::exception& e) {
+        failure = e.what();
       }
-      std::vector<int>().swap(rows);
-      std::vector<int>().swap(cols);
-      const std::vector<int> position = nested_dissection(std::move(neighbours));
-      perm_in_.resize(n_);
-      for (PetscInt i = 0; i < n_; ++i) perm_in_[i] = static_cast<int>(position[i / bs_] * bs_ + i % bs_ + 1);
-      id.perm_in = perm_in_.data();
+    }
+    int length = static_cast<int>(failure.size());
+    MPI_Bcast(&length, 1, MPI_INT, 0, comm_);
+    if (length > 0) {
+      failure.resize(length);
+      MPI_Bcast(failure.data(), length, MPI_CHAR, 0, comm_);
+      throw std::runtime_error("single-precision LU: the ordering failed: " + failure);
     }
     id.icntl[icntl(7)] = 1;  // the ordering given in PERM_IN
   } else {
