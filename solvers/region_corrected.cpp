@@ -162,6 +162,7 @@ void RegionCorrectedSolver::set_operator(Mat J) {
     CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
     KSPDestroy(&region_ksp_);
     create_region_ksp(size);
+    MatDestroy(&JR_aij_);
     if (aij_) CELLFSI_PETSC(MatConvert(JR_, MATAIJ, MAT_INITIAL_MATRIX, &JR_aij_));
     factored = aij_ ? JR_aij_ : JR_;
     CELLFSI_PETSC(KSPSetOperators(region_ksp_, factored, factored));
