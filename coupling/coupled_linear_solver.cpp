@@ -118,6 +118,7 @@ CoupledLinearSolver::CoupledLinearSolver(fluid::FluidSolver& fluid, LinearSolver
   coupling_events();
   solvers::register_pc_types();
   if (opt_.region_margin < 0) throw std::invalid_argument("region margin must be >= 0");
+  if (!(opt_.rtol > 0 && opt_.rtol < 1)) throw std::invalid_argument("the coupled solve's rtol must be in (0, 1)");
   set_default_options(fluid.options().pressure_null_space);
   const Mat J = fluid.jacobian_matrix();
   PetscBool seq_baij = PETSC_FALSE, mpi_baij = PETSC_FALSE;
@@ -207,7 +208,7 @@ void CoupledLinearSolver::configure(const std::string& type) {
     // 492 FGMRES iterations, while the loop iterated for the solid's residual). cellfsi_band is the exact
     // inverse of the operator: one FGMRES iteration, one application and one product.
     CELLFSI_PETSC(KSPSetType(ksp_, KSPFGMRES));
-    CELLFSI_PETSC(KSPSetTolerances(ksp_, 1e-5, opt_.fluid_atol, PETSC_DEFAULT, 500));
+    CELLFSI_PETSC(KSPSetTolerances(ksp_, opt_.rtol, opt_.fluid_atol, PETSC_DEFAULT, 500));
     CELLFSI_PETSC(KSPGMRESSetRestart(ksp_, 100));
   } else {
     // The fluid's own defaults (fluid/fluid_solver.cpp): GMRES, rtol 1e-5, ASM with LU subdomain solves.

@@ -56,6 +56,10 @@ struct LinearSolverOptions {
   // stencil away from the cells and an assembled matrix of the rows near them (solvers/near_operator.hpp).
   bool bulk_stencil = false;
   int preconditioner_lag = 10;  // other PCs: linear solves between rebuilds of the preconditioner
+  // cellfsi types: the FGMRES's relative tolerance per coupling iteration (-coupling_ksp_rtol overrides it;
+  // the scenes take 1e-2 in 3D, where the coupling loop, not the linear solve, sets the iterations:
+  // docs/performance.md §14).
+  double rtol = 1e-5;
   // cellfsi_fourier: the bulk operator's largest relative deviation between periodic positions above which
   // it does not run. No option sets it: the meshes it guards are uniform to round-off (about 1e-13) or not
   // at all (the narrowing channel: order 1).
