@@ -698,7 +698,7 @@ TEST_F(CellfsiApp, OneAndTwoAndFourFluidRanksAgreeIn3D) {
   // (measured over 10 steps: 1 and 2 ranks agree to 9e-11 relative in r_A, and both with the double LU's run
   // to 6e-11). The coupled FGMRES runs to -coupling_ksp_rtol 1e-5 here, not the 3D default of 1e-2, which
   // leaves the partitions' round-off larger (measured with it: 1, 2 and 4 ranks agree to 3.6e-9 and 5.6e-9
-  // relative in the shear profile's error; test CoupledSolveToRtol1e2In3D).
+  // relative in the shear profile's error; test CoupledSolveToRtol1e2In3DAnd1e5In2D).
   const std::vector<std::string> args =
       with(compound_capsule_16(scene("compound_capsule_shear_3d.yaml")), {"-coupling_ksp_rtol", "1e-5"});
   ASSERT_EQ(cellfsi(with(args, {"-coupling_ksp_view"}), 120).exit_code, 0) << last_output_;
