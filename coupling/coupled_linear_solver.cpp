@@ -118,7 +118,8 @@ CoupledLinearSolver::CoupledLinearSolver(fluid::FluidSolver& fluid, LinearSolver
   coupling_events();
   solvers::register_pc_types();
   if (opt_.region_margin < 0) throw std::invalid_argument("region margin must be >= 0");
-  if (!(opt_.rtol > 0 && opt_.rtol < 1)) throw std::invalid_argument("the coupled solve's rtol must be in (0, 1)");
+  if (!(opt_.rtol > 0 && opt_.rtol < 1))
+    throw std::invalid_argument("the coupled solve's rtol must be in (0, 1)");
   set_default_options(fluid.options().pressure_null_space);
   const Mat J = fluid.jacobian_matrix();
   PetscBool seq_baij = PETSC_FALSE, mpi_baij = PETSC_FALSE;
