@@ -301,7 +301,7 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
     bool varying = false;
     for (bool first_point = true; i < immersed_.size() && immersed_[i].element == element; ++i) {
       const LocatedPoint& ip = immersed_[i];
-      physical_point(patch_, ip.element, ip.xi, 2, bv, mv, pp);
+      physical_point(patch_, ip.element, ip.xi, 2, bv, mv, pp, affine());
       if (first_point) {
         n = gather(pp.first);
         varying = element_viscosity(n);

@@ -90,7 +90,8 @@ std::string linear_solve_failure(KSP ksp) {
 // Construction
 
 FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const FluidOptions& options)
-    : comm_(comm), patch_(patch), opt_(options), inverter_(patch), element_basis_(patch) {
+    : comm_(comm), patch_(patch), opt_(options), inverter_(patch), element_basis_(patch),
+      affine_(geometry::affine_map(patch)) {
   dim_ = patch.param_dim();
   if (dim_ != patch.physical_dim() || dim_ < 2)
     throw std::invalid_argument("FluidSolver: the Eulerian patch must be 2D in 2D or 3D in 3D");
@@ -506,7 +507,7 @@ std::vector<PointSample> FluidSolver::sample_local(const std::vector<Index3>& el
   std::vector<PetscInt> nodes;
   for (size_t i = 0; i < xi.size(); ++i) {
     if (!located[i] || !owns_element(elements[i])) continue;
-    physical_point(patch_, elements[i], xi[i], 1, bv, mv, pp);
+    physical_point(patch_, elements[i], xi[i], 1, bv, mv, pp, affine());
     element_nodes(patch_, pp, gxs_, gxm_, nodes);
     const PointValues v = interpolate(pp, dim_, [&](int k, int c) { return value(nodes[k] * dof_ + c, c); });
     const PointValues r = interpolate(pp, dim_, [&](int k, int c) { return rate(nodes[k] * dof_ + c, c); });

@@ -22,6 +22,7 @@
 
 #include <array>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -271,6 +272,10 @@ class FluidSolver {
   PetscInt pin_row_ = -1;  // global row of the pinned pressure (owned by this rank) or -1
   geometry::PointInverter inverter_;
   ElementBasis element_basis_;
+  // The patch's map if axis-aligned affine (the paper's boxes): physical_point's fast path for the immersed
+  // points and the samples.
+  std::optional<geometry::AffineMap> affine_;
+  const geometry::AffineMap* affine() const { return affine_ ? &*affine_ : nullptr; }
   struct LocatedPoint {
     geometry::Index3 element;
     geometry::Param xi;

@@ -33,9 +33,12 @@ struct PhysicalPoint {
 };
 
 /// The basis at parametric point xi of element e. order 1: N, dN; order 2: also lapN and G. The scratch
-/// bv, mv are reused between calls.
+/// bv, mv are reused between calls. `affine`: the patch's map if it is axis-aligned affine
+/// (geometry::affine_map: the paper's boxes), for a fast path that forms the basis from univariate B-splines
+/// scaled by the map, with no rational basis, no map and no inverse (the same values to round-off; tested).
 void physical_point(const geometry::Patch& patch, const Index3& e, const Param& xi, int order,
-                    geometry::BasisValues& bv, geometry::MapValues& mv, PhysicalPoint& out);
+                    geometry::BasisValues& bv, geometry::MapValues& mv, PhysicalPoint& out,
+                    const geometry::AffineMap* affine = nullptr);
 
 /// The element that contains xi (per direction; the last element for the end of the interval).
 Index3 element_of(const geometry::Patch& patch, const Param& xi);

@@ -98,6 +98,38 @@ NurbsSolid::NurbsSolid(std::string name, geometry::Patch reference, std::shared_
   rate_n_ = u_;
   c_ = Eigen::MatrixXd::Zero(n_reduced_, dim_);
   c_n_ = c_;
+  tabulate_quadrature();
+}
+
+void NurbsSolid::tabulate_quadrature() {
+  std::vector<geometry::QuadraturePoint> qp;
+  const Index3 ng = geometry::default_gauss(reference_);
+  BasisValues bv;
+  MapValues mv;
+  q_begin_.assign(1, 0);
+  for (int e = 0; e < reference_.n_elements(); ++e) {
+    const Index3 m = reference_.element_multi_index(e);
+    geometry::element_quadrature(reference_, m, ng, qp);
+    for (const auto& q : qp) {
+      reference_.basis(q.xi, 1, bv, &m);
+      reference_.map(bv, mv);
+      const Mat3 dXdxi = mv.dx;
+      Mat3 inv = Mat3::Identity();  // d xi / d X
+      inv.topLeftCorner(dim_, dim_) = dXdxi.topLeftCorner(dim_, dim_).inverse();
+      for (int k = 0; k < bv.n; ++k) {
+        q_unknown_.push_back(reduced_[bv.index[k]]);
+        q_N_.push_back(bv.value[k]);
+        for (int j = 0; j < dim_; ++j) {
+          double g = 0;
+          for (int a = 0; a < dim_; ++a) g += bv.d1[3 * k + a] * inv(a, j);
+          q_dN_.push_back(g);
+        }
+      }
+      q_begin_.push_back(static_cast<int>(q_N_.size()));
+      q_X_.push_back(mv.x);
+      q_weight_.push_back(q.weight * std::abs(dXdxi.topLeftCorner(dim_, dim_).determinant()));
+    }
+  }
 }
 
 Eigen::MatrixXd NurbsSolid::control_from_points(const Eigen::MatrixXd& values) const {
@@ -214,21 +246,28 @@ void NurbsSolid::kinematics(const Eigen::MatrixXd& c, const Param& xi, const Ind
 
 void NurbsSolid::for_each_quadrature_point(
     const Eigen::MatrixXd& c, const std::function<void(const Vec3&, const Mat3&, double)>& visit) const {
-  std::vector<geometry::QuadraturePoint> qp;
-  const Index3 ng = geometry::default_gauss(reference_);
-  for (int e = 0; e < reference_.n_elements(); ++e) {
-    const Index3 m = reference_.element_multi_index(e);
-    geometry::element_quadrature(reference_, m, ng, qp);
-    for (const auto& q : qp) {
-      Vec3 x;
-      Mat3 F;
-      double jac0 = 0;
-      kinematics(c, q.xi, &m, x, F, jac0);
-      try {
-        visit(x, F, q.weight * std::abs(jac0));
-      } catch (const std::runtime_error& e) {  // an inverted element (the material refuses det F <= 0)
-        throw std::runtime_error(e.what() + where_inverted(m, q.xi, x, F));
+  const int n_q = static_cast<int>(q_X_.size());
+  for (int q = 0; q < n_q; ++q) {
+    Vec3 x = q_X_[q];
+    Mat3 F = Mat3::Identity();
+    for (int k = q_begin_[q]; k < q_begin_[q + 1]; ++k) {
+      const int r = q_unknown_[k];
+      const double N = q_N_[k];
+      const double* dN = &q_dN_[static_cast<std::size_t>(k) * dim_];
+      for (int i = 0; i < dim_; ++i) {
+        const double ci = c(r, i);
+        x[i] += N * ci;
+        for (int j = 0; j < dim_; ++j) F(i, j) += ci * dN[j];
       }
+    }
+    try {
+      visit(x, F, q_weight_[q]);
+    } catch (const std::runtime_error& e) {  // an inverted element (the material refuses det F <= 0)
+      // Which element and point: the points run elements in turn, the same number in each.
+      std::vector<geometry::QuadraturePoint> qp;
+      const Index3 m = reference_.element_multi_index(q / (n_q / reference_.n_elements()));
+      geometry::element_quadrature(reference_, m, geometry::default_gauss(reference_), qp);
+      throw std::runtime_error(e.what() + where_inverted(m, qp[q % qp.size()].xi, x, F));
     }
   }
 }

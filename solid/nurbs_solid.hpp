@@ -102,6 +102,14 @@ class NurbsSolid final : public SolidSolver {
   Eigen::MatrixXd u_, u_n_, rate_n_;  // at the collocation points (n_points x dim)
   Eigen::MatrixXd c_, c_n_;           // control variables (n_reduced x dim)
   std::vector<Vec3> load_density_;    // external force per reference volume at the quadrature points
+  // The quadrature points' reference data, tabulated once (the basis at a fixed parametric point does not
+  // change, only the control variables do), so that for_each_quadrature_point, at every coupling iteration,
+  // only sums: point q's functions are [q_begin_[q], q_begin_[q + 1]) of q_unknown_ (reduced unknown), q_N_
+  // (value) and q_dN_ (d / dX, dim_ per function, in the reference configuration).
+  std::vector<int> q_begin_, q_unknown_;
+  std::vector<double> q_N_, q_dN_, q_weight_;  // q_weight_: Gauss weight times |det dX / dxi|
+  std::vector<Vec3> q_X_;                      // reference position
+  void tabulate_quadrature();
 };
 
 }  // namespace cellfsi::solid

@@ -213,6 +213,48 @@ TEST(NurbsSolid, QuadratureDataOfUndeformedAndRotatedBodies) {
             geometry::bulky_ellipse(5e-5, 5e-5, 4, 16, 2).n_control(1) - 1);
 }
 
+TEST(NurbsSolid, QuadratureDataOfAHomogeneousDeformationIn3DIsExact) {
+  // A solid ellipsoid (the 3D nucleus) moved by v = L (x - c): every collocation point gets the same linear
+  // displacement, the collocation reproduces it exactly, so at every quadrature point F is one matrix and
+  // x = X + (F - I)(X - c), X the reference point; the stress is the material's for that F.
+  const Vec3 c(6e-4, 6e-4, 6e-4);
+  const geometry::Patch e = geometry::solid_ellipsoid(1e-4, 1.2e-4, 0.9e-4, 3, 4, 8, 2, c);
+  const auto material = std::make_shared<solid::DeviatoricNeoHookean>(40.0);
+  solid::NurbsSolid s("nucleus", e, material, 1.1);
+  const std::vector<solid::QuadratureData> q0 = s.quadrature_data(1.025);
+  Mat3 L;
+  L << 30, 70, 0, -10, 20, 15, 5, 0, -40;
+  s.begin_step(solid::TimeParameters::from_rho_inf(0.5, 1e-3));
+  std::vector<solid::VelocitySample> vs(s.n_points());
+  const std::vector<Vec3> x = s.collocation_points();
+  for (int i = 0; i < s.n_points(); ++i) vs[i].v = L * (x[i] - c), vs[i].grad_v = L;
+  s.kinematic_update(vs);
+  s.end_step();  // the quadrature data at t_{n+1} = t_{n+alpha_f} of the next step
+  s.begin_step(solid::TimeParameters::from_rho_inf(0.5, 1e-3));
+  const std::vector<solid::QuadratureData> q = s.quadrature_data(1.025);
+  ASSERT_EQ(q.size(), q0.size());
+  // A: the least-squares map of (X - c) to the displacement x - X over all points.
+  Eigen::Matrix3d XtX = Eigen::Matrix3d::Zero(), XtU = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < q.size(); ++i) {
+    const Vec3 X = q0[i].x - c, u = q[i].x - q0[i].x;
+    XtX += X * X.transpose();
+    XtU += X * u.transpose();
+  }
+  const Mat3 A = XtX.ldlt().solve(XtU).transpose();  // u = A (X - c)
+  ASSERT_GT(A.norm(), 1e-2);  // it moved
+  const Mat3 F = Mat3::Identity() + A;
+  const Mat3 stress = F * material->second_piola(F, 3) * F.transpose() / 1.025;
+  double worst_x = 0, worst_stress = 0, worst_w = 0;
+  for (size_t i = 0; i < q.size(); ++i) {
+    worst_x = std::max(worst_x, (q[i].x - q0[i].x - A * (q0[i].x - c)).norm());
+    worst_stress = std::max(worst_stress, (q[i].stress - stress).norm());
+    worst_w = std::max(worst_w, std::abs(q[i].weight - q0[i].weight));
+  }
+  EXPECT_LT(worst_x, 1e-12 * 1e-4);               // round-off of the body's size
+  EXPECT_LT(worst_stress, 1e-9 * stress.norm());  // one F everywhere
+  EXPECT_EQ(worst_w, 0.0);                        // reference weights
+}
+
 TEST(NurbsSolid, MembranesAndBulkyBodiesAreTold) {
   // A bulky body's centre face is degenerate (no interface there); a membrane has two interface faces. The
   // builders place bodies far from the origin, where the centre's Greville points agree only to round-off.
