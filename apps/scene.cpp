@@ -145,6 +145,7 @@ void check_bodies(const SceneSettings& s, const geometry::Patch& domain) {
   std::vector<coupling::BodyPlacement> placed;
   Vec3 lo, hi;
   domain.bounding_box(lo, hi);
+  const double fluid_element = geometry::smallest_element_extent(domain);
   for (const BodySettings& b : s.bodies) {
     // A periodic direction wraps every point into the domain (the locator finds their images), but the body
     // is drawn where its centre is: the centre itself must lie inside.
@@ -158,7 +159,7 @@ void check_bodies(const SceneSettings& s, const geometry::Patch& domain) {
         bad_option("solid_" + b.name + "_center", v.str(), w.str());
       }
     coupling::BodyPlacement pl{b.name, build_body_patch(s, b), b.membrane()};
-    const coupling::Resolution r = coupling::resolution(domain, pl);
+    const coupling::Resolution r = coupling::resolution(fluid_element, pl);
     if (r.ratio() > s.max_mesh_ratio) {
       std::ostringstream os;
       os << "Lagrangian elements no larger than " << s.max_mesh_ratio

@@ -252,6 +252,7 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
   flow.density = fluid_->options().density;
   if (s_.flow == "shear") flow.shear_rate = s_.shear_rate;
   if (wall_dir_ >= 0) flow.half_width = 0.5 * s_.size[wall_dir_];
+  const double fluid_element = bodies_.empty() ? 0.0 : geometry::smallest_element_extent(patch_);
   for (size_t b = 0; b < bodies_.size(); ++b) {
     const std::string& name = bodies_[b]->name();
     for (const auto& [k, v] : trackers_[b].summary(from)) m.emplace_back(name + "_" + k, v);
@@ -329,7 +330,7 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     // The Lagrangian mesh actually used (automatic counts are chosen from the fluid mesh).
     for (int d = 0; d < reference.param_dim(); ++d)
       m.emplace_back(name + "_elements_" + std::to_string(d), reference.n_elements(d));
-    const coupling::Resolution r = coupling::resolution(patch_, {name, reference, bodies_[b]->is_membrane()});
+    const coupling::Resolution r = coupling::resolution(fluid_element, {name, reference, bodies_[b]->is_membrane()});
     m.emplace_back(name + "_mesh_ratio", r.ratio());
   }
   return m;

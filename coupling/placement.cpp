@@ -106,12 +106,12 @@ void check_no_overlap(const std::vector<BodyPlacement>& bodies) {
 }
 
 Resolution resolution(const Patch& eulerian, const BodyPlacement& body) {
+  return resolution(geometry::smallest_element_extent(eulerian), body);
+}
+
+Resolution resolution(double fluid_element, const BodyPlacement& body) {
   Resolution r;
-  r.fluid_element = 1e300;
-  for (int e = 0; e < eulerian.n_elements(); ++e) {
-    const std::array<double, 3> ext = geometry::element_extents(eulerian, e);
-    for (int d = 0; d < eulerian.param_dim(); ++d) r.fluid_element = std::min(r.fluid_element, ext[d]);
-  }
+  r.fluid_element = fluid_element;
   for (int e = 0; e < body.patch.n_elements(); ++e) {
     const std::array<double, 3> ext = geometry::element_extents(body.patch, e);
     for (int d = body.membrane ? 1 : 0; d < body.patch.param_dim(); ++d)

@@ -32,5 +32,8 @@ struct Resolution {
   double ratio() const { return solid_element / fluid_element; }
 };
 Resolution resolution(const geometry::Patch& eulerian, const BodyPlacement& body);
+/// The same with the smallest Eulerian element extent given (geometry::smallest_element_extent), for a loop
+/// over bodies.
+Resolution resolution(double fluid_element, const BodyPlacement& body);
 
 }  // namespace cellfsi::coupling

@@ -129,25 +129,7 @@ void ElementBasis::compute(const Index3& e, ElementValues& out) const {
       (geometry::kMaxDegree + 1) * (geometry::kMaxDegree + 1) * (geometry::kMaxDegree + 1);
   Vec3 X[kMaxFunctions];
   double Wc[kMaxFunctions];
-  {
-    int k = 0;
-    for (int c = 0; c < np_[2]; ++c)
-      for (int b = 0; b < np_[1]; ++b)
-        for (int a = 0; a < np_[0]; ++a, ++k) {
-          const int loc[3] = {a, b, c};
-          int g[3] = {0, 0, 0};
-          Vec3 off = Vec3::Zero();
-          for (int d = 0; d < D; ++d) {
-            const geometry::KnotVector& kv = patch_.knots(d);
-            const int j = first[d] + loc[d];
-            g[d] = kv.fold(j);
-            off += kv.wrap_count(j) * patch_.shift(d);
-          }
-          const int idx = patch_.control_index(g[0], g[1], g[2]);
-          X[k] = patch_.control_points()[idx] + off;
-          Wc[k] = patch_.weights()[idx];
-        }
-  }
+  patch_.element_controls(first, X, Wc);
   const Vec3 X0 = X[0];
   for (int k = 0; k < n; ++k) X[k] -= X0;  // relative coordinates: derivatives are unchanged, digits are kept
 

@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 
+#include "geometry/basis.hpp"
 #include "geometry/quadrature.hpp"
 #include "geometry/refine.hpp"
 
@@ -12,21 +14,87 @@ namespace cellfsi::geometry {
 
 namespace {
 
-/// Calls f(x, dx, weight) at every quadrature point of the patch (weight = parametric weight).
+/// Calls f(x, dx, weight) at every quadrature point of the patch (weight = parametric weight), in
+/// element_quadrature's points. Per element the univariate B-splines at its Gauss points are evaluated once
+/// per direction, and each point forms their tensor products (times the weights, for a rational patch) and
+/// the map: the values of Patch::basis and Patch::map without their per-point span search, folding and
+/// allocation (the bodies' metrics integrate every body at every step).
 template <class F>
 void for_each_point(const Patch& patch, int extra_gauss, F&& f) {
+  const int P = patch.param_dim();
   const Index3 ng = default_gauss(patch, extra_gauss);
-  std::vector<QuadraturePoint> qp;
-  BasisValues bv;
-  MapValues mv;
+  constexpr int M = kMaxDegree + 1, kMaxN = M * M * M;
+  int np[3] = {1, 1, 1}, nq[3] = {1, 1, 1};
+  const GaussRule* rule[3] = {nullptr, nullptr, nullptr};
+  for (int d = 0; d < P; ++d) {
+    np[d] = patch.degree(d) + 1;
+    nq[d] = ng[d];
+    rule[d] = &gauss_legendre(nq[d]);
+  }
+  const int n = np[0] * np[1] * np[2];
+  // table[d][(q * 2 + k) * np + a]: k-th derivative of function a of direction d at Gauss point q.
+  std::vector<double> table[3], wq[3];
+  for (int d = 0; d < 3; ++d) {
+    table[d].assign(static_cast<size_t>(nq[d]) * 2 * np[d], 0.0);
+    wq[d].assign(nq[d], 1.0);
+    if (d >= P) table[d][0] = 1.0;  // a direction the patch lacks: one function, value 1
+  }
+  const bool rational = patch.rational();
+  Vec3 X[kMaxN];
+  double Wc[kMaxN], R[kMaxN], dR[kMaxN][3], ders[2 * M];
   for (int e = 0; e < patch.n_elements(); ++e) {
     const Index3 m = patch.element_multi_index(e);
-    element_quadrature(patch, m, ng, qp);
-    for (const auto& q : qp) {
-      patch.basis(q.xi, 1, bv, &m);
-      patch.map(bv, mv);
-      f(mv.x, mv.dx, q.weight);
+    Param lo, hi;
+    patch.element_bounds(m, lo, hi);
+    int first[3] = {0, 0, 0};
+    for (int d = 0; d < P; ++d) {
+      const KnotVector& kv = patch.knots(d);
+      const int span = kv.element_span(m[d]);
+      first[d] = span - kv.degree();
+      const double half = 0.5 * (hi[d] - lo[d]);
+      for (int q = 0; q < nq[d]; ++q) {
+        bspline_basis(kv, span, lo[d] + half * (rule[d]->points[q] + 1.0), std::min(1, kv.degree()), ders);
+        for (int a = 0; a < np[d]; ++a) {
+          table[d][(q * 2) * np[d] + a] = ders[a];
+          table[d][(q * 2 + 1) * np[d] + a] = kv.degree() >= 1 ? ders[np[d] + a] : 0.0;
+        }
+        wq[d][q] = half * rule[d]->weights[q];
+      }
     }
+    // The element's control points, relative to the first (Patch::map's digits).
+    patch.element_controls(first, X, Wc);
+    const Vec3 X0 = X[0];
+    for (int i = 0; i < n; ++i) X[i] -= X0;
+    for (int q2 = 0; q2 < nq[2]; ++q2)
+      for (int q1 = 0; q1 < nq[1]; ++q1)
+        for (int q0 = 0; q0 < nq[0]; ++q0) {
+          const double* T0 = &table[0][q0 * 2 * np[0]];
+          const double* T1 = &table[1][q1 * 2 * np[1]];
+          const double* T2 = &table[2][q2 * 2 * np[2]];
+          double W = 0, dW[3] = {0, 0, 0};
+          int i = 0;
+          for (int c = 0; c < np[2]; ++c)
+            for (int b = 0; b < np[1]; ++b)
+              for (int a = 0; a < np[0]; ++a, ++i) {
+                const double v0 = T0[a], v1 = T1[b], v2 = T2[c];
+                const double w = rational ? Wc[i] : 1.0;
+                R[i] = w * v0 * v1 * v2;
+                dR[i][0] = w * T0[np[0] + a] * v1 * v2;
+                dR[i][1] = w * v0 * T1[np[1] + b] * v2;
+                dR[i][2] = w * v0 * v1 * T2[np[2] + c];
+                W += R[i];
+                for (int j = 0; j < 3; ++j) dW[j] += dR[i][j];
+              }
+          Vec3 x = Vec3::Zero();
+          Mat3 dx = Mat3::Zero();
+          const double iW = 1.0 / W;
+          for (i = 0; i < n; ++i) {
+            const double r = R[i] * iW;
+            x += r * X[i];
+            for (int a = 0; a < P; ++a) dx.col(a) += (dR[i][a] - r * dW[a]) * iW * X[i];
+          }
+          f(Vec3(X0 + x), dx, wq[0][q0] * wq[1][q1] * wq[2][q2]);
+        }
   }
 }
 
@@ -66,6 +134,23 @@ std::array<double, 3> element_extents(const Patch& p, int e) {
     }
   }
   return out;
+}
+
+double smallest_element_extent(const Patch& patch) {
+  double smallest = 1e300;
+  if (const std::optional<AffineMap> map = affine_map(patch)) {
+    for (int d = 0; d < patch.param_dim(); ++d) {
+      const KnotVector& kv = patch.knots(d);
+      for (int e = 0; e < kv.n_elements(); ++e)
+        smallest = std::min(smallest, std::abs(map->scale[d]) * (kv.element_end(e) - kv.element_begin(e)));
+    }
+    return smallest;
+  }
+  for (int e = 0; e < patch.n_elements(); ++e) {
+    const std::array<double, 3> ext = element_extents(patch, e);
+    for (int d = 0; d < patch.param_dim(); ++d) smallest = std::min(smallest, ext[d]);
+  }
+  return smallest;
 }
 
 double patch_measure(const Patch& patch, int extra_gauss) {

@@ -19,6 +19,10 @@ struct RegionMoments {
 /// Extent of element e of a patch along each parametric direction d: the largest distance between two of its
 /// corners that differ only in d (entry d < param_dim; the others are zero).
 std::array<double, 3> element_extents(const Patch& patch, int e);
+/// The smallest element_extents over all elements and parametric directions. On an axis-aligned affine patch
+/// (affine_map: the paper's boxes) it is closed-form: the shortest knot span times the map's scale; otherwise
+/// every element's edges are evaluated (12 per element in 3D).
+double smallest_element_extent(const Patch& patch);
 
 /// Length, area or volume of the patch itself (its parametric dimension decides which).
 double patch_measure(const Patch& patch, int extra_gauss = 2);

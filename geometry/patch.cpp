@@ -329,6 +329,28 @@ bool translation_invariant(const Patch& patch, double tol) {
   return true;
 }
 
+void Patch::element_controls(const int first[3], Vec3* X, double* W) const {
+  const int P = param_dim();
+  int np[3] = {1, 1, 1};
+  for (int d = 0; d < P; ++d) np[d] = degree(d) + 1;
+  int k = 0;
+  for (int c = 0; c < np[2]; ++c)
+    for (int b = 0; b < np[1]; ++b)
+      for (int a = 0; a < np[0]; ++a, ++k) {
+        const int loc[3] = {a, b, c};
+        int g[3] = {0, 0, 0};
+        Vec3 off = Vec3::Zero();
+        for (int d = 0; d < P; ++d) {
+          const int j = first[d] + loc[d];
+          g[d] = knots_[d].fold(j);
+          if (const int w = knots_[d].wrap_count(j)) off += w * shifts_[d];
+        }
+        const int idx = control_index(g[0], g[1], g[2]);
+        X[k] = control_points_[idx] + off;
+        W[k] = weights_[idx];
+      }
+}
+
 std::optional<AffineMap> affine_map(const Patch& patch, double tol) {
   const int P = patch.param_dim();
   const std::vector<Vec3>& X = patch.control_points();

@@ -69,6 +69,10 @@ class Patch {
   std::vector<double>& weights() { return weights_; }
   const Vec3& shift(int dir) const { return shifts_[dir]; }
   const std::array<Vec3, 3>& shifts() const { return shifts_; }
+  /// The control points (unwrapped: periodic offsets applied) and weights of the (p+1)^d functions whose
+  /// first unwrapped indices per direction are `first` (an element's: span - degree), in basis order
+  /// (direction 0 fastest). X and W hold at least that many entries.
+  void element_controls(const int first[3], Vec3* X, double* W) const;
   bool rational() const;
 
   /// True if direction dir wraps around: periodic, or open with coinciding first and last control layers

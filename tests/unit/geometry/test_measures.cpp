@@ -6,6 +6,7 @@
 
 #include "geometry/builders.hpp"
 #include "geometry/measures.hpp"
+#include "geometry/quadrature.hpp"
 #include "geometry/refine.hpp"
 #include "test_support.hpp"
 
@@ -143,6 +144,101 @@ TEST(Measures, ElementExtentsOfAUniformBoxAreItsElementSizes) {
   EXPECT_NEAR(ext[0], 0.25, 1e-14);
   EXPECT_NEAR(ext[1], 0.1, 1e-14);
   EXPECT_EQ(ext[2], 0.0);
+}
+
+namespace {
+/// patch_measure and patch_moments the long way: Patch::basis and Patch::map at element_quadrature's points.
+RegionMoments moments_by_patch_evaluation(const Patch& p, int extra_gauss, double& measure) {
+  const int P = p.param_dim();
+  std::vector<QuadraturePoint> qp;
+  BasisValues bv;
+  MapValues mv;
+  Vec3 lo, hi;
+  p.bounding_box(lo, hi);
+  const Vec3 ref = 0.5 * (lo + hi);
+  double M0 = 0;
+  Vec3 M1 = Vec3::Zero();
+  Mat3 M2 = Mat3::Zero();
+  measure = 0;
+  for (int e = 0; e < p.n_elements(); ++e) {
+    const Index3 m = p.element_multi_index(e);
+    element_quadrature(p, m, default_gauss(p, extra_gauss), qp);
+    for (const QuadraturePoint& q : qp) {
+      p.basis(q.xi, 1, bv, &m);
+      p.map(bv, mv);
+      const Eigen::MatrixXd J = mv.dx.leftCols(P);
+      measure += q.weight * std::sqrt(std::abs((J.transpose() * J).determinant()));
+      if (P != p.physical_dim()) continue;
+      const double w = q.weight * std::abs(mv.dx.topLeftCorner(P, P).determinant());
+      const Vec3 y = mv.x - ref;
+      M0 += w, M1 += w * y, M2 += w * y * y.transpose();
+    }
+  }
+  RegionMoments r;
+  r.measure = M0;
+  r.centroid = ref + M1 / M0;
+  r.second_moment = M2 - M1 * M1.transpose() / M0;
+  return r;
+}
+
+/// The patch with every control point moved by up to `amount` of its extent (a deformed body).
+Patch perturbed(const Patch& p, double amount) {
+  std::vector<Vec3> X = p.control_points();
+  Vec3 lo, hi;
+  p.bounding_box(lo, hi);
+  const double size = (hi - lo).norm();
+  for (size_t i = 0; i < X.size(); ++i)
+    for (int c = 0; c < p.physical_dim(); ++c) X[i][c] += amount * size * std::sin(1.7 * i + 2.3 * c);
+  return Patch(p.all_knots(), p.physical_dim(), X, p.weights(), p.shifts());
+}
+}  // namespace
+
+TEST(Measures, TabulatedQuadratureAgreesWithPatchEvaluation) {
+  // The measures form the basis per element from univariate tables; the same integrals from Patch::basis
+  // and Patch::map point by point, on deformed rational bodies (3D shell and ball, a 2D ring, a surface in
+  // 3D) and a periodic box, to round-off.
+  const Vec3 c(6e-4, 5e-4, 4e-4);
+  const std::vector<Patch> patches = {
+      perturbed(hollow_ellipsoid(3e-4, 2e-4, 2e-4, 5e-6, 6, 12, 2, c), 1e-3),
+      perturbed(solid_ellipsoid(1e-4, 1e-4, 0.8e-4, 3, 4, 8, 2, c), 2e-3),
+      perturbed(hollow_ellipse(2e-4, 1e-4, 5e-7, 32, 2, c), 1e-3),
+      perturbed(box(1.0, 0.5, 0.7, 3, 2, 4, 3, {true, false, true}), 1e-2),
+      isoparametric(perturbed(hollow_ellipsoid(3e-4, 2e-4, 2e-4, 5e-6, 6, 12, 2, c), 1e-3), 0, 0.5)};
+  for (size_t i = 0; i < patches.size(); ++i) {
+    const Patch& p = patches[i];
+    double measure = 0;
+    const RegionMoments ref = moments_by_patch_evaluation(p, 2, measure);
+    EXPECT_NEAR(patch_measure(p), measure, 1e-13 * measure) << "patch " << i;
+    if (p.param_dim() != p.physical_dim()) continue;
+    const RegionMoments r = patch_moments(p);
+    EXPECT_NEAR(r.measure, ref.measure, 1e-13 * ref.measure) << "patch " << i;
+    EXPECT_LT((r.centroid - ref.centroid).norm(), 1e-13 * c.norm()) << "patch " << i;
+    EXPECT_LT((r.second_moment - ref.second_moment).norm(), 1e-11 * ref.second_moment.norm()) << "patch " << i;
+  }
+}
+
+TEST(Measures, SmallestElementExtentClosedFormAgreesWithTheEdges) {
+  // The closed form (affine boxes, a refined knot vector so the spans differ) against the smallest of
+  // element_extents; a curved patch takes the edges' way.
+  auto by_edges = [](const Patch& p) {
+    double smallest = 1e300;
+    for (int e = 0; e < p.n_elements(); ++e) {
+      const std::array<double, 3> ext = element_extents(p, e);
+      for (int d = 0; d < p.param_dim(); ++d) smallest = std::min(smallest, ext[d]);
+    }
+    return smallest;
+  };
+  const Patch b = box(0.3, 0.8, 1.5, 3, 4, 5, 2, {true, false, true});
+  EXPECT_NEAR(smallest_element_extent(b), 0.1, 1e-15);
+  const Patch uniform = rectangle(1.0, 0.5, 4, 5, 2);
+  const KnotVector& kv = uniform.knots(1);  // one span of the second direction split unevenly
+  const Patch graded = insert_knots(uniform, 1, {kv.a() + 0.37 * (kv.b() - kv.a())});
+  ASSERT_TRUE(affine_map(graded).has_value());
+  EXPECT_NEAR(smallest_element_extent(graded), by_edges(graded), 1e-15);
+  EXPECT_LT(smallest_element_extent(graded), 0.1 - 1e-3);
+  const Patch curved = narrowing_channel(NarrowingChannel{}, 24, 6, 2);
+  ASSERT_FALSE(affine_map(curved).has_value());
+  EXPECT_EQ(smallest_element_extent(curved), by_edges(curved));
 }
 
 namespace {
