@@ -244,6 +244,19 @@ void CoupledLinearSolver::fall_back(const std::string& type, const std::string& 
   MatDestroy(&J_fixed_);
   opt_.bulk_stencil = false;  // (the bulk solver was not built: the whole Jacobian is still there)
   configure(type);
+  // The user's KSP options win over the fallback's defaults, as at construction (configure, then
+  // KSPSetFromOptions). Where the user had asked for a PC type, the options would set it again, so only the
+  // tolerance is taken from them.
+  if (opt_.pc_type.empty()) {
+    CELLFSI_PETSC(KSPSetFromOptions(ksp_));
+  } else {
+    const char* prefix = nullptr;
+    PetscReal rtol = 0;
+    PetscBool set = PETSC_FALSE;
+    CELLFSI_PETSC(KSPGetOptionsPrefix(ksp_, &prefix));
+    CELLFSI_PETSC(PetscOptionsGetReal(nullptr, prefix, "-ksp_rtol", &rtol, &set));
+    if (set) CELLFSI_PETSC(KSPSetTolerances(ksp_, rtol, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
+  }
   marking_changed_ = pc_stale_ = true;
   steps_since_refresh_ = 0;
   CELLFSI_PETSC(PetscPrintf(fluid_.comm(), "cellfsi: note: %s; the coupling loop uses -coupling_pc_type %s\n",

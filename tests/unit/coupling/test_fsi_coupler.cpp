@@ -93,6 +93,7 @@ struct CapsuleRun {
   int iterations = 0, linear_iterations = 0, factorizations = 0, refreshes = 0;
   bool fell_back = false;  // CoupledLinearSolver::fell_back() at the end
   std::string pc_type;     // the one in use at the end
+  double rtol = 0;         // the coupled solve's relative tolerance at the end
   long corrected = 0;      // CoupledLinearSolver::corrected_unknowns() at the end
   double nu_centre = 0, nu_far = 0;  // the viscosity field at the capsule's centre and far from it (0: none)
 };
@@ -132,6 +133,9 @@ CapsuleRun run_capsule(const std::string& pc_type, int steps, int refresh_steps 
   }
   r.pc_type = fsi.linear_solver().pc_type();
   r.fell_back = fsi.linear_solver().fell_back();
+  PetscReal rtol = 0;
+  KSPGetTolerances(fsi.linear_solver().ksp(), &rtol, nullptr, nullptr, nullptr);
+  r.rtol = rtol;
   r.corrected = static_cast<long>(fsi.linear_solver().corrected_unknowns());
   const std::vector<double> nu = fluid.viscosity_on_zero();
   if (!nu.empty()) {
@@ -215,6 +219,14 @@ TEST(FsiCoupler, AutoFallsBackToTheBandSolverWhereTheBulkIsNotUniform) {
   const CapsuleRun fourier = run_capsule("", 1, 10, 1e-2);
   EXPECT_FALSE(fourier.fell_back);
   EXPECT_EQ(fourier.pc_type, "cellfsi_fourier");
+  // A tolerance the user gave survives the fallback (it used to be reset to the default by the new type's
+  // configuration).
+  EXPECT_EQ(fallback.rtol, 1e-5);
+  PetscOptionsSetValue(nullptr, "-coupling_ksp_rtol", "3e-7");
+  const CapsuleRun asked = run_capsule("", 1, 10, 1e-17);
+  PetscOptionsClearValue(nullptr, "-coupling_ksp_rtol");
+  EXPECT_TRUE(asked.fell_back);
+  EXPECT_EQ(asked.rtol, 3e-7);
 }
 
 // The membrane's inner viscosity (coupling/inner_viscosity.hpp). Equal to the fluid's, it changes nothing:
