@@ -232,7 +232,11 @@ double body_bytes(const BodySettings& b, int dim, const std::array<int, 3>& n) {
   double elements = 1;
   for (int d = 0; d < dim; ++d) elements *= n[d];
   const double per_element = dim == 2 ? kBodyBytesPerElement2d : kBodyBytesPerElement3d;
-  return elements * per_element * std::pow((b.degree + 1) / 3.0, dim);
+  // The basis tabulated at the quadrature points (NurbsSolid, since the constants were measured): (p + 1)^d
+  // points of (p + 1)^d functions, each a value, a gradient and an unknown index; X, weight, offset per point.
+  const double f = std::pow(b.degree + 1.0, dim);
+  const double table = f * (f * (8.0 * (dim + 1) + 4.0) + 36.0);
+  return elements * (per_element * std::pow((b.degree + 1) / 3.0, dim) + table);
 }
 
 /// Bodies the machine cannot hold are refused before any is built (a membrane of 1 x 1e8 elements allocated

@@ -106,6 +106,16 @@ void NurbsSolid::tabulate_quadrature() {
   const Index3 ng = geometry::default_gauss(reference_);
   BasisValues bv;
   MapValues mv;
+  // Exact sizes (no doubling by push_back): at 64^3 the tables are 0.3 GB.
+  const std::size_t n_points = static_cast<std::size_t>(reference_.n_elements()) * ng[0] * ng[1] * ng[2];
+  std::size_t n_functions = 1;
+  for (int d = 0; d < dim_; ++d) n_functions *= reference_.degree(d) + 1;
+  q_begin_.reserve(n_points + 1);
+  q_unknown_.reserve(n_points * n_functions);
+  q_N_.reserve(n_points * n_functions);
+  q_dN_.reserve(n_points * n_functions * dim_);
+  q_X_.reserve(n_points);
+  q_weight_.reserve(n_points);
   q_begin_.assign(1, 0);
   for (int e = 0; e < reference_.n_elements(); ++e) {
     const Index3 m = reference_.element_multi_index(e);

@@ -188,12 +188,12 @@ TEST_F(CellfsiApp, MeshTooLargeForTheMachineIsRejectedWithAnEstimate) {
 TEST_F(CellfsiApp, BodiesTooLargeForTheMachineAreRejectedWithAnEstimate) {
   // Issue 24: a membrane of 1 x 1e8 elements allocated for 25 s, then failed with std::bad_alloc; a throat of
   // 1e-5 cm gave the CTC's nucleus automatic elements of the throat's size (52 million at 384 x 128), which
-  // were built and located point by point past 20 GB. Each is refused at once (8 kB per element: 800 GB and
-  // 420 GB, more than any one machine has).
+  // were built and located point by point past 20 GB. Each is refused at once (10.6 kB per element, 2.6 kB
+  // of it the basis tabulated at the quadrature points: 1060 GB and 560 GB, more than any one machine has).
   const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
       {with({scene("capsule_shear.yaml")}, with(kCapsule, {"-solid_membrane_elements", "1,100000000"})),
        "option -solid_membrane_elements = 1,100000000 is invalid; valid: fewer elements: the bodies need at "
-       "least 800 GB (body 'membrane': 800 GB for 1 x 100000000 elements) and "},
+       "least 1.06e+03 GB (body 'membrane': 1.06e+03 GB for 1 x 100000000 elements) and "},
       {{scene("ctc_narrowing.yaml"), "-channel_throat_height", "1e-5", "-solid_membrane_elements", "1,0",
         "-solid_nucleus_elements", "0,0"},
        "option -solid_nucleus_elements = 0,0 is invalid; valid: fewer elements: the bodies need at least "}};

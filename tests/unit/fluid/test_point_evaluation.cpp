@@ -1,6 +1,6 @@
 // physical_point's fast path on axis-aligned affine patches (the paper's boxes) against its general path
-// (rational basis, map, inverse Jacobian): the same functions, values, gradients, Laplacians, tau_M metric and
-// Jacobian, at points inside elements, on their faces and across a periodic direction's wrap.
+// (rational basis, map, inverse Jacobian): the same functions, values, gradients, Laplacians, tau_M metric
+// and Jacobian, at points inside elements, on their faces and across a periodic direction's wrap.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -43,7 +43,8 @@ void expect_paths_agree(const geometry::Patch& patch, const geometry::AffineMap&
   ASSERT_EQ(fast.lapN.size(), slow.lapN.size());
   const double lap_max = largest(slow.lapN);
   ASSERT_GT(lap_max, 0.0);
-  for (int k = 0; k < slow.n; ++k) EXPECT_NEAR(fast.lapN[k], slow.lapN[k], 1e-11 * lap_max) << "function " << k;
+  for (int k = 0; k < slow.n; ++k)
+    EXPECT_NEAR(fast.lapN[k], slow.lapN[k], 1e-11 * lap_max) << "function " << k;
   const double g_max = std::max({slow.G[0][0], slow.G[1][1], slow.G[2][2]});
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) EXPECT_NEAR(fast.G[i][j], slow.G[i][j], 1e-13 * g_max);
@@ -66,8 +67,8 @@ TEST(PhysicalPointAffine, AgreesWithTheGeneralPathOnAPeriodicBox) {
                                                 geometry::Vec3(-3e-4, 2e-4, 1e-4));
     const auto map = geometry::affine_map(patch);
     ASSERT_TRUE(map.has_value());
-    const double fractions[][3] = {{0.5, 0.5, 0.5}, {0.0, 0.0, 0.0}, {1.0, 1.0, 1.0}, {0.13, 0.71, 0.97},
-                                   {0.88, 0.02, 0.31}};
+    const double fractions[][3] = {
+        {0.5, 0.5, 0.5}, {0.0, 0.0, 0.0}, {1.0, 1.0, 1.0}, {0.13, 0.71, 0.97}, {0.88, 0.02, 0.31}};
     for (const Index3& e : {Index3{0, 0, 0}, Index3{4, 3, 5}, Index3{2, 1, 3}, Index3{4, 0, 0}})
       for (const auto& t : fractions)
         for (int order : {1, 2}) expect_paths_agree(patch, *map, e, at(patch, e, t), order);

@@ -213,7 +213,8 @@ TEST(Measures, TabulatedQuadratureAgreesWithPatchEvaluation) {
     const RegionMoments r = patch_moments(p);
     EXPECT_NEAR(r.measure, ref.measure, 1e-13 * ref.measure) << "patch " << i;
     EXPECT_LT((r.centroid - ref.centroid).norm(), 1e-13 * c.norm()) << "patch " << i;
-    EXPECT_LT((r.second_moment - ref.second_moment).norm(), 1e-11 * ref.second_moment.norm()) << "patch " << i;
+    EXPECT_LT((r.second_moment - ref.second_moment).norm(), 1e-11 * ref.second_moment.norm())
+        << "patch " << i;
   }
 }
 
