@@ -17,6 +17,52 @@ using geometry::MapValues;
 
 namespace {
 
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define CELLFSI_POINT_AVX2 1
+/// point_fields' 3D sums with a node's four unknowns (v_x, v_y, v_z, p) as one AVX vector: per function six
+/// vector FMAs (values, rates, Laplacian, the x, y and z derivatives) instead of 23 scalar products. Chosen at
+/// run time where the CPU has AVX2 and FMA; the same sums in the same order, rounded as fused multiply-adds.
+/// (Generic 4-wide vectors without AVX made the 3D residual 2.2x slower: measured, bench/fluid_assembly.)
+[[gnu::target("avx2,fma")]] void point_sums_3d_avx2(const PointBasis& b, const double* Vf, const double* Vd,
+                                                    const double* S, double& s, double v[3], double vdot[3],
+                                                    double lap_v[3], double dv[3][3], double& p, double dp[3]) {
+  typedef double Quad __attribute__((vector_size(32)));
+  typedef double QuadU __attribute__((vector_size(32), aligned(8), may_alias));
+  Quad val{}, rate{}, lap{}, dx{}, dy{}, dz{};
+  double sum_s = 0;
+  for (int k = 0; k < b.n; ++k) {
+    const double N = b.N[k], lapN = b.lapN[k];
+    const double* dN = b.dN + 3 * k;
+    const Quad f = *reinterpret_cast<const QuadU*>(Vf + 4 * k);
+    sum_s += N * S[k];
+    val += Quad{N, N, N, N} * f;
+    rate += Quad{N, N, N, N} * *reinterpret_cast<const QuadU*>(Vd + 4 * k);
+    lap += Quad{lapN, lapN, lapN, lapN} * f;
+    dx += Quad{dN[0], dN[0], dN[0], dN[0]} * f;
+    dy += Quad{dN[1], dN[1], dN[1], dN[1]} * f;
+    dz += Quad{dN[2], dN[2], dN[2], dN[2]} * f;
+  }
+  s = sum_s;
+  for (int i = 0; i < 3; ++i) {
+    v[i] = val[i];
+    vdot[i] = rate[i];
+    lap_v[i] = lap[i];
+    dv[i][0] = dx[i];
+    dv[i][1] = dy[i];
+    dv[i][2] = dz[i];
+  }
+  p = val[3];
+  dp[0] = dx[3];
+  dp[1] = dy[3];
+  dp[2] = dz[3];
+}
+
+bool cpu_has_avx2_fma() {
+  static const bool has = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  return has;
+}
+#endif
+
 /// The fields at a point from the element's nodal values (Vf, Vd interleaved by node, dof D + 1; S), for
 /// FluidSolver::assemble. D is a template parameter so that the small loops unroll and the sums stay in
 /// registers.
@@ -53,6 +99,11 @@ void point_fields(const PointBasis& b, const double* Vf, const double* Vd, const
     p = ps[0];
     s = ps[1];
   } else {
+#ifdef CELLFSI_POINT_AVX2
+    if (cpu_has_avx2_fma())
+      point_sums_3d_avx2(b, Vf, Vd, S, s, v, vdot, lap_v, dv, p, dp);
+    else
+#endif
     for (int k = 0; k < b.n; ++k) {
       const double N = b.N[k], lapN = b.lapN[k];
       const double* dN = b.dN + 3 * k;
