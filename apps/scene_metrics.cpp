@@ -330,7 +330,8 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     // The Lagrangian mesh actually used (automatic counts are chosen from the fluid mesh).
     for (int d = 0; d < reference.param_dim(); ++d)
       m.emplace_back(name + "_elements_" + std::to_string(d), reference.n_elements(d));
-    const coupling::Resolution r = coupling::resolution(fluid_element, {name, reference, bodies_[b]->is_membrane()});
+    const coupling::Resolution r =
+        coupling::resolution(fluid_element, {name, reference, bodies_[b]->is_membrane()});
     m.emplace_back(name + "_mesh_ratio", r.ratio());
   }
   return m;

@@ -233,7 +233,8 @@ double body_bytes(const BodySettings& b, int dim, const std::array<int, 3>& n) {
   for (int d = 0; d < dim; ++d) elements *= n[d];
   const double per_element = dim == 2 ? kBodyBytesPerElement2d : kBodyBytesPerElement3d;
   // The basis tabulated at the quadrature points (NurbsSolid, since the constants were measured): (p + 1)^d
-  // points of (p + 1)^d functions, each a value, a gradient and an unknown index; X, weight, offset per point.
+  // points of (p + 1)^d functions, each a value, a gradient and an unknown index; per point X, weight and
+  // offset.
   const double f = std::pow(b.degree + 1.0, dim);
   const double table = f * (f * (8.0 * (dim + 1) + 4.0) + 36.0);
   return elements * (per_element * std::pow((b.degree + 1) / 3.0, dim) + table);

@@ -19,13 +19,15 @@ namespace {
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define CELLFSI_POINT_AVX2 1
-/// point_fields' 3D sums with a node's four unknowns (v_x, v_y, v_z, p) as one AVX vector: per function six
-/// vector FMAs (values, rates, Laplacian, the x, y and z derivatives) instead of 23 scalar products. Chosen at
-/// run time where the CPU has AVX2 and FMA; the same sums in the same order, rounded as fused multiply-adds.
+/// point_fields' 3D sums with a node's four unknowns (v_x, v_y, v_z, p) as one AVX vector: per function
+/// six vector FMAs (values, rates, Laplacian, the x, y and z derivatives) instead of 23 scalar products.
+/// Chosen at run time where the CPU has AVX2 and FMA; the same sums in the same order, rounded as fused
+/// multiply-adds.
 /// (Generic 4-wide vectors without AVX made the 3D residual 2.2x slower: measured, bench/fluid_assembly.)
 [[gnu::target("avx2,fma")]] void point_sums_3d_avx2(const PointBasis& b, const double* Vf, const double* Vd,
                                                     const double* S, double& s, double v[3], double vdot[3],
-                                                    double lap_v[3], double dv[3][3], double& p, double dp[3]) {
+                                                    double lap_v[3], double dv[3][3], double& p,
+                                                    double dp[3]) {
   typedef double Quad __attribute__((vector_size(32)));
   typedef double QuadU __attribute__((vector_size(32), aligned(8), may_alias));
   Quad val{}, rate{}, lap{}, dx{}, dy{}, dz{};

@@ -14,8 +14,8 @@ using geometry::MapValues;
 namespace {
 
 /// physical_point on an axis-aligned affine patch: x_d = offset_d + scale_d xi_d, so
-/// N_k = prod_d B_{a_d}(xi_d), d N_k / d x_j = B'_{a_j} / scale_j times the other factors, and G is diagonal. Non-rational (affine_map
-/// requires equal weights, and equal weights cancel).
+/// N_k = prod_d B_{a_d}(xi_d), d N_k / d x_j = B'_{a_j} / scale_j times the other factors, and G is
+/// diagonal. Non-rational (affine_map requires equal weights, and equal weights cancel).
 void physical_point_affine(const geometry::Patch& patch, const geometry::AffineMap& map, const Index3& e,
                            const Param& xi, int order, PhysicalPoint& out) {
   const int D = patch.param_dim();
