@@ -58,11 +58,6 @@ namespace {
   dp[1] = dy[3];
   dp[2] = dz[3];
 }
-
-bool cpu_has_avx2_fma() {
-  static const bool has = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  return has;
-}
 #endif
 
 /// The fields at a point from the element's nodal values (Vf, Vd interleaved by node, dof D + 1; S), for

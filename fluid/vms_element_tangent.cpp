@@ -480,10 +480,6 @@ template <int Dim, bool kConvective>
   element_products<Dim, kConvective, 4>(ep, sc, K, layout);
 }
 
-bool cpu_has_avx2_fma() {
-  static const bool has = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  return has;
-}
 #endif
 
 // Sum-factorised element tangent (2D, TensorFactors given; vms_tangent_element_blocks). All row components at
@@ -862,6 +858,15 @@ void tangent_element(const VmsParameters& prm, const ElementPoints& points, cons
 }
 
 }  // namespace
+
+bool cpu_has_avx2_fma() {
+#ifdef CELLFSI_VMS_AVX2
+  static const bool has = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  return has;
+#else
+  return false;
+#endif
+}
 
 void vms_tangent_element(const VmsParameters& prm, const ElementPoints& points, const TangentScales& ts,
                          double* K, ElementKernelIsa isa) {

@@ -111,6 +111,10 @@ struct ElementPoints {
 /// round-off only. For tests and timings.
 enum class ElementKernelIsa { best, baseline };
 
+/// True where the CPU has AVX2 and FMA (x86-64, detected once at run time): the element kernels' and the
+/// residual's point fields' fast versions are chosen by it.
+bool cpu_has_avx2_fma();
+
 /// Element tangent: adds to K (layout of vms_tangent; K is accumulated into, not overwritten) the sum over
 /// the nq points of vms_tangent(prm, {n, N + q n, dN + 3 q n, lapN + q n}, fields[q], ts, weight[q], K),
 /// formed as small matrix products over the points instead of pair by pair (same result up to round-off).
