@@ -90,6 +90,18 @@ inline PetscLogEvent register_log_event(const char* class_name, const char* even
   return e;
 }
 
+/// RAII begin/end of a log event (ended on a throw too).
+class EventScope {
+ public:
+  explicit EventScope(PetscLogEvent e) : e_(e) { PetscLogEventBegin(e_, 0, 0, 0, 0); }
+  ~EventScope() { PetscLogEventEnd(e_, 0, 0, 0, 0); }
+  EventScope(const EventScope&) = delete;
+  EventScope& operator=(const EventScope&) = delete;
+
+ private:
+  PetscLogEvent e_;
+};
+
 namespace detail {
 inline PetscErrorCode record_first_message(MPI_Comm, int, const char*, const char*, PetscErrorCode n,
                                            PetscErrorType, const char* mess, void* ctx) {

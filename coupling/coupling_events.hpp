@@ -30,18 +30,6 @@ inline const CouplingEvents& coupling_events() {
   return e;
 }
 
-/// RAII begin/end of a log event.
-class EventScope {
- public:
-  explicit EventScope(PetscLogEvent e) : e_(e) { PetscLogEventBegin(e_, 0, 0, 0, 0); }
-  ~EventScope() { PetscLogEventEnd(e_, 0, 0, 0, 0); }
-  EventScope(const EventScope&) = delete;
-  EventScope& operator=(const EventScope&) = delete;
-
- private:
-  PetscLogEvent e_;
-};
-
 /// The iterations of the KSP's last solve; throws if it failed.
 inline int iterations_or_throw(KSP ksp) {
   KSPConvergedReason kr;

@@ -22,6 +22,20 @@ namespace {
 // MUMPS' arrays are 1-based Fortran ones: ICNTL(i) is icntl[i - 1].
 constexpr int icntl(int i) { return i - 1; }
 
+// The parts of a factorisation in -log_view: the host's ordering (SCOTCH), MUMPS' analysis (job 1), its
+// numerical factorisation (job 2) and the solves (job 3).
+struct LuEvents {
+  PetscLogEvent order = register_log_event("cellfsi solvers", "RegionLUOrder");
+  PetscLogEvent analyse = register_log_event("cellfsi solvers", "RegionLUAnalyse");
+  PetscLogEvent numeric = register_log_event("cellfsi solvers", "RegionLUNumeric");
+  PetscLogEvent solve = register_log_event("cellfsi solvers", "RegionLUSolve");
+};
+
+const LuEvents& lu_events() {
+  static const LuEvents events;
+  return events;
+}
+
 bool has_type(Mat A, const char* type) {
   PetscBool same = PETSC_FALSE;
   CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(A), type, &same));
@@ -158,6 +172,7 @@ void SinglePrecisionLU::analyse() {
     MPI_Gatherv(jcn_.data(), n_local, MPI_INT, cols.data(), counts.data(), offsets.data(), MPI_INT, 0, comm_);
     std::string failure;  // the host's, told to every rank: all throw, or none waits in MUMPS alone
     if (rank == 0) {
+      EventScope ev(lu_events().order);
       try {
         const int n_nodes = static_cast<int>(n_ / bs_);
         std::vector<std::vector<int>> neighbours(n_nodes);
@@ -189,7 +204,10 @@ void SinglePrecisionLU::analyse() {
   } else {
     id.icntl[icntl(7)] = 7;  // MUMPS' own choice
   }
-  call(1);
+  {
+    EventScope ev(lu_events().analyse);
+    call(1);
+  }
   ++analyses_;
 }
 
@@ -237,6 +255,7 @@ void SinglePrecisionLU::factor(Mat A) {
   else
     id.a_loc = values_.data();
   // Too little workspace (the estimate of the analysis exceeded by pivoting): more, up to 3 times.
+  EventScope ev(lu_events().numeric);
   for (int attempt = 0;; ++attempt) {
     try {
       call(2);
@@ -252,6 +271,7 @@ void SinglePrecisionLU::factor(Mat A) {
 
 void SinglePrecisionLU::solve(Vec b, Vec x) {
   if (!factored_) throw std::logic_error("single-precision LU: solve before factor");
+  EventScope ev(lu_events().solve);
   if (!to_host_) CELLFSI_PETSC(VecScatterCreateToZero(b, &to_host_, &b0_));
   CELLFSI_PETSC(VecScatterBegin(to_host_, b, b0_, INSERT_VALUES, SCATTER_FORWARD));
   CELLFSI_PETSC(VecScatterEnd(to_host_, b, b0_, INSERT_VALUES, SCATTER_FORWARD));
