@@ -35,12 +35,13 @@ std::vector<int> nested_dissection(const std::vector<int>& xadj, const std::vect
     // SCOTCH takes non-const arrays but does not write them.
     err = SCOTCH_graphBuild(graph, 0, n, const_cast<int*>(xadj.data()), nullptr, nullptr, nullptr,
                             static_cast<SCOTCH_Num>(adj.size()), const_cast<int*>(adj.data()), nullptr);
-    // The same graph gives the same order, on any machine: SCOTCH 7 orders in threads, one per core, and seeds
-    // its random generator from the clock (Debian's build), so that two orders of one graph differed, and
-    // with them repeated runs (by up to 5e-7 relative in the 3D metrics: the single-precision region LU's
-    // round-off under another order). So each call orders in a context of its own: the deterministic and
-    // fixed-seed options, one thread (this rank's core: the other ranks wait for the host's order), and its
-    // own random generator restarted from one seed (the options alone left the global generator running on).
+    // The same graph gives the same order, on any machine: SCOTCH 7 orders in threads, one per core, and its
+    // random generator (Debian's build) starts differently in each process and runs on from call to call, so
+    // that two orders of one graph differed, and with them repeated runs (by up to 5e-7 relative in the 3D
+    // metrics: the single-precision region LU's round-off under another order). So each call orders in a
+    // context of its own: the deterministic and fixed-seed options, one thread (this rank's core: the other
+    // ranks wait for the host's order), and its own random generator restarted from one seed (the options
+    // alone left the global generator running on).
     SCOTCH_Context* context = SCOTCH_contextAlloc();
     SCOTCH_Graph* bound = SCOTCH_graphAlloc();
     bool context_ready = false, bound_ready = false;
@@ -57,7 +58,8 @@ std::vector<int> nested_dissection(const std::vector<int>& xadj, const std::vect
     if (!err) bound_ready = (err = SCOTCH_graphInit(bound)) == 0;
     if (!err) err = SCOTCH_contextBindGraph(context, graph, bound);
     // The default strategy: nested dissection down to small parts, which are ordered by minimum fill.
-    if (!err) err = SCOTCH_graphOrder(bound, strategy, position.data(), order.data(), nullptr, nullptr, nullptr);
+    if (!err)
+      err = SCOTCH_graphOrder(bound, strategy, position.data(), order.data(), nullptr, nullptr, nullptr);
     if (bound_ready) SCOTCH_graphExit(bound);
     if (context_ready) SCOTCH_contextExit(context);
     if (bound) SCOTCH_memFree(bound);

@@ -162,9 +162,10 @@ void SinglePrecisionLU::analyse() {
   }
   id.icntl[icntl(28)] = 1;  // sequential analysis on the host
   if (ordering_ == kMatOrderingNestedDissection) {
-    // The pattern as a graph of nodes (bs_ unknowns each), ordered on the host. Each rank sends the node pairs
-    // of the first row of each of its nodes, once per block: 1 / bs^2 of its triplets (the rows of a node have
-    // the same blocks, those of a BAIJ Jacobian; were one missing, the ordering would be worse, not wrong).
+    // The pattern as a graph of nodes (bs_ unknowns each), ordered on the host. Each rank sends the node
+    // pairs of the first row of each of its nodes, once per block: 1 / bs^2 of its triplets (the rows of a
+    // node have the same blocks, those of a BAIJ Jacobian; were one missing, the ordering would be worse, not
+    // wrong).
     const int bs = static_cast<int>(bs_);
     std::vector<int> pairs;  // (a, b), (a, b), ...
     for (std::size_t k = 0; k < irn_.size(); ++k) {

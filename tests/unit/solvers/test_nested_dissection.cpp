@@ -126,9 +126,10 @@ TEST(NestedDissection, IsAPermutationThatOrdersASeparatorLast) {
 }
 
 TEST(NestedDissection, TheSameGraphGivesTheSameOrderAtEveryCall) {
-  // Debian's SCOTCH orders in threads and seeds its random generator from the clock: without a context
+  // Debian's SCOTCH orders in threads with a random generator that runs on between calls: without a context
   // that fixes both, two orders of one graph differed (and so did repeated runs, by 5e-7 relative in the 3D
-  // metrics). A 24 x 24 x 6 grid with the couplings of quadratic splines (every vertex within 2 in each direction).
+  // metrics). A 24 x 24 x 6 grid with the couplings of quadratic splines (every vertex within 2 in each
+  // direction).
   const int nx = 24, ny = 24, nz = 6;
   std::vector<int> xadj{0}, adj;
   for (int k = 0; k < nz; ++k)
