@@ -31,6 +31,7 @@ Enum enum_of(const std::string& word, const std::vector<std::string>& words) {
 
 const std::vector<std::string> kMarkings{"support", "central"};
 const std::vector<std::string> kAccelerations{"none", "anderson"};
+const std::vector<std::string> kSolidTangents{"isotropic", "consistent"};
 const std::vector<std::string> kShapes{"hollow_ellipse",   "ellipse",   "rbc",
                                        "hollow_ellipsoid", "ellipsoid", "rbc_3d"};
 const std::vector<std::string> kArrangements{"even", "staggered", "random"};
@@ -93,7 +94,8 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
   coupling::CouplerOptions& c = s.coupling;
   coupling::LinearSolverOptions& l = c.linear;
   std::string marking = kMarkings[static_cast<int>(c.marking)],
-              acceleration = kAccelerations[static_cast<int>(c.acceleration)], s_interface = "auto";
+              acceleration = kAccelerations[static_cast<int>(c.acceleration)], s_interface = "auto",
+              solid_tangent = kSolidTangents[static_cast<int>(c.solid_tangent)];
   // "-solid_bodies ''" would read as no list at all: name the mistake.
   PetscBool has = PETSC_FALSE;
   char value[8] = "";
@@ -154,6 +156,11 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
                "Previous time steps whose Anderson pairs are kept (0: none)",
                int_between(0, 1000, "(0: this step's pairs only)"))
       .flag("coupling_monitor", c.monitor, "Print every coupling iteration's residuals")
+      .text("coupling_solid_tangent", solid_tangent,
+            "The solids' stiffness in the fluid's Jacobian: isotropic (a viscosity from each material's "
+            "small-strain shear modulus) or consistent (the material's tangent at the point's deformation, "
+            "and its stress); the solution does not depend on it, the coupling iterations do",
+            kSolidTangents)
       .text("coupling_pc_type", l.pc_type,
             "Preconditioner of the coupled solve, the KSP -coupling_ (FGMRES with the cellfsi types, else "
             "GMRES): cellfsi_fourier (the Jacobian without the cells inverted by FFT, corrected by an LU of the "
@@ -214,6 +221,7 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
           "less than -final_time = " + option_value_text(s.final_time) + " s");
   c.marking = enum_of<coupling::Marking>(marking, kMarkings);
   c.acceleration = enum_of<coupling::Acceleration>(acceleration, kAccelerations);
+  c.solid_tangent = enum_of<coupling::SolidTangent>(solid_tangent, kSolidTangents);
   read_interface_scaling(s, t, s_interface);
 }
 

@@ -84,7 +84,13 @@ void FsiCoupler::update_immersed(bool mark) {
       ip.weight = q[i].weight;
       ip.beta = q[i].beta;
       // The solid's stiffness in the fluid tangent (see fluid::ImmersedPoint::stiffness_viscosity).
-      ip.stiffness_viscosity = q[i].shear_modulus * tp_.gamma * tp_.dt * tp_.alpha_f / (tp_.alpha_m * rho1);
+      const double stiffness_time = tp_.gamma * tp_.dt * tp_.alpha_f / tp_.alpha_m;
+      ip.stiffness_viscosity = q[i].shear_modulus * stiffness_time / rho1;
+      if (opt_.solid_tangent == SolidTangent::consistent && q[i].has_tangent) {
+        ip.stiffness_time = stiffness_time;
+        for (int r = 0, t = 0; r < 6; ++r)
+          for (int c = r; c < 6; ++c, ++t) ip.stiffness[t] = q[i].tangent(r, c);
+      }
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) ip.stress[r][c] = q[i].stress(r, c);
       for (int c = 0; c < 3; ++c) ip.force[c] = q[i].force[c];

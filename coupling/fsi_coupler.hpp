@@ -27,6 +27,13 @@ enum class Acceleration {
   anderson,  // Anderson acceleration of that fixed-point map (coupling/anderson.hpp)
 };
 
+/// The solids' stiffness in the fluid tangent (fluid::ImmersedPoint): the residual, and so the solution, does
+/// not depend on it; the coupling iterations do.
+enum class SolidTangent {
+  isotropic,   // a viscosity from the small-strain shear modulus G (ImmersedPoint::stiffness_viscosity)
+  consistent,  // the material's spatial tangent and the stress at the point (ImmersedPoint::stiffness)
+};
+
 struct CouplerOptions {
   double s_interface = 1e10;           // s_I (paper Sec. 3.3)
   Marking marking = Marking::central;  // which functions get s_I (coupling/interface_marking.hpp)
@@ -42,6 +49,10 @@ struct CouplerOptions {
   Acceleration acceleration = Acceleration::anderson;
   int acceleration_columns = 5;  // difference pairs kept by the Anderson acceleration
   int acceleration_reuse = 0;    // previous steps whose pairs are kept (0: only this step's)
+  // Consistent: the same coupling iterations where the cells barely deform (the 3D compound capsule at
+  // 16^3, 537 in 120 steps either way), fewer where they deform much (the optical-tweezers test: 98 instead
+  // of 123); docs/performance.md §17.
+  SolidTangent solid_tangent = SolidTangent::consistent;
   // Per body (in the order of the bodies; missing or 0: none): the dynamic viscosity mu_in [g/(cm s)] of the
   // fluid inside a membrane (coupling/inner_viscosity.hpp). Only membranes take one. A value equal to the
   // fluid's adds nothing: with no contrast the fluid never gets a viscosity field, and runs are unchanged.

@@ -25,10 +25,14 @@ std::string decode(const std::vector<double>& d) {
 constexpr std::size_t kVecSize = 3;                       // a Vec3, or a Param
 constexpr std::size_t kMatSize = 9;                       // a Mat3, row by row
 constexpr std::size_t kSampleSize = kVecSize + kMatSize;  // VelocitySample: v, grad_v
-// QuadratureData: x, weight, stress, beta, shear_modulus, force.
+// QuadratureData: x, weight, stress, beta, shear_modulus, force, has_tangent, the tangent's upper triangle.
+constexpr std::size_t kTangentSize = 21;
 constexpr std::size_t kQuadratureWeight = kVecSize, kQuadratureStress = kQuadratureWeight + 1,
                       kQuadratureBeta = kQuadratureStress + kMatSize, kQuadratureShear = kQuadratureBeta + 1,
-                      kQuadratureForce = kQuadratureShear + 1, kQuadratureSize = kQuadratureForce + kVecSize;
+                      kQuadratureForce = kQuadratureShear + 1,
+                      kQuadratureHasTangent = kQuadratureForce + kVecSize,
+                      kQuadratureTangent = kQuadratureHasTangent + 1,
+                      kQuadratureSize = kQuadratureTangent + kTangentSize;
 
 void put(std::vector<double>& out, const solid::Vec3& v) {
   out.insert(out.end(), v.data(), v.data() + kVecSize);
@@ -74,6 +78,9 @@ void put(std::vector<double>& out, const solid::QuadratureData& q) {
   out.push_back(q.beta);
   out.push_back(q.shear_modulus);
   put(out, q.force);
+  out.push_back(q.has_tangent ? 1 : 0);
+  for (int r = 0; r < 6; ++r)
+    for (int c = r; c < 6; ++c) out.push_back(q.tangent(r, c));
 }
 std::vector<solid::QuadratureData> unpack_quadrature(const std::vector<double>& d) {
   std::vector<solid::QuadratureData> q(d.size() / kQuadratureSize);
@@ -85,6 +92,10 @@ std::vector<solid::QuadratureData> unpack_quadrature(const std::vector<double>& 
     q[i].beta = p[kQuadratureBeta];
     q[i].shear_modulus = p[kQuadratureShear];
     q[i].force = vec(p + kQuadratureForce);
+    q[i].has_tangent = p[kQuadratureHasTangent] != 0;
+    const double* t = p + kQuadratureTangent;
+    for (int r = 0; r < 6; ++r)
+      for (int c = r; c < 6; ++c) q[i].tangent(r, c) = q[i].tangent(c, r) = *t++;
   }
   return q;
 }

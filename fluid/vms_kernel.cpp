@@ -249,6 +249,34 @@ void tangent_kernel(const VmsParameters& prm, const PointBasis& basis, const Poi
   }
 }
 
+/// Voigt index of the index pair (i, j): 11, 22, 33, 23, 13, 12.
+constexpr int kVoigt[3][3] = {{0, 5, 4}, {5, 1, 3}, {4, 3, 2}};
+
+#ifdef CELLFSI_RESIDUAL_AVX2
+/// immersed_tangent_kernel's rows of one function A in 3D: for every B and row i, the block row (columns e =
+/// 0..2, and the pressure's, which gets zeros) sum_l dN_B,l W[i][l] + N_B M[i], as one AVX vector.
+[[gnu::target("avx2,fma")]] void immersed_rows_3d_avx2(const PointBasis& basis, const double (*W)[3][4],
+                                                       const double (*M)[4], double* KA, std::size_t ld) {
+  typedef double Quad __attribute__((vector_size(32)));
+  typedef double QuadU __attribute__((vector_size(32), aligned(8), may_alias));
+  Quad w[3][3], m[3];
+  for (int i = 0; i < 3; ++i) {
+    m[i] = *reinterpret_cast<const QuadU*>(M[i]);
+    for (int l = 0; l < 3; ++l) w[i][l] = *reinterpret_cast<const QuadU*>(W[i][l]);
+  }
+  for (int B = 0; B < basis.n; ++B) {
+    const double N = basis.N[B];
+    const double* g = basis.dN + B * 3;
+    const Quad n4{N, N, N, N}, g0{g[0], g[0], g[0], g[0]}, g1{g[1], g[1], g[1], g[1]},
+        g2{g[2], g[2], g[2], g[2]};
+    for (int i = 0; i < 3; ++i) {
+      QuadU* Ki = reinterpret_cast<QuadU*>(KA + i * ld + B * 4);
+      *Ki += n4 * m[i] + g0 * w[i][0] + g1 * w[i][1] + g2 * w[i][2];
+    }
+  }
+}
+#endif
+
 template <int Dim>
 void immersed_tangent_kernel(const VmsParameters& prm, const PointBasis& basis, const PointFields& f,
                              const TangentScales& ts, const ImmersedPoint& ip, double* K) {
@@ -262,30 +290,67 @@ void immersed_tangent_kernel(const VmsParameters& prm, const PointBasis& basis, 
     v[i] = f.v[i];
     for (int j = 0; j < Dim; ++j) dv[i][j] = f.dv[i][j];
   }
+  // The solid's stiffness: isotropic (a viscosity nu_s beside the fluid's), or consistent (ImmersedPoint).
+  const bool consistent = ip.stiffness_time > 0;
+  const double nu_s = consistent ? 0.0 : ip.stiffness_viscosity, s_w = w * vel * ip.stiffness_time;
+  double c[6][6] = {};
+  if (consistent)
+    for (int r = 0, t = 0; r < 6; ++r)
+      for (int q = r; q < 6; ++q, ++t) c[r][q] = c[q][r] = ip.stiffness[t];
+  // Every term is, in the block (A, B), row i and column e, sum_l dN_B,l W[i][l][e] + N_B M[i][e] with W
+  // and M of A alone:
+  //   -w (nu - nu_s) vel (d_e N_A dN_B,i + delta_ie dN_A . dN_B)      (viscosity and isotropic stiffness)
+  //   mass_A (rate N_B + vel v . dN_B) delta_ie + mass_A vel N_B dv_ie  (the solid's inertia)
+  //   a_j c_ijel dN_B,l + stress_il dN_B,l a_e + delta_ie a . stress dN_B (consistent stiffness: c : sym(L),
+  //   stress L^T and L stress, a = s_w dN_A)
+  double W[Dim][Dim][4] = {}, M[Dim][4] = {};
   for (int A = 0; A < n; ++A) {
     const double mass_A = -w * ip.beta * basis.N[A];
-    Vec3 visc_dN_A{};  // -w (nu - nu_s) velocity dN_A: the fluid's viscosity removed, the solid's stiffness
-                       // added
-    for (int j = 0; j < Dim; ++j)
-      visc_dN_A[j] = -w * (prm.nu - ip.stiffness_viscosity) * vel * basis.dN[A * 3 + j];
+    double visc[Dim], a[Dim], sa[Dim] = {};
+    for (int j = 0; j < Dim; ++j) {
+      visc[j] = -w * (prm.nu - nu_s) * vel * basis.dN[A * 3 + j];
+      a[j] = s_w * basis.dN[A * 3 + j];
+    }
+    for (int i = 0; i < Dim; ++i) {
+      for (int e = 0; e < Dim; ++e) {
+        M[i][e] = (i == e ? mass_A * ts.velocity_rate : 0.0) + (convective ? mass_A * vel * dv[i][e] : 0.0);
+        for (int l = 0; l < Dim; ++l) {
+          double x = (i == l ? visc[e] : 0.0) + (i == e ? visc[l] : 0.0);
+          if (convective && i == e) x += mass_A * vel * v[l];
+          W[i][l][e] = x;
+        }
+      }
+    }
+    if (consistent) {
+      for (int i = 0; i < Dim; ++i)
+        for (int j = 0; j < Dim; ++j) sa[i] += ip.stress[i][j] * a[j];
+      for (int i = 0; i < Dim; ++i)
+        for (int l = 0; l < Dim; ++l)
+          for (int e = 0; e < Dim; ++e) {
+            double x = ip.stress[i][l] * a[e] + (i == e ? sa[l] : 0.0);
+            for (int j = 0; j < Dim; ++j) x += a[j] * c[kVoigt[i][j]][kVoigt[e][l]];
+            W[i][l][e] += x;
+          }
+    }
+    double* KA = K + static_cast<std::size_t>(A) * nc * ld;
+    if constexpr (Dim == 3) {
+#ifdef CELLFSI_RESIDUAL_AVX2
+      if (cpu_has_avx2_fma()) {
+        immersed_rows_3d_avx2(basis, W, M, KA, ld);
+        continue;
+      }
+#endif
+    }
     for (int B = 0; B < n; ++B) {
       const double N_B = basis.N[B];
-      const double* dN_B = basis.dN + B * 3;
-      double gg = 0, v_dN = 0;
-      for (int j = 0; j < Dim; ++j) {
-        gg += visc_dN_A[j] * dN_B[j];
-        v_dN += v[j] * dN_B[j];
-      }
-      double diag = mass_A * ts.velocity_rate * N_B + gg;
-      if (convective) diag += mass_A * vel * v_dN;
+      const double* g = basis.dN + B * 3;
       for (int i = 0; i < Dim; ++i) {
-        double* Ki = K + (static_cast<std::size_t>(A) * nc + i) * ld + B * nc;
+        double* Ki = KA + i * ld + B * nc;
         for (int e = 0; e < Dim; ++e) {
-          double k = visc_dN_A[e] * dN_B[i];
-          if (convective) k += mass_A * vel * N_B * dv[i][e];
+          double k = N_B * M[i][e];
+          for (int l = 0; l < Dim; ++l) k += g[l] * W[i][l][e];
           Ki[e] += k;
         }
-        Ki[i] += diag;
       }
     }
   }

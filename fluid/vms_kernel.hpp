@@ -153,6 +153,13 @@ struct ImmersedPoint {
   /// block-iterative loop diverges for any realistic stiffness; the residual, and so the solution, does not
   /// depend on it.
   double stiffness_viscosity = 0;
+  /// Tangent only, in place of stiffness_viscosity where stiffness_time > 0: the solid's consistent stiffness
+  /// (-coupling_solid_tangent consistent). A velocity increment dv moves the solid by stiffness_time dv
+  /// (gamma dt alpha_f / alpha_m), which changes the stress term d_j N_A stress_ij by L stress + stress L^T +
+  /// c : sym(L), L = stiffness_time grad dv (the test function held). `stiffness` is that c / rho_1 in Voigt
+  /// form (solid::Material::spatial_tangent), its upper triangle row by row (11, 22, 33, 23, 13, 12).
+  double stiffness_time = 0;
+  std::array<double, 21> stiffness{};
   /// An external force on the solid (an optical tweezers' bead): (1/rho_1) times its density per unit
   /// reference volume [cm/s^2], weighed like the other terms (solid/external_load.hpp). Zero: no load.
   std::array<double, 3> force{};

@@ -15,12 +15,21 @@ std::string number_text(double v) {
   return s;
 }
 
-/// F's d x d block, refused where the element is inverted; J = det F.
-Eigen::MatrixXd deformation_block(const Mat3& F, int d, double& J) {
-  const Eigen::MatrixXd Fd = F.topLeftCorner(d, d);
+/// F's d x d block, the rest the identity (so that det and inverse are the block's; fixed size: this runs at
+/// every solid quadrature point in every coupling iteration), refused where the element is inverted; J = det F.
+Mat3 deformation_block(const Mat3& F, int d, double& J) {
+  Mat3 Fd = Mat3::Identity();
+  Fd.topLeftCorner(d, d) = F.topLeftCorner(d, d);
   J = Fd.determinant();
   if (!(J > 0)) throw std::runtime_error("inverted solid element: det F = " + number_text(J) + " <= 0");
   return Fd;
+}
+
+/// The d x d block of a padded 3 x 3 tensor, zero elsewhere.
+Mat3 leading_block(const Mat3& m, int d) {
+  Mat3 out = Mat3::Zero();
+  out.topLeftCorner(d, d) = m.topLeftCorner(d, d);
+  return out;
 }
 
 /// I1b - d, I1b = J^{-2/d} tr C: zero at rest and under any rotation, >= 0 always (an isochoric C has
@@ -28,10 +37,65 @@ Eigen::MatrixXd deformation_block(const Mat3& F, int d, double& J) {
 /// incompressible solid.
 double i1_excess(const Mat3& F, int d) {
   double J = 0;
-  const Eigen::MatrixXd Fd = deformation_block(F, d, J);
-  return std::pow(J, -2.0 / d) * (Fd.transpose() * Fd).trace() - d;
+  const Mat3 Fd = deformation_block(F, d, J);
+  return std::pow(J, -2.0 / d) * leading_block(Fd.transpose() * Fd, d).trace() - d;
+}
+
+// Voigt index pairs in the order 11, 22, 33, 23, 13, 12, and the in-plane ones of 2D.
+constexpr int kVoigtPair[6][2] = {{0, 0}, {1, 1}, {2, 2}, {1, 2}, {0, 2}, {0, 1}};
+constexpr bool in_plane(int a) { return a == 0 || a == 1 || a == 5; }
+
+/// 1 in Voigt form (over the d x d block).
+Eigen::Matrix<double, 6, 1> voigt_identity(int d) {
+  Eigen::Matrix<double, 6, 1> one = Eigen::Matrix<double, 6, 1>::Zero();
+  for (int i = 0; i < d; ++i) one(i) = 1;
+  return one;
+}
+
+/// The neo-Hookean spatial tangent (Voigt) and Kirchhoff stress of a deformation F in dimension d.
+Voigt6 neo_hookean_tangent(double G, const Mat3& F, int d, Eigen::Matrix<double, 6, 1>* tau_out) {
+  double J = 0;
+  const Mat3 Fd = deformation_block(F, d, J);
+  const Mat3 b = leading_block(Fd * Fd.transpose(), d);
+  const double mu = G * std::pow(J, -2.0 / d), tr = b.trace();
+  Mat3 tau = mu * b;
+  for (int i = 0; i < d; ++i) tau(i, i) -= mu * tr / d;
+  const Eigen::Matrix<double, 6, 1> t = voigt(tau), one = voigt_identity(d);
+  Voigt6 c = Voigt6::Zero();
+  for (int a = 0; a < 6; ++a) {
+    if (d == 2 && !in_plane(a)) continue;
+    c(a, a) = (2.0 / d) * mu * tr * (a < 3 ? 1.0 : 0.5);  // the symmetric identity acts on 2 D_ij by 1/2
+  }
+  c -= (2.0 / d) * (mu * tr / d * one * one.transpose() + t * one.transpose() + one * t.transpose());
+  if (tau_out) *tau_out = t;
+  return c;
 }
 }  // namespace
+
+Eigen::Matrix<double, 6, 1> voigt(const Mat3& t) {
+  Eigen::Matrix<double, 6, 1> v;
+  for (int a = 0; a < 6; ++a) v(a) = t(kVoigtPair[a][0], kVoigtPair[a][1]);
+  return v;
+}
+
+Voigt6 Material::spatial_tangent(const Mat3& F, int dim) const {
+  // Column a: c : D for the unit symmetric D of component a (D_ij = D_ji = 1/2 for a shear, so that its
+  // 2 D_ij is 1), from tau((I +- h D) F) = tau +- h (D tau + tau D + c : D) + O(h^2).
+  const double h = 1e-5;
+  const Mat3 tau = kirchhoff_stress(*this, F, dim);
+  Voigt6 c = Voigt6::Zero();
+  for (int a = 0; a < 6; ++a) {
+    if (dim == 2 && !in_plane(a)) continue;
+    Mat3 D = Mat3::Zero();
+    const int i = kVoigtPair[a][0], j = kVoigtPair[a][1];
+    D(i, j) += i == j ? 1.0 : 0.5;
+    if (i != j) D(j, i) += 0.5;
+    const Mat3 Fp = (Mat3::Identity() + h * D) * F, Fm = (Mat3::Identity() - h * D) * F;
+    const Mat3 dtau = (kirchhoff_stress(*this, Fp, dim) - kirchhoff_stress(*this, Fm, dim)) / (2 * h);
+    c.col(a) = voigt(dtau - D * tau - tau * D);
+  }
+  return 0.5 * (c + c.transpose());  // symmetric exactly (a hyperelastic c is), to round-off
+}
 
 DeviatoricNeoHookean::DeviatoricNeoHookean(double shear_modulus) : G_(shear_modulus) {
   if (!(shear_modulus > 0) || !std::isfinite(shear_modulus))
@@ -42,13 +106,14 @@ DeviatoricNeoHookean::DeviatoricNeoHookean(double shear_modulus) : G_(shear_modu
 Mat3 DeviatoricNeoHookean::second_piola(const Mat3& F, int dim) const {
   const int d = dim;
   double J = 0;
-  const Eigen::MatrixXd Fd = deformation_block(F, d, J);
-  const Eigen::MatrixXd C = Fd.transpose() * Fd;
-  const Eigen::MatrixXd Ci = C.inverse();
-  Mat3 S = Mat3::Zero();
-  S.topLeftCorner(d, d) =
-      G_ * std::pow(J, -2.0 / d) * (Eigen::MatrixXd::Identity(d, d) - (C.trace() / d) * Ci);
-  return S;
+  const Mat3 Fd = deformation_block(F, d, J);
+  const Mat3 C = Fd.transpose() * Fd;  // the padding's C_33 = 1 (2D) is left out of the trace and the result
+  const double trC = leading_block(C, d).trace();
+  return leading_block(G_ * std::pow(J, -2.0 / d) * (Mat3::Identity() - (trC / d) * C.inverse()), d);
+}
+
+Voigt6 DeviatoricNeoHookean::spatial_tangent(const Mat3& F, int dim) const {
+  return neo_hookean_tangent(G_, F, dim, nullptr);
 }
 
 double DeviatoricNeoHookean::strain_energy(const Mat3& F, int dim) const {
@@ -66,7 +131,7 @@ DeviatoricMooneyRivlin::DeviatoricMooneyRivlin(double shear_modulus, double frac
 Mat3 DeviatoricMooneyRivlin::second_piola(const Mat3& F, int dim) const {
   if (dim == 2) return neo_hookean_.second_piola(F, dim);  // plane strain: I2 = I1
   double J = 0;
-  const Eigen::MatrixXd Fd = deformation_block(F, 3, J);
+  const Mat3 Fd = deformation_block(F, 3, J);
   const Eigen::Matrix3d C = Fd.transpose() * Fd;
   const Eigen::Matrix3d Ci = C.inverse();
   const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
@@ -80,7 +145,7 @@ Mat3 DeviatoricMooneyRivlin::second_piola(const Mat3& F, int dim) const {
 double DeviatoricMooneyRivlin::strain_energy(const Mat3& F, int dim) const {
   if (dim == 2) return neo_hookean_.strain_energy(F, dim);
   double J = 0;
-  const Eigen::MatrixXd Fd = deformation_block(F, 3, J);
+  const Mat3 Fd = deformation_block(F, 3, J);
   const Eigen::Matrix3d C = Fd.transpose() * Fd;
   const double I1 = C.trace(), I2 = 0.5 * (I1 * I1 - (C * C).trace());
   return 0.5 * G_ * ((1 - a_) * (std::pow(J, -2.0 / 3) * I1 - 3) + a_ * (std::pow(J, -4.0 / 3) * I2 - 3));
@@ -96,6 +161,14 @@ DeviatoricStrainHardening::DeviatoricStrainHardening(double shear_modulus, doubl
 Mat3 DeviatoricStrainHardening::second_piola(const Mat3& F, int dim) const {
   const double e = i1_excess(F, dim);
   return (1 + 6 * r_ * e * e) * neo_hookean_.second_piola(F, dim);
+}
+
+Voigt6 DeviatoricStrainHardening::spatial_tangent(const Mat3& F, int dim) const {
+  // tau = f tau_nH, f = 1 + 6 r e^2; a variation D changes e = I1b - d by (2 / G) tau_nH : D.
+  Eigen::Matrix<double, 6, 1> t;
+  const Voigt6 c = neo_hookean_tangent(G_, F, dim, &t);
+  const double e = i1_excess(F, dim);
+  return (1 + 6 * r_ * e * e) * c + (24 * r_ * e / G_) * t * t.transpose();
 }
 
 double DeviatoricStrainHardening::strain_energy(const Mat3& F, int dim) const {

@@ -11,6 +11,8 @@
 namespace cellfsi::solid {
 
 using Mat3 = Eigen::Matrix3d;
+/// A symmetric fourth-order tensor in Voigt form, components ordered 11, 22, 33, 23, 13, 12.
+using Voigt6 = Eigen::Matrix<double, 6, 6>;
 
 class Material {
  public:
@@ -24,7 +26,22 @@ class Material {
   /// Shear modulus of the linearised material at the reference state (for the coupling's approximate
   /// tangent). Every law here has the same one, G: laws given the same G agree at small strains.
   virtual double tangent_shear_modulus() const = 0;
+  /// The spatial tangent c of the Kirchhoff stress tau = F S F^T (c_ijkl = F_iI F_jJ F_kK F_lL C_IJKL, C =
+  /// 2 dS/dC): a variation dF = L F changes tau by L tau + tau L^T + c : sym(L). In Voigt form, c : D =
+  /// c_voigt [D11, D22, D33, 2 D23, 2 D13, 2 D12] (components 11, 22, 33, 23, 13, 12); in 2D only the
+  /// in-plane rows and columns (11, 22, 12) are nonzero. This default differentiates second_piola by
+  /// central differences (12 evaluations, relative error about 1e-9); a law with an exact expression
+  /// overrides it. The coupling's consistent tangent (coupling::SolidTangent) uses it.
+  virtual Voigt6 spatial_tangent(const Mat3& F, int dim) const;
 };
+
+/// The Kirchhoff stress tau = F S F^T of a material.
+inline Mat3 kirchhoff_stress(const Material& m, const Mat3& F, int dim) {
+  return F * m.second_piola(F, dim) * F.transpose();
+}
+
+/// A symmetric tensor's Voigt components 11, 22, 33, 23, 13, 12 (no factor 2: a stress, not a strain).
+Eigen::Matrix<double, 6, 1> voigt(const Mat3& t);
 
 /// The paper's material, Eq. (20): S = G J^{-2/d} (I - (1/d) tr(C) C^{-1}), J = det F, C = F^T F (the right
 /// Cauchy-Green tensor; the paper writes F F^T, which cannot be paired with a second Piola-Kirchhoff stress).
@@ -37,6 +54,8 @@ class DeviatoricNeoHookean final : public Material {
   double strain_energy(const Mat3& F, int dim) const override;
   std::string name() const override { return "deviatoric_neo_hookean"; }
   double tangent_shear_modulus() const override { return G_; }
+  /// Exact: c = (2/d) G J^{-2/d} tr(b) (I - (1/d) 1 x 1) - (2/d) (tau x 1 + 1 x tau), b = F F^T.
+  Voigt6 spatial_tangent(const Mat3& F, int dim) const override;
   double shear_modulus() const { return G_; }
 
  private:
@@ -73,6 +92,8 @@ class DeviatoricStrainHardening final : public Material {
   double strain_energy(const Mat3& F, int dim) const override;
   std::string name() const override { return "deviatoric_strain_hardening"; }
   double tangent_shear_modulus() const override { return G_; }
+  /// Exact: with f = 1 + 6 (C3/G) e^2, e = I1b - d: c = f c_nH + 24 (C3/G) e / G tau_nH x tau_nH.
+  Voigt6 spatial_tangent(const Mat3& F, int dim) const override;
   double c3_ratio() const { return r_; }
 
  private:

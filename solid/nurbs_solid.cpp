@@ -309,6 +309,8 @@ std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density) co
     d.stress = F * material_->second_piola(F, dim_) * F.transpose() / fluid_density;
     d.beta = beta;
     d.shear_modulus = material_->tangent_shear_modulus();
+    d.has_tangent = true;
+    d.tangent = material_->spatial_tangent(F, dim_) / fluid_density;
     if (!load_density_.empty()) d.force = load_density_[out.size()] / fluid_density;
     out.push_back(d);
   });

@@ -35,7 +35,12 @@ struct QuadratureData {
   double weight = 0;           // quadrature weight in the reference configuration
   Mat3 stress = Mat3::Zero();  // (1/rho_1) F S F^T, symmetric
   double beta = 0;             // 1 - rho_2 / rho_1
-  double shear_modulus = 0;    // of the linearised material (for the coupling's approximate tangent)
+  double shear_modulus = 0;    // of the linearised material (for the coupling's isotropic tangent)
+  /// (1/rho_1) the spatial tangent of the Kirchhoff stress F S F^T in Voigt form (Material::spatial_tangent),
+  /// for the coupling's consistent tangent (-coupling_solid_tangent consistent); a solver that leaves
+  /// has_tangent false gets the isotropic one from shear_modulus.
+  bool has_tangent = false;
+  Eigen::Matrix<double, 6, 6> tangent = Eigen::Matrix<double, 6, 6>::Zero();
   Vec3 force = Vec3::Zero();   // (1/rho_1) external force per unit reference volume (solid/external_load.hpp)
 };
 

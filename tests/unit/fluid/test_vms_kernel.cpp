@@ -387,6 +387,63 @@ TEST(VmsKernel, ImmersedTangentMatchesFiniteDifferences) {
   }
 }
 
+TEST(VmsKernel, ConsistentSolidStiffnessIsTheDerivativeOfTheStressTerm) {
+  // -coupling_solid_tangent consistent: the point's stress moves with the velocity as the solid does over a
+  // step, stress(U + dU) = stress + L stress + stress L^T + c : sym(L), L = stiffness_time grad dv (c: a
+  // random symmetric Voigt tensor). The tangent must be the residual's derivative with that stress, to the
+  // finite differences' accuracy; and it must differ from the isotropic one.
+  unsigned seed = 700;
+  for (const Config& cf : all_configs()) {
+    const Case c = make_case(cf.dim, cf.n, cf.stokes, *cf.sc, seed);
+    ImmersedPoint ip = make_immersed_point(c, seed);
+    std::mt19937 rng(seed++);
+    std::uniform_real_distribution<double> uni(-1, 1);
+    ip.stiffness_time = 0.7 * c.prm.dt;
+    ip.stiffness_viscosity = 3 * c.prm.nu;  // unused where stiffness_time > 0
+    const double modulus = c.prm.nu / ip.stiffness_time;  // the solid's term competes with the viscous one
+    double C[6][6];
+    for (int r = 0; r < 6; ++r)
+      for (int q = 0; q <= r; ++q) C[r][q] = C[q][r] = modulus * (uni(rng) + (r == q ? 3.0 : 0.0));
+    for (int r = 0, t = 0; r < 6; ++r)
+      for (int q = r; q < 6; ++q, ++t) ip.stiffness[t] = C[r][q];
+    const PointFields f0 = c.fields();
+    const int dim = c.prm.dim;
+    auto res = [&](const std::vector<double>& u) {
+      const PointFields f = c.fields(u);
+      double L[3][3] = {};
+      for (int i = 0; i < dim; ++i)
+        for (int j = 0; j < dim; ++j) L[i][j] = ip.stiffness_time * (f.dv[i][j] - f0.dv[i][j]);
+      const double D[6] = {L[0][0],           L[1][1],           L[2][2],
+                           L[1][2] + L[2][1], L[0][2] + L[2][0], L[0][1] + L[1][0]};
+      double S[6] = {};
+      for (int r = 0; r < 6; ++r)
+        for (int q = 0; q < 6; ++q) S[r] += C[r][q] * D[q];
+      const int pair[6][2] = {{0, 0}, {1, 1}, {2, 2}, {1, 2}, {0, 2}, {0, 1}};
+      ImmersedPoint q = ip;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          for (int m = 0; m < 3; ++m) q.stress[i][j] += L[i][m] * ip.stress[m][j] + ip.stress[i][m] * L[j][m];
+      for (int r = 0; r < 6; ++r) {
+        q.stress[pair[r][0]][pair[r][1]] += S[r];
+        if (pair[r][0] != pair[r][1]) q.stress[pair[r][1]][pair[r][0]] += S[r];
+      }
+      std::vector<double> R(c.size(), 0.0);
+      immersed_residual(c.prm, c.basis(), f, q, R.data());
+      return R;
+    };
+    std::vector<double> K(c.size() * c.size(), 0.0), Kiso(c.size() * c.size(), 0.0);
+    immersed_tangent(c.prm, c.basis(), c.fields(), c.ts, ip, K.data());
+    const Comparison cmp = compare(c, K, fd_jacobian(c, res, 4, 1.0), kFdFloor);
+    std::printf("  consistent solid stiffness vs FD, %-28s: worst entry %.2e (tol %.0e)\n", label(c).c_str(),
+                cmp.worst, kFdTol);
+    EXPECT_LT(cmp.worst, kFdTol) << label(c);
+    ImmersedPoint iso = ip;
+    iso.stiffness_time = 0;
+    immersed_tangent(c.prm, c.basis(), c.fields(), c.ts, iso, Kiso.data());
+    EXPECT_GT(compare(c, K, Kiso, kFdFloor).worst, 100 * kFdTol) << label(c);
+  }
+}
+
 TEST(VmsKernel, ImmersedTermsLeaveContinuityRowsAndPressureColumnsUntouched) {
   for (int dim : {2, 3}) {
     const Case c = make_case(dim, dim == 2 ? 9 : 27, false, kPhysical, 500 + dim);

@@ -193,6 +193,69 @@ TEST(Material, StressIsTheDerivativeOfTheStrainEnergy) {
     }
 }
 
+TEST(Material, SpatialTangentGivesTheStressOfAPerturbedDeformation) {
+  // The coupling's consistent tangent: tau((I + h L) F) = tau(F) + h (L tau + tau L^T + c : sym(L)) + O(h^2)
+  // for any L (a rotation's part through L tau + tau L^T, a stretch's through c), against central differences
+  // of the stress, for each law's own tangent and for the base class's numerical one.
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> U(-1, 1);
+  const double h = 1e-6;
+  for (const Law& law : laws())
+    for (int d : {2, 3}) {
+      double worst = 0, worst_numerical = 0;
+      for (double size : {0.0, 0.2, 0.5}) {
+        for (int k = 0; k < 3; ++k) {
+          Mat3 F = random_deformation(rng, d, size);
+          if (F.topLeftCorner(d, d).determinant() < 0.3)
+            F.topLeftCorner(d, d) += Eigen::MatrixXd::Identity(d, d);
+          Mat3 L = Mat3::Zero();
+          for (int i = 0; i < d; ++i)
+            for (int j = 0; j < d; ++j) L(i, j) = U(rng);
+          const solid::Material& m = *law.material;
+          const Mat3 tau = solid::kirchhoff_stress(m, F, d);
+          const Mat3 fd = (solid::kirchhoff_stress(m, (Mat3::Identity() + h * L) * F, d) -
+                           solid::kirchhoff_stress(m, (Mat3::Identity() - h * L) * F, d)) /
+                          (2 * h);
+          const Mat3 D = 0.5 * (L + L.transpose());
+          Eigen::Matrix<double, 6, 1> strain;  // Voigt: shears doubled
+          strain << D(0, 0), D(1, 1), D(2, 2), 2 * D(1, 2), 2 * D(0, 2), 2 * D(0, 1);
+          const double scale = kG * L.norm() * std::max(1.0, F.squaredNorm());
+          for (int numerical = 0; numerical < 2; ++numerical) {
+            const solid::Voigt6 c = numerical ? m.Material::spatial_tangent(F, d) : m.spatial_tangent(F, d);
+            EXPECT_LT((c - c.transpose()).norm(), 1e-9 * c.norm()) << law.name;
+            const Eigen::Matrix<double, 6, 1> cD = c * strain;
+            const Mat3 dtau = L * tau + tau * L.transpose();
+            Eigen::Matrix<double, 6, 1> err = solid::voigt(fd - dtau) - cD;
+            if (d == 2) err(2) = err(3) = err(4) = 0;  // out of plane: the 2D law's tau has none
+            const double e = err.norm() / scale;
+            (numerical ? worst_numerical : worst) = std::max(numerical ? worst_numerical : worst, e);
+            EXPECT_LT(e, 1e-7) << law.name << " d = " << d << (numerical ? " (numerical)" : "") << " F =\n"
+                               << F;
+          }
+        }
+      }
+      std::printf("%-16s d = %d: largest |d tau - (L tau + tau L^T + c : D)| / (G |L| max(1, |F|^2)) = %.1e "
+                  "(the base class's numerical c: %.1e)\n",
+                  law.name.c_str(), d, worst, worst_numerical);
+    }
+}
+
+TEST(Material, SpatialTangentAtRestIsTheIsotropicOneOfTheShearModulus) {
+  // At F = I every law's c is 2 G (I - (1/d) 1 x 1): the isotropic tangent's 2 G D, less its trace.
+  for (const Law& law : laws())
+    for (int d : {2, 3}) {
+      const solid::Voigt6 c = law.material->spatial_tangent(Mat3::Identity(), d);
+      solid::Voigt6 expected = solid::Voigt6::Zero();
+      for (int a = 0; a < 6; ++a) {
+        if (d == 2 && a != 0 && a != 1 && a != 5) continue;
+        expected(a, a) = a < 3 ? 2 * kG : kG;
+        for (int b = 0; b < 3; ++b)
+          if (a < 3 && b < d) expected(a, b) -= 2 * kG / d;
+      }
+      EXPECT_LT((c - expected).norm(), 1e-8 * kG) << law.name << " d = " << d << "\n" << c;
+    }
+}
+
 TEST(Material, SmallStrainSlopeIsTheTangentShearModulus) {
   // The coupling's approximate tangent takes the shear modulus at rest (tangent_shear_modulus): S ~ 2 G
   // dev(eps) for a small strain eps, error O(eps^2); simple shear gives sigma12 / gamma -> G.
