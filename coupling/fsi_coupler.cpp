@@ -78,6 +78,7 @@ void FsiCoupler::update_immersed(bool mark) {
     warm.resize(q.size());
     for (size_t i = 0; i < q.size(); ++i) {
       warm[i] = locator_.locate_or_throw(q[i].x, &warm[i]);
+      if (!fluid_.owns_element(warm[i].element)) continue;  // another rank's: it keeps its own points
       elements.push_back(warm[i].element);
       xi.push_back(warm[i].xi);
       fluid::ImmersedPoint ip;
@@ -88,8 +89,7 @@ void FsiCoupler::update_immersed(bool mark) {
       ip.stiffness_viscosity = q[i].shear_modulus * stiffness_time / rho1;
       if (opt_.solid_tangent == SolidTangent::consistent && q[i].has_tangent) {
         ip.stiffness_time = stiffness_time;
-        for (int r = 0, t = 0; r < 6; ++r)
-          for (int c = r; c < 6; ++c, ++t) ip.stiffness[t] = q[i].tangent(r, c);
+        ip.stiffness = q[i].tangent;
       }
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) ip.stress[r][c] = q[i].stress(r, c);

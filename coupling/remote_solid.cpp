@@ -1,5 +1,6 @@
 #include "coupling/remote_solid.hpp"
 
+#include <algorithm>
 #include <cstring>
 #include <stdexcept>
 
@@ -79,8 +80,7 @@ void put(std::vector<double>& out, const solid::QuadratureData& q) {
   out.push_back(q.shear_modulus);
   put(out, q.force);
   out.push_back(q.has_tangent ? 1 : 0);
-  for (int r = 0; r < 6; ++r)
-    for (int c = r; c < 6; ++c) out.push_back(q.tangent(r, c));
+  out.insert(out.end(), q.tangent.begin(), q.tangent.end());
 }
 std::vector<solid::QuadratureData> unpack_quadrature(const std::vector<double>& d) {
   std::vector<solid::QuadratureData> q(d.size() / kQuadratureSize);
@@ -93,9 +93,7 @@ std::vector<solid::QuadratureData> unpack_quadrature(const std::vector<double>& 
     q[i].shear_modulus = p[kQuadratureShear];
     q[i].force = vec(p + kQuadratureForce);
     q[i].has_tangent = p[kQuadratureHasTangent] != 0;
-    const double* t = p + kQuadratureTangent;
-    for (int r = 0; r < 6; ++r)
-      for (int c = r; c < 6; ++c) q[i].tangent(r, c) = q[i].tangent(c, r) = *t++;
+    std::copy(p + kQuadratureTangent, p + kQuadratureTangent + kTangentSize, q[i].tangent.begin());
   }
   return q;
 }

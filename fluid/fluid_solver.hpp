@@ -119,6 +119,8 @@ class FluidSolver {
   void set_scaling(const std::function<double(int node)>& s);
   /// Immersed points, all of them on every rank (each rank keeps those in its elements).
   void set_immersed_points(const std::vector<ImmersedPointData>& points);
+  /// Whether this rank assembles element e (its immersed points are kept only there).
+  bool owns_element(const geometry::Index3& e) const;
 
   // --- A viscosity that varies in space (docs/fluid.md, "The viscosity field") ---
   /// Sets the viscosity field by control value: the dynamic viscosity mu_A [g/(cm s)] of each natural node
@@ -236,7 +238,6 @@ class FluidSolver {
   /// Creates J_ (with the pressure's null space) and gives it to the SNES, if it does not exist.
   void create_jacobian_matrix();
   std::vector<PetscInt> dirichlet_rows() const;  // global PETSc indices of owned Dirichlet rows
-  bool owns_element(const geometry::Index3& e) const;
   /// The L2 projections onto the spline space of `count` scalar functions (f(x, values) fills values[0 ..
   /// count)), as global vectors of the one-dof DMDA (the caller destroys them). Collective.
   std::vector<Vec> l2_project(int count, const std::function<void(const Vec3&, double*)>& f) const;

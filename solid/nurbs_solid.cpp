@@ -310,7 +310,9 @@ std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density) co
     d.beta = beta;
     d.shear_modulus = material_->tangent_shear_modulus();
     d.has_tangent = true;
-    d.tangent = material_->spatial_tangent(F, dim_) / fluid_density;
+    const Voigt6 c = material_->spatial_tangent(F, dim_);
+    for (int r = 0, t = 0; r < 6; ++r)
+      for (int k = r; k < 6; ++k, ++t) d.tangent[t] = c(r, k) / fluid_density;
     if (!load_density_.empty()) d.force = load_density_[out.size()] / fluid_density;
     out.push_back(d);
   });

@@ -7,6 +7,7 @@
 //   begin_step(time) -> repeat { collocation_points() -> [fluid samples v, grad v there] ->
 //   kinematic_update() (steps 1-3) -> quadrature_data(), interface_points() -> [fluid assembles and solves] }
 //   -> end_step().
+#include <array>
 #include <string>
 #include <vector>
 
@@ -37,10 +38,10 @@ struct QuadratureData {
   double beta = 0;             // 1 - rho_2 / rho_1
   double shear_modulus = 0;    // of the linearised material (for the coupling's isotropic tangent)
   /// (1/rho_1) the spatial tangent of the Kirchhoff stress F S F^T in Voigt form (Material::spatial_tangent),
-  /// for the coupling's consistent tangent (-coupling_solid_tangent consistent); a solver that leaves
-  /// has_tangent false gets the isotropic one from shear_modulus.
+  /// its upper triangle row by row, for the coupling's consistent tangent (-coupling_solid_tangent
+  /// consistent); a solver that leaves has_tangent false gets the isotropic one from shear_modulus.
   bool has_tangent = false;
-  Eigen::Matrix<double, 6, 6> tangent = Eigen::Matrix<double, 6, 6>::Zero();
+  std::array<double, 21> tangent{};
   Vec3 force = Vec3::Zero();   // (1/rho_1) external force per unit reference volume (solid/external_load.hpp)
 };
 
