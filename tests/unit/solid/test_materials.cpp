@@ -1,7 +1,8 @@
 // The membrane material laws (solid/material.hpp, docs/materials.md): each law's stress against the exact
 // uniaxial-stretch answer of a flat strip with free lateral edges (Barthes-Biesel, Diaz & Dhenin 2002),
 // against its own strain energy (S = 2 dW/dC by central differences), its small-strain slope against the
-// shear modulus the coupling's tangent uses, objectivity and the stress-free reference state.
+// shear modulus the coupling's isotropic tangent uses, each law's spatial tangent (the coupling's consistent
+// one) against a perturbed deformation's stress, objectivity and the stress-free reference state.
 #include <gtest/gtest.h>
 
 #include <cmath>
