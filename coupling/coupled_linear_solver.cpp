@@ -486,6 +486,12 @@ void CoupledLinearSolver::refresh_jacobian(Vec X) {
   }
 }
 
+bool CoupledLinearSolver::may_assemble(bool first_iteration) const {
+  if (first_iteration || !cellfsi_type_ || pc_type() == solvers::kPCBand) return true;
+  // (solve() counts this solve before it compares with the lag.)
+  return opt_.refresh_lag > 0 && solves_since_refresh_ + 1 >= opt_.refresh_lag;
+}
+
 int CoupledLinearSolver::solve(Vec X, Vec F, Vec dX, bool first_iteration, SolveCounts& counts) {
   if (first_iteration) ++steps_since_factor_;
   if (pc_type() == solvers::kPCFourier && !bulk_built_) {

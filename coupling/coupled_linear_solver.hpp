@@ -106,6 +106,11 @@ class CoupledLinearSolver {
 
   /// The s^h marking moved: its s_I rows dominate the Jacobian.
   void marking_changed() { marking_changed_ = pc_stale_ = true; }
+  /// Whether the next solve may assemble the Jacobian, whose immersed terms read the solids' tangents (so the
+  /// coupler asks the solids for them only then): a step's first iteration; with the cellfsi types, an
+  /// iteration -coupling_refresh_lag refreshes at, and any of cellfsi_band's (it refactorises whenever the
+  /// cells leave its region); any iteration of a PETSc PC (the Jacobian at every solve).
+  bool may_assemble(bool first_iteration) const;
   /// dX = K_MC(X)^{-1} F. first_iteration: the step's first. Returns the KSP's iterations; throws if the
   /// solve failed (std::invalid_argument for bad input found at the first solve).
   int solve(Vec X, Vec F, Vec dX, bool first_iteration, SolveCounts& counts);

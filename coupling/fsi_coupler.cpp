@@ -66,14 +66,19 @@ std::vector<char> FsiCoupler::active_elements() const {
   return active;
 }
 
-void FsiCoupler::update_immersed(bool mark) {
-  std::vector<geometry::Index3> elements;
-  std::vector<geometry::Param> xi;
-  std::vector<fluid::ImmersedPoint> data;
+void FsiCoupler::update_immersed(bool first_iteration) {
+  // (Buffers kept between calls: at 64^3 they are tens of MB, and new ones at every coupling iteration are
+  // that many page faults.)
+  std::vector<geometry::Index3>& elements = scratch_elements_;
+  std::vector<geometry::Param>& xi = scratch_xi_;
+  std::vector<fluid::ImmersedPoint>& data = scratch_data_;
+  elements.clear(), xi.clear(), data.clear();
   std::vector<geometry::Vec3> interface;
   const double rho1 = fluid_.options().density;
+  const bool with_tangent =
+      opt_.solid_tangent == SolidTangent::consistent && linear_->may_assemble(first_iteration);
   for (size_t b = 0; b < bodies_.size(); ++b) {
-    const std::vector<solid::QuadratureData> q = bodies_[b]->quadrature_data(rho1);
+    const std::vector<solid::QuadratureData> q = bodies_[b]->quadrature_data(rho1, with_tangent);
     auto& warm = quadrature_loc_[b];
     warm.resize(q.size());
     for (size_t i = 0; i < q.size(); ++i) {
@@ -96,11 +101,12 @@ void FsiCoupler::update_immersed(bool mark) {
       for (int c = 0; c < 3; ++c) ip.force[c] = q[i].force[c];
       data.push_back(ip);
     }
+    if (!first_iteration) continue;  // (the marking's points; a remote body's are a message)
     const std::vector<geometry::Vec3> pts = bodies_[b]->interface_points();
     interface.insert(interface.end(), pts.begin(), pts.end());
   }
   fluid_.set_immersed_points(elements, xi, data);
-  if (!mark) return;
+  if (!first_iteration) return;
   std::vector<int> marked = functions_near(locator_, interface, opt_.marking);
   // With s_I >> 1 the marked rows dominate the Jacobian: a new marking invalidates a reused preconditioner.
   if (marked != marked_) {

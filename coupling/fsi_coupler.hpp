@@ -95,7 +95,10 @@ class FsiCoupler {
   const CoupledLinearSolver& linear_solver() const { return *linear_; }
 
  private:
-  void update_immersed(bool mark);  // mark: also rebuild s^h from the interface points
+  // The solids' data at the immersed points. first_iteration (a step's first, or before any step): s^h is
+  // marked again from the interface points. The solids' tangents are formed only for a solve that may
+  // assemble the Jacobian (CoupledLinearSolver::may_assemble).
+  void update_immersed(bool first_iteration);
   void apply_scaling();             // s^h on the fluid: s_I on the marked functions, 1 elsewhere
   /// The fluid's viscosity field from the membranes' current insides (with a contrast; between steps, from
   /// the accepted configuration, like the bodies' current_patch()).
@@ -107,6 +110,10 @@ class FsiCoupler {
   CouplerOptions opt_;
   Locator locator_;
   std::vector<std::vector<Location>> collocation_loc_, quadrature_loc_;  // warm starts, per body
+  // update_immersed's buffers of this rank's points (kept between calls).
+  std::vector<geometry::Index3> scratch_elements_;
+  std::vector<geometry::Param> scratch_xi_;
+  std::vector<fluid::ImmersedPoint> scratch_data_;
   Vec X_ = nullptr, dX_ = nullptr, F_ = nullptr;
   solid::TimeParameters tp_;
   std::vector<int> marked_;  // basis functions carrying s_I

@@ -26,7 +26,8 @@ std::string decode(const std::vector<double>& d) {
 constexpr std::size_t kVecSize = 3;                       // a Vec3, or a Param
 constexpr std::size_t kMatSize = 9;                       // a Mat3, row by row
 constexpr std::size_t kSampleSize = kVecSize + kMatSize;  // VelocitySample: v, grad_v
-// QuadratureData: x, weight, stress, beta, shear_modulus, force, has_tangent, the tangent's upper triangle.
+// QuadratureData: x, weight, stress, beta, shear_modulus, force, has_tangent, and, when the request asked for
+// the tangent, its upper triangle (kQuadratureSize doubles per point; kQuadratureTangent without it).
 constexpr std::size_t kTangentSize = 21;
 constexpr std::size_t kQuadratureWeight = kVecSize, kQuadratureStress = kQuadratureWeight + 1,
                       kQuadratureBeta = kQuadratureStress + kMatSize, kQuadratureShear = kQuadratureBeta + 1,
@@ -72,7 +73,7 @@ std::vector<solid::VelocitySample> unpack_samples(const std::vector<double>& d) 
   return s;
 }
 
-void put(std::vector<double>& out, const solid::QuadratureData& q) {
+void put(std::vector<double>& out, const solid::QuadratureData& q, bool with_tangent) {
   put(out, q.x);
   out.push_back(q.weight);
   put(out, q.stress);
@@ -80,20 +81,22 @@ void put(std::vector<double>& out, const solid::QuadratureData& q) {
   out.push_back(q.shear_modulus);
   put(out, q.force);
   out.push_back(q.has_tangent ? 1 : 0);
-  out.insert(out.end(), q.tangent.begin(), q.tangent.end());
+  if (with_tangent) out.insert(out.end(), q.tangent.begin(), q.tangent.end());
 }
-std::vector<solid::QuadratureData> unpack_quadrature(const std::vector<double>& d) {
-  std::vector<solid::QuadratureData> q(d.size() / kQuadratureSize);
+std::vector<solid::QuadratureData> unpack_quadrature(const std::vector<double>& d, bool with_tangent) {
+  const std::size_t size = with_tangent ? kQuadratureSize : kQuadratureTangent;
+  std::vector<solid::QuadratureData> q(d.size() / size);
   for (size_t i = 0; i < q.size(); ++i) {
-    const double* p = &d[kQuadratureSize * i];
+    const double* p = &d[size * i];
     q[i].x = vec(p);
     q[i].weight = p[kQuadratureWeight];
     q[i].stress = mat(p + kQuadratureStress);
     q[i].beta = p[kQuadratureBeta];
     q[i].shear_modulus = p[kQuadratureShear];
     q[i].force = vec(p + kQuadratureForce);
-    q[i].has_tangent = p[kQuadratureHasTangent] != 0;
-    std::copy(p + kQuadratureTangent, p + kQuadratureTangent + kTangentSize, q[i].tangent.begin());
+    q[i].has_tangent = with_tangent && p[kQuadratureHasTangent] != 0;
+    if (q[i].has_tangent)
+      std::copy(p + kQuadratureTangent, p + kQuadratureTangent + kTangentSize, q[i].tangent.begin());
   }
   return q;
 }
@@ -264,8 +267,10 @@ double RemoteSolid::kinematic_update(const std::vector<solid::VelocitySample>& s
   return call(SolidOp::kinematic_update, d).at(0);
 }
 
-std::vector<solid::QuadratureData> RemoteSolid::quadrature_data(double fluid_density) const {
-  return unpack_quadrature(call(SolidOp::quadrature_data, {fluid_density}));
+std::vector<solid::QuadratureData> RemoteSolid::quadrature_data(double fluid_density,
+                                                                bool with_tangent) const {
+  return unpack_quadrature(call(SolidOp::quadrature_data, {fluid_density, with_tangent ? 1.0 : 0.0}),
+                           with_tangent);
 }
 
 std::vector<solid::Vec3> RemoteSolid::interface_points() const {
@@ -321,9 +326,11 @@ void serve_solids(Exchange& ex, const std::vector<solid::SolidSolver*>& bodies) 
           out = {b.kinematic_update(unpack_samples(d))};
           break;
         }
-        case SolidOp::quadrature_data:
-          for (const auto& q : b.quadrature_data(d.at(0))) put(out, q);
+        case SolidOp::quadrature_data: {
+          const bool with_tangent = d.at(1) != 0;
+          for (const auto& q : b.quadrature_data(d.at(0), with_tangent)) put(out, q, with_tangent);
           break;
+        }
         case SolidOp::interface_points:
           out = flat(b.interface_points());
           break;

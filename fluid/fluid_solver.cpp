@@ -7,10 +7,11 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <sstream>
 #include <stdexcept>
 #include <string>
-#include <tuple>
+#include <utility>
 
 #include "common/petsc_error.hpp"
 #include "fluid/point_evaluation.hpp"
@@ -382,11 +383,21 @@ void FluidSolver::set_immersed_points(const std::vector<ImmersedPointData>& poin
 }
 
 void FluidSolver::sort_immersed_points() {
-  // By element (z, y, x), as the assembly sums each element's points before adding them to the matrix.
-  std::stable_sort(immersed_.begin(), immersed_.end(), [](const LocatedPoint& a, const LocatedPoint& b) {
-    return std::tie(a.element[2], a.element[1], a.element[0]) <
-           std::tie(b.element[2], b.element[1], b.element[0]);
-  });
+  // By element (z, y, x), as the assembly sums each element's points before adding them to the matrix; points
+  // of one element keep their order. The keys are sorted and the points moved once (a stable sort of the
+  // points themselves, 300 bytes each, cost a third of the coupler's work per iteration at 16^3, perf).
+  std::vector<std::pair<std::int64_t, std::size_t>> order(immersed_.size());
+  for (std::size_t i = 0; i < immersed_.size(); ++i) {
+    const Index3& e = immersed_[i].element;
+    order[i] = {(static_cast<std::int64_t>(e[2]) << 42) | (static_cast<std::int64_t>(e[1]) << 21) | e[0], i};
+  }
+  std::sort(order.begin(), order.end());
+  // Into the kept second buffer: at 64^3 the points are tens of MB, and a new buffer at every coupling
+  // iteration is that many page faults.
+  immersed_sorted_.clear();
+  immersed_sorted_.reserve(immersed_.size());
+  for (const auto& o : order) immersed_sorted_.push_back(std::move(immersed_[o.second]));
+  immersed_.swap(immersed_sorted_);
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -490,6 +501,7 @@ void FluidSolver::set_immersed_points(const std::vector<Index3>& elements, const
   if (elements.size() != xi.size() || xi.size() != data.size())
     throw std::invalid_argument("set_immersed_points: elements, xi and data differ in size");
   immersed_.clear();
+  immersed_.reserve(data.size());
   for (size_t i = 0; i < data.size(); ++i)
     if (owns_element(elements[i])) immersed_.push_back({elements[i], xi[i], data[i]});
   sort_immersed_points();

@@ -282,7 +282,8 @@ class FluidSolver {
     geometry::Param xi;
     ImmersedPoint data;
   };
-  std::vector<LocatedPoint> immersed_;  // sorted by element
+  std::vector<LocatedPoint> immersed_;         // sorted by element
+  std::vector<LocatedPoint> immersed_sorted_;  // sort_immersed_points' second buffer, kept between calls
   void sort_immersed_points();
 };
 

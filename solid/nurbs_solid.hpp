@@ -33,7 +33,7 @@ class NurbsSolid final : public SolidSolver {
   void begin_step(const TimeParameters& time) override;
   std::vector<Vec3> collocation_points() const override;
   double kinematic_update(const std::vector<VelocitySample>& samples) override;
-  std::vector<QuadratureData> quadrature_data(double fluid_density) const override;
+  std::vector<QuadratureData> quadrature_data(double fluid_density, bool with_tangent) const override;
   std::vector<Vec3> interface_points() const override;
   void end_step() override;
 

@@ -58,8 +58,10 @@ class SolidSolver {
   /// Steps 1-3: one Newton update of the kinematic equation (19) from the velocity at the collocation points.
   /// Returns the L2 norm of the kinematic residual R_K before the update.
   virtual double kinematic_update(const std::vector<VelocitySample>& samples) = 0;
-  /// The Eq. (10) data at the solid's quadrature points (configuration at t_{n+alpha_f}).
-  virtual std::vector<QuadratureData> quadrature_data(double fluid_density) const = 0;
+  /// The Eq. (10) data at the solid's quadrature points (configuration at t_{n+alpha_f}). with_tangent: also
+  /// the spatial tangent (QuadratureData::has_tangent and tangent), which only an assembly of the coupling's
+  /// Jacobian reads; the coupler asks for it at the iterations that may assemble one (a step's first).
+  virtual std::vector<QuadratureData> quadrature_data(double fluid_density, bool with_tangent) const = 0;
   /// Points on the fluid-solid interface (both faces of a membrane, the boundary of a bulky body) at
   /// t_{n+alpha_f}, for marking s^h.
   virtual std::vector<Vec3> interface_points() const = 0;

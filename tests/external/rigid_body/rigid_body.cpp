@@ -44,7 +44,7 @@ class RigidDisk final : public solid::SolidSolver {
     velocity_ = v;
     return residual;
   }
-  std::vector<solid::QuadratureData> quadrature_data(double) const override { return {}; }  // no stress
+  std::vector<solid::QuadratureData> quadrature_data(double, bool) const override { return {}; }  // no stress
   std::vector<Vec3> interface_points() const override { return moved(rim_); }
   void end_step() override { shift_n_ = shift_, velocity_n_ = velocity_; }
   void set_rate(const std::vector<Vec3>& rate) override {

@@ -149,6 +149,73 @@ CapsuleRun run_capsule(const std::string& pc_type, int steps, int refresh_steps 
   return r;
 }
 
+/// A body that hands every call to `inner` and counts the coupler's requests for quadrature data, with and
+/// without the solid's tangent; always_tangent: forms the tangent at every request, asked for or not.
+class CountingBody final : public solid::SolidSolver {
+ public:
+  CountingBody(solid::SolidSolver& inner, bool always_tangent) : inner_(inner), always_(always_tangent) {}
+  std::string name() const override { return inner_.name(); }
+  int dim() const override { return inner_.dim(); }
+  void begin_step(const solid::TimeParameters& t) override { inner_.begin_step(t); }
+  std::vector<Vec3> collocation_points() const override { return inner_.collocation_points(); }
+  double kinematic_update(const std::vector<solid::VelocitySample>& v) override {
+    return inner_.kinematic_update(v);
+  }
+  std::vector<solid::QuadratureData> quadrature_data(double rho, bool with_tangent) const override {
+    ++requests;
+    tangent_requests += with_tangent;
+    return inner_.quadrature_data(rho, with_tangent || always_);
+  }
+  std::vector<Vec3> interface_points() const override { return inner_.interface_points(); }
+  void end_step() override { inner_.end_step(); }
+  void set_rate(const std::vector<Vec3>& rate) override { inner_.set_rate(rate); }
+  std::vector<double> state() const override { return inner_.state(); }
+  void set_state(const std::vector<double>& state) override { inner_.set_state(state); }
+  bool is_membrane() const override { return inner_.is_membrane(); }
+  geometry::Patch reference_patch() const override { return inner_.reference_patch(); }
+  geometry::Patch current_patch() const override { return inner_.current_patch(); }
+  std::vector<solid::Mat3> cauchy_stress(const std::vector<geometry::Param>& xi) const override {
+    return inner_.cauchy_stress(xi);
+  }
+  mutable int requests = 0, tangent_requests = 0;
+
+ private:
+  solid::SolidSolver& inner_;
+  bool always_;
+};
+
+/// A capsule in the shear box at 32 x 16 cubic elements (the automatic PC: cellfsi_fourier), `steps` steps
+/// with -coupling_refresh_lag `lag` through a CountingBody; the fluid unknowns and the membrane's control
+/// points at the end.
+struct CountedRun {
+  std::vector<double> fluid, membrane;
+  int iterations = 0, requests = 0, tangent_requests = 0;
+};
+CountedRun run_counted(bool always_tangent, int steps, int lag) {
+  ShearBox sb(32, 16, 1e-3);
+  solid::NurbsSolid membrane(
+      "membrane", geometry::hollow_ellipse(2e-4, 1e-4, 5e-7, 24, 2, ShearBox::center(), std::numbers::pi / 2),
+      std::make_shared<solid::DeviatoricNeoHookean>(7500.0), 1.1);
+  CountingBody body(membrane, always_tangent);
+  coupling::CouplerOptions co;
+  co.linear.refresh_lag = lag;
+  coupling::FsiCoupler fsi(sb.fluid, {&body}, co);
+  fsi.initialize();
+  CountedRun r;
+  for (int s = 0; s < steps; ++s) {
+    const coupling::CouplerStats st = fsi.step();
+    EXPECT_TRUE(st.converged) << "step " << s + 1 << ": " << st.reason;
+    r.iterations += st.iterations;
+  }
+  r.requests = body.requests;
+  r.tangent_requests = body.tangent_requests;
+  r.fluid = sb.fluid.gather_to_zero(sb.fluid.solution());
+  const geometry::Patch current = membrane.current_patch();
+  for (const auto& p : current.control_points())
+    for (int d = 0; d < 2; ++d) r.membrane.push_back(p[d]);
+  return r;
+}
+
 double relative_difference(const std::vector<double>& a, const std::vector<double>& b) {
   double d = 0, n = 0;
   for (std::size_t i = 0; i < a.size(); ++i) d += (a[i] - b[i]) * (a[i] - b[i]), n += a[i] * a[i];
@@ -288,4 +355,31 @@ TEST(FsiCoupler, CompoundCellsCytosolGetsTheMembranesInnerViscosity) {
   EXPECT_NEAR(field_at(sb.box, field, c + Vec3(4e-4, 0, 0)), nu, 1e-12 * nu);
   co.inner_viscosity = {0.0, 5 * mu};
   EXPECT_THROW(coupling::FsiCoupler(sb.fluid, {&membrane, &nucleus}, co), std::invalid_argument);
+}
+
+// The coupler asks the solids for their tangent (the consistent one of -coupling_solid_tangent, half of a
+// point's data) only where the solve may assemble the Jacobian: at a step's first iteration, and at those
+// -coupling_refresh_lag refreshes at. The Jacobians are then those of a body that forms it at every
+// iteration, so the steps are the same to the bit; and fewer requests carry it.
+TEST(FsiCoupler, SolidTangentOnlyWhereTheJacobianIsAssembledChangesNoBit) {
+  const int steps = 3;
+  for (const int lag : {0, 2}) {
+    const CountedRun asked = run_counted(false, steps, lag);
+    const CountedRun always = run_counted(true, steps, lag);
+    std::printf(
+        "  refresh lag %d: %d requests for quadrature data in %d coupling iterations, %d with the "
+        "tangent\n",
+        lag, asked.requests, asked.iterations, asked.tangent_requests);
+    EXPECT_EQ(asked.fluid, always.fluid) << "refresh lag " << lag;
+    EXPECT_EQ(asked.membrane, always.membrane) << "refresh lag " << lag;
+    EXPECT_EQ(asked.iterations, always.iterations);
+    // One request per coupling iteration (and one at initialize), each step's last one included (it finds
+    // the loop converged).
+    EXPECT_EQ(asked.requests, 1 + asked.iterations + steps);
+    if (lag == 0) {
+      EXPECT_EQ(asked.tangent_requests, 1 + steps);  // initialize, and each step's first
+    }
+    EXPECT_GT(asked.tangent_requests, lag == 0 ? 0 : 1 + steps);
+    EXPECT_LT(asked.tangent_requests, asked.requests);
+  }
 }

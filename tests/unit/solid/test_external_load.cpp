@@ -29,12 +29,13 @@ TEST(ExternalLoad, PatchForcesAddUpToTheGivenForceAtTheEnds) {
   EXPECT_NEAR(ends[1].tail<2>().norm(), 0, 1e-12);
   solid::NurbsSolid s("cell", p, std::make_shared<solid::DeviatoricNeoHookean>(189.74), 1.1);
   const double F = 1e-5, r = 1e-4, rho1 = 1.025;               // 100 pN on a 2 um bead
-  EXPECT_TRUE(s.quadrature_data(rho1).back().force.isZero());  // no load: zero, as before loads existed
+  // No load: zero, as before loads existed.
+  EXPECT_TRUE(s.quadrature_data(rho1, false).back().force.isZero());
   s.set_loads({{ends[0], r, -F * Vec3::UnitX()}, {ends[1], r, F * Vec3::UnitX()}});
   Vec3 plus = Vec3::Zero(), minus = Vec3::Zero();
   int n_plus = 0, n_minus = 0;
   double density = 0;
-  for (const solid::QuadratureData& q : s.quadrature_data(rho1)) {
+  for (const solid::QuadratureData& q : s.quadrature_data(rho1, false)) {
     const Vec3 f = q.weight * q.force * rho1;  // the force the point carries [dyn]
     if (q.force.isZero()) {
       // Unloaded points lie outside both patches.

@@ -151,7 +151,7 @@ TEST(NurbsSolid, AnInvertedElementIsReportedWithItsBodyElementAndStretches) {
     for (int i = 0; i < s.n_points(); ++i) vs[i].v = L * (x[i] - c), vs[i].grad_v = L;
     s.kinematic_update(vs);
     try {
-      s.quadrature_data(1.025);
+      s.quadrature_data(1.025, false);
     } catch (const std::runtime_error& err) {
       m = err.what();
     }
@@ -172,7 +172,7 @@ TEST(NurbsSolid, QuadratureDataOfUndeformedAndRotatedBodies) {
   const double a = 2e-4, b = 1e-4, h = 5e-7, rho1 = 1.025, rho2 = 1.1;
   const geometry::Patch e = geometry::hollow_ellipse(a, b, h, 64, 2);
   solid::NurbsSolid s("capsule", e, membrane_material(), rho2);
-  std::vector<solid::QuadratureData> q = s.quadrature_data(rho1);
+  std::vector<solid::QuadratureData> q = s.quadrature_data(rho1, false);
   double area = 0, max_stress = 0;
   for (const auto& d : q) {
     area += d.weight;
@@ -199,7 +199,7 @@ TEST(NurbsSolid, QuadratureDataOfUndeformedAndRotatedBodies) {
   }
   // Rotated by 100 * 2e-4 = 0.02 rad: the stress left is the rotation's time-integration error (a 1 % stretch
   // would give ~2 G 0.01 / rho_1 = 146).
-  q = s.quadrature_data(rho1);
+  q = s.quadrature_data(rho1, false);
   max_stress = 0;
   for (const auto& d : q) max_stress = std::max(max_stress, d.stress.norm());
   std::printf("  after a 0.02 rad rigid rotation: max |(1/rho_1) F S F^T| = %.3e\n", max_stress);
@@ -221,7 +221,7 @@ TEST(NurbsSolid, QuadratureDataOfAHomogeneousDeformationIn3DIsExact) {
   const geometry::Patch e = geometry::solid_ellipsoid(1e-4, 1.2e-4, 0.9e-4, 3, 4, 8, 2, c);
   const auto material = std::make_shared<solid::DeviatoricNeoHookean>(40.0);
   solid::NurbsSolid s("nucleus", e, material, 1.1);
-  const std::vector<solid::QuadratureData> q0 = s.quadrature_data(1.025);
+  const std::vector<solid::QuadratureData> q0 = s.quadrature_data(1.025, false);
   Mat3 L;
   L << 30, 70, 0, -10, 20, 15, 5, 0, -40;
   s.begin_step(solid::TimeParameters::from_rho_inf(0.5, 1e-3));
@@ -231,7 +231,7 @@ TEST(NurbsSolid, QuadratureDataOfAHomogeneousDeformationIn3DIsExact) {
   s.kinematic_update(vs);
   s.end_step();  // the quadrature data at t_{n+1} = t_{n+alpha_f} of the next step
   s.begin_step(solid::TimeParameters::from_rho_inf(0.5, 1e-3));
-  const std::vector<solid::QuadratureData> q = s.quadrature_data(1.025);
+  const std::vector<solid::QuadratureData> q = s.quadrature_data(1.025, true);
   ASSERT_EQ(q.size(), q0.size());
   // A: the least-squares map of (X - c) to the displacement x - X over all points.
   Eigen::Matrix3d XtX = Eigen::Matrix3d::Zero(), XtU = Eigen::Matrix3d::Zero();
@@ -253,6 +253,23 @@ TEST(NurbsSolid, QuadratureDataOfAHomogeneousDeformationIn3DIsExact) {
   EXPECT_LT(worst_x, 1e-12 * 1e-4);               // round-off of the body's size
   EXPECT_LT(worst_stress, 1e-9 * stress.norm());  // one F everywhere
   EXPECT_EQ(worst_w, 0.0);                        // reference weights
+  // The tangent, asked for: the law's spatial tangent of that F over rho_1 (upper triangle, row by row).
+  // Not asked for: none, and every other number the same to the bit (the coupler asks for it only where it
+  // may assemble its Jacobian).
+  const solid::Voigt6 c6 = material->spatial_tangent(F, 3);
+  const std::vector<solid::QuadratureData> plain = s.quadrature_data(1.025, false);
+  double worst_c = 0;
+  for (size_t i = 0; i < q.size(); ++i) {
+    ASSERT_TRUE(q[i].has_tangent);
+    for (int r = 0, t = 0; r < 6; ++r)
+      for (int k = r; k < 6; ++k, ++t)
+        worst_c = std::max(worst_c, std::abs(q[i].tangent[t] - c6(r, k) / 1.025));
+    EXPECT_FALSE(plain[i].has_tangent);
+    EXPECT_EQ(plain[i].x, q[i].x);
+    EXPECT_EQ(plain[i].stress, q[i].stress);
+    EXPECT_EQ(plain[i].weight, q[i].weight);
+  }
+  EXPECT_LT(worst_c, 1e-9 * c6.norm() / 1.025);
 }
 
 TEST(NurbsSolid, MembranesAndBulkyBodiesAreTold) {
