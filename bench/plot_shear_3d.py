@@ -4,10 +4,17 @@ nucleus against time, for one or more runs (e.g. meshes), and a table of what ea
 (tumbling rates over whole half-turns, regimes, area changes, wall time).
 
     python3 bench/plot_shear_3d.py RUN [RUN ...] [--figure docs/figures/shear_3d.png]
-                                                [--table docs/validation/shear_3d.md]
+                                                [--table docs/validation/shear_3d.md] [--window T0 T1 ...]
+
+--window T0 T1 (repeatable) adds a table per window, from metrics.csv alone (so also for a run that stopped
+before its end): each body's mean tumbling rate over [T0, T1] (the time average of the per-step omega_tu
+column: the long axis's turns per second for the membrane, the material's for the round nucleus), the
+nucleus's rate over the membrane's, and the largest |r_A| up to T1. A run that did not reach T1 is listed as
+such.
 
 A run: cellfsi scenes/compound_capsule_shear_3d.yaml ... -output_dir RUN (docs/validation.md gives the ones
-used). Needs python3-matplotlib (scripts/install-deps.sh; Debian's /usr/bin/python3)."""
+used), or a kept docs/validation/runs/NAME_metrics.csv (with NAME_summary.json beside it). Needs
+python3-matplotlib (scripts/install-deps.sh; Debian's /usr/bin/python3)."""
 import argparse
 import csv
 import json
@@ -23,24 +30,83 @@ def options(run):
         return dict(line.rstrip("\n").split(": ", 1) for line in f if ": " in line and not line.startswith("#"))
 
 
+def load_run(path):
+    """A run's options, metrics rows and summary ({} if it has none): from its output folder, or from a kept
+    NAME_metrics.csv (docs/validation/runs/) with NAME_summary.json beside it, whose command line gives the
+    mesh and dt."""
+    if os.path.isdir(path):
+        opts = options(path)
+        metrics, summary = os.path.join(path, "metrics.csv"), os.path.join(path, "summary.json")
+    elif path.endswith("_metrics.csv"):
+        metrics, summary = path, path[: -len("_metrics.csv")] + "_summary.json"
+        opts = {}
+    else:
+        sys.exit(f"plot_shear_3d: {path}: neither a run folder nor a NAME_metrics.csv")
+    with open(metrics) as f:
+        rows = list(csv.DictReader(f))
+    s = {}
+    if os.path.exists(summary):  # (a run stopped with its machine has none)
+        with open(summary) as f:
+            s = json.load(f)
+    if not opts:
+        words = s.get("command_line", "").split()
+        for name in ("fluid_elements", "dt"):
+            if "-" + name in words[:-1]:
+                opts[name] = words[words.index("-" + name) + 1]
+    return opts, rows, s
+
+
+def window_row(opts, rows, t0, t1):
+    """A table row of the mean rates over [t0, t1] (trapezoidal time averages of the per-step omega_tu)."""
+    mesh = opts.get("fluid_elements", "?").replace(",", "x")
+    t = [float(r["time"]) for r in rows]
+    head = f"| {mesh} | {opts.get('dt', '?')} | {len(rows)} (t = {t[-1]:g} s) |"
+    if t[0] > t0 * (1 + 1e-9):
+        return head + f" its first record is at t = {t[0]:g} s, after T0 | | | |"
+    if t[-1] < t1 * (1 - 1e-9):
+        return head + f" did not reach t = {t1:g} s | | | |"
+
+    def mean(column):
+        total = 0.0
+        for k in range(1, len(t)):
+            a, b = max(t[k - 1], t0), min(t[k], t1)
+            if b <= a:
+                continue
+            # The column's linear interpolant between the records, integrated over [a, b].
+            y0, y1 = float(rows[k - 1][column]), float(rows[k][column])
+            slope = (y1 - y0) / (t[k] - t[k - 1])
+            ya, yb = y0 + slope * (a - t[k - 1]), y0 + slope * (b - t[k - 1])
+            total += 0.5 * (ya + yb) * (b - a)
+        return total / (t1 - t0)
+
+    wm, wn = mean("membrane_omega_tu"), mean("nucleus_omega_tu")
+    upto = [r for r, tk in zip(rows, t) if tk <= t1 * (1 + 1e-9)]
+    ra = [max(abs(float(r[b + "_r_A"])) for r in upto) for b in ("membrane", "nucleus")]
+    return head + f" {wm:.3f} | {wn:.3f} | {wn / wm:.3f} | {ra[0]:.2e}, {ra[1]:.2e} |"
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("runs", nargs="+")
     p.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "shear_3d.png"))
     p.add_argument("--table", default=os.path.join(ROOT, "docs", "validation", "shear_3d.md"))
     p.add_argument("--paper", type=float, default=4.68, help="the paper's tumbling frequency (1/s)")
+    p.add_argument("--window", type=float, nargs=2, metavar=("T0", "T1"), action="append", default=[],
+                   help="also a table of the mean rates over [T0, T1] s, from metrics.csv (repeatable)")
     args = p.parse_args()
+    for t0, t1 in args.window:
+        if not 0 <= t0 < t1:
+            sys.exit(f"plot_shear_3d: --window {t0} {t1}: needs 0 <= T0 < T1")
     plt = pyplot("plot_shear_3d")
     fig, axes = (None, None) if plt is None else plt.subplots(1, 2, figsize=(10, 3.6), sharey=True)
     lines = ["| mesh | dt s | steps | membrane omega_TU 1/s (half-turns) | nucleus omega_TU 1/s | regimes "
              "(membrane, nucleus) | max \\|r_A\\| membrane, nucleus | wall time |",
              "|---|---|---|---|---|---|---|---|"]
+    windows = [[] for _ in args.window]
     for run in args.runs:
-        opts = options(run)
-        with open(os.path.join(run, "metrics.csv")) as f:
-            rows = list(csv.DictReader(f))
-        with open(os.path.join(run, "summary.json")) as f:
-            s = json.load(f)
+        opts, rows, s = load_run(run)
+        for rows_of_window, (t0, t1) in zip(windows, args.window):
+            rows_of_window.append(window_row(opts, rows, t0, t1))
         mesh = opts.get("fluid_elements", "?").replace(",", "x")
         t = [float(r["time"]) for r in rows]
         if axes is not None:
@@ -56,15 +122,20 @@ def main():
                     th.append(theta[k])
                 ax.plot(tt, th, label=f"{mesh} quadratic")
         minutes = s.get("wall_time_s", float("nan")) / 60
+        steps = s.get("steps", f"{len(rows)} (stopped, no summary)")
         lines.append(
-            f"| {mesh} | {opts.get('dt', '?')} | {s.get('steps')} | {fmt(s.get('membrane_omega_tu'), '.3f')} "
+            f"| {mesh} | {opts.get('dt', '?')} | {steps} | {fmt(s.get('membrane_omega_tu'), '.3f')} "
             f"({fmt(s.get('membrane_omega_tu_half_turns'), '.0f')}) | {fmt(s.get('nucleus_omega_tu'), '.3f')} | "
             f"{s.get('membrane_regime', '?')}, {s.get('nucleus_regime', '?')} | "
             f"{fmt(s.get('membrane_max_abs_r_A'), '.2e')}, {fmt(s.get('nucleus_max_abs_r_A'), '.2e')} | "
-            f"{minutes:.1f} min |")
+            f"{fmt(minutes, '.1f')} min |")
     lines.append("")
     lines.append(f"Paper (64^3 quadratic, dt 5e-4): both tumble at {args.paper} 1/s. omega_TU is averaged over the "
                  "whole half-turns of the long axis in the metrics window (the second half of the run).")
+    for window, (t0, t1) in zip(windows, args.window):
+        lines += ["", f"Mean rates over t = {t0:g}-{t1:g} s (time averages of metrics.csv's per-step omega_tu):", "",
+                  "| mesh | dt s | steps run | membrane omega_TU 1/s | nucleus omega_TU 1/s | nucleus / membrane | "
+                  f"max \\|r_A\\| membrane, nucleus to t = {t1:g} s |", "|---|---|---|---|---|---|---|"] + window
     write_table(args.table, lines)
     if axes is None:
         return
