@@ -1,5 +1,6 @@
 #include "apps/run_output.hpp"
 
+#include <dlfcn.h>
 #include <fcntl.h>
 #include <petscsys.h>
 #include <sys/file.h>
@@ -337,6 +338,21 @@ void RunOutput::summary(const std::string& status, int steps, long newton, long 
   on_rank_zero(comm_, [&] { write_summary(status, steps, newton, linear, metrics, text); });
 }
 
+namespace {
+
+/// The BLAS the run used, for comparing timings: OpenBLAS's kernels ("Haswell", "SkylakeX", ...) and whether
+/// OPENBLAS_CORETYPE chose them. Its kernels set the speed of the region's LU (docs/performance.md §19).
+std::string blas_description() {
+  using Text = char* (*)();
+  const auto core = reinterpret_cast<Text>(dlsym(RTLD_DEFAULT, "openblas_get_corename"));
+  if (!core || !core()) return "not OpenBLAS";
+  const char* set = std::getenv("OPENBLAS_CORETYPE");
+  return "OpenBLAS, " + std::string(core()) + " kernels (" +
+         (set ? "OPENBLAS_CORETYPE=" + std::string(set) : std::string("its own choice")) + ")";
+}
+
+}  // namespace
+
 void RunOutput::write_summary(const std::string& status, int steps, long newton, long linear,
                               const std::vector<std::pair<std::string, double>>& metrics,
                               const std::vector<std::pair<std::string, std::string>>& text) const {
@@ -353,6 +369,7 @@ void RunOutput::write_summary(const std::string& status, int steps, long newton,
   js[iteration_kind_ + "_iterations"] = newton;
   js["linear_iterations"] = linear;
   js["ranks"] = size_;
+  js["blas"] = blas_description();
   for (const auto& [k, v] : metrics) {
     if (std::isfinite(v))
       js[k] = v;

@@ -122,13 +122,15 @@ def main():
                     th.append(theta[k])
                 ax.plot(tt, th, label=f"{mesh} quadratic")
         minutes = s.get("wall_time_s", float("nan")) / 60
+        # A restarted run's summary times only the steps after its checkpoint.
+        resumed = f" (steps {s['resumed_from_step'] + 1}-{s['steps']} only)" if "resumed_from_step" in s else ""
         steps = s.get("steps", f"{len(rows)} (stopped, no summary)")
         lines.append(
             f"| {mesh} | {opts.get('dt', '?')} | {steps} | {fmt(s.get('membrane_omega_tu'), '.3f')} "
             f"({fmt(s.get('membrane_omega_tu_half_turns'), '.0f')}) | {fmt(s.get('nucleus_omega_tu'), '.3f')} | "
             f"{s.get('membrane_regime', '?')}, {s.get('nucleus_regime', '?')} | "
             f"{fmt(s.get('membrane_max_abs_r_A'), '.2e')}, {fmt(s.get('nucleus_max_abs_r_A'), '.2e')} | "
-            f"{fmt(minutes, '.1f')} min |")
+            f"{fmt(minutes, '.1f')} min{resumed} |")
     lines.append("")
     lines.append(f"Paper (64^3 quadratic, dt 5e-4): both tumble at {args.paper} 1/s. omega_TU is averaged over the "
                  "whole half-turns of the long axis in the metrics window (the second half of the run).")
