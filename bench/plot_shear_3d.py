@@ -56,11 +56,22 @@ def load_run(path):
     return opts, rows, s
 
 
-def window_row(opts, rows, t0, t1):
+def describe(opts, s):
+    """A run's label: the fluid mesh, with the s_I and the bodies' elements its summary records."""
+    text = opts.get("fluid_elements", "?").replace(",", "x")
+    if "s_interface" in s:
+        text += ", s_I " + f"{s['s_interface']:.2g}".replace("e+0", "e").replace("e+", "e")
+    bodies = ["x".join(f"{s[f'{b}_elements_{k}']:.0f}" for k in range(3)) for b in ("membrane", "nucleus")
+              if f"{b}_elements_2" in s]
+    if bodies:
+        text += ", bodies " + " / ".join(bodies)
+    return text
+
+
+def window_row(label, opts, rows, t0, t1):
     """A table row of the mean rates over [t0, t1] (trapezoidal time averages of the per-step omega_tu)."""
-    mesh = opts.get("fluid_elements", "?").replace(",", "x")
     t = [float(r["time"]) for r in rows]
-    head = f"| {mesh} | {opts.get('dt', '?')} | {len(rows)} (t = {t[-1]:g} s) |"
+    head = f"| {label} | {opts.get('dt', '?')} | {len(rows)} (t = {t[-1]:g} s) |"
     if t[0] > t0 * (1 + 1e-9):
         return head + f" its first record is at t = {t[0]:g} s, after T0 | | | |"
     if t[-1] < t1 * (1 - 1e-9):
@@ -99,15 +110,15 @@ def main():
             sys.exit(f"plot_shear_3d: --window {t0} {t1}: needs 0 <= T0 < T1")
     plt = pyplot("plot_shear_3d")
     fig, axes = (None, None) if plt is None else plt.subplots(1, 2, figsize=(10, 3.6), sharey=True)
-    lines = ["| mesh | dt s | steps | membrane omega_TU 1/s (half-turns) | nucleus omega_TU 1/s | regimes "
-             "(membrane, nucleus) | max \\|r_A\\| membrane, nucleus | wall time |",
+    lines = ["| run: mesh, s_I, body elements | dt s | steps | membrane omega_TU 1/s (half-turns) | nucleus "
+             "omega_TU 1/s | regimes (membrane, nucleus) | max \\|r_A\\| membrane, nucleus | wall time |",
              "|---|---|---|---|---|---|---|---|"]
     windows = [[] for _ in args.window]
     for run in args.runs:
         opts, rows, s = load_run(run)
+        label = describe(opts, s)
         for rows_of_window, (t0, t1) in zip(windows, args.window):
-            rows_of_window.append(window_row(opts, rows, t0, t1))
-        mesh = opts.get("fluid_elements", "?").replace(",", "x")
+            rows_of_window.append(window_row(label, opts, rows, t0, t1))
         t = [float(r["time"]) for r in rows]
         if axes is not None:
             for ax, body in zip(axes, ("membrane", "nucleus")):
@@ -120,23 +131,24 @@ def main():
                         th.append(float("nan"))
                     tt.append(t[k])
                     th.append(theta[k])
-                ax.plot(tt, th, label=f"{mesh} quadratic")
+                ax.plot(tt, th, label=f"{label}, dt {opts.get('dt', '?')}")
         minutes = s.get("wall_time_s", float("nan")) / 60
         # A restarted run's summary times only the steps after its checkpoint.
         resumed = f" (steps {s['resumed_from_step'] + 1}-{s['steps']} only)" if "resumed_from_step" in s else ""
         steps = s.get("steps", f"{len(rows)} (stopped, no summary)")
         lines.append(
-            f"| {mesh} | {opts.get('dt', '?')} | {steps} | {fmt(s.get('membrane_omega_tu'), '.3f')} "
+            f"| {label} | {opts.get('dt', '?')} | {steps} | {fmt(s.get('membrane_omega_tu'), '.3f')} "
             f"({fmt(s.get('membrane_omega_tu_half_turns'), '.0f')}) | {fmt(s.get('nucleus_omega_tu'), '.3f')} | "
             f"{s.get('membrane_regime', '?')}, {s.get('nucleus_regime', '?')} | "
             f"{fmt(s.get('membrane_max_abs_r_A'), '.2e')}, {fmt(s.get('nucleus_max_abs_r_A'), '.2e')} | "
             f"{fmt(minutes, '.1f')} min{resumed} |")
     lines.append("")
-    lines.append(f"Paper (64^3 quadratic, dt 5e-4): both tumble at {args.paper} 1/s. omega_TU is averaged over the "
-                 "whole half-turns of the long axis in the metrics window (the second half of the run).")
+    lines.append(f"Paper (64^3 quadratic, s_I 1e9, 3072 membrane and 7168 sphere elements; its 3D dt is not "
+                 f"stated): both tumble at {args.paper} 1/s. omega_TU is averaged over the whole half-turns of the "
+                 "long axis in the metrics window (the second half of the run).")
     for window, (t0, t1) in zip(windows, args.window):
         lines += ["", f"Mean rates over t = {t0:g}-{t1:g} s (time averages of metrics.csv's per-step omega_tu):", "",
-                  "| mesh | dt s | steps run | membrane omega_TU 1/s | nucleus omega_TU 1/s | nucleus / membrane | "
+                  "| run | dt s | steps run | membrane omega_TU 1/s | nucleus omega_TU 1/s | nucleus / membrane | "
                   f"max \\|r_A\\| membrane, nucleus to t = {t1:g} s |", "|---|---|---|---|---|---|---|"] + window
     write_table(args.table, lines)
     if axes is None:
@@ -147,7 +159,7 @@ def main():
         ax.set_xlabel("t (s)")
         ax.grid(True, lw=0.3)
     axes[0].set_ylabel("theta (deg), long axis from the flow direction")
-    axes[0].legend(fontsize=8)
+    axes[1].legend(fontsize=8)  # (the membrane turns through every angle; the nucleus leaves room)
     fig.suptitle("3D compound capsule in shear (paper Fig. 5b)", fontsize=10)
     save_figure(fig, args.figure, "plot_shear_3d")
 

@@ -15,7 +15,9 @@ third s_I and reports how far the split predicts its matrix. Then, with R's and 
   each s of --at a mode is soft where sqrt(s) lambda < 1 (the rest dominates it);
 - for every node, its star (the node and the nodes its functions overlap: 5 x 5 x 5 for quadratic splines) and
   the soft modes of the same problem restricted to the star; how much of the region's soft space the stars'
-  soft modes span (the cosines of the principal angles, in R's inner product).
+  soft modes span (the cosines of the principal angles, in R's inner product);
+- GMRES iterations on the velocity block R + sqrt(s) B, with no grad-div term and at each s of --at,
+  preconditioned by additive Schwarz over the stars (exact star solves) or by block Jacobi over the nodes.
 Needs Debian's python3-numpy (with python3-matplotlib: scripts/install-deps.sh) and a build (scripts/build.sh).
 """
 import argparse
