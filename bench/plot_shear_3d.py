@@ -50,6 +50,12 @@ def load_run(path):
             s = json.load(f)
     if not opts:
         words = s.get("command_line", "").split()
+        # What the command line does not set, its scene file does (top-level "name: value" lines).
+        scene = next((os.path.join(ROOT, w) for w in words if w.endswith(".yaml")), None)
+        if scene and os.path.exists(scene):
+            with open(scene) as f:
+                opts = {k: v for k, v in (line.split("#")[0].rstrip().split(": ", 1) for line in f
+                                          if ": " in line and not line[0].isspace() and not line.startswith("#"))}
         for name in ("fluid_elements", "dt"):
             if "-" + name in words[:-1]:
                 opts[name] = words[words.index("-" + name) + 1]
@@ -136,6 +142,10 @@ def main():
         # A restarted run's summary times only the steps after its checkpoint.
         resumed = f" (steps {s['resumed_from_step'] + 1}-{s['steps']} only)" if "resumed_from_step" in s else ""
         steps = s.get("steps", f"{len(rows)} (stopped, no summary)")
+        if s and not str(s.get("status", "")).startswith("completed"):
+            # A stopped run's summary averages over the second half of what it ran: not the run's rates.
+            s = {k: v for k, v in s.items() if not k.endswith(("omega_tu", "half_turns", "regime"))}
+            steps = f"{steps} (stopped at t = {float(rows[-1]['time']):g} s)"
         lines.append(
             f"| {label} | {opts.get('dt', '?')} | {steps} | {fmt(s.get('membrane_omega_tu'), '.3f')} "
             f"({fmt(s.get('membrane_omega_tu_half_turns'), '.0f')}) | {fmt(s.get('nucleus_omega_tu'), '.3f')} | "
