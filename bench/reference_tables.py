@@ -1,0 +1,559 @@
+#!/usr/bin/env python3
+"""The reference tables of docs/validation.md and docs/performance.md, generated from the kept results.
+
+One table per scene (mesh, degree, dt, the error against the paper or the truth, s/step, memory, commit,
+command), written between marker comments in the two pages:
+
+    <!-- BEGIN TABLE name -->  ...generated...  <!-- END TABLE name -->
+
+Sources, in this order of preference:
+  1. the tables the bench scripts wrote into docs/validation/*.md and docs/performance/*.md (their provenance
+     line gives the commit), and the kept runs' docs/validation/runs/*_summary.json;
+  2. REGISTRY below: the values that exist only as prose, each with the commit it was measured at and the
+     note in docs/notes/ it comes from. Add a value here only with both; better, keep its run's table.
+
+Usage:
+  python3 bench/reference_tables.py           rewrite the tables in the docs
+  python3 bench/reference_tables.py --check   exit 1 if a table differs from what would be written, or if a
+                                              relative link in README.md, CHANGELOG.md or docs/ (its notes
+                                              included) names a missing file or heading; print each
+Python 3 and its standard library only.
+"""
+import argparse
+import glob
+import json
+import os
+import re
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+VAL = os.path.join(ROOT, "docs", "validation")
+PERF = os.path.join(ROOT, "docs", "performance")
+PAGES = ["docs/validation.md", "docs/performance.md"]
+
+# ---------------------------------------------------------------------------------------------------------
+# Values that exist only as prose: (commit, note in docs/notes/) for each.
+# ---------------------------------------------------------------------------------------------------------
+N = "docs/notes/"
+REGISTRY = {
+    "default_scene": dict(
+        commit="70dd658", note=N + "2026-11-21-perf03-scene-costs.md",
+        mesh="160x80", p=3, dt="2e-3", steps=125, wall_s=62.4, memory="0.29 GB",
+        theta=25.44, omega=3.73, theta_ref=26.09, omega_ref=3.90,
+        load="two other jobs on the 2 cores"),
+    "stiff_disk": dict(
+        commit="d61f5db", note=N + "2026-11-23-val-stiff-disk.md",
+        rows=[("64x32", 0.9971), ("128x64", 0.9911), ("256x128", 0.9901)]),
+    "plasma": dict(
+        commit="6d1dfde", note=N + "2026-11-21-perf03-scene-costs.md",
+        rows=[("shear", "64x32", "shear profile against the linear one", "1.7e-16 of the wall speed", 1.7, 20),
+              ("poiseuille", "96x32", "u_max against f H^2 / (8 mu)", "2.6e-7 (relative)", 2.9, 20)]),
+    "migration": dict(
+        note=N + "2026-11-24-val-channel-migration.md",
+        rows=[dict(mesh="128x64", commit="678009a", tenth=1.71, offset08=0.72, s_step=0.59, memory="0.78 GB",
+                   extra="-final_time 2.4", how="continued twice from its checkpoint with -restart"),
+              dict(mesh="256x128", commit="88d52c0", tenth=1.38, offset08=0.61, s_step=2.8, memory="-",
+                   extra="-final_time 3.0", how="stopped at 2.19 s; -restart continues it")]),
+    "ctc_192": dict(
+        commit="b2c4108", note=N + "2026-11-24-val-ctc-narrowing.md", mesh="192x64", transit=0.051,
+        dip=-30, anisotropy=12.0, r_A=2.3e-3, s_step=1.9, memory="1.5 GB"),
+    "rbc_shear_3d": dict(
+        commit="9f922d2", note=N + "2026-11-26-val-rbc-3d.md", mesh="16x16x16", p=2, dt="1e-3",
+        half_turn=0.147, jeffery=0.152, s_step=6.7, memory="0.73 GB"),
+    # The 12^3 and 16^3 runs of shear_3d.md: their commit and peak memory (one rank, an LU per step then).
+    "compound_3d_coarse": dict(
+        commit="6ff938d", note=N + "2026-11-27-val-compound-capsule-3d.md",
+        memory={"12": "0.53 GB", "16": "1.32 GB"}),
+    # The 64^3 runs' s/step and memory: their summaries' wall times cover only the part run after a restart.
+    "compound_3d_cost": dict(
+        note=N + "2026-11-27-val-compound-capsule-3d.md",
+        rows={"shear_3d_32cube": ("15.6", "2.8 GB"), "shear_3d_48cube": ("about 36 (one rank, loaded)", "4.8 GB"),
+              "shear_3d_64cube": ("31-36 (undisturbed steps)", "4.6 GB per rank"),
+              "shear_3d_64cube_scene": ("29-31 (undisturbed steps)", "4.6 GB per rank")}),
+    # Kernels: the latest measured per element (us), best of 7 (bench/fluid_assembly).
+    "assembly": dict(
+        note=N + "2026-11-27-perf16-residual-and-region-lu-parts.md", commit="3dc13db",
+        rows=[("2D residual", 2, "0.86"), ("2D residual", 3, "1.82"), ("3D residual", 2, "5.15-5.38"),
+              ("3D residual", 3, "19.8-20.0"), ("3D Jacobian", 2, "90.0-98.8")]),
+    "assembly_2d_jacobian": dict(
+        note=N + "2026-11-21-perf01-fluid-assembly.md", commit="30647ab",
+        rows=[("2D Jacobian", 2, "2.03"), ("2D Jacobian", 3, "5.16-5.71")]),
+    "targets_26": dict(
+        note=N + "2026-11-27-perf19-openblas-kernels.md", commit="e017b11",
+        rows=[("64^3, a coupled step on 2 ranks", "at most 12 s", "25.8 s (21.4 s with OpenBLAS's AVX-512 kernels)",
+               "missed by 2.1x"),
+              ("64^3 on 1 rank", "at most 8 GB", "5.20 GB", "met"),
+              ("32^3, a step on 2 ranks", "at most 2 s", "3.5-4.3 s", "missed by 1.75x or more"),
+              ("the paper's 64^3 run to 0.3 s on 2 ranks", "within 2 h", "about 4.5-5.5 h (600 steps)",
+               "missed by 2.3-2.8x")]),
+}
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Reading the kept results
+# ---------------------------------------------------------------------------------------------------------
+def read(path):
+    with open(path, encoding="utf-8") as f:
+        return f.read()
+
+
+def md_tables(path):
+    """Every pipe table of a markdown file: a list of lists of dicts keyed by the header's cells."""
+    tables, cur, header = [], None, None
+    for line in read(path).split("\n"):
+        if line.startswith("|"):
+            cells = [c.strip() for c in re.split(r"(?<!\\)\|", line.strip())[1:-1]]
+            if header is None:
+                seen = {}
+                header = []
+                for c in cells:  # a repeated header cell ("paper" twice) gets its count: "paper 2"
+                    seen[c] = seen.get(c, 0) + 1
+                    header.append(c if seen[c] == 1 else f"{c} {seen[c]}")
+            elif set("".join(cells)) <= set("-: "):
+                cur = []
+                tables.append(cur)
+            elif cur is not None:
+                cur.append(dict(zip(header, cells)))
+        else:
+            header, cur = None, None
+    return tables
+
+
+def commit_of(path):
+    """The commit in a kept table's provenance line: 'git abc1234' (-dirty or 'with uncommitted changes')."""
+    m = re.search(r"git\s+([0-9a-f]{7,12})(-dirty|\s+with\s+uncommitted\s+changes)?", read(path))
+    if not m:
+        return "-"
+    return m.group(1)[:7] + ("-dirty" if m.group(2) else "")
+
+
+def rel(path):
+    return os.path.relpath(path, ROOT)
+
+
+def summary(name):
+    return json.loads(read(os.path.join(VAL, "runs", name + "_summary.json")))
+
+
+def num(s):
+    return float(s.replace("\\", "").split()[0])
+
+
+def per_step(wall, steps):
+    return f"{float(wall) / float(steps):.2f}"
+
+
+def mesh_comma(mesh):
+    return mesh.replace("x", ",")
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Rendering
+# ---------------------------------------------------------------------------------------------------------
+COLUMNS = ["mesh", "p", "dt s", "compared", "cellfsi", "paper / truth", "difference", "s/step", "memory",
+           "commit", "command"]
+
+
+def table(rows, sources, columns=COLUMNS):
+    out = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    for r in rows:
+        out.append("| " + " | ".join(str(c) for c in r) + " |")
+    out.append("")
+    out.append("Generated by `python3 bench/reference_tables.py` from " + "; ".join(sources) + ".")
+    return "\n".join(out)
+
+
+def code(s):
+    return "`" + s + "`"
+
+
+def link_from_page(path):
+    """A kept file as a link from docs/X.md."""
+    r = rel(path)
+    return f"[{os.path.basename(r)}]({os.path.relpath(os.path.join(ROOT, r), os.path.join(ROOT, 'docs'))})"
+
+
+# ---------------------------------------------------------------------------------------------------------
+# validation.md: one table per scene
+# ---------------------------------------------------------------------------------------------------------
+def t_capsule_shear():
+    path = os.path.join(VAL, "capsule_table1_central.md")
+    commit = commit_of(path)
+    rows = []
+    for r in md_tables(path)[0]:
+        th, thp = num(r["theta deg"]), float(r["paper"])
+        om, omp = num(r["omega_TT 1/s"]), float(r["paper 2"])
+        cmd = (f"cellfsi scenes/capsule_shear.yaml -fluid_elements {mesh_comma(r['mesh'])} -fluid_degree {r['p']} "
+               f"-dt {r['dt s']} -final_time 0.3 -metrics_average_from 0.15 -solid_membrane_elements 1,0 "
+               f"-s_interface 1e10")
+        rows.append([r["mesh"], r["p"], r["dt s"], "theta deg, omega_TT 1/s", f"{th:.2f}, {om:.3f}",
+                     f"{thp:.2f}, {omp:.2f} (paper, same mesh)", f"{th - thp:+.2f} deg, {100 * (om / omp - 1):+.1f} %",
+                     r["s/step"], "-", commit, code(cmd)])
+    return table(rows, [link_from_page(path) + " (memory not recorded)"])
+
+
+def t_default_scene():
+    d = REGISTRY["default_scene"]
+    rows = [[d["mesh"], d["p"], d["dt"], "theta deg, omega_TT 1/s", f"{d['theta']:.2f}, {d['omega']:.2f}",
+             f"{d['theta_ref']:.2f}, {d['omega_ref']:.2f} (paper's converged, 512 x 256)",
+             f"{d['theta'] - d['theta_ref']:+.2f} deg, {100 * (d['omega'] / d['omega_ref'] - 1):+.1f} %",
+             per_step(d["wall_s"], d["steps"]), d["memory"], d["commit"], code("cellfsi")]]
+    return table(rows, [f"REGISTRY['default_scene'] ({d['note'][5:]}; {d['load']})"])
+
+
+def t_stiff_disk():
+    d = REGISTRY["stiff_disk"]
+    rows = []
+    for mesh, w in d["rows"]:
+        cmd = ("cellfsi scenes/capsule_shear.yaml -solid_membrane_shape ellipse -solid_membrane_semi_axes 7.5e-5,7.5e-5 "
+               "-solid_membrane_elements 0,0 -solid_membrane_shear_modulus 40 -solid_membrane_density 1.025 "
+               f"-dt 1e-3 -final_time 0.1 -fluid_elements {mesh_comma(mesh)} -s_interface 1e10")
+        rows.append([mesh, 3, "1e-3", "rotation / (gammadot / 2)", f"{w:.4f}", "1 (unbounded shear)",
+                     f"{100 * (w - 1):+.2f} %", "-", "-", d["commit"], code(cmd)])
+    return table(rows, [f"REGISTRY['stiff_disk'] ({d['note'][5:]})"])
+
+
+def sweep_rows(path, mesh, dt, pick, compare, scene, extra):
+    commit = commit_of(path)
+    rows = []
+    for r in md_tables(path)[0]:
+        if not pick(r):
+            continue
+        ours, ref, diff, what = compare(r)
+        cmd = (f"cellfsi scenes/{scene} -fluid_elements {mesh_comma(mesh)} -dt {dt} {extra(r)}").strip()
+        rows.append([mesh, 3, dt, what, ours, ref, diff, per_step(r["wall s"], r["steps"]), "-", commit, code(cmd)])
+    return rows
+
+
+def t_biconcave():
+    path = os.path.join(VAL, "shear_swelling.md")
+    rs = md_tables(path)[0]
+    ell = [(num(r["Delta"]), num(r["theta deg"]), num(r["omega_TT 1/s"])) for r in rs if r["a cm"] != "biconcave"]
+    bic = [r for r in rs if r["a cm"] == "biconcave"][0]
+    delta = num(bic["Delta"])
+    lo = max((e for e in ell if e[0] <= delta), key=lambda e: e[0])
+    hi = min((e for e in ell if e[0] >= delta), key=lambda e: e[0])
+    f = (delta - lo[0]) / (hi[0] - lo[0])
+    th_i, om_i = lo[1] + f * (hi[1] - lo[1]), lo[2] + f * (hi[2] - lo[2])
+
+    def compare(r):
+        th, om = num(r["theta deg"]), num(r["omega_TT 1/s"])
+        return (f"{th:.2f}, {om:.3f}", f"{th_i:.2f}, {om_i:.2f} (the elliptic capsules' curve, interpolated)",
+                f"{th - th_i:+.2f} deg, {100 * (om / om_i - 1):+.1f} %", "theta deg, omega_TT 1/s")
+    rows = sweep_rows(path, "128x64", "1e-3", lambda r: r["a cm"] == "biconcave", compare,
+                      "biconcave_capsule_shear.yaml", lambda r: "-final_time 0.3 -metrics_average_from 0.15 -s_interface 1e10")
+    p5 = os.path.join(VAL, "shear_viscosity_biconcave_capsule_shear_256x128.md")
+    rows += sweep_rows(p5, "256x128", "1e-3", lambda r: True,
+                       lambda r: (f"{num(r['theta deg']):.2f}, {num(r['omega_TT 1/s']):.3f}", "no paper value (lambda = 5)",
+                                  "-", "lambda 5: theta deg, omega_TT 1/s"),
+                       "biconcave_capsule_shear.yaml",
+                       lambda r: "-final_time 1.0 -metrics_average_from 0.5 -solid_membrane_inner_viscosity 0.06")
+    return table(rows, [link_from_page(path), link_from_page(p5)])
+
+
+def t_bulky():
+    path = os.path.join(VAL, "shear_bulky.md")
+
+    def compare(r):
+        a, b = float(r["a cm"]), 1e-4
+        jeff = 70.0 / (2 * 3.141592653589793 * (a / b + b / a))
+        om = num(r["omega_TU 1/s"])
+        return (f"{om:.3f} ({r['regime']})", f"{jeff:.3f} (Jeffery, unbounded)", f"{100 * (om / jeff - 1):+.0f} %",
+                f"a = {float(r['a cm']):g} cm: omega_TU 1/s")
+    rows = sweep_rows(path, "128x64", "1e-3", lambda r: True, compare, "bulky_ellipse_shear.yaml",
+                      lambda r: f"-solid_body_semi_axes {float(r['a cm']):g},1e-4 -final_time 0.5 "
+                                f"-metrics_average_from 0.1 -s_interface 1e10")
+    return table(rows, [link_from_page(path) + "; Jeffery's rate gammadot / (2 pi (a/b + b/a))"])
+
+
+def t_compound_2d():
+    path = os.path.join(VAL, "shear_compound.md")
+
+    def compare(r):
+        ok = r["membrane regime"] == "tank-treading" and r["nucleus regime"] == "tumbling"
+        return (f"{num(r['membrane theta deg']):.2f}, {num(r['membrane omega_TT 1/s']):.3f}; {r['membrane regime']}, "
+                f"nucleus {r['nucleus regime']} ({num(r['nucleus omega_TU 1/s']):.3f})",
+                "membrane tank-treads, nucleus tumbles (Fig. 4b-d)", "as the paper" if ok else "differs",
+                f"r = {float(r['r cm']):g} cm: membrane theta deg, omega_TT 1/s; regimes")
+    rows = sweep_rows(path, "256x128", "1e-3", lambda r: True, compare, "compound_capsule_shear.yaml",
+                      lambda r: f"-solid_nucleus_semi_axes {float(r['r cm']):g},{float(r['r cm']):g} -final_time 0.3 "
+                                f"-metrics_average_from 0.15 -s_interface 1e10")
+    return table(rows, [link_from_page(path)])
+
+
+def t_compound_3d():
+    rows = []
+    path = os.path.join(VAL, "shear_3d.md")
+    coarse = REGISTRY["compound_3d_coarse"]
+    for r in md_tables(path)[0]:
+        n = r["mesh"].split("x")[0]
+        if n not in coarse["memory"]:  # the finer meshes' rows: from their kept summaries below
+            continue
+        m, nu = num(r["membrane omega_TU 1/s (half-turns)"]), num(r["nucleus omega_TU 1/s"])
+        minutes = num(r["wall time"])
+        cmd = (f"cellfsi scenes/compound_capsule_shear_3d.yaml -fluid_elements {n},{n},{n} -solid_membrane_elements "
+               f"1,0,0 -solid_nucleus_elements 0,0,0 -dt 1e-3 -final_time 0.3 -s_interface 1e9")
+        rows.append([f"{n}^3", 2, "1e-3", "omega_TU 1/s, membrane / nucleus", f"{m:.3f} / {nu:.3f}", "4.68 / 4.68",
+                     f"{100 * (m / 4.68 - 1):+.1f} % / {100 * (nu / 4.68 - 1):+.1f} %",
+                     per_step(minutes * 60, num(r["steps"])), coarse["memory"][n], coarse["commit"], code(cmd)])
+    cost = REGISTRY["compound_3d_cost"]
+    for name in ["shear_3d_32cube", "shear_3d_48cube", "shear_3d_64cube", "shear_3d_64cube_scene"]:
+        s = summary(name)
+        cl = s["command_line"].split()
+        opt = {cl[i]: cl[i + 1] for i in range(len(cl) - 1) if cl[i].startswith("-")}
+        n = opt.get("-fluid_elements", "64").split(",")[0]  # the scene's own mesh when not given
+        dt = opt.get("-dt", "5e-4")
+        m, nu = s["membrane_omega_tu"], s.get("nucleus_omega_tu")
+        shipped = name.endswith("scene")
+        if shipped:
+            w = [r for r in md_tables(os.path.join(VAL, "shear_3d_mesh_64.md"))[1] if "4.5e10" in r["run"]][0]
+            m, nu = num(w["membrane omega_TU 1/s"]), num(w["nucleus omega_TU 1/s"])
+            what = "omega_TU 1/s over t = 0.001-0.1 s (run stopped at 0.167 s), membrane / nucleus"
+            ours = f"{m:.3f} / {nu:.3f}"
+            diff = f"{100 * (m / 4.68 - 1):+.1f} % / {100 * (nu / 4.68 - 1):+.1f} %"
+            cmd = "mpirun -np 2 cellfsi scenes/compound_capsule_shear_3d.yaml"
+        else:
+            what = "omega_TU 1/s, membrane / nucleus"
+            ours = f"{m:.3f} / {nu:.3f}"
+            diff = f"{100 * (m / 4.68 - 1):+.1f} % / {100 * (nu / 4.68 - 1):+.1f} %"
+            cmd = (f"{'mpirun -np 2 ' if s['ranks'] == 2 else ''}cellfsi scenes/compound_capsule_shear_3d.yaml "
+                   f"-fluid_elements {n},{n},{n} -solid_membrane_elements 1,0,0 -solid_nucleus_elements 0,0,0 "
+                   f"-dt {dt} -final_time 0.3 -s_interface 1e9")
+        sstep, mem = cost["rows"][name]
+        rows.append([f"{n}^3" + (" (as shipped)" if shipped else ""), 2, dt, what, ours, "4.68 / 4.68", diff, sstep, mem,
+                     s["commit"][:7] + ("-dirty" if "dirty" in s["commit"] else ""), code(cmd)])
+    return table(rows, [link_from_page(path), "docs/validation/runs/shear_3d_*_summary.json",
+                        link_from_page(os.path.join(VAL, "shear_3d_mesh_64.md")),
+                        f"s/step and memory of the runs from 32^3 on: REGISTRY['compound_3d_cost'] ({cost['note'][5:]})"])
+
+
+def t_rbc_shear_3d():
+    d = REGISTRY["rbc_shear_3d"]
+    rows = [[d["mesh"], d["p"], d["dt"], "half-turn s", f"{d['half_turn']:.3f}",
+             f"{d['jeffery']:.3f} (Jeffery's rigid oblate spheroid, r = 0.328)",
+             f"{100 * (d['half_turn'] / d['jeffery'] - 1):+.0f} %", f"{d['s_step']}", d["memory"], d["commit"],
+             code("cellfsi scenes/rbc_shear_3d.yaml -s_interface 1e9")]]
+    return table(rows, [f"REGISTRY['rbc_shear_3d'] ({d['note'][5:]}; one rank beside other jobs)"])
+
+
+def t_stretching():
+    rows = []
+    for name, mesh in [("stretching.md", "36x12x18"), ("stretching_24x8x12.md", "24x8x12")]:
+        path = os.path.join(VAL, name)
+        rs = [r for t in md_tables(path) for r in t if "law" in r and "wall s" in r]
+        fit = {r["law"]: r for t in md_tables(path) for r in t if r.get("fitted to") == "D_A"}
+        for law in ["strain_hardening", "neo_hookean"]:
+            mine = [r for r in rs if r["law"] == law]
+            gh, rms = num(fit[law]["G h uN/m"]), num(fit[law]["RMS D_A um"])
+            sps = sorted(float(r["wall s"]) / float(r["steps"]) for r in mine)
+            rows.append([mesh, 2, "1e-3 (5e-4, 2.5e-4 where it inverted)", f"{law}: G h fitted to D_A, RMS of D_A",
+                         f"{gh:.2f} uN/m, {rms:.2f} um", "5-12 uN/m (Mills et al. 2004); their D_A at 12 forces",
+                         f"RMS {rms:.2f} um", f"{sps[0]:.1f}-{sps[-1]:.1f}", "-", commit_of(path),
+                         code(f"python3 bench/run_stretching.py" + ("" if mesh == "36x12x18" else f" --mesh {mesh}"))])
+    return table(rows, [link_from_page(os.path.join(VAL, "stretching.md")),
+                        link_from_page(os.path.join(VAL, "stretching_24x8x12.md"))])
+
+
+def t_rbc_channel():
+    rows = []
+    paper_ht = {4: 0.1716, 6: 0.2573, 8: 0.3431, 10: 0.4290, 12: 0.5147}
+    srcs = []
+    for name, mesh, dt, extra in [("channel_rheology.md", "96x32", "5e-4", ""),
+                                  ("channel_rheology_384x128.md", "384x128", "2.5e-4",
+                                   " --mesh 384x128 --dt 2.5e-4 --final-time 0.4 --average-from 0.2")]:
+        path = os.path.join(VAL, name)
+        srcs.append(link_from_page(path))
+        for r in md_tables(path)[0]:
+            n = int(r["cells"])
+            ht = num(r["H_t"])
+            rows.append([mesh, 3, dt, f"{n} cells: H_t; zeta, eta, h_cf um", f"{ht:.4f}; {num(r['zeta = v_m / v_RBCs']):.3f}, "
+                         f"{num(r['eta = v_P / v_m']):.3f}, {num(r['h_cf um']):.2f}",
+                         f"{paper_ht[n]:.4f}; trends of Fig. 8 (no numbers)", f"H_t {ht - paper_ht[n]:+.4f}",
+                         per_step(r["wall s"], r["steps"]), "-", commit_of(path),
+                         code(f"python3 bench/run_channel_rheology.py --counts {n}{extra} --extra \"-s_interface 1e9\"")])
+    return table(rows, srcs)
+
+
+def t_migration():
+    d = REGISTRY["migration"]
+    rows = []
+    for r in d["rows"]:
+        cmd = (f"cellfsi scenes/capsule_channel_migration.yaml -fluid_elements {mesh_comma(r['mesh'])} "
+               f"-solid_membrane_elements 1,0 -dt 5e-4 {r['extra']} -s_interface 1e9")
+        rows.append([r["mesh"], 3, "5e-4", "t to a tenth of the 2 um offset s; offset at 0.8 s um",
+                     f"{r['tenth']:.2f}; {r['offset08']:.2f}", "migrates to the centre line, parachute (Fig. 7; no time scale)",
+                     "as the paper (qualitative)", f"{r['s_step']}", r["memory"], r["commit"],
+                     code(cmd) + f" ({r['how']})"])
+    return table(rows, [f"REGISTRY['migration'] ({d['note'][5:]})"])
+
+
+def t_ctc():
+    d = REGISTRY["ctc_192"]
+    path = os.path.join(VAL, "ctc_passage_384x128.md")
+    q = {r["quantity"]: r["384x128"] for r in md_tables(path)[0]}
+    transit = float(q["membrane: throat entry / exit / transit (s)"].split("/")[2])
+    dip = float(re.search(r"\(([-0-9.]+) %\)", q["flow rate minimum (change against developed)"]).group(1))
+    aniso = float(q["membrane: largest anisotropy (at t, centroid x)"].split()[0])
+    ra = float(q["membrane: r_A at the end / largest abs r_A / largest abs r_P"].split("/")[0])
+    steps, _, wall = [x.strip() for x in q["steps, final time, wall"].split(",")[:3]]
+    base = ("cellfsi scenes/ctc_narrowing.yaml -fluid_elements {m} -solid_membrane_elements 1,0 "
+            "-solid_nucleus_elements 0,0 -final_time 0.3 -s_interface 1e9")
+    what = "membrane transit s; flow-rate dip; largest anisotropy; r_A at 0.3 s"
+    ref = "passes, flow slows, nucleus deforms leaving (Fig. 10; no numbers)"
+    rows = [["192x64", 3, "2.5e-4", what, f"{d['transit']:.3f}; {d['dip']} %; {d['anisotropy']:.1f}; {d['r_A']:.1e}",
+             ref, "as the paper (qualitative)", f"{d['s_step']}", d["memory"], d["commit"], code(base.format(m="192,64"))],
+            ["384x128", 3, "2.5e-4", what, f"{transit:.3f}; {dip:.0f} %; {aniso:.1f}; {ra:.1e}", ref,
+             f"transit {100 * (transit / d['transit'] - 1):+.0f} % against 192x64", per_step(wall.split()[0], steps),
+             "-", commit_of(path) + " (binary b0183e9)", code(base.format(m="384,128"))]]
+    return table(rows, [f"REGISTRY['ctc_192'] ({d['note'][5:]})", link_from_page(path)])
+
+
+def t_plasma():
+    d = REGISTRY["plasma"]
+    rows = [[mesh, 3, "5e-4", what, err, "exact", err.split()[0], per_step(wall, steps), "-", d["commit"],
+             code(f"cellfsi scenes/{scene}.yaml -output_every 0")] for scene, mesh, what, err, wall, steps in d["rows"]]
+    return table(rows, [f"REGISTRY['plasma'] ({d['note'][5:]}; 20 steps, one LU factorisation dominates)"])
+
+
+# ---------------------------------------------------------------------------------------------------------
+# performance.md
+# ---------------------------------------------------------------------------------------------------------
+def t_steps_3d():
+    path = os.path.join(PERF, "coupled_steps_3d.md")
+    cols = ["mesh", "ranks", "s/step", "region LU (PCSetUp)", "linear solves", "Jacobian", "residuals", "location",
+            "coupling it./step", "peak GB per rank", "commit", "command"]
+    rows = []
+    commit = commit_of(path)
+    for r in md_tables(path)[0]:
+        n = r["mesh"].split("^")[0]
+        rows.append([r["mesh"], r["ranks"], r["s/step"], r["PCSetUp"], r["LinearSolve"], r["Jacobian"], r["Residual"],
+                     r["Locate"], r["coupling/step"], r["peak GB"], commit,
+                     code(f"python3 bench/run_3d_steps.py --cases {n}:{r['ranks']}:{r['steps']}")])
+    return table(rows, [link_from_page(path) + " (the compound capsule, the paper's bodies scaled with N, dt 5e-4, "
+                        "quadratic; seconds per step)"], cols)
+
+
+def t_steps_2d():
+    path = os.path.join(PERF, "coupled_steps_fourier.md")
+    cols = ["mesh", "p", "dt s", "preconditioner", "s/step", "coupling it./step", "peak MB", "commit", "command"]
+    rows = []
+    for r in md_tables(path)[0]:
+        if "x" not in r["mesh"] or r["mesh"].count("x") != 1 or r["ranks"] != "1":
+            continue
+        cmd = (f"cellfsi scenes/capsule_shear.yaml -fluid_elements {mesh_comma(r['mesh'])} -dt 1e-3 "
+               f"-solid_membrane_elements 1,0 -coupling_pc_type cellfsi_{r['solver']}")
+        rows.append([r["mesh"], 3, "1e-3", "cellfsi_" + r["solver"], r["s/step"], r["coupling/step"], r["peak MB"],
+                     commit_of(path), code(cmd)])
+    return table(rows, [link_from_page(path) + " (one rank, the capsule's first 20-40 steps, set-up included)"], cols)
+
+
+def t_kernels():
+    cols = ["kernel", "p", "us per element", "commit", "note", "command"]
+    rows = []
+    for key in ["assembly_2d_jacobian", "assembly"]:
+        d = REGISTRY[key]
+        for what, p, us in d["rows"]:
+            rows.append([what, p, us, d["commit"], f"[{os.path.basename(d['note'])}](notes/{os.path.basename(d['note'])})",
+                         code("build/bench/fluid_assembly -repeat 7" + (" -n3d 20" if what.startswith("3D") else
+                                                                      " -n2d 128 -three_d false"))])
+    return table(rows, ["REGISTRY['assembly'], REGISTRY['assembly_2d_jacobian'] (one rank, best of 5-7)"], cols)
+
+
+def t_targets():
+    d = REGISTRY["targets_26"]
+    cols = ["issue 26's target", "asked", "measured", "status"]
+    return table([list(r) for r in d["rows"]],
+                 [f"REGISTRY['targets_26'] ({d['note'][5:]}, commit {d['commit']}, this machine's Haswell kernels)"], cols)
+
+
+TABLES = {
+    "capsule_shear": t_capsule_shear, "default_scene": t_default_scene, "stiff_disk": t_stiff_disk,
+    "biconcave_capsule_shear": t_biconcave, "bulky_ellipse_shear": t_bulky, "compound_capsule_shear": t_compound_2d,
+    "compound_capsule_shear_3d": t_compound_3d, "rbc_shear_3d": t_rbc_shear_3d, "rbc_stretch_3d": t_stretching,
+    "rbc_channel": t_rbc_channel, "capsule_channel_migration": t_migration, "ctc_narrowing": t_ctc,
+    "plasma": t_plasma, "steps_3d": t_steps_3d, "steps_2d": t_steps_2d, "kernels": t_kernels,
+    "targets_26": t_targets,
+}
+MARK = re.compile(r"(<!-- BEGIN TABLE (\w+) -->\n)(.*?)(<!-- END TABLE \2 -->)", re.S)
+
+
+def render(text):
+    def rep(m):
+        name = m.group(2)
+        if name not in TABLES:
+            raise SystemExit(f"reference_tables.py: no table named '{name}'")
+        return m.group(1) + TABLES[name]() + "\n" + m.group(4)
+    return MARK.sub(rep, text)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Link check
+# ---------------------------------------------------------------------------------------------------------
+def slug(heading):
+    """GitHub's anchor of a heading: lower case, punctuation dropped, spaces to hyphens."""
+    h = re.sub(r"[`*_]", "", heading.strip().lower())
+    h = re.sub(r"[^\w\- ]", "", h)
+    return h.replace(" ", "-")
+
+
+def anchors(path):
+    seen, out = {}, set()
+    in_code = False
+    for line in read(path).split("\n"):
+        if line.startswith("```"):
+            in_code = not in_code
+        if in_code or not line.startswith("#"):
+            continue
+        s = slug(line.lstrip("#"))
+        out.add(s if s not in seen else f"{s}-{seen[s]}")
+        seen[s] = seen.get(s, 0) + 1
+    return out
+
+
+def check_links():
+    files = [os.path.join(ROOT, "README.md"), os.path.join(ROOT, "CHANGELOG.md")]
+    files += sorted(glob.glob(os.path.join(ROOT, "docs", "*.md"))) + sorted(glob.glob(os.path.join(ROOT, "docs", "notes", "*.md")))
+    bad = []
+    for f in files:
+        if not os.path.exists(f):
+            continue
+        text = re.sub(r"```.*?```", "", read(f), flags=re.S)
+        for target in re.findall(r"\]\(([^)\s]+)\)", text):
+            if re.match(r"^(https?:|mailto:)", target):
+                continue
+            path, _, anchor = target.partition("#")
+            dest = os.path.normpath(os.path.join(os.path.dirname(f), path)) if path else f
+            if not os.path.exists(dest):
+                bad.append(f"{rel(f)}: link to a missing file: {target}")
+            elif anchor and dest.endswith(".md") and anchor not in anchors(dest):
+                bad.append(f"{rel(f)}: link to a missing heading: {target}")
+    return bad
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--check", action="store_true", help="exit 1 if the docs differ or a link is broken")
+    args = ap.parse_args()
+    problems = []
+    for page in PAGES:
+        path = os.path.join(ROOT, page)
+        old = read(path)
+        new = render(old)
+        if args.check:
+            if new != old:
+                names = [m.group(2) for m in MARK.finditer(old) if m.group(0) not in new]
+                problems.append(f"{page}: tables not as generated: {', '.join(names)} "
+                                "(run python3 bench/reference_tables.py)")
+        elif new != old:
+            with open(path, "w", encoding="utf-8") as f:
+                f.write(new)
+            print(f"reference_tables.py: wrote {page}")
+    if args.check:
+        problems += check_links()
+        for p in problems:
+            print(p)
+        sys.exit(1 if problems else 0)
+
+
+if __name__ == "__main__":
+    main()
