@@ -167,6 +167,11 @@ def code(s):
     return "`" + s + "`"
 
 
+def note_link(note):
+    """A note of docs/notes/ as a link from docs/X.md."""
+    return f"[{os.path.basename(note)}]({note[len('docs/'):]})"
+
+
 def link_from_page(path):
     """A kept file as a link from docs/X.md."""
     r = rel(path)
@@ -198,19 +203,20 @@ def t_default_scene():
              f"{d['theta_ref']:.2f}, {d['omega_ref']:.2f} (paper's converged, 512 x 256)",
              f"{d['theta'] - d['theta_ref']:+.2f} deg, {100 * (d['omega'] / d['omega_ref'] - 1):+.1f} %",
              per_step(d["wall_s"], d["steps"]), d["memory"], d["commit"], code("cellfsi")]]
-    return table(rows, [f"REGISTRY['default_scene'] ({d['note'][5:]}; {d['load']})"])
+    return table(rows, [f"REGISTRY['default_scene'] ({note_link(d['note'])}; {d['load']})"])
 
 
 def t_stiff_disk():
     d = REGISTRY["stiff_disk"]
     rows = []
     for mesh, w in d["rows"]:
-        cmd = ("cellfsi scenes/capsule_shear.yaml -solid_membrane_shape ellipse -solid_membrane_semi_axes 7.5e-5,7.5e-5 "
+        cmd = ("cellfsi scenes/capsule_shear.yaml -solid_membrane_shape ellipse "
+               "-solid_membrane_semi_axes 7.5e-5,7.5e-5 "
                "-solid_membrane_elements 0,0 -solid_membrane_shear_modulus 40 -solid_membrane_density 1.025 "
                f"-dt 1e-3 -final_time 0.1 -fluid_elements {mesh_comma(mesh)} -s_interface 1e10")
         rows.append([mesh, 3, "1e-3", "rotation / (gammadot / 2)", f"{w:.4f}", "1 (unbounded shear)",
                      f"{100 * (w - 1):+.2f} %", "-", "-", d["commit"], code(cmd)])
-    return table(rows, [f"REGISTRY['stiff_disk'] ({d['note'][5:]})"])
+    return table(rows, [f"REGISTRY['stiff_disk'] ({note_link(d['note'])})"])
 
 
 def sweep_rows(path, mesh, dt, pick, compare, scene, extra):
@@ -241,10 +247,12 @@ def t_biconcave():
         return (f"{th:.2f}, {om:.3f}", f"{th_i:.2f}, {om_i:.2f} (the elliptic capsules' curve, interpolated)",
                 f"{th - th_i:+.2f} deg, {100 * (om / om_i - 1):+.1f} %", "theta deg, omega_TT 1/s")
     rows = sweep_rows(path, "128x64", "1e-3", lambda r: r["a cm"] == "biconcave", compare,
-                      "biconcave_capsule_shear.yaml", lambda r: "-final_time 0.3 -metrics_average_from 0.15 -s_interface 1e10")
+                      "biconcave_capsule_shear.yaml",
+                      lambda r: "-final_time 0.3 -metrics_average_from 0.15 -s_interface 1e10")
     p5 = os.path.join(VAL, "shear_viscosity_biconcave_capsule_shear_256x128.md")
     rows += sweep_rows(p5, "256x128", "1e-3", lambda r: True,
-                       lambda r: (f"{num(r['theta deg']):.2f}, {num(r['omega_TT 1/s']):.3f}", "no paper value (lambda = 5)",
+                       lambda r: (f"{num(r['theta deg']):.2f}, {num(r['omega_TT 1/s']):.3f}",
+                                  "no paper value (lambda = 5)",
                                   "-", "lambda 5: theta deg, omega_TT 1/s"),
                        "biconcave_capsule_shear.yaml",
                        lambda r: "-final_time 1.0 -metrics_average_from 0.5 -solid_membrane_inner_viscosity 0.06")
@@ -320,11 +328,13 @@ def t_compound_3d():
                    f"-fluid_elements {n},{n},{n} -solid_membrane_elements 1,0,0 -solid_nucleus_elements 0,0,0 "
                    f"-dt {dt} -final_time 0.3 -s_interface 1e9")
         sstep, mem = cost["rows"][name]
-        rows.append([f"{n}^3" + (" (as shipped)" if shipped else ""), 2, dt, what, ours, "4.68 / 4.68", diff, sstep, mem,
+        rows.append([f"{n}^3" + (" (as shipped)" if shipped else ""), 2, dt, what, ours, "4.68 / 4.68", diff,
+                     sstep, mem,
                      s["commit"][:7] + ("-dirty" if "dirty" in s["commit"] else ""), code(cmd)])
     return table(rows, [link_from_page(path), "docs/validation/runs/shear_3d_*_summary.json",
                         link_from_page(os.path.join(VAL, "shear_3d_mesh_64.md")),
-                        f"s/step and memory of the runs from 32^3 on: REGISTRY['compound_3d_cost'] ({cost['note'][5:]})"])
+                        "s/step and memory of the runs from 32^3 on: REGISTRY['compound_3d_cost'] "
+                        f"({note_link(cost['note'])})"])
 
 
 def t_rbc_shear_3d():
@@ -333,7 +343,7 @@ def t_rbc_shear_3d():
              f"{d['jeffery']:.3f} (Jeffery's rigid oblate spheroid, r = 0.328)",
              f"{100 * (d['half_turn'] / d['jeffery'] - 1):+.0f} %", f"{d['s_step']}", d["memory"], d["commit"],
              code("cellfsi scenes/rbc_shear_3d.yaml -s_interface 1e9")]]
-    return table(rows, [f"REGISTRY['rbc_shear_3d'] ({d['note'][5:]}; one rank beside other jobs)"])
+    return table(rows, [f"REGISTRY['rbc_shear_3d'] ({note_link(d['note'])}; one rank beside other jobs)"])
 
 
 def t_stretching():
@@ -366,11 +376,13 @@ def t_rbc_channel():
         for r in md_tables(path)[0]:
             n = int(r["cells"])
             ht = num(r["H_t"])
-            rows.append([mesh, 3, dt, f"{n} cells: H_t; zeta, eta, h_cf um", f"{ht:.4f}; {num(r['zeta = v_m / v_RBCs']):.3f}, "
+            rows.append([mesh, 3, dt, f"{n} cells: H_t; zeta, eta, h_cf um",
+                         f"{ht:.4f}; {num(r['zeta = v_m / v_RBCs']):.3f}, "
                          f"{num(r['eta = v_P / v_m']):.3f}, {num(r['h_cf um']):.2f}",
                          f"{paper_ht[n]:.4f}; trends of Fig. 8 (no numbers)", f"H_t {ht - paper_ht[n]:+.4f}",
                          per_step(r["wall s"], r["steps"]), "-", commit_of(path),
-                         code(f"python3 bench/run_channel_rheology.py --counts {n}{extra} --extra \"-s_interface 1e9\"")])
+                         code(f"python3 bench/run_channel_rheology.py --counts {n}{extra} "
+                              "--extra \"-s_interface 1e9\"")])
     return table(rows, srcs)
 
 
@@ -381,10 +393,11 @@ def t_migration():
         cmd = (f"cellfsi scenes/capsule_channel_migration.yaml -fluid_elements {mesh_comma(r['mesh'])} "
                f"-solid_membrane_elements 1,0 -dt 5e-4 {r['extra']} -s_interface 1e9")
         rows.append([r["mesh"], 3, "5e-4", "t to a tenth of the 2 um offset s; offset at 0.8 s um",
-                     f"{r['tenth']:.2f}; {r['offset08']:.2f}", "migrates to the centre line, parachute (Fig. 7; no time scale)",
+                     f"{r['tenth']:.2f}; {r['offset08']:.2f}",
+                     "migrates to the centre line, parachute (Fig. 7; no time scale)",
                      "as the paper (qualitative)", f"{r['s_step']}", r["memory"], r["commit"],
                      code(cmd) + f" ({r['how']})"])
-    return table(rows, [f"REGISTRY['migration'] ({d['note'][5:]})"])
+    return table(rows, [f"REGISTRY['migration'] ({note_link(d['note'])})"])
 
 
 def t_ctc():
@@ -401,18 +414,20 @@ def t_ctc():
     what = "membrane transit s; flow-rate dip; largest anisotropy; r_A at 0.3 s"
     ref = "passes, flow slows, nucleus deforms leaving (Fig. 10; no numbers)"
     rows = [["192x64", 3, "2.5e-4", what, f"{d['transit']:.3f}; {d['dip']} %; {d['anisotropy']:.1f}; {d['r_A']:.1e}",
-             ref, "as the paper (qualitative)", f"{d['s_step']}", d["memory"], d["commit"], code(base.format(m="192,64"))],
+             ref, "as the paper (qualitative)", f"{d['s_step']}", d["memory"], d["commit"],
+             code(base.format(m="192,64"))],
             ["384x128", 3, "2.5e-4", what, f"{transit:.3f}; {dip:.0f} %; {aniso:.1f}; {ra:.1e}", ref,
              f"transit {100 * (transit / d['transit'] - 1):+.0f} % against 192x64", per_step(wall.split()[0], steps),
              "-", commit_of(path) + " (binary b0183e9)", code(base.format(m="384,128"))]]
-    return table(rows, [f"REGISTRY['ctc_192'] ({d['note'][5:]})", link_from_page(path)])
+    return table(rows, [f"REGISTRY['ctc_192'] ({note_link(d['note'])})", link_from_page(path)])
 
 
 def t_plasma():
     d = REGISTRY["plasma"]
     rows = [[mesh, 3, "5e-4", what, err, "exact", err.split()[0], per_step(wall, steps), "-", d["commit"],
-             code(f"cellfsi scenes/{scene}.yaml -output_every 0")] for scene, mesh, what, err, wall, steps in d["rows"]]
-    return table(rows, [f"REGISTRY['plasma'] ({d['note'][5:]}; 20 steps, one LU factorisation dominates)"])
+             code(f"cellfsi scenes/{scene}.yaml -output_every 0")]
+            for scene, mesh, what, err, wall, steps in d["rows"]]
+    return table(rows, [f"REGISTRY['plasma'] ({note_link(d['note'])}; 20 steps, one LU factorisation dominates)"])
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -453,7 +468,7 @@ def t_kernels():
     for key in ["assembly_2d_jacobian", "assembly"]:
         d = REGISTRY[key]
         for what, p, us in d["rows"]:
-            rows.append([what, p, us, d["commit"], f"[{os.path.basename(d['note'])}](notes/{os.path.basename(d['note'])})",
+            rows.append([what, p, us, d["commit"], note_link(d["note"]),
                          code("build/bench/fluid_assembly -repeat 7" + (" -n3d 20" if what.startswith("3D") else
                                                                       " -n2d 128 -three_d false"))])
     return table(rows, ["REGISTRY['assembly'], REGISTRY['assembly_2d_jacobian'] (one rank, best of 5-7)"], cols)
@@ -463,7 +478,8 @@ def t_targets():
     d = REGISTRY["targets_26"]
     cols = ["issue 26's target", "asked", "measured", "status"]
     return table([list(r) for r in d["rows"]],
-                 [f"REGISTRY['targets_26'] ({d['note'][5:]}, commit {d['commit']}, this machine's Haswell kernels)"], cols)
+                 [f"REGISTRY['targets_26'] ({note_link(d['note'])}, commit {d['commit']}, "
+                  "this machine's Haswell kernels)"], cols)
 
 
 TABLES = {
@@ -512,7 +528,8 @@ def anchors(path):
 
 def check_links():
     files = [os.path.join(ROOT, "README.md"), os.path.join(ROOT, "CHANGELOG.md")]
-    files += sorted(glob.glob(os.path.join(ROOT, "docs", "*.md"))) + sorted(glob.glob(os.path.join(ROOT, "docs", "notes", "*.md")))
+    files += sorted(glob.glob(os.path.join(ROOT, "docs", "*.md")))
+    files += sorted(glob.glob(os.path.join(ROOT, "docs", "notes", "*.md")))
     bad = []
     for f in files:
         if not os.path.exists(f):
