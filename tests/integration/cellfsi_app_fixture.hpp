@@ -40,6 +40,8 @@
 #include <string>
 #include <vector>
 
+#include "../support/tolerances.hpp"
+
 namespace fs = std::filesystem;
 
 namespace cellfsi_app_test {
