@@ -26,6 +26,7 @@ the body given no shape, and -dim/-domain in 3D, whose rows are taken from the 2
 read, and for a list not given only the first value of its default: the document writes that value and ",…".
 """
 import argparse
+import concurrent.futures
 import os
 import re
 import subprocess
@@ -200,16 +201,15 @@ def main():
             f.write(scene_yaml(2, SHAPES_2D) + "fluid_elements: 32,16\nfluid_degree: 2\n")
         probe_scene = {2: small, 3: scenes[3][0]}
         in_2d = {r["name"] for rows in tables[2].values() for r in rows}
+        probes = []  # (row, program and scene, the option's name, values per list item)
         for title, rows in sections:
             for r in rows:
                 dim = 2 if r["name"] in in_2d else 3
-                r["valid"] = probe(lambda n, v: [cellfsi, probe_scene[dim], f"-{n}", v, "-help"], r["name"],
-                                   dim if r["kind"] == "list" else 1, tmp)
+                probes.append((r, [cellfsi, probe_scene[dim]], r["name"], dim if r["kind"] == "list" else 1))
         for title, rows in body_sections:
             for r in rows:
                 name = r["name"].replace("solid_NAME_", "solid_rbc_", 1)
-                r["valid"] = probe(lambda n, v: [cellfsi, probe_scene[2], f"-{n}", v, "-help"], name,
-                                   2 if r["kind"] == "list" else 1, tmp)
+                probes.append((r, [cellfsi, probe_scene[2]], name, 2 if r["kind"] == "list" else 1))
 
         r = run([geometry, "-help"], tmp)
         if r.returncode != 0:
@@ -217,7 +217,15 @@ def main():
         geometry_tables = parse_tables(r.stdout, lambda t: t.startswith("cellfsi-geometry"))
         for title, rows in geometry_tables.items():
             for row in rows:
-                row["valid"] = probe(lambda n, v: [geometry, f"-{n}", v, "-help"], row["name"], 1, tmp)
+                probes.append((row, [geometry], row["name"], 1))
+
+        # The probes are independent runs, mostly waiting on MPI's start-up: one per core at a time.
+        def valid(job):
+            row, program, name, count = job
+            return probe(lambda n, v: program + [f"-{n}", v, "-help"], name, count, tmp)
+        with concurrent.futures.ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+            for job, text in zip(probes, pool.map(valid, probes)):
+                job[0]["valid"] = text
 
     for title, rows in sections:
         for r in rows:
