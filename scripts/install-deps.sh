@@ -1,8 +1,18 @@
 #!/usr/bin/env bash
-# Installs the Debian 12 packages cellfsi needs to build, test and run, and nothing else.
+# Installs the Debian 12 packages cellfsi needs, and nothing else.
+#   bash scripts/install-deps.sh run    what building and running the executables needs (scripts/run-default.sh)
+#   bash scripts/install-deps.sh        that, and what the tests and the bench/ scripts need (scripts/test.sh)
 # Does nothing (and needs no network) when every package is already present.
 # Run as root (or with sudo available). Safe to run again.
 set -euo pipefail
+
+case "${1:-all}" in
+  run | all) ;;
+  *)
+    echo "install-deps: unknown set '$1'; valid: run (build and run) or nothing (build, run, test, bench)" >&2
+    exit 1
+    ;;
+esac
 
 packages=(
   build-essential cmake pkg-config git
@@ -17,12 +27,16 @@ packages=(
   libvtk9-dev
   libyaml-cpp-dev            # scene files checked before PETSc reads them
   nlohmann-json3-dev         # summary.json
-  libgtest-dev
-  libbenchmark-dev
-  time python3               # bench/ scripts: /usr/bin/time -v for peak memory, python3 to read -log_view
-  python3-matplotlib         # bench/ scripts: the figures in docs/figures/
-  python3-vtk9               # bench/plot_velocity_snapshot.py reads the VTK output
 )
+if [ "${1:-all}" = all ]; then
+  packages+=(
+    libgtest-dev
+    libbenchmark-dev
+    time python3               # bench/ scripts: /usr/bin/time -v for peak memory, python3 to read -log_view
+    python3-matplotlib         # bench/ scripts: the figures in docs/figures/
+    python3-vtk9               # bench/plot_velocity_snapshot.py reads the VTK output
+  )
+fi
 
 missing=()
 for p in "${packages[@]}"; do
