@@ -92,7 +92,7 @@ def commit_of_head():
 
 def blas_kernels():
     """OpenBLAS's kernels as the runs get them (they inherit this process's environment): they set the speed of
-    the LU factorisations (docs/performance.md §19)."""
+    the LU factorisations (docs/design.md §5)."""
     try:
         lib = ctypes.CDLL("libopenblas.so.0")
         lib.openblas_get_corename.restype = ctypes.c_char_p

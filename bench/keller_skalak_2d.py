@@ -12,7 +12,7 @@ Each run is measured over its summary's averaging window (or over --window's), f
 its checkpoint, by the summary's own formulas (checked against summary.json on every run). A run that repeats
 another's lambda gets a row of its own.
 
-The model (derived in docs/validation.md, "The Sec. 3.3 capsule against Keller-Skalak theory"): an ellipse with
+The model (derived in docs/notes/2026-11-26-val-viscosity.md; summary in docs/validation.md, "The capsule against the viscosity ratio and Keller-Skalak theory"): an ellipse with
 semi-axes a >= b, r = b/a, at angle theta to the flow u = (gammadot y, 0), outer viscosity mu, inner lambda mu,
 membrane points moving as x' = (a cos phi, b sin phi) in the body frame with dphi/dt = nu:
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The s_I grad-div term of the Fourier solver's region, measured: how many of the region's velocity modes it
 leaves soft, how its stiffness is spread, and whether its soft modes are sums of modes local to vertex stars
-(the property that patch smoothers of augmented-Lagrangian preconditioners rely on). docs/performance.md §20.
+(the property that patch smoothers of augmented-Lagrangian preconditioners rely on). docs/notes/2026-11-27-perf20-region-graddiv.md and docs/design.md §8.
 
     python3 bench/region_graddiv_spectrum.py [--mesh 16] [--s 1e9 1e11] [--check 1e10] [--at 1e9 4.5e10]
                                              [--table docs/performance/region_graddiv_16.md] [--reuse]

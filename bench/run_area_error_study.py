@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Why the migrating capsule's area error is larger on the finer mesh (issue 12; docs/validation.md, "The area
-error against the mesh"): short runs of scenes/capsule_channel_migration.yaml (the paper's Sec. 4.2 capsule,
+"""Why the migrating capsule's area error is larger on the finer mesh (issue 12; docs/validation.md,
+"The migrating capsule (Sec. 4.2)"): short runs of scenes/capsule_channel_migration.yaml (the paper's Sec. 4.2 capsule,
 Poiseuille flow) to T that vary one thing at a time against 256 x 128 with dt 5e-4, s_I 1e9 and the automatic
 membrane mesh: the time step, the membrane mesh, s_I, and the Eulerian mesh. Writes r_A (paper Eq. (21): the
 relative change of the membrane's own area, the thin band) at T/2 and T, and each run's wall time.

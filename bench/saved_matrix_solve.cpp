@@ -1,6 +1,6 @@
 // Solves a saved linear system with whatever solver the PETSc options database describes, and prints one
 // line: size, set-up and solve time, iterations, reason, true relative residual. For studying solvers on a
-// matrix the coupled run saved, e.g. the Fourier solver's region (docs/performance.md §9):
+// matrix the coupled run saved, e.g. the Fourier solver's region (docs/design.md §8):
 //
 //   cellfsi SCENE ... -final_time 5e-4 -coupling_fourier_region_ksp_view_mat binary:region.bin
 //       -coupling_fourier_region_ksp_view_rhs binary:rhs.bin
