@@ -465,17 +465,19 @@ std::vector<int> FluidSolver::unknown_kinds() const {
 }
 
 std::vector<PetscInt> FluidSolver::region_unknowns(const std::vector<char>& in_region) const {
+  // The DMDA's AO maps unknowns (node-major, unknown-minor): a node's first unknown stands for its block. (On
+  // one rank the DMDA's numbering is the natural one.)
   const std::vector<int> natural = geometry::functions_on_elements(patch_, in_region);
-  std::vector<PetscInt> nodes(natural.begin(), natural.end());
+  std::vector<PetscInt> first(natural.size());
+  for (std::size_t i = 0; i < natural.size(); ++i) first[i] = static_cast<PetscInt>(natural[i]) * dof_;
   AO ao = nullptr;
   CELLFSI_PETSC(DMDAGetAO(da_, &ao));
-  // (On one rank the DMDA's numbering is the natural one: node-major, unknown-minor.)
-  CELLFSI_PETSC(AOApplicationToPetsc(ao, static_cast<PetscInt>(nodes.size()), nodes.data()));
-  std::sort(nodes.begin(), nodes.end());
+  CELLFSI_PETSC(AOApplicationToPetsc(ao, static_cast<PetscInt>(first.size()), first.data()));
+  std::sort(first.begin(), first.end());
   std::vector<PetscInt> unknowns;
-  unknowns.reserve(nodes.size() * dof_);
-  for (PetscInt n : nodes)
-    for (int c = 0; c < dof_; ++c) unknowns.push_back(n * dof_ + c);
+  unknowns.reserve(first.size() * dof_);
+  for (PetscInt f : first)
+    for (int c = 0; c < dof_; ++c) unknowns.push_back(f + c);
   return unknowns;
 }
 
