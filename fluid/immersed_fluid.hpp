@@ -2,8 +2,8 @@
 // The fluid as the rest of cellfsi sees it: one abstract face over a discretisation of incompressible
 // Navier-Stokes on one Eulerian NURBS patch, with the immersed-solid terms of the paper's Eq. (10). coupling/
 // and apps/ hold this type only (tests/unit/coupling/test_fluid_interface.cpp drives the coupling loop
-// through a fake one; tests/CMakeLists.txt checks that coupling/ and apps/ include no discretisation's
-// header). The VMS solver (fluid/fluid_solver.hpp: equal-order splines, node blocks of dim + 1 unknowns) is
+// through a fake one; tests/check_fluid_interface.cmake checks that coupling/ and apps/ include no
+// discretisation's header). The VMS solver (fluid/fluid_solver.hpp: equal-order splines, node blocks of dim + 1 unknowns) is
 // the one create_fluid makes today; a divergence-conforming space (velocity component i of degree k' + 1
 // along x_i) implements the same face with its own unknowns.
 //
@@ -11,8 +11,8 @@
 //   * the geometry: the Eulerian patch patch() (its elements are the discretisation's elements, numbered as
 //     Patch::element_multi_index; point location, the s^h marking and the element regions of coupling/ work
 //     on it);
-//   * time stepping: generalized-alpha for first-order systems on a global PETSc vector of unknowns U with
-//     its rate (solution(), solution_rate()), the Newton iteration either the fluid's own (step()) or driven
+//   * time stepping: generalized-alpha for first-order systems on a global PETSc vector of unknowns U
+//     (solution()) and its rate (kept inside), the Newton iteration either the fluid's own (step()) or driven
 //     from outside (begin_step, residual, jacobian, end_step: the coupling loop, paper Sec. 2.3);
 //   * fields by the patch's control points: the scaling field s^h and the viscosity field are given as values
 //     at the patch's control points (natural, folded index), i.e. as functions of the patch's own spline
@@ -157,7 +157,7 @@ class ImmersedFluid {
   /// Accepts X as U_{n+1}: updates the rate and the time.
   virtual void end_step(Vec X) = 0;
   /// The global indices of the unknowns the elements `in_region` couple (rows of those elements' element
-  /// matrices), sorted; this rank's. The band preconditioner's split.
+  /// matrices), sorted; all of them, the same list on every rank. The band preconditioner's split.
   virtual std::vector<PetscInt> region_unknowns(const std::vector<char>& in_region) const = 0;
   /// The Jacobian's matrix (with the pressure's null space, if any); null after release_jacobian_matrix.
   virtual Mat jacobian_matrix() const = 0;
