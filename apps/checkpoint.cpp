@@ -1,6 +1,5 @@
 #include "apps/checkpoint.hpp"
 
-#include <petscdmda.h>
 #include <petscviewer.h>
 
 #include <algorithm>
@@ -62,47 +61,6 @@ PetscViewer binary_viewer(MPI_Comm comm, const fs::path& path, PetscFileMode mod
   return v;
 }
 
-/// A vector as a PETSc binary file holds it (VecLoad reads it back): the class id and the length as
-/// big-endian 32-bit integers, then the values as big-endian doubles, in the DMDA's natural ordering (any
-/// number of ranks can read it). Collective; the bytes on rank 0, empty elsewhere.
-std::string vec_binary_on_rank_zero(Vec v) {
-  DM dm = nullptr;
-  CELLFSI_PETSC(VecGetDM(v, &dm));
-  Vec natural = v;
-  if (dm) {
-    CELLFSI_PETSC(DMDACreateNaturalVector(dm, &natural));
-    CELLFSI_PETSC(DMDAGlobalToNaturalBegin(dm, v, INSERT_VALUES, natural));
-    CELLFSI_PETSC(DMDAGlobalToNaturalEnd(dm, v, INSERT_VALUES, natural));
-  }
-  VecScatter to_zero = nullptr;
-  Vec all = nullptr;
-  CELLFSI_PETSC(VecScatterCreateToZero(natural, &to_zero, &all));
-  CELLFSI_PETSC(VecScatterBegin(to_zero, natural, all, INSERT_VALUES, SCATTER_FORWARD));
-  CELLFSI_PETSC(VecScatterEnd(to_zero, natural, all, INSERT_VALUES, SCATTER_FORWARD));
-  PetscInt n = 0;
-  CELLFSI_PETSC(VecGetLocalSize(all, &n));
-  std::string bytes;
-  if (n > 0) {
-    PetscInt header[2] = {VEC_FILE_CLASSID, 0};
-    CELLFSI_PETSC(VecGetSize(natural, &header[1]));
-    std::vector<PetscScalar> values(static_cast<std::size_t>(n));
-    const PetscScalar* a = nullptr;
-    CELLFSI_PETSC(VecGetArrayRead(all, &a));
-    std::copy(a, a + n, values.begin());
-    CELLFSI_PETSC(VecRestoreArrayRead(all, &a));
-#if !defined(PETSC_WORDS_BIGENDIAN)
-    CELLFSI_PETSC(PetscByteSwap(header, PETSC_INT, 2));
-    CELLFSI_PETSC(PetscByteSwap(values.data(), PETSC_SCALAR, n));
-#endif
-    bytes.append(reinterpret_cast<const char*>(header), sizeof header);
-    bytes.append(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(PetscScalar));
-  }
-  CELLFSI_PETSC(VecScatterDestroy(&to_zero));
-  CELLFSI_PETSC(VecDestroy(&all));
-  if (natural != v) CELLFSI_PETSC(VecDestroy(&natural));
-  return bytes;
-}
-
 bool may_change(const std::string& key) {
   static const char* const kFree[] = {
       "final_time",           "restart", "output_every", "checkpoint_every", "output_dir", "output_dir_adopt",
@@ -132,7 +90,8 @@ std::vector<std::string> conflicting_options(const std::string& saved, const std
   return out;
 }
 
-void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c, Vec U, Vec Udot) {
+void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c,
+                      const fluid::ImmersedFluid& fluid) {
   const fs::path next = fs::path(dir) / "checkpoint.new", cur = fs::path(dir) / "checkpoint",
                  old = fs::path(dir) / "checkpoint.old";
   on_rank_zero(comm, [&] {
@@ -146,7 +105,7 @@ void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c
   // checked writes: through a PETSc binary viewer a failed write on rank 0 leaves the other ranks waiting
   // inside VecView, and names no reason.
   const fs::path fluid_file = next / "fluid.petsc";
-  const std::string fluid_bytes = vec_binary_on_rank_zero(U) + vec_binary_on_rank_zero(Udot);
+  const std::string fluid_bytes = fluid.state_bytes();
   on_rank_zero(comm, [&] {
     try {
       write_file_atomically(fluid_file.string(), fluid_bytes);
@@ -209,20 +168,6 @@ fs::path checkpoint_folder(const std::string& dir) {
   return {};
 }
 
-/// Whether every entry of a vector is finite (collective).
-bool all_finite(Vec v) {
-  const PetscScalar* a = nullptr;
-  PetscInt n = 0;
-  CELLFSI_PETSC(VecGetLocalSize(v, &n));
-  CELLFSI_PETSC(VecGetArrayRead(v, &a));
-  int finite = 1;
-  for (PetscInt i = 0; i < n && finite; ++i) finite = std::isfinite(PetscRealPart(a[i]));
-  CELLFSI_PETSC(VecRestoreArrayRead(v, &a));
-  MPI_Allreduce(MPI_IN_PLACE, &finite, 1, MPI_INT, MPI_MIN,
-                PetscObjectComm(reinterpret_cast<PetscObject>(v)));
-  return finite == 1;
-}
-
 }  // namespace
 
 void require_checkpoint(const std::string& dir) {
@@ -232,8 +177,8 @@ void require_checkpoint(const std::string& dir) {
                                 "steps, at its end and when it is interrupted)");
 }
 
-Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, const std::string& options, Vec U,
-                           Vec Udot) {
+Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, const std::string& options,
+                           fluid::ImmersedFluid& fluid) {
   require_checkpoint(dir);
   const fs::path at = checkpoint_folder(dir);
   Checkpoint c;
@@ -270,17 +215,14 @@ Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, const std::str
                                 "-checkpoint_every, -metrics_average_from and monitors");
   }
   PetscViewer v = binary_viewer(comm, at / "fluid.petsc", FILE_MODE_READ);
-  // A file of another size is an input error, reported once below (no PETSc traceback).
-  PetscPushErrorHandler(PetscReturnErrorHandler, nullptr);
-  const PetscErrorCode e1 = VecLoad(U, v);
-  const PetscErrorCode e2 = e1 ? e1 : VecLoad(Udot, v);
-  PetscPopErrorHandler();
+  using Loaded = fluid::ImmersedFluid::LoadedState;
+  const Loaded loaded = fluid.load_state(v, c.step);
   PetscViewerDestroy(&v);
-  if (e1 || e2)
+  if (loaded == Loaded::does_not_fit)
     throw std::invalid_argument("checkpoint '" + (at / "fluid.petsc").string() +
                                 "' does not fit this fluid mesh (or is damaged)");
   // A damaged state would otherwise run on as NaN until the first step fails, far from its cause.
-  if (!all_finite(U) || !all_finite(Udot))
+  if (loaded == Loaded::not_finite)
     throw std::invalid_argument("option -restart is invalid here: the fluid state in '" +
                                 (at / "fluid.petsc").string() +
                                 "' holds NaN or infinite values (the checkpoint is damaged); run without "

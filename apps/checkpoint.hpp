@@ -1,6 +1,7 @@
 #pragma once
 // Checkpoints and restarts. DIR/checkpoint/ holds fluid.petsc (PETSc binary: the fluid unknowns and their
-// rate after the checkpoint's step, in the DMDA's natural ordering, so any number of ranks can read it) and
+// rate after the checkpoint's step, as fluid::ImmersedFluid::state_bytes gives them; the VMS fluid's in the
+// DMDA's natural ordering, so any number of ranks can read it) and
 // state.json (the step, the run's counters, the options of the run that wrote it, each body's state and
 // metric records, the output series so far). It is replaced whole: written as DIR/checkpoint.new, then
 // renamed.
@@ -10,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "fluid/immersed_fluid.hpp"
 #include "geometry/patch_vtk.hpp"
 
 namespace cellfsi::app {
@@ -26,18 +28,20 @@ struct Checkpoint {
   int solid_writes = 0;
 };
 
-/// Writes DIR/checkpoint: collective over comm (the fluid vectors); rank 0 writes the rest and renames.
-void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c, Vec U, Vec Udot);
+/// Writes DIR/checkpoint: collective over comm (the fluid's state, ImmersedFluid::state_bytes); rank 0 writes
+/// the rest and renames.
+void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c,
+                      const fluid::ImmersedFluid& fluid);
 /// Throws std::invalid_argument (option -restart) unless DIR holds a checkpoint. Touches nothing: a refused
 /// restart must not leave a folder or a lock file behind.
 void require_checkpoint(const std::string& dir);
-/// Reads DIR/checkpoint (collective); U and Udot, vectors of the fluid's DMDA, receive the fluid state.
+/// Reads DIR/checkpoint (collective); the fluid takes its state (ImmersedFluid::load_state) after the checks.
 /// Throws std::invalid_argument naming the folder when there is no checkpoint or it cannot be read, naming
 /// the options when the checkpoint was written with options other than `options` (this run's options.yaml
 /// text; checked before the fluid state is loaded, so another mesh is named as such), and when the fluid
 /// state holds a NaN or an infinity.
-Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, const std::string& options, Vec U,
-                           Vec Udot);
+Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, const std::string& options,
+                           fluid::ImmersedFluid& fluid);
 /// The options (as "-name: checkpoint SAVED, this run CURRENT") whose values differ between two options.yaml
 /// texts, leaving out those a restart may change: final_time, restart, output_every, checkpoint_every,
 /// output_dir, metrics_average_from, and monitors, viewers and -help.

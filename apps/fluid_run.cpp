@@ -147,35 +147,24 @@ void FluidRun::take_folder() {
 
 void FluidRun::restore_checkpoint() {
   // The checkpoint must come from a run with the same options (but the final time and the output
-  // intervals: checked before the state is read); the scene then takes its state.
-  Vec U = nullptr, Udot = nullptr;
-  CELLFSI_PETSC(DMCreateGlobalVector(scene_->fluid().dm(), &U));
-  CELLFSI_PETSC(VecDuplicate(U, &Udot));
-  try {
-    resume_ = read_checkpoint(PETSC_COMM_WORLD, settings_.output_dir, effective_options_yaml(), U, Udot);
-    std::vector<std::string> names;
-    for (const solid::SolidSolver* b : scene_->bodies()) names.push_back(b->name());
-    if (names != resume_.body_names)
-      throw std::invalid_argument(
-          "option -restart is invalid here: the checkpoint's bodies differ from the "
-          "scene's");
-    if (resume_.step >= n_steps_) {
-      char msg[256];
-      std::snprintf(msg, sizeof msg,
-                    "option -final_time = %g is invalid with -restart: the checkpoint in '%s' is at t = %g s "
-                    "(after %d steps); valid: a later time",
-                    settings_.final_time, settings_.output_dir.c_str(), resume_.time, resume_.step);
-      throw std::invalid_argument(msg);
-    }
-    scene_->restore(U, Udot, resume_.step, resume_.bodies, resume_.trackers);
-    scene_->restore_metric_state(resume_.scene_metrics);
-  } catch (...) {
-    VecDestroy(&U);
-    VecDestroy(&Udot);
-    throw;
+  // intervals: checked before the state is read); the fluid takes its state there, the scene then its own.
+  resume_ = read_checkpoint(PETSC_COMM_WORLD, settings_.output_dir, effective_options_yaml(), scene_->fluid());
+  std::vector<std::string> names;
+  for (const solid::SolidSolver* b : scene_->bodies()) names.push_back(b->name());
+  if (names != resume_.body_names)
+    throw std::invalid_argument(
+        "option -restart is invalid here: the checkpoint's bodies differ from the "
+        "scene's");
+  if (resume_.step >= n_steps_) {
+    char msg[256];
+    std::snprintf(msg, sizeof msg,
+                  "option -final_time = %g is invalid with -restart: the checkpoint in '%s' is at t = %g s "
+                  "(after %d steps); valid: a later time",
+                  settings_.final_time, settings_.output_dir.c_str(), resume_.time, resume_.step);
+    throw std::invalid_argument(msg);
   }
-  VecDestroy(&U);
-  VecDestroy(&Udot);
+  scene_->restore(resume_.bodies, resume_.trackers);
+  scene_->restore_metric_state(resume_.scene_metrics);
 }
 
 void FluidRun::open_output() {
@@ -324,7 +313,7 @@ int FluidRun::stop_after_step(int sig, int k, bool series_written) {
 void FluidRun::finish() {
   // The velocity profile across the domain at x = mid-length (section xi_0 = 1/2); for channel flows also
   // averaged over the metrics' window.
-  const fluid::SectionData sec = fluid::section(scene_->fluid(), 0.5, 65), mean = scene_->mean_profile();
+  const fluid::SectionData sec = scene_->fluid().section(0.5, 65), mean = scene_->mean_profile();
   // The final checkpoint (a later run may go on from it: -restart with a later -final_time) and the
   // profiles, then "completed": a summary that says so is written last.
   try {
@@ -368,8 +357,7 @@ void FluidRun::write_checkpoint_after(int k) {
   c.fluid_series = series_ ? series_->entries() : resume_.fluid_series;
   c.solid_series = solid_series_ ? solid_series_->entries() : resume_.solid_series;
   c.solid_writes = solid_series_ ? solid_series_->count() : resume_.solid_writes;
-  write_checkpoint(PETSC_COMM_WORLD, settings_.output_dir, c, scene_->fluid().solution(),
-                   scene_->fluid().solution_rate());
+  write_checkpoint(PETSC_COMM_WORLD, settings_.output_dir, c, scene_->fluid());
 }
 
 std::string FluidRun::summary_of_failure(const std::string& status) {

@@ -13,7 +13,6 @@
 #include "common/option_table.hpp"
 #include "common/petsc_error.hpp"
 #include "coupling/placement.hpp"
-#include "fluid/fluid_output.hpp"
 #include "geometry/measures.hpp"
 
 namespace cellfsi::app {
@@ -208,7 +207,7 @@ Scene::Scene(MPI_Comm comm, const SceneSettings& settings) : s_(settings) {
     fo.wall_velocity[wall_dir_][0] = Vec3(-s_.shear_rate * H / 2, 0, 0);
     fo.wall_velocity[wall_dir_][1] = Vec3(s_.shear_rate * H / 2, 0, 0);
   }
-  fluid_ = std::make_unique<fluid::FluidSolver>(comm, patch_, fo);
+  fluid_ = fluid::create_fluid(comm, patch_, fo);
   const double mid = s_.flow == "shear" ? s_.origin[wall_dir_] + s_.size[wall_dir_] / 2 : 0.0;
   const int wd = wall_dir_;
   const double rate = s_.shear_rate;
@@ -255,13 +254,12 @@ std::vector<std::vector<double>> Scene::tracker_states() const {
   return out;
 }
 
-void Scene::restore(Vec U, Vec Udot, int steps, const std::vector<std::vector<double>>& bodies,
+void Scene::restore(const std::vector<std::vector<double>>& bodies,
                     const std::vector<std::vector<double>>& trackers) {
   if (bodies.size() != bodies_.size() || trackers.size() != bodies_.size())
     throw std::invalid_argument("option -restart is invalid here: the checkpoint has " +
                                 std::to_string(bodies.size()) + " bodies, the scene " +
                                 std::to_string(bodies_.size()));
-  fluid_->restore(U, Udot, steps);
   for (size_t b = 0; b < bodies_.size(); ++b) {
     try {
       bodies_[b]->set_state(bodies[b]);

@@ -14,8 +14,7 @@
 #include <vector>
 
 #include "coupling/fsi_coupler.hpp"
-#include "fluid/fluid_output.hpp"
-#include "fluid/fluid_solver.hpp"
+#include "fluid/immersed_fluid.hpp"
 #include "geometry/builders.hpp"
 #include "solid/body_metrics.hpp"
 #include "solid/external_load.hpp"
@@ -127,7 +126,7 @@ struct SceneStep {
 class Scene {
  public:
   Scene(MPI_Comm comm, const SceneSettings& settings);
-  fluid::FluidSolver& fluid() { return *fluid_; }
+  fluid::ImmersedFluid& fluid() { return *fluid_; }
   const SceneSettings& settings() const { return s_; }
   /// Couples the bodies (in this process or proxies of remote ones): call once, before the first step.
   void attach_bodies(std::vector<solid::SolidSolver*> bodies);
@@ -138,9 +137,9 @@ class Scene {
   /// Each body's state (SolidSolver::state) and metric records (BodyTracker::state), for a checkpoint.
   std::vector<std::vector<double>> body_states() const;
   std::vector<std::vector<double>> tracker_states() const;
-  /// A restart (after attach_bodies): the fluid state after `steps` steps, the bodies' states and records.
-  void restore(Vec U, Vec Udot, int steps, const std::vector<std::vector<double>>& bodies,
-               const std::vector<std::vector<double>>& trackers);
+  /// A restart (after attach_bodies, and after the fluid took its state: read_checkpoint): the bodies'
+  /// states and records.
+  void restore(const std::vector<std::vector<double>>& bodies, const std::vector<std::vector<double>>& trackers);
   /// The scene's own records (suspension rheology, the time-averaged profile, the flow rates) as named JSON
   /// fields, for a checkpoint, and their restoration (also from the flat list of numbers of earlier
   /// checkpoints); damaged records are std::invalid_argument.
@@ -184,7 +183,7 @@ class Scene {
   const BodySettings& body_settings(const std::string& name) const;
   SceneSettings s_;
   geometry::Patch patch_;
-  std::unique_ptr<fluid::FluidSolver> fluid_;
+  std::unique_ptr<fluid::ImmersedFluid> fluid_;
   int wall_dir_ = -1;  // the wall-normal direction (shear, poiseuille)
   std::vector<solid::SolidSolver*> bodies_;
   std::unique_ptr<coupling::FsiCoupler> coupler_;

@@ -13,7 +13,6 @@
 #include "apps/scene.hpp"
 #include "common/petsc_error.hpp"
 #include "coupling/placement.hpp"
-#include "fluid/fluid_output.hpp"
 #include "geometry/measures.hpp"
 
 namespace cellfsi::app {
@@ -23,7 +22,7 @@ using geometry::Vec3;
 void Scene::record_suspension() {
   solid::SuspensionRecord r;
   r.time = fluid_->time();
-  const fluid::SectionData sec = fluid::section(*fluid_, 0.5, 65);
+  const fluid::SectionData sec = fluid_->section(0.5, 65);
   r.mean_velocity = sec.flow_rate / sec.area;
   const double y0 = s_.origin[1], y1 = s_.origin[1] + s_.size[1];
   r.gap_low = r.gap_high = s_.size[1];
@@ -47,7 +46,7 @@ void Scene::record_suspension() {
 
 void Scene::accumulate_profile() {
   if (s_.flow == "shear") return;
-  const fluid::SectionData sec = fluid::section(*fluid_, 0.5, 65);
+  const fluid::SectionData sec = fluid_->section(0.5, 65);
   flow_rates_.emplace_back(fluid_->time(), sec.flow_rate);
   if (fluid_->time() < average_from() || profile_from_ != average_from()) return;
   if (profile_count_ == 0) {
@@ -385,7 +384,7 @@ std::vector<std::pair<std::string, double>> Scene::flow_metrics() {
   std::vector<std::pair<std::string, double>> m;
   const fluid::FluidOptions& fo = fluid_->options();
   if (s_.flow == "poiseuille" || s_.flow == "rest") {
-    const fluid::SectionData sec = fluid::section(*fluid_, 0.5, 65);
+    const fluid::SectionData sec = fluid_->section(0.5, 65);
     m.emplace_back("flow_rate", sec.flow_rate);
     m.emplace_back("mean_velocity", sec.flow_rate / sec.area);
     double umax = 0;

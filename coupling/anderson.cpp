@@ -1,18 +1,52 @@
 #include "coupling/anderson.hpp"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <utility>
 
 #include "common/petsc_error.hpp"
 
 namespace cellfsi::coupling {
 
-AndersonAcceleration::AndersonAcceleration(Vec like, int block_size, int columns, int reuse_steps)
-    : block_size_(block_size), max_columns_(columns), reuse_steps_(reuse_steps) {
+namespace {
+
+/// Kind i mod block_size for each of this rank's entries of `like`.
+std::vector<int> interleaved_kinds(Vec like, int block_size) {
   if (block_size < 1) throw std::invalid_argument("Anderson acceleration: block size must be >= 1");
+  PetscInt lo = 0, hi = 0;
+  CELLFSI_PETSC(VecGetOwnershipRange(like, &lo, &hi));
+  std::vector<int> kinds(static_cast<std::size_t>(hi - lo));
+  for (PetscInt i = lo; i < hi; ++i) kinds[i - lo] = static_cast<int>(i % block_size);
+  return kinds;
+}
+
+}  // namespace
+
+AndersonAcceleration::AndersonAcceleration(Vec like, int block_size, int columns, int reuse_steps)
+    : AndersonAcceleration(like, interleaved_kinds(like, block_size), columns, reuse_steps) {}
+
+AndersonAcceleration::AndersonAcceleration(Vec like, std::vector<int> kinds, int columns, int reuse_steps)
+    : kinds_(std::move(kinds)), max_columns_(columns), reuse_steps_(reuse_steps) {
   if (columns < 1) throw std::invalid_argument("Anderson acceleration: columns must be >= 1");
   if (reuse_steps < 0) throw std::invalid_argument("Anderson acceleration: reuse steps must be >= 0");
+  PetscInt n_local = 0;
+  CELLFSI_PETSC(VecGetLocalSize(like, &n_local));
+  if (static_cast<PetscInt>(kinds_.size()) != n_local)
+    throw std::invalid_argument("Anderson acceleration: one kind per local entry of the iterate");
+  int n_kinds = 0;
+  for (int k : kinds_) {
+    if (k < 0) throw std::invalid_argument("Anderson acceleration: kinds must be >= 0");
+    n_kinds = std::max(n_kinds, k + 1);
+  }
+  MPI_Comm comm = MPI_COMM_NULL;
+  CELLFSI_PETSC(PetscObjectGetComm(reinterpret_cast<PetscObject>(like), &comm));
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &n_kinds, 1, MPI_INT, MPI_MAX, comm));
+  std::vector<long long> count(n_kinds, 0);
+  for (int k : kinds_) ++count[k];
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, count.data(), n_kinds, MPI_LONG_LONG, MPI_SUM, comm));
+  per_kind_.assign(count.begin(), count.end());
   for (Vec* v : {&f_prev_, &g_prev_, &f_, &g_, &w_, &wf_}) CELLFSI_PETSC(VecDuplicate(like, v));
 }
 
@@ -74,27 +108,25 @@ void AndersonAcceleration::update(Vec x, Vec dx) {
   // Weights: 1 / (mean square of each unknown kind in f_k), so every kind counts alike in the norm; the
   // least-squares problem is solved in the scaled space (sqrt(W) dF, sqrt(W) f_k).
   // (By hand, not VecStrideNormAll: the vector's own block size need not be set.)
-  PetscInt lo = 0, hi = 0, n_global = 0;
-  CELLFSI_PETSC(VecGetOwnershipRange(f_, &lo, &hi));
-  CELLFSI_PETSC(VecGetSize(f_, &n_global));
-  std::vector<double> squares(block_size_, 0.0);
+  const int n_kinds = static_cast<int>(per_kind_.size());
+  const std::size_t n_local = kinds_.size();
+  std::vector<double> squares(n_kinds, 0.0);
   {
     const PetscScalar* a = nullptr;
     CELLFSI_PETSC(VecGetArrayRead(f_, &a));
-    for (PetscInt i = lo; i < hi; ++i) squares[i % block_size_] += a[i - lo] * a[i - lo];
+    for (std::size_t i = 0; i < n_local; ++i) squares[kinds_[i]] += a[i] * a[i];
     CELLFSI_PETSC(VecRestoreArrayRead(f_, &a));
   }
   MPI_Comm comm = MPI_COMM_NULL;
   CELLFSI_PETSC(PetscObjectGetComm(reinterpret_cast<PetscObject>(f_), &comm));
-  MPI_Allreduce(MPI_IN_PLACE, squares.data(), block_size_, MPI_DOUBLE, MPI_SUM, comm);
-  const double per_kind = static_cast<double>(n_global / block_size_);
-  std::vector<PetscReal> root_weight(block_size_, 0.0);
-  for (int c = 0; c < block_size_; ++c)
-    if (squares[c] > 0) root_weight[c] = std::sqrt(per_kind / squares[c]);
+  MPI_Allreduce(MPI_IN_PLACE, squares.data(), n_kinds, MPI_DOUBLE, MPI_SUM, comm);
+  std::vector<PetscReal> root_weight(n_kinds, 0.0);
+  for (int c = 0; c < n_kinds; ++c)
+    if (squares[c] > 0) root_weight[c] = std::sqrt(per_kind_[c] / squares[c]);
   {
     PetscScalar* w = nullptr;
     CELLFSI_PETSC(VecGetArrayWrite(w_, &w));
-    for (PetscInt i = lo; i < hi; ++i) w[i - lo] = root_weight[i % block_size_];
+    for (std::size_t i = 0; i < n_local; ++i) w[i] = root_weight[kinds_[i]];
     CELLFSI_PETSC(VecRestoreArrayWrite(w_, &w));
   }
   // QR of the scaled columns by classical Gram-Schmidt with reorthogonalisation (the normal equations lose

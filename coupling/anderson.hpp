@@ -20,8 +20,11 @@ namespace cellfsi::coupling {
 
 class AndersonAcceleration {
  public:
-  /// like: a vector of the iterate's layout; block_size: unknowns per node (interleaved, e.g. u, v, p);
-  /// columns: most difference pairs kept (>= 1); reuse_steps: steps whose columns are kept (0: this step's).
+  /// like: a vector of the iterate's layout; kinds: the kind of each of this rank's entries of it (0, 1, ...:
+  /// e.g. velocity components and pressure, fluid::ImmersedFluid::unknown_kinds); columns: most difference
+  /// pairs kept (>= 1); reuse_steps: steps whose columns are kept (0: this step's).
+  AndersonAcceleration(Vec like, std::vector<int> kinds, int columns, int reuse_steps);
+  /// The same with the kinds interleaved per node: entry i of kind i mod block_size (e.g. u, v, p).
   AndersonAcceleration(Vec like, int block_size, int columns, int reuse_steps);
   ~AndersonAcceleration();
   AndersonAcceleration(const AndersonAcceleration&) = delete;
@@ -43,7 +46,9 @@ class AndersonAcceleration {
     int step = 0;
   };
   void drop_oldest();
-  int block_size_, max_columns_, reuse_steps_;
+  std::vector<int> kinds_;          // of this rank's entries
+  std::vector<double> per_kind_;    // entries of each kind over all ranks
+  int max_columns_, reuse_steps_;
   int step_ = 0;
   bool have_previous_ = false;
   Vec f_prev_ = nullptr, g_prev_ = nullptr, f_ = nullptr, g_ = nullptr, w_ = nullptr, wf_ = nullptr;

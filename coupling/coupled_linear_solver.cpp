@@ -8,12 +8,14 @@
 #include <stdexcept>
 
 #include "common/petsc_error.hpp"
-#include "coupling/band_region.hpp"
 #include "coupling/coupling_events.hpp"
+#include "geometry/element_region.hpp"
 #include "solvers/near_operator.hpp"
 #include "solvers/pc_types.hpp"
 
 namespace cellfsi::coupling {
+
+using geometry::contains;  // (element masks: geometry/element_region.hpp)
 
 namespace {
 
@@ -112,7 +114,7 @@ std::string option_inapplicable(const std::string& name, const std::string& pc_t
   return "";
 }
 
-CoupledLinearSolver::CoupledLinearSolver(fluid::FluidSolver& fluid, LinearSolverOptions options,
+CoupledLinearSolver::CoupledLinearSolver(fluid::ImmersedFluid& fluid, LinearSolverOptions options,
                                          std::function<std::vector<char>()> active_elements)
     : fluid_(fluid), opt_(std::move(options)), active_elements_(std::move(active_elements)) {
   coupling_events();
@@ -141,15 +143,11 @@ CoupledLinearSolver::CoupledLinearSolver(fluid::FluidSolver& fluid, LinearSolver
                                   "(-fluid_mat_type_jacobian baij)");
     if (!s.fourier_inapplicable.empty())
       throw std::invalid_argument("-coupling_pc_type cellfsi_fourier does not apply: " + s.fourier_inapplicable);
-    solvers::BoxMesh box;
-    const geometry::Patch& patch = fluid.patch();
-    for (int d = 0; d < fluid.dim(); ++d) {
-      box.n[d] = patch.n_control(d);
-      box.degree[d] = patch.degree(d);
-      box.periodic[d] = patch.knots(d).periodic();
-    }
-    box.dof = fluid.dim() + 1;
-    CELLFSI_PETSC(DMDAGetAO(fluid.dm(), &box.natural));
+    const std::optional<fluid::BlockLayout> layout = fluid.block_layout();
+    if (!layout)
+      throw std::invalid_argument("-coupling_pc_type cellfsi_fourier needs the fluid's unknowns in node blocks "
+                                  "on the control net");
+    const solvers::BoxMesh box{layout->n, layout->degree, layout->periodic, layout->dof, layout->natural};
     PC pc;
     CELLFSI_PETSC(KSPGetPC(ksp_, &pc));
     solvers::pc_fourier_set_box(pc, box);
@@ -327,13 +325,7 @@ bool CoupledLinearSolver::ensure_band_factorization(Vec X) {
               true);
     return false;
   }
-  const std::vector<int> nodes = functions_on_elements(fluid_.patch(), region_);
-  // One fluid rank: the DMDA's global numbering is the natural one, node-major and unknown-minor.
-  const int dof = fluid_.dim() + 1;
-  std::vector<PetscInt> unknowns;
-  unknowns.reserve(nodes.size() * dof);
-  for (int n : nodes)
-    for (int c = 0; c < dof; ++c) unknowns.push_back(static_cast<PetscInt>(n) * dof + c);
+  const std::vector<PetscInt> unknowns = fluid_.region_unknowns(region_);
   IS is;
   CELLFSI_PETSC(ISCreateGeneral(PETSC_COMM_SELF, static_cast<PetscInt>(unknowns.size()), unknowns.data(),
                                 PETSC_COPY_VALUES, &is));
@@ -426,8 +418,7 @@ void CoupledLinearSolver::make_near_operator() {
     CELLFSI_PETSC(MatSetValuesBlocked(near_, 1, &gb, 1, &gb, zero.data(), INSERT_VALUES));
   CELLFSI_PETSC(MatAssemblyBegin(near_, MAT_FLUSH_ASSEMBLY));
   CELLFSI_PETSC(MatAssemblyEnd(near_, MAT_FLUSH_ASSEMBLY));
-  ISLocalToGlobalMapping ltog = nullptr;
-  CELLFSI_PETSC(DMGetLocalToGlobalMapping(fluid_.dm(), &ltog));
+  const ISLocalToGlobalMapping ltog = fluid_.block_layout()->local_to_global;
   CELLFSI_PETSC(MatSetLocalToGlobalMapping(near_, ltog, ltog));
   near_op_ = solvers::create_near_operator(bulk, near_, std::move(near_nodes));
   if (null_space_) CELLFSI_PETSC(MatSetNullSpace(near_op_, null_space_));

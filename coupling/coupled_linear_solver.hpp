@@ -33,7 +33,7 @@
 #include <string>
 #include <vector>
 
-#include "fluid/fluid_solver.hpp"
+#include "fluid/immersed_fluid.hpp"
 #include "geometry/patch.hpp"
 
 namespace cellfsi::coupling {
@@ -98,7 +98,7 @@ struct SolveCounts {
 class CoupledLinearSolver {
  public:
   /// active_elements: the elements with s^h != 1 or an immersed point (asked when the region is checked).
-  CoupledLinearSolver(fluid::FluidSolver& fluid, LinearSolverOptions options,
+  CoupledLinearSolver(fluid::ImmersedFluid& fluid, LinearSolverOptions options,
                       std::function<std::vector<char>()> active_elements);
   ~CoupledLinearSolver();
   CoupledLinearSolver(const CoupledLinearSolver&) = delete;
@@ -136,7 +136,7 @@ class CoupledLinearSolver {
   /// block), the operator made of it and the bulk stencil, and the nodes whose rows it holds in full.
   void make_near_operator();
   int solve_generic(Vec X, Vec F, Vec dX, SolveCounts& counts);
-  fluid::FluidSolver& fluid_;
+  fluid::ImmersedFluid& fluid_;
   LinearSolverOptions opt_;
   std::function<std::vector<char>()> active_elements_;
   KSP ksp_ = nullptr;

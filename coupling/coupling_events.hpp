@@ -7,7 +7,7 @@
 #include <string>
 
 #include "common/petsc_error.hpp"
-#include "fluid/fluid_solver.hpp"
+#include "fluid/linear_solve_failure.hpp"
 
 namespace cellfsi::coupling {
 

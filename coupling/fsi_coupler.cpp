@@ -6,14 +6,14 @@
 #include <stdexcept>
 
 #include "common/petsc_error.hpp"
-#include "coupling/band_region.hpp"
 #include "coupling/coupling_events.hpp"
 #include "coupling/inner_viscosity.hpp"
 #include "coupling/interface_marking.hpp"
+#include "geometry/element_region.hpp"
 
 namespace cellfsi::coupling {
 
-FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver*> bodies,
+FsiCoupler::FsiCoupler(fluid::ImmersedFluid& fluid, std::vector<solid::SolidSolver*> bodies,
                        CouplerOptions options)
     : fluid_(fluid), bodies_(std::move(bodies)), opt_(options), locator_(fluid.patch()) {
   tp_ = solid::TimeParameters::from_rho_inf(fluid.options().rho_inf, fluid.options().dt);
@@ -38,7 +38,7 @@ FsiCoupler::FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver
   CELLFSI_PETSC(VecDuplicate(X_, &F_));
   coupling_events();
   if (opt_.acceleration == Acceleration::anderson)
-    anderson_ = std::make_unique<AndersonAcceleration>(X_, fluid.dim() + 1, opt_.acceleration_columns,
+    anderson_ = std::make_unique<AndersonAcceleration>(X_, fluid.unknown_kinds(), opt_.acceleration_columns,
                                                        opt_.acceleration_reuse);
   LinearSolverOptions lo = opt_.linear;
   lo.fluid_atol = opt_.fluid_atol;

@@ -1,6 +1,7 @@
 #pragma once
-// The block-iterative Newton loop of the paper's Sec. 2.3, as a partitioned scheme between one FluidSolver
-// and any number of SolidSolver bodies (Remark 4). Per iteration:
+// The block-iterative Newton loop of the paper's Sec. 2.3, as a partitioned scheme between one fluid
+// (fluid::ImmersedFluid, whichever discretisation) and any number of SolidSolver bodies (Remark 4). Per
+// iteration:
 //   steps 1-3, per body: the fluid velocity at the body's collocation points (at t_{n+alpha_f} of the current
 //   fluid iterate) -> the body's kinematic update; step 4: the bodies' quadrature data located in the
 //   Eulerian mesh and handed to the fluid as immersed points, and s^h marked (s_I on the basis functions
@@ -16,7 +17,7 @@
 #include "coupling/coupled_linear_solver.hpp"
 #include "coupling/interface_marking.hpp"
 #include "coupling/locator.hpp"
-#include "fluid/fluid_solver.hpp"
+#include "fluid/immersed_fluid.hpp"
 #include "solid/solid_solver.hpp"
 
 namespace cellfsi::coupling {
@@ -74,7 +75,7 @@ struct CouplerStats {
 
 class FsiCoupler {
  public:
-  FsiCoupler(fluid::FluidSolver& fluid, std::vector<solid::SolidSolver*> bodies, CouplerOptions options = {});
+  FsiCoupler(fluid::ImmersedFluid& fluid, std::vector<solid::SolidSolver*> bodies, CouplerOptions options = {});
   ~FsiCoupler();
   FsiCoupler(const FsiCoupler&) = delete;
   FsiCoupler& operator=(const FsiCoupler&) = delete;
@@ -105,7 +106,7 @@ class FsiCoupler {
   void update_viscosity();
   /// Elements with s^h != 1, an immersed point, or a viscosity other than the fluid's.
   std::vector<char> active_elements() const;
-  fluid::FluidSolver& fluid_;
+  fluid::ImmersedFluid& fluid_;
   std::vector<solid::SolidSolver*> bodies_;
   CouplerOptions opt_;
   Locator locator_;

@@ -147,7 +147,7 @@ void rows_from_blocks(int n, int bs, const double* Kb, double* K) {
 
 }  // namespace
 
-void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band, bool band_side,
+void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_region, bool region_side,
                            bool accumulate) {
   const int D = dim_, nd = dof_;
   const double dt = opt_.dt;
@@ -271,12 +271,12 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
   VmsParameters prm_q;
   std::vector<PointFields> point_fields;
   std::vector<VmsParameters> point_prm;
-  if (in_band && static_cast<int>(in_band->size()) != patch_.n_elements())
-    throw std::invalid_argument("FluidSolver: the element mask has " + std::to_string(in_band->size()) +
+  if (in_region && static_cast<int>(in_region->size()) != patch_.n_elements())
+    throw std::invalid_argument("FluidSolver: the element mask has " + std::to_string(in_region->size()) +
                                 " entries for " + std::to_string(patch_.n_elements()) + " elements");
   const int ne0 = patch_.n_elements(0), ne1 = patch_.n_elements(1);
   for (const Index3& e : owned_elements()) {
-    if (in_band && ((*in_band)[e[0] + ne0 * (e[1] + ne1 * e[2])] != 0) != band_side) continue;
+    if (in_region && ((*in_region)[e[0] + ne0 * (e[1] + ne1 * e[2])] != 0) != region_side) continue;
     int first[3];
     const ElementValues& ev = element_basis_.evaluate(e, scratch, first);
     const int n = gather(first);
@@ -343,7 +343,7 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
   // several ranks each addition to rows of another rank is stashed until the assembly (measured: the 3D
   // compound capsule at 16^3 on 2 ranks, 9.8 GB and 20 s per Jacobian when added point by point).
   // The fluid viscosity the immersed terms remove is the local one (nu^h at the point, where a field varies).
-  for (std::size_t i = 0; i < immersed_.size() && !(in_band && !band_side);) {
+  for (std::size_t i = 0; i < immersed_.size() && !(in_region && !region_side);) {
     const Index3 element = immersed_[i].element;
     int n = 0;
     bool varying = false;
@@ -404,7 +404,7 @@ void FluidSolver::assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band
     direct.finish();
     CELLFSI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
     CELLFSI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
-    const double diagonal = in_band && band_side && !accumulate ? 0.0 : 1.0;
+    const double diagonal = in_region && region_side && !accumulate ? 0.0 : 1.0;
     CELLFSI_PETSC(
         MatZeroRows(J, static_cast<PetscInt>(rows.size()), rows.data(), diagonal, nullptr, nullptr));
   }

@@ -18,6 +18,7 @@
 #include "common/collective.hpp"
 #include "common/file_io.hpp"
 #include "common/petsc_error.hpp"
+#include "fluid/fluid_solver.hpp"
 #include "fluid/point_evaluation.hpp"
 #include "geometry/quadrature.hpp"
 
@@ -70,15 +71,27 @@ FluidSeriesWriter::FluidSeriesWriter(std::string dir, int samples_per_element)
   if (samples_ < 1) throw std::invalid_argument("fluid output: samples per element must be >= 1");
 }
 
-void FluidSeriesWriter::write(const FluidSolver& fluid) {
+void FluidSeriesWriter::write(const ImmersedFluid& fluid) {
+  char stem[64];
+  std::snprintf(stem, sizeof stem, "fluid_%06d", fluid.steps_taken());
+  const std::string name = fluid.write_fields(dir_, stem, samples_, undisturbed_);
+  entries_.push_back({name, fluid.time(), 0, ""});  // time is steps * dt: no accumulated round-off
+  on_rank_zero(fluid.comm(),
+               [&] { geometry::write_pvd((std::filesystem::path(dir_) / "fluid.pvd").string(), entries_); });
+}
+
+std::string FluidSolver::write_fields(const std::string& dir_name, const std::string& stem,
+                                      int samples_per_element,
+                                      const std::function<Vec3(const Vec3&)>& undisturbed) const {
   // Each rank samples the elements it owns from its ghosted values: one file on one rank, and on several one
   // piece per rank (fluid_NNNNNN_pRRRR.vts) with the index fluid_NNNNNN.pvts, which ParaView reads as one
   // grid.
+  const FluidSolver& fluid = *this;
   PetscMPIInt rank = 0, size = 1;
   MPI_Comm_rank(fluid.comm(), &rank);
   MPI_Comm_size(fluid.comm(), &size);
   const geometry::Patch& patch = fluid.patch();
-  const int D = fluid.dim(), dof = D + 1, s = samples_;
+  const int D = fluid.dim(), dof = D + 1, s = samples_per_element;
   const double rho = fluid.options().density;
 
   // This rank's elements (a box: a range per direction) and its piece of the sample grid.
@@ -134,7 +147,7 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
   vtkDoubleArray* vor = array("vorticity", D == 2 ? 1 : 3);
   vtkDoubleArray* shv = array("s_h", 1);
   vtkDoubleArray* dvg = array("divergence", 1);  // of the velocity: the discrete incompressibility error
-  vtkDoubleArray* dis = undisturbed_ ? array("velocity_disturbance", 3) : nullptr;
+  vtkDoubleArray* dis = undisturbed ? array("velocity_disturbance", 3) : nullptr;
   vtkDoubleArray* mu = nuh ? array("viscosity", 1) : nullptr;
   BasisValues bv;
   MapValues mv;
@@ -167,7 +180,7 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
         dvg->SetValue(id, l.grad_v.trace());
         if (mu) mu->SetValue(id, rho * interpolate(pp, 0, [&](int k, int) { return nuh[nodes[k]]; }).scalar);
         if (dis) {
-          const geometry::Vec3 dv = l.v - undisturbed_(l.x);
+          const geometry::Vec3 dv = l.v - undisturbed(l.x);
           dis->SetTuple3(id, dv[0], dv[1], dv[2]);
         }
         if (D == 2) {
@@ -187,9 +200,7 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
     CELLFSI_PETSC(DMRestoreLocalVector(dm_scalar, &Nu_loc));
   }
 
-  char stem[64];
-  std::snprintf(stem, sizeof stem, "fluid_%06d", fluid.steps_taken());
-  const std::filesystem::path dir(dir_);
+  const std::filesystem::path dir(dir_name);
   std::string name;
   if (size == 1) {
     name = std::string(stem) + ".vts";
@@ -198,7 +209,7 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
     // Every rank writes its piece (a rank without elements none), then rank 0 the index: a failure on any
     // rank is reported on every rank before the index names a missing piece.
     char piece[80];
-    std::snprintf(piece, sizeof piece, "%s_p%04d.vts", stem, rank);
+    std::snprintf(piece, sizeof piece, "%s_p%04d.vts", stem.c_str(), rank);
     int ok = 1;
     std::string error;
     if (n > 0) {
@@ -228,17 +239,17 @@ void FluidSeriesWriter::write(const FluidSolver& fluid) {
         std::copy(all.begin() + 6 * r, all.begin() + 6 * r + 6, e.begin());
         extents.push_back(e);
         char f[80];
-        std::snprintf(f, sizeof f, "%s_p%04d.vts", stem, r);
+        std::snprintf(f, sizeof f, "%s_p%04d.vts", stem.c_str(), r);
         files.emplace_back(f);
       }
       write_pvts((dir / name).string(), whole, extents, files, arrays);
     });
   }
-  entries_.push_back({name, fluid.time(), 0, ""});  // time is steps * dt: no accumulated round-off
-  on_rank_zero(fluid.comm(), [&] { geometry::write_pvd((dir / "fluid.pvd").string(), entries_); });
+  return name;
 }
 
-SectionData section(const FluidSolver& fluid, double u0, int n_profile) {
+SectionData FluidSolver::section(double u0, int n_profile) const {
+  const FluidSolver& fluid = *this;
   const std::vector<double> U = fluid.gather_to_zero(fluid.solution());
   SectionData out;
   PetscMPIInt rank = 0;

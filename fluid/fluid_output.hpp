@@ -1,13 +1,14 @@
 #pragma once
-// Output of the fluid state: a ParaView time series (fluid.pvd + one .vts per output step) with velocity,
-// pressure (dyn/cm^2), s^h and vorticity sampled on the patch (and the velocity's disturbance of a known
-// flow); and section data: the flow rate through, and the velocity profile across, the section xi_0 = const
-// (a plane x = const for the builders' channels).
+// Output of the fluid state: a ParaView time series (fluid.pvd + one .vts per output step, each written by
+// the discretisation: ImmersedFluid::write_fields; the VMS one's in fluid_output.cpp, with velocity,
+// pressure (dyn/cm^2), s^h and vorticity sampled on the patch, and the velocity's disturbance of a known
+// flow). Section data (the flow rate through, and the velocity profile across, the section xi_0 = const: a
+// plane x = const for the builders' channels) is ImmersedFluid::section; the VMS one's is here too.
 #include <functional>
 #include <string>
 #include <vector>
 
-#include "fluid/fluid_solver.hpp"
+#include "fluid/immersed_fluid.hpp"
 #include "geometry/patch_vtk.hpp"
 
 namespace cellfsi::fluid {
@@ -23,7 +24,7 @@ class FluidSeriesWriter {
   void set_undisturbed_velocity(std::function<geometry::Vec3(const geometry::Vec3&)> undisturbed) {
     undisturbed_ = std::move(undisturbed);
   }
-  void write(const FluidSolver& fluid);
+  void write(const ImmersedFluid& fluid);
   /// The entries written so far, and a restart's: continue the series after these.
   const std::vector<geometry::PvdEntry>& entries() const { return entries_; }
   void resume(std::vector<geometry::PvdEntry> entries) { entries_ = std::move(entries); }
@@ -34,14 +35,5 @@ class FluidSeriesWriter {
   std::function<geometry::Vec3(const geometry::Vec3&)> undisturbed_;
   std::vector<geometry::PvdEntry> entries_;
 };
-
-/// Flow rate through the section xi_0 = u (integral of v . n over it; per unit depth in 2D) and the velocity
-/// along it at n_profile points equally spaced in xi_1 (2D) — collective; valid on every rank.
-struct SectionData {
-  double flow_rate = 0;
-  double area = 0;  // length (2D) or area (3D) of the section
-  std::vector<geometry::Vec3> points, velocity;
-};
-SectionData section(const FluidSolver& fluid, double u, int n_profile = 33);
 
 }  // namespace cellfsi::fluid

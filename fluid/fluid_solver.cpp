@@ -15,6 +15,7 @@
 
 #include "common/petsc_error.hpp"
 #include "fluid/point_evaluation.hpp"
+#include "geometry/element_region.hpp"
 
 namespace cellfsi::fluid {
 
@@ -25,41 +26,6 @@ using geometry::Mat3;
 using geometry::Param;
 
 namespace {
-
-/// Why a preconditioner failed, looking into the subdomain solvers of ASM and block Jacobi (where a
-/// factorisation that ran out of memory is reported as a subdomain error).
-std::string pc_failure(PC pc) {
-  PCFailedReason reason = PC_NOERROR;
-  CELLFSI_PETSC(PCGetFailedReasonRank(pc, &reason));
-  if (reason == PC_SUBPC_ERROR) {
-    PetscBool asm_pc = PETSC_FALSE, bjacobi = PETSC_FALSE;
-    CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(pc), PCASM, &asm_pc));
-    CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(pc), PCBJACOBI, &bjacobi));
-    KSP* sub = nullptr;
-    PetscInt n = 0;
-    if (asm_pc) CELLFSI_PETSC(PCASMGetSubKSP(pc, &n, nullptr, &sub));
-    if (bjacobi) CELLFSI_PETSC(PCBJacobiGetSubKSP(pc, &n, nullptr, &sub));
-    for (PetscInt i = 0; i < n; ++i) {
-      PC sub_pc;
-      CELLFSI_PETSC(KSPGetPC(sub[i], &sub_pc));
-      const std::string why = pc_failure(sub_pc);
-      if (!why.empty()) return why;
-    }
-  }
-  switch (reason) {
-    case PC_NOERROR:
-      return "";
-    case PC_FACTOR_OUTMEMORY:
-      return "the LU factorisation ran out of memory (use fewer elements; the direct factors of a 3D mesh "
-             "grow "
-             "fastest: docs/performance.md)";
-    case PC_FACTOR_NUMERIC_ZEROPIVOT:
-    case PC_FACTOR_STRUCT_ZEROPIVOT:
-      return std::string("the factorisation met a zero pivot (") + PCFailedReasons[reason] + ")";
-    default:
-      return PCFailedReasons[reason];
-  }
-}
 
 /// Calls f(idx, {i, j, k}) for every control point (DMDA node) this rank owns, the box of corner xs and
 /// extents xm (DMDAGetCorners), in the order of the rank's part of a global vector: idx is the node's index
@@ -73,19 +39,6 @@ void for_each_owned_node(const PetscInt xs[3], const PetscInt xm[3], F&& f) {
 }
 
 }  // namespace
-
-std::string linear_solve_failure(KSP ksp) {
-  KSPConvergedReason kr;
-  CELLFSI_PETSC(KSPGetConvergedReason(ksp, &kr));
-  std::string why = KSPConvergedReasons[kr];
-  if (kr == KSP_DIVERGED_PC_FAILED) {
-    PC pc;
-    CELLFSI_PETSC(KSPGetPC(ksp, &pc));
-    const std::string pc_why = pc_failure(pc);
-    if (!pc_why.empty()) why += ": " + pc_why;
-  }
-  return why;
-}
 
 // ---------------------------------------------------------------------------------------------------------------
 // Construction
@@ -488,6 +441,126 @@ void FluidSolver::restore(Vec U, Vec Udot, int steps) {
   CELLFSI_PETSC(VecCopy(Udot, Udot_));
   steps_ = steps;
   time_ = steps_ * opt_.dt;
+}
+
+std::optional<BlockLayout> FluidSolver::block_layout() const {
+  BlockLayout b;
+  for (int d = 0; d < dim_; ++d) {
+    b.n[d] = patch_.n_control(d);
+    b.degree[d] = patch_.degree(d);
+    b.periodic[d] = patch_.knots(d).periodic();
+  }
+  b.dof = dof_;
+  CELLFSI_PETSC(DMDAGetAO(da_, &b.natural));
+  CELLFSI_PETSC(DMGetLocalToGlobalMapping(da_, &b.local_to_global));
+  return b;
+}
+
+std::vector<int> FluidSolver::unknown_kinds() const {
+  PetscInt n = 0;
+  CELLFSI_PETSC(VecGetLocalSize(U_, &n));
+  std::vector<int> kinds(static_cast<std::size_t>(n));
+  for (PetscInt i = 0; i < n; ++i) kinds[i] = static_cast<int>(i % dof_);  // (a rank owns whole nodes)
+  return kinds;
+}
+
+std::vector<PetscInt> FluidSolver::region_unknowns(const std::vector<char>& in_region) const {
+  // The DMDA's AO maps unknowns (node-major, unknown-minor): a node's first unknown stands for its block. (On
+  // one rank the DMDA's numbering is the natural one.)
+  const std::vector<int> natural = geometry::functions_on_elements(patch_, in_region);
+  std::vector<PetscInt> first(natural.size());
+  for (std::size_t i = 0; i < natural.size(); ++i) first[i] = static_cast<PetscInt>(natural[i]) * dof_;
+  AO ao = nullptr;
+  CELLFSI_PETSC(DMDAGetAO(da_, &ao));
+  CELLFSI_PETSC(AOApplicationToPetsc(ao, static_cast<PetscInt>(first.size()), first.data()));
+  std::sort(first.begin(), first.end());
+  std::vector<PetscInt> unknowns;
+  unknowns.reserve(first.size() * dof_);
+  for (PetscInt f : first)
+    for (int c = 0; c < dof_; ++c) unknowns.push_back(f + c);
+  return unknowns;
+}
+
+namespace {
+
+/// A vector as a PETSc binary file holds it (VecLoad reads it back): the class id and the length as
+/// big-endian 32-bit integers, then the values as big-endian doubles, in the DMDA's natural ordering (any
+/// number of ranks can read it). Collective; the bytes on rank 0, empty elsewhere.
+std::string vec_binary_on_rank_zero(Vec v) {
+  DM dm = nullptr;
+  CELLFSI_PETSC(VecGetDM(v, &dm));
+  Vec natural = v;
+  if (dm) {
+    CELLFSI_PETSC(DMDACreateNaturalVector(dm, &natural));
+    CELLFSI_PETSC(DMDAGlobalToNaturalBegin(dm, v, INSERT_VALUES, natural));
+    CELLFSI_PETSC(DMDAGlobalToNaturalEnd(dm, v, INSERT_VALUES, natural));
+  }
+  VecScatter to_zero = nullptr;
+  Vec all = nullptr;
+  CELLFSI_PETSC(VecScatterCreateToZero(natural, &to_zero, &all));
+  CELLFSI_PETSC(VecScatterBegin(to_zero, natural, all, INSERT_VALUES, SCATTER_FORWARD));
+  CELLFSI_PETSC(VecScatterEnd(to_zero, natural, all, INSERT_VALUES, SCATTER_FORWARD));
+  PetscInt n = 0;
+  CELLFSI_PETSC(VecGetLocalSize(all, &n));
+  std::string bytes;
+  if (n > 0) {
+    PetscInt header[2] = {VEC_FILE_CLASSID, 0};
+    CELLFSI_PETSC(VecGetSize(natural, &header[1]));
+    std::vector<PetscScalar> values(static_cast<std::size_t>(n));
+    const PetscScalar* a = nullptr;
+    CELLFSI_PETSC(VecGetArrayRead(all, &a));
+    std::copy(a, a + n, values.begin());
+    CELLFSI_PETSC(VecRestoreArrayRead(all, &a));
+#if !defined(PETSC_WORDS_BIGENDIAN)
+    CELLFSI_PETSC(PetscByteSwap(header, PETSC_INT, 2));
+    CELLFSI_PETSC(PetscByteSwap(values.data(), PETSC_SCALAR, n));
+#endif
+    bytes.append(reinterpret_cast<const char*>(header), sizeof header);
+    bytes.append(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(PetscScalar));
+  }
+  CELLFSI_PETSC(VecScatterDestroy(&to_zero));
+  CELLFSI_PETSC(VecDestroy(&all));
+  if (natural != v) CELLFSI_PETSC(VecDestroy(&natural));
+  return bytes;
+}
+
+
+/// Whether every entry of v is finite (collective).
+bool all_finite(Vec v) {
+  const PetscScalar* a = nullptr;
+  PetscInt n = 0;
+  CELLFSI_PETSC(VecGetLocalSize(v, &n));
+  CELLFSI_PETSC(VecGetArrayRead(v, &a));
+  int finite = 1;
+  for (PetscInt i = 0; i < n && finite; ++i) finite = std::isfinite(PetscRealPart(a[i]));
+  CELLFSI_PETSC(VecRestoreArrayRead(v, &a));
+  MPI_Allreduce(MPI_IN_PLACE, &finite, 1, MPI_INT, MPI_MIN, PetscObjectComm(reinterpret_cast<PetscObject>(v)));
+  return finite == 1;
+}
+
+}  // namespace
+
+std::string FluidSolver::state_bytes() const { return vec_binary_on_rank_zero(U_) + vec_binary_on_rank_zero(Udot_); }
+
+ImmersedFluid::LoadedState FluidSolver::load_state(PetscViewer viewer, int steps) {
+  Vec U = nullptr, Udot = nullptr;
+  CELLFSI_PETSC(VecDuplicate(U_, &U));
+  CELLFSI_PETSC(VecDuplicate(U_, &Udot));
+  // A file of another size is the caller's input error, reported by it once (no PETSc traceback).
+  PetscPushErrorHandler(PetscReturnErrorHandler, nullptr);
+  const PetscErrorCode e1 = VecLoad(U, viewer);
+  const PetscErrorCode e2 = e1 ? e1 : VecLoad(Udot, viewer);
+  PetscPopErrorHandler();
+  LoadedState r = LoadedState::ok;
+  if (e1 || e2)
+    r = LoadedState::does_not_fit;
+  else if (!all_finite(U) || !all_finite(Udot))
+    r = LoadedState::not_finite;
+  else
+    restore(U, Udot, steps);
+  VecDestroy(&U);
+  VecDestroy(&Udot);
+  return r;
 }
 
 KSP FluidSolver::ksp() const {

@@ -1,5 +1,7 @@
 #pragma once
-// Incompressible Navier-Stokes (VMS, paper Sec. 2.1-2.3) on one Eulerian NURBS patch, with PETSc.
+// Incompressible Navier-Stokes (VMS, paper Sec. 2.1-2.3) on one Eulerian NURBS patch, with PETSc: the
+// discretisation behind fluid::ImmersedFluid (immersed_fluid.hpp) that fluid::create_fluid makes. Only fluid/,
+// its tests and benchmarks include this header; coupling/ and apps/ see the interface.
 //
 // The control net is partitioned with a DMDA (dof = dim + 1: velocity, kinematic pressure; periodic
 // directions handled natively; stencil width = degree, exact for tensor-product splines). An element belongs
@@ -28,6 +30,8 @@
 
 #include "common/generalized_alpha.hpp"
 #include "fluid/element_basis.hpp"
+#include "fluid/immersed_fluid.hpp"
+#include "fluid/linear_solve_failure.hpp"
 #include "fluid/vms_kernel.hpp"
 #include "geometry/inversion.hpp"
 #include "geometry/patch.hpp"
@@ -36,72 +40,30 @@ namespace cellfsi::fluid {
 
 using geometry::Vec3;
 
-/// Physical and numerical settings; the defaults are the paper's plasma (CGS).
-struct FluidOptions {
-  double density = 1.025;    // rho_1 [g/cm^3]
-  double viscosity = 0.012;  // mu [g/(cm s)]
-  Vec3 body_force =
-      Vec3::Zero();      // f [dyn/cm^3], a force per unit volume (g = f / rho_1), docs/design.md section 3
-  bool stokes = false;   // drop convection
-  double rho_inf = 0.5;  // generalized-alpha spectral radius at infinity, in [0, 1]
-  double dt = 5e-4;      // time step [s]
-  double c_i = 36.0;     // C_I of tau_M
-  std::string jacobian_type = "baij";  // PETSc matrix type of the Jacobian: baij (node blocks) or aij
-  bool pressure_null_space = true;  // the constant pressure as MatNullSpace (false: one control value pinned)
-  /// Velocity of the wall at side s (0: xi = a, 1: xi = b) of non-periodic direction d. (Eigen vectors are
-  /// not zeroed by value-initialisation, hence the explicit zeros.)
-  std::array<std::array<Vec3, 2>, 3> wall_velocity{
-      {{Vec3::Zero(), Vec3::Zero()}, {Vec3::Zero(), Vec3::Zero()}, {Vec3::Zero(), Vec3::Zero()}}};
-  /// Reads -fluid_density, -fluid_viscosity, -fluid_body_force fx,fy[,fz], -fluid_stokes, -fluid_rho_inf,
-  /// -fluid_c_i, -fluid_wall_velocity_{x,y,z}{0,1} vx,vy[,vz]. Throws std::invalid_argument on invalid
-  /// values.
-  void set_from_options(int dim);
-  void validate() const;
-};
-
-/// What one time step cost.
-struct StepStats {
-  int newton_iterations = 0;
-  int linear_iterations = 0;
-  bool converged = false;
-  std::string reason;  // SNES converged reason
-};
-
-/// Velocity, its gradient and its time derivative at a point (at t_{n+1} after a step).
-struct PointSample {
-  bool found = false;
-  Vec3 v = Vec3::Zero();
-  geometry::Mat3 grad_v = geometry::Mat3::Zero();  // grad_v(i, j) = d v_i / d x_j
-  Vec3 vdot = Vec3::Zero();
-  double p = 0;  // kinematic pressure
-};
-
 /// An immersed-solid quadrature point (paper Eq. (10)): position and the kernel's data.
 struct ImmersedPointData {
   Vec3 x = Vec3::Zero();
   ImmersedPoint data;
 };
 
-/// Why the last solve of ksp failed: its converged reason and, for a failed preconditioner, why it failed
-/// (looking into ASM and block-Jacobi subdomains; e.g. an LU factorisation that ran out of memory).
-std::string linear_solve_failure(KSP ksp);
-
 class FluidSolver;
 /// SNES callbacks (the solver passes itself as context).
 PetscErrorCode fluid_residual(SNES, Vec U, Vec F, void* solver);
 PetscErrorCode fluid_jacobian(SNES, Vec U, Mat J, Mat P, void* solver);
 
-class FluidSolver {
+/// The VMS discretisation (paper Sec. 2.1-2.3) behind fluid::ImmersedFluid; the methods marked `override`
+/// are documented there.
+class FluidSolver final : public ImmersedFluid {
  public:
   FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const FluidOptions& options);
-  ~FluidSolver();
+  ~FluidSolver() override;
   FluidSolver(const FluidSolver&) = delete;
   FluidSolver& operator=(const FluidSolver&) = delete;
 
   /// Sets the velocity control values from a function of position (exact for fields in the spline space whose
   /// control values are their Greville-point values, e.g. linear fields on affine meshes); pressure 0;
   /// velocity rate 0. Wall control values take the wall velocity.
-  void set_initial_velocity(const std::function<Vec3(const Vec3&)>& v0);
+  void set_initial_velocity(const std::function<Vec3(const Vec3&)>& v0) override;
   /// Sets velocity and velocity rate to the L2 projections of v0 and vdot0 (optimal-order initial data; a
   /// rate consistent with the flow keeps generalized-alpha second order from the first step); pressure 0.
   /// Wall control values then take the wall velocity. Collective; solves mass-matrix systems with CG (prefix
@@ -115,12 +77,12 @@ class FluidSolver {
   };
   L2Error velocity_l2_error(const std::function<Vec3(const Vec3&)>& v_exact) const;
 
-  /// Sets the scaling field s^h by control value (natural node index -> s); applies to owned nodes.
-  void set_scaling(const std::function<double(int node)>& s);
+  /// Sets the scaling field s^h by control value (natural node index -> s); applies to owned nodes. s^h
+  /// multiplies tau_M and tau_C at each quadrature point (vms_kernel.hpp).
+  void set_scaling(const std::function<double(int node)>& s) override;
   /// Immersed points, all of them on every rank (each rank keeps those in its elements).
   void set_immersed_points(const std::vector<ImmersedPointData>& points);
-  /// Whether this rank assembles element e (its immersed points are kept only there).
-  bool owns_element(const geometry::Index3& e) const;
+  bool owns_element(const geometry::Index3& e) const override;
 
   // --- A viscosity that varies in space (docs/fluid.md, "The viscosity field") ---
   /// Sets the viscosity field by control value: the dynamic viscosity mu_A [g/(cm s)] of each natural node
@@ -129,7 +91,7 @@ class FluidSolver {
   /// (vms_kernel.hpp). Elements whose control values are all equal are assembled as with a uniform viscosity
   /// of that value (the element kernels' fast paths, bit for bit); without a field every result is
   /// options().viscosity's.
-  void set_viscosity(const std::function<double(int node)>& mu);
+  void set_viscosity(const std::function<double(int node)>& mu) override;
   /// The L2 projection of a viscosity mu(x) [g/(cm s)] onto the fluid's spline space, as the field (an
   /// optimal-order nu^h for a smooth mu; collective, CG with prefix fluid_projection_).
   void project_viscosity(const std::function<double(const Vec3&)>& mu);
@@ -142,77 +104,69 @@ class FluidSolver {
   /// without a field).
   std::vector<double> viscosity_on_zero() const;
 
-  /// Sets up the linear solver on the Jacobian of the current state, so every solver option (inner ones
-  /// included) has been read; optional (step() does it lazily otherwise). Call after setting the initial
-  /// state.
-  void setup();
+  void setup() override;
   /// Frees what setup() built in the fluid's own linear solver (e.g. ASM's subdomain copy of the Jacobian),
   /// for a coupled run that solves with another solver; a later solve sets it up again.
   void release_linear_solver();
-  /// Advances one time step.
-  StepStats step();
-  double time() const { return time_; }
-  int steps_taken() const { return steps_; }
+  /// Advances one time step (SNES with prefix fluid_).
+  StepStats step() override;
+  double time() const override { return time_; }
+  int steps_taken() const override { return steps_; }
 
-  /// Samples v, grad v, vdot and p at points (collective; every rank gets every value).
-  std::vector<PointSample> sample(const std::vector<Vec3>& points) const;
+  std::vector<PointSample> sample(const std::vector<Vec3>& points) const override;
+  SectionData section(double u, int n_profile = 33) const override;
 
   // --- Driving the Newton iteration from outside: the coupling layer's block-iterative loop (paper Sec. 2.3)
   // ---
-  /// Starts a time step: keeps the state at t_n; X (a vector like solution()) receives the predicted U_{n+1}.
-  void begin_step(Vec X);
-  /// Residual R_MC and approximate tangent K_MC of the iterate X (with the current immersed points and s^h).
-  void residual(Vec X, Vec F) { assemble(X, F, nullptr); }
-  void jacobian(Vec X, Mat J) { assemble(X, nullptr, J); }
-  /// One of two parts of K_MC that add up to jacobian(X, J) (for a solver that keeps one part for many steps,
-  /// see solvers/band_schur.hpp). `in_band[e]` (e: the patch's element index, Patch::element_multi_index) marks
-  /// the elements of the band part. band_side: the band's elements and every immersed point, Dirichlet rows
-  /// zeroed with a zero diagonal; otherwise the other elements, Dirichlet rows zeroed with a unit diagonal.
-  void jacobian_part(Vec X, Mat J, const std::vector<char>& in_band, bool band_side) {
-    assemble(X, nullptr, J, &in_band, band_side);
+  void begin_step(Vec X) override;
+  void residual(Vec X, Vec F) override { assemble(X, F, nullptr); }
+  void jacobian(Vec X, Mat J) override { assemble(X, nullptr, J); }
+  void jacobian_part(Vec X, Mat J, const std::vector<char>& in_region, bool region_side) override {
+    assemble(X, nullptr, J, &in_region, region_side);
   }
-  /// Adds to J the band part of K_MC (the elements `in_band` marks and every immersed point; see
-  /// jacobian_part), leaving J's Dirichlet rows unit rows: J_fixed copied into J plus this is jacobian(X, J)
-  /// with one assembly of the band's elements only.
-  void jacobian_add_part(Vec X, Mat J, const std::vector<char>& in_band) {
-    assemble(X, nullptr, J, &in_band, true, true);
+  void jacobian_add_part(Vec X, Mat J, const std::vector<char>& in_region) override {
+    assemble(X, nullptr, J, &in_region, true, true);
   }
-  /// K_MC of the iterate X without the cells: s^h = 1 everywhere, no immersed points and the uniform
-  /// options().viscosity (the bulk operator of solvers/region_corrected.hpp; where a viscosity field differs
-  /// from it, the Fourier solver's region takes those nodes in).
-  void bulk_jacobian(Vec X, Mat J);
-  /// v and grad v at t_{n+alpha_f} of the iterate X at points already located in the patch (element, xi)
-  /// (collective; every rank gets every value). vdot is the rate at t_{n+alpha_m}.
+  /// (Where a viscosity field differs from options().viscosity, the Fourier solver's region takes those
+  /// nodes in.)
+  void bulk_jacobian(Vec X, Mat J) override;
   std::vector<PointSample> sample_alpha(Vec X, const std::vector<geometry::Index3>& elements,
-                                        const std::vector<geometry::Param>& xi) const;
-  /// Immersed points already located (element, xi); each rank keeps those in its elements.
+                                        const std::vector<geometry::Param>& xi) const override;
   void set_immersed_points(const std::vector<geometry::Index3>& elements,
-                           const std::vector<geometry::Param>& xi, const std::vector<ImmersedPoint>& data);
-  /// Accepts X as U_{n+1}: updates the rate and the time.
-  void end_step(Vec X);
+                           const std::vector<geometry::Param>& xi,
+                           const std::vector<ImmersedPoint>& data) override;
+  void end_step(Vec X) override;
+  /// The unknowns of the control points on the region's elements, all dim + 1 of each.
+  std::vector<PetscInt> region_unknowns(const std::vector<char>& in_region) const override;
   /// Restores the state after `steps` steps (U and its rate, as solution() and solution_rate() held them; a
   /// restart from a checkpoint).
   void restore(Vec U, Vec Udot, int steps);
-  /// The Jacobian matrix and the linear solver of the fluid (KSP prefix fluid_).
-  Mat jacobian_matrix() const { return J_; }
-  /// Frees the Jacobian matrix (jacobian_matrix() is then null) for a coupled run whose operator needs no
-  /// whole matrix (coupling/coupled_linear_solver.hpp, -coupling_bulk_stencil); step() and setup() make it
-  /// again.
-  void release_jacobian_matrix();
+  /// The Jacobian matrix (KSP prefix fluid_; node blocks with -fluid_mat_type_jacobian baij).
+  Mat jacobian_matrix() const override { return J_; }
+  void release_jacobian_matrix() override;
   KSP ksp() const;
+
+  // --- Output and checkpoints (fluid_output.cpp, fluid_solver.cpp) ---
+  std::string write_fields(const std::string& dir, const std::string& stem, int samples_per_element,
+                           const std::function<Vec3(const Vec3&)>& undisturbed) const override;
+  std::string state_bytes() const override;
+  LoadedState load_state(PetscViewer viewer, int steps) override;
 
   /// Residual and Jacobian of the current state (for tests): F(U) with U the current unknown at t_{n+1}.
   void evaluate_residual(Vec U, Vec F);
   void evaluate_jacobian(Vec U, Mat J);
 
   DM dm() const { return da_; }
-  Vec solution() const { return U_; }  // U at the latest time level
+  Vec solution() const override { return U_; }  // U at the latest time level
   Vec solution_rate() const { return Udot_; }
   SNES snes() const { return snes_; }
-  const geometry::Patch& patch() const { return patch_; }
-  const FluidOptions& options() const { return opt_; }
-  int dim() const { return dim_; }
-  MPI_Comm comm() const { return comm_; }
+  const geometry::Patch& patch() const override { return patch_; }
+  const FluidOptions& options() const override { return opt_; }
+  int dim() const override { return dim_; }
+  MPI_Comm comm() const override { return comm_; }
+  /// Node blocks of dim + 1 (velocity, kinematic pressure) on the DMDA of the control net.
+  std::optional<BlockLayout> block_layout() const override;
+  std::vector<int> unknown_kinds() const override;
 
   /// The elements whose first support node this rank owns (each element belongs to exactly one rank; per
   /// direction a contiguous range, in lexicographic order, direction 0 fastest): their control points are in
@@ -232,7 +186,7 @@ class FluidSolver {
 
   // Either of F, J may be null. With an element mask, J receives the part of K_MC described in jacobian_part.
   // accumulate: J's entries are added to, not replaced (its Dirichlet rows end as unit rows).
-  void assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_band = nullptr, bool band_side = true,
+  void assemble(Vec U, Vec F, Mat J, const std::vector<char>* in_region = nullptr, bool region_side = true,
                 bool accumulate = false);
   void apply_dirichlet_values(Vec U, double t) const;
   /// Creates J_ (with the pressure's null space) and gives it to the SNES, if it does not exist.

@@ -16,6 +16,7 @@
 #include <numbers>
 
 #include "coupling/fsi_coupler.hpp"
+#include "fluid/fluid_solver.hpp"
 #include "geometry/builders.hpp"
 #include "solid/body_metrics.hpp"
 #include "solid/nurbs_solid.hpp"

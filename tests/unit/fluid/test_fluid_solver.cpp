@@ -1,8 +1,10 @@
 // FluidSolver against analytic flows: plane Couette and Poiseuille (exact in the discrete space), start-up
 // Poiseuille against its series solution; the assembled tangent against finite differences; immersed points;
-// the same problem on 1 and 2 ranks.
+// the same problem on 1 and 2 ranks; what it answers through fluid::ImmersedFluid (state, regions, layout).
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -12,6 +14,7 @@
 #include "common/petsc_error.hpp"
 #include "fluid/fluid_solver.hpp"
 #include "geometry/builders.hpp"
+#include "geometry/element_region.hpp"
 #include "geometry/quadrature.hpp"
 
 using namespace cellfsi;
@@ -574,4 +577,83 @@ TEST(FluidParallel, SameProblemOnOneAndTwoRanksAgrees) {
     }
     EXPECT_LT(diff, 1e-10 * scale);
   }
+}
+
+// What the VMS solver answers through fluid::ImmersedFluid beyond the steps, on 1 and (as
+// fluid_parallel_2ranks) 2 ranks: the state's bytes read back into another solver give the same state, and into
+// a solver of another mesh are refused; an element region's unknowns are its nodes' blocks in the DMDA's
+// numbering (checked through the natural ordering); each owned unknown's kind is its place in its node block.
+TEST(FluidParallel, StateBytesRegionUnknownsAndKindsOnAnyRanks) {
+  const geometry::Patch box = geometry::rectangle(0.0024, 0.0012, 8, 4, 2, {true, false});
+  const geometry::Patch other = geometry::rectangle(0.0024, 0.0012, 10, 4, 2, {true, false});
+  FluidOptions opt;
+  FluidSolver fs(PETSC_COMM_WORLD, box, opt);
+  fs.set_initial_velocity([](const Vec3& x) { return Vec3(70 * x[1], 10 * x[0] * x[1], 0); });
+  PetscMPIInt rank = 0;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  // The state, through a file as a checkpoint holds it (rank 0 writes the bytes).
+  char path[64];
+  int pid = static_cast<int>(getpid());
+  MPI_Bcast(&pid, 1, MPI_INT, 0, PETSC_COMM_WORLD);
+  std::snprintf(path, sizeof path, "/tmp/cellfsi_state_%d.petsc", pid);
+  const std::string bytes = fs.state_bytes();
+  if (rank == 0) {
+    EXPECT_FALSE(bytes.empty());
+    std::FILE* f = std::fopen(path, "wb");
+    ASSERT_NE(f, nullptr);
+    std::fwrite(bytes.data(), 1, bytes.size(), f);
+    std::fclose(f);
+  }
+  MPI_Barrier(PETSC_COMM_WORLD);
+  auto load = [&](fluid::ImmersedFluid& into) {
+    PetscViewer v = nullptr;
+    CELLFSI_PETSC(PetscViewerBinaryOpen(PETSC_COMM_WORLD, path, FILE_MODE_READ, &v));
+    const auto r = into.load_state(v, 3);
+    PetscViewerDestroy(&v);
+    return r;
+  };
+  FluidSolver same(PETSC_COMM_WORLD, box, opt), wrong(PETSC_COMM_WORLD, other, opt);
+  EXPECT_EQ(load(same), fluid::ImmersedFluid::LoadedState::ok);
+  EXPECT_EQ(load(wrong), fluid::ImmersedFluid::LoadedState::does_not_fit);
+  EXPECT_EQ(wrong.steps_taken(), 0);
+  MPI_Barrier(PETSC_COMM_WORLD);
+  if (rank == 0) std::remove(path);
+  EXPECT_EQ(same.steps_taken(), 3);
+  EXPECT_EQ(same.time(), 3 * opt.dt);
+  EXPECT_EQ(same.gather_to_zero(same.solution()), fs.gather_to_zero(fs.solution()));
+  EXPECT_EQ(same.gather_to_zero(same.solution_rate()), fs.gather_to_zero(fs.solution_rate()));
+  // A region: the elements around one function, grown by one. Its unknowns (every rank gets all of them) marked
+  // in a vector, seen in the natural ordering: exactly the blocks of the functions on the region's elements.
+  const std::vector<char> region =
+      geometry::grow_elements(box, geometry::elements_supporting(box, {box.control_index(3, 2)}), 1);
+  const std::vector<PetscInt> unknowns = fs.region_unknowns(region);
+  EXPECT_TRUE(std::is_sorted(unknowns.begin(), unknowns.end()));
+  Vec marks;
+  CELLFSI_PETSC(VecDuplicate(fs.solution(), &marks));
+  CELLFSI_PETSC(VecSet(marks, 0.0));
+  if (rank == 0)
+    for (PetscInt g : unknowns) CELLFSI_PETSC(VecSetValue(marks, g, 1.0, INSERT_VALUES));
+  CELLFSI_PETSC(VecAssemblyBegin(marks));
+  CELLFSI_PETSC(VecAssemblyEnd(marks));
+  const std::vector<double> natural = fs.gather_to_zero(marks);
+  CELLFSI_PETSC(VecDestroy(&marks));
+  if (rank == 0) {
+    std::vector<double> expected(natural.size(), 0.0);
+    for (int n : geometry::functions_on_elements(box, region))
+      for (int c = 0; c < 3; ++c) expected[3 * n + c] = 1.0;
+    EXPECT_EQ(natural, expected);
+    EXPECT_EQ(unknowns.size(), 3 * geometry::functions_on_elements(box, region).size());
+  }
+  const std::vector<int> kinds = fs.unknown_kinds();
+  PetscInt n_local = 0;
+  CELLFSI_PETSC(VecGetLocalSize(fs.solution(), &n_local));
+  ASSERT_EQ(static_cast<PetscInt>(kinds.size()), n_local);
+  for (PetscInt i = 0; i < n_local; ++i) EXPECT_EQ(kinds[i], i % 3);
+  const std::optional<fluid::BlockLayout> layout = fs.block_layout();
+  ASSERT_TRUE(layout.has_value());
+  EXPECT_EQ(layout->dof, 3);
+  EXPECT_EQ(layout->n[0], box.n_control(0));
+  EXPECT_EQ(layout->n[1], box.n_control(1));
+  EXPECT_TRUE(layout->periodic[0]);
+  EXPECT_FALSE(layout->periodic[1]);
 }

@@ -1,22 +1,22 @@
-#include "coupling/band_region.hpp"
+#include "geometry/element_region.hpp"
 
 #include <algorithm>
 #include <stdexcept>
 
-namespace cellfsi::coupling {
+namespace cellfsi::geometry {
 
 namespace {
 
 /// Per direction d: the folded indices of the p_d + 1 functions nonzero on element e_d.
-std::vector<int> element_functions(const geometry::Patch& patch, int d, int e) {
-  const geometry::KnotVector& kv = patch.knots(d);
+std::vector<int> element_functions(const Patch& patch, int d, int e) {
+  const KnotVector& kv = patch.knots(d);
   std::vector<int> f;
   const int first = kv.element_span(e) - kv.degree();
   for (int a = 0; a <= kv.degree(); ++a) f.push_back(kv.fold(first + a));
   return f;
 }
 
-void check_mask(const geometry::Patch& patch, const std::vector<char>& mask) {
+void check_mask(const Patch& patch, const std::vector<char>& mask) {
   if (static_cast<int>(mask.size()) != patch.n_elements())
     throw std::invalid_argument("element mask of " + std::to_string(mask.size()) + " entries for " +
                                 std::to_string(patch.n_elements()) + " elements");
@@ -24,7 +24,7 @@ void check_mask(const geometry::Patch& patch, const std::vector<char>& mask) {
 
 }  // namespace
 
-std::vector<char> elements_supporting(const geometry::Patch& patch, const std::vector<int>& functions) {
+std::vector<char> elements_supporting(const Patch& patch, const std::vector<int>& functions) {
   const int P = patch.param_dim();
   // Per direction: the elements on which each (folded) function is nonzero.
   std::vector<std::vector<int>> on[3];
@@ -40,7 +40,7 @@ std::vector<char> elements_supporting(const geometry::Patch& patch, const std::v
   std::vector<char> mask(patch.n_elements(), 0);
   const int n0 = patch.n_elements(0), n1 = patch.n_elements(1);
   for (int k : functions) {
-    const geometry::Index3 m = patch.control_multi_index(k);
+    const Index3 m = patch.control_multi_index(k);
     for (int e2 : on[2][m[2]])
       for (int e1 : on[1][m[1]])
         for (int e0 : on[0][m[0]]) mask[e0 + n0 * (e1 + n1 * e2)] = 1;
@@ -48,7 +48,7 @@ std::vector<char> elements_supporting(const geometry::Patch& patch, const std::v
   return mask;
 }
 
-std::vector<char> grow_elements(const geometry::Patch& patch, const std::vector<char>& mask, int margin) {
+std::vector<char> grow_elements(const Patch& patch, const std::vector<char>& mask, int margin) {
   check_mask(patch, mask);
   if (margin < 0) throw std::invalid_argument("grow_elements: negative margin");
   const int P = patch.param_dim();
@@ -60,7 +60,7 @@ std::vector<char> grow_elements(const geometry::Patch& patch, const std::vector<
     std::vector<char> next(out.size(), 0);
     for (int e = 0; e < static_cast<int>(out.size()); ++e) {
       if (!out[e]) continue;
-      geometry::Index3 m = patch.element_multi_index(e);
+      Index3 m = patch.element_multi_index(e);
       const int c = m[d];
       for (int s = -margin; s <= margin; ++s) {
         int k = c + s;
@@ -77,13 +77,13 @@ std::vector<char> grow_elements(const geometry::Patch& patch, const std::vector<
   return out;
 }
 
-std::vector<int> functions_on_elements(const geometry::Patch& patch, const std::vector<char>& mask) {
+std::vector<int> functions_on_elements(const Patch& patch, const std::vector<char>& mask) {
   check_mask(patch, mask);
   const int P = patch.param_dim();
   std::vector<int> out;
   for (int e = 0; e < static_cast<int>(mask.size()); ++e) {
     if (!mask[e]) continue;
-    const geometry::Index3 m = patch.element_multi_index(e);
+    const Index3 m = patch.element_multi_index(e);
     std::vector<int> f[3] = {{0}, {0}, {0}};
     for (int d = 0; d < P; ++d) f[d] = element_functions(patch, d, m[d]);
     for (int c : f[2])
@@ -102,4 +102,4 @@ bool contains(const std::vector<char>& outer, const std::vector<char>& inner) {
   return true;
 }
 
-}  // namespace cellfsi::coupling
+}  // namespace cellfsi::geometry
