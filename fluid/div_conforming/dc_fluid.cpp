@@ -1,0 +1,539 @@
+#include "fluid/div_conforming/dc_fluid.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "common/petsc_error.hpp"
+#include "fluid/div_conforming/dc_kernel.hpp"
+
+namespace cellfsi::fluid::dc {
+
+namespace {
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument("DcFluidOptions: " + what);
+}
+
+double get_real(const char* name, double value) {
+  PetscReal v = value;
+  PetscBool set = PETSC_FALSE;
+  CELLFSI_PETSC(PetscOptionsGetReal(nullptr, nullptr, name, &v, &set));
+  return set ? v : value;
+}
+
+/// Adds the point's contribution to the element residual Fe and (if Ke) tangent, from the kernels' outputs.
+/// Local numbering: the functions of component 0, then 1, ..., then pressure (eb.comp[c].n each).
+void add_point(const ElementBasis& eb, int q, int dim, double w, const PointResidual& r, const PointTangent* t,
+               double dv_dU, double da_dU, std::vector<double>& Fe, std::vector<double>* Ke, int n_loc) {
+  int off[5] = {0, 0, 0, 0, 0};
+  for (int c = 0; c <= dim; ++c) off[c + 1] = off[c] + eb.comp[c].n;
+  auto val = [&](int c, int a) { return eb.comp[c].value[static_cast<size_t>(q) * eb.comp[c].n + a]; };
+  auto grd = [&](int c, int a, int j) {
+    return eb.comp[c].grad[(static_cast<size_t>(q) * eb.comp[c].n + a) * 3 + j];
+  };
+  for (int i = 0; i < dim; ++i)
+    for (int a = 0; a < eb.comp[i].n; ++a) {
+      double s = val(i, a) * r.r0[i];
+      for (int j = 0; j < dim; ++j) s += grd(i, a, j) * r.r1[i][j];
+      Fe[off[i] + a] += w * s;
+    }
+  for (int a = 0; a < eb.comp[dim].n; ++a) Fe[off[dim] + a] += w * val(dim, a) * r.rq;
+  if (!t) return;
+  std::vector<double>& K = *Ke;
+  // Velocity columns: for trial function b of component k, its effect on r0_i (s[i]) and r1_ij (tt[i][j]).
+  for (int k = 0; k < dim; ++k)
+    for (int b = 0; b < eb.comp[k].n; ++b) {
+      const double Nb = val(k, b);
+      double dNb[3] = {0, 0, 0};
+      for (int l = 0; l < dim; ++l) dNb[l] = grd(k, b, l);
+      double s[3] = {0, 0, 0}, tt[3][3] = {};
+      for (int i = 0; i < dim; ++i) {
+        double sv = t->dr0_dv[i][k] * Nb;
+        for (int l = 0; l < dim; ++l) sv += t->dr0_ddv[i][k][l] * dNb[l];
+        s[i] = dv_dU * sv + da_dU * t->dr0_da[i][k] * Nb;
+        for (int j = 0; j < dim; ++j) {
+          double tv = t->dr1_dv[i][j][k] * Nb;
+          for (int l = 0; l < dim; ++l) tv += t->dr1_ddv[i][j][k][l] * dNb[l];
+          tt[i][j] = dv_dU * tv;
+        }
+      }
+      double sq = 0;
+      for (int l = 0; l < dim; ++l) sq += t->drq_ddv[k][l] * dNb[l];
+      sq *= dv_dU;
+      const int col = off[k] + b;
+      for (int i = 0; i < dim; ++i)
+        for (int a = 0; a < eb.comp[i].n; ++a) {
+          double kab = val(i, a) * s[i];
+          for (int j = 0; j < dim; ++j) kab += grd(i, a, j) * tt[i][j];
+          K[static_cast<size_t>(off[i] + a) * n_loc + col] += w * kab;
+        }
+      for (int a = 0; a < eb.comp[dim].n; ++a)
+        K[static_cast<size_t>(off[dim] + a) * n_loc + col] += w * val(dim, a) * sq;
+    }
+  // Pressure columns (momentum rows only: the pressure block is zero).
+  for (int b = 0; b < eb.comp[dim].n; ++b) {
+    const double Nb = val(dim, b);
+    const int col = off[dim] + b;
+    for (int i = 0; i < dim; ++i)
+      for (int a = 0; a < eb.comp[i].n; ++a) {
+        double kab = 0;
+        for (int j = 0; j < dim; ++j) kab += grd(i, a, j) * t->dr1_dp[i][j];
+        K[static_cast<size_t>(off[i] + a) * n_loc + col] += w * kab * Nb;
+      }
+  }
+}
+
+/// Global indices of an element's local unknowns (add_point's local numbering).
+std::vector<PetscInt> local_indices(const ElementBasis& eb, int dim) {
+  std::vector<PetscInt> idx;
+  for (int c = 0; c <= dim; ++c) idx.insert(idx.end(), eb.comp[c].index.begin(), eb.comp[c].index.end());
+  return idx;
+}
+
+}  // namespace
+
+void DcFluidOptions::set_from_options() {
+  density = get_real("-fluid_density", density);
+  viscosity = get_real("-fluid_viscosity", viscosity);
+  rho_inf = get_real("-fluid_rho_inf", rho_inf);
+  dt = get_real("-fluid_dt", dt);
+  penalty = get_real("-fluid_dc_penalty", penalty);
+  PetscBool flag = stokes ? PETSC_TRUE : PETSC_FALSE, set = PETSC_FALSE;
+  CELLFSI_PETSC(PetscOptionsGetBool(nullptr, nullptr, "-fluid_stokes", &flag, &set));
+  stokes = flag == PETSC_TRUE;
+  validate();
+}
+
+void DcFluidOptions::validate() const {
+  require(density > 0, "density must be > 0 g/cm^3, got " + std::to_string(density));
+  require(viscosity > 0, "viscosity must be > 0 g/(cm s), got " + std::to_string(viscosity));
+  require(rho_inf >= 0 && rho_inf <= 1, "rho_inf must be in [0, 1], got " + std::to_string(rho_inf));
+  require(dt > 0, "dt must be > 0 s, got " + std::to_string(dt));
+  require(penalty > 2.0, "the Nitsche constant -fluid_dc_penalty must be > 2 (coercivity, dc_fluid.hpp), got " +
+                             std::to_string(penalty));
+  require(newton_max_it >= 1, "newton_max_it must be >= 1");
+  for (int d = 0; d < 3; ++d)
+    for (int s = 0; s < 2; ++s)
+      require(wall_velocity[d][s][d] == 0.0, "the wall velocity of direction " + std::to_string(d) +
+                                                 " must be tangential (its component " + std::to_string(d) +
+                                                 " is " + std::to_string(wall_velocity[d][s][d]) + ")");
+}
+
+DivConformingFluid::DivConformingFluid(const DivConformingSpace& space, const DcFluidOptions& options)
+    : space_(space), opt_(options) {
+  opt_.validate();
+  alpha_ = GeneralizedAlpha::from_rho_inf(opt_.rho_inf, opt_.dt);
+  const int n = space_.n_dofs(), D = space_.dim();
+  U_.assign(n, 0.0);
+  Udot_.assign(n, 0.0);
+  fixed_rows_ = space_.wall_normal_dofs();
+  fixed_rows_.push_back(space_.offset(D));  // the pressure pin
+  std::sort(fixed_rows_.begin(), fixed_rows_.end());
+
+  pressure_mass_.assign(space_.n_pressure(), 0.0);
+  ElementBasis eb;
+  for (int e = 0; e < space_.n_elements(); ++e) {
+    const Index3 ei = space_.element_multi_index(e);
+    space_.evaluate(ei, space_.element_rule(ei, n_gauss()), eb);
+    const ComponentBasis& cb = eb.comp[D];
+    for (int q = 0; q < eb.n_points; ++q)
+      for (int a = 0; a < cb.n; ++a)
+        pressure_mass_[cb.index[a] - space_.offset(D)] += eb.weight[q] * cb.value[q * cb.n + a];
+  }
+
+  create_matrix();
+  CELLFSI_PETSC(KSPCreate(PETSC_COMM_SELF, &ksp_));
+  CELLFSI_PETSC(KSPSetOptionsPrefix(ksp_, "fluid_"));
+  CELLFSI_PETSC(KSPSetType(ksp_, KSPPREONLY));
+  PC pc;
+  CELLFSI_PETSC(KSPGetPC(ksp_, &pc));
+  CELLFSI_PETSC(PCSetType(pc, PCLU));
+  CELLFSI_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+  CELLFSI_PETSC(KSPSetFromOptions(ksp_));  // last: the command line wins
+}
+
+DivConformingFluid::~DivConformingFluid() {
+  KSPDestroy(&ksp_);
+  MatDestroy(&J_);
+}
+
+void DivConformingFluid::create_matrix() {
+  const int n = space_.n_dofs(), D = space_.dim();
+  std::vector<std::vector<PetscInt>> rows(n);
+  ElementBasis eb;
+  for (int e = 0; e < space_.n_elements(); ++e) {
+    const Index3 ei = space_.element_multi_index(e);
+    space_.evaluate(ei, space_.element_rule(ei, 1), eb);  // indices only
+    const std::vector<PetscInt> idx = local_indices(eb, D);
+    const size_t n_vel = idx.size() - eb.comp[D].n;
+    for (size_t a = 0; a < idx.size(); ++a) {
+      auto& r = rows[idx[a]];
+      if (a < n_vel) {
+        r.insert(r.end(), idx.begin(), idx.end());
+      } else {  // pressure rows: the velocity columns and the diagonal (for the pin's unit row)
+        r.insert(r.end(), idx.begin(), idx.begin() + n_vel);
+        r.push_back(idx[a]);
+      }
+    }
+  }
+  std::vector<PetscInt> nnz(n);
+  for (int i = 0; i < n; ++i) {
+    std::sort(rows[i].begin(), rows[i].end());
+    rows[i].erase(std::unique(rows[i].begin(), rows[i].end()), rows[i].end());
+    nnz[i] = static_cast<PetscInt>(rows[i].size());
+  }
+  CELLFSI_PETSC(MatCreateSeqAIJ(PETSC_COMM_SELF, n, n, 0, nnz.data(), &J_));
+  CELLFSI_PETSC(MatSetOption(J_, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
+  // Insert the pattern once (zeros), so that later assemblies never allocate.
+  for (int i = 0; i < n; ++i) {
+    std::vector<PetscScalar> zeros(rows[i].size(), 0.0);
+    const PetscInt row = i;
+    CELLFSI_PETSC(MatSetValues(J_, 1, &row, nnz[i], rows[i].data(), zeros.data(), INSERT_VALUES));
+  }
+  CELLFSI_PETSC(MatAssemblyBegin(J_, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(J_, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatSetOption(J_, MAT_NEW_NONZERO_LOCATION_ERR, PETSC_TRUE));
+  // The element matrices carry the zero pressure-pressure block; added zeros are skipped, not inserted.
+  CELLFSI_PETSC(MatSetOption(J_, MAT_IGNORE_ZERO_ENTRIES, PETSC_TRUE));
+}
+
+Vec3 DivConformingFluid::wall_velocity(int d, int side, const Vec3& x, double t) const {
+  Vec3 v = opt_.wall_velocity_field ? opt_.wall_velocity_field(x, t) : opt_.wall_velocity[d][side];
+  v[d] = 0.0;  // only the tangential part is imposed (weakly); the normal one is the strong 0
+  return v;
+}
+
+void DivConformingFluid::assemble(const Levels& lv, std::vector<double>& F, Mat J) const {
+  const int D = space_.dim(), n = space_.n_dofs();
+  F.assign(n, 0.0);
+  if (J) CELLFSI_PETSC(MatZeroEntries(J));
+  ElementBasis eb;
+  std::vector<double> Fe, Ke;
+
+  auto point_state = [&](int q) {
+    PointState s;
+    const auto pv = DivConformingSpace::interpolate(eb, q, D, lv.v.data());
+    const auto pa = DivConformingSpace::interpolate(eb, q, D, lv.a.data());
+    for (int i = 0; i < D; ++i) {
+      s.v[i] = pv.v[i];
+      s.a[i] = pa.v[i];
+      for (int j = 0; j < D; ++j) s.dv[i][j] = pv.grad[i][j];
+    }
+    s.p = pv.p;  // lv.v carries U's pressure
+    return s;
+  };
+  // Integrates a kernel (residual at point q; tangent into t if t is not null) over the points of eb and adds
+  // the element's residual and tangent to F and J.
+  auto integrate = [&](const std::function<PointResidual(int, const PointState&, PointTangent*)>& kernel) {
+    int n_loc = 0;
+    for (int c = 0; c <= D; ++c) n_loc += eb.comp[c].n;
+    Fe.assign(n_loc, 0.0);
+    if (J) Ke.assign(static_cast<size_t>(n_loc) * n_loc, 0.0);
+    for (int q = 0; q < eb.n_points; ++q) {
+      PointTangent t;
+      const PointResidual r = kernel(q, point_state(q), J ? &t : nullptr);
+      add_point(eb, q, D, eb.weight[q], r, J ? &t : nullptr, lv.dv_dU, lv.da_dU, Fe, J ? &Ke : nullptr, n_loc);
+    }
+    const std::vector<PetscInt> idx = local_indices(eb, D);
+    for (int a = 0; a < n_loc; ++a) F[idx[a]] += Fe[a];
+    if (J) CELLFSI_PETSC(MatSetValues(J, n_loc, idx.data(), n_loc, idx.data(), Ke.data(), ADD_VALUES));
+  };
+
+  InteriorParameters ip;
+  ip.dim = D;
+  ip.nu = lv.nu;
+  ip.convection = lv.convection;
+  for (int e = 0; e < space_.n_elements(); ++e) {
+    const Index3 ei = space_.element_multi_index(e);
+    space_.evaluate(ei, space_.element_rule(ei, n_gauss()), eb);
+    integrate([&](int q, const PointState& s, PointTangent* t) {
+      const Vec3 g = lv.g ? lv.g(eb.x[q]) : Vec3(Vec3::Zero());
+      for (int i = 0; i < 3; ++i) ip.g[i] = g[i];
+      if (t) *t = dc_interior_tangent(s, ip);
+      return dc_interior_residual(s, ip);
+    });
+  }
+
+  if (lv.nitsche) {
+    NitscheParameters np;
+    np.dim = D;
+    np.nu = lv.nu;
+    for (int d = 0; d < D; ++d) {
+      if (space_.periodic(d)) continue;
+      np.beta = opt_.penalty * lv.nu * (space_.degree() + 1) * (space_.degree() + 1) / space_.element_size(d);
+      for (int side = 0; side < 2; ++side) {
+        np.n = {0, 0, 0};
+        np.n[d] = side == 0 ? -1.0 : 1.0;
+        const PointTangent tangent = dc_nitsche_tangent(np);
+        for (int e = 0; e < space_.n_elements(); ++e) {
+          const Index3 ei = space_.element_multi_index(e);
+          if (ei[d] != (side == 0 ? 0 : space_.n_elements(d) - 1)) continue;
+          space_.evaluate(ei, space_.face_rule(ei, d, side, n_gauss()), eb);
+          integrate([&](int q, const PointState& s, PointTangent* t) {
+            const Vec3 vw = wall_velocity(d, side, eb.x[q], lv.t);
+            for (int i = 0; i < 3; ++i) np.v_wall[i] = vw[i];
+            if (t) *t = tangent;
+            return dc_nitsche_residual(s, np);
+          });
+        }
+      }
+    }
+  }
+  if (J) {
+    CELLFSI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+    CELLFSI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+  }
+}
+
+DcSolveStats DivConformingFluid::newton(std::vector<double>& U,
+                                        const std::function<Levels(const std::vector<double>&)>& levels) {
+  const int n = space_.n_dofs();
+  DcSolveStats st;
+  std::vector<double> F;
+  Vec b, x;
+  CELLFSI_PETSC(VecCreateSeq(PETSC_COMM_SELF, n, &b));
+  CELLFSI_PETSC(VecDuplicate(b, &x));
+  const std::vector<PetscInt> fixed(fixed_rows_.begin(), fixed_rows_.end());
+  double f0 = -1;
+  for (int it = 0; it <= opt_.newton_max_it; ++it) {
+    const Levels lv = levels(U);
+    const bool last = it == opt_.newton_max_it;
+    assemble(lv, F, last ? nullptr : J_);
+    for (int r : fixed_rows_) F[r] = 0.0;
+    double fn = 0;
+    for (double f : F) fn += f * f;
+    fn = std::sqrt(fn);
+    st.residual_norm = fn;
+    if (f0 < 0) f0 = fn;
+    if (fn == 0.0 || (it > 0 && fn <= opt_.newton_rtol * f0)) {
+      st.converged = true;
+      break;
+    }
+    if (last) break;
+    CELLFSI_PETSC(MatZeroRows(J_, static_cast<PetscInt>(fixed.size()), fixed.data(), 1.0, nullptr, nullptr));
+    PetscScalar* bp;
+    CELLFSI_PETSC(VecGetArray(b, &bp));
+    for (int i = 0; i < n; ++i) bp[i] = -F[i];
+    CELLFSI_PETSC(VecRestoreArray(b, &bp));
+    CELLFSI_PETSC(KSPSetOperators(ksp_, J_, J_));
+    CELLFSI_PETSC(KSPSolve(ksp_, b, x));
+    KSPConvergedReason reason;
+    CELLFSI_PETSC(KSPGetConvergedReason(ksp_, &reason));
+    if (reason < 0) break;
+    const PetscScalar* xp;
+    CELLFSI_PETSC(VecGetArrayRead(x, &xp));
+    double dmax = 0, umax = 0;
+    for (int i = 0; i < n; ++i) {
+      U[i] += xp[i];
+      dmax = std::max(dmax, std::abs(xp[i]));
+      umax = std::max(umax, std::abs(U[i]));
+    }
+    CELLFSI_PETSC(VecRestoreArrayRead(x, &xp));
+    st.newton_iterations = it + 1;
+    if (dmax <= opt_.newton_stol * umax) {  // the update is round-off: U is the solution
+      st.converged = true;
+      break;
+    }
+  }
+  VecDestroy(&b);
+  VecDestroy(&x);
+  return st;
+}
+
+void DivConformingFluid::shift_pressure_to_zero_mean(std::vector<double>& U) const {
+  const int off = space_.offset(space_.dim());
+  double area = 0, integral = 0;
+  for (size_t a = 0; a < pressure_mass_.size(); ++a) {
+    area += pressure_mass_[a];
+    integral += pressure_mass_[a] * U[off + a];
+  }
+  const double mean = integral / area;  // partition of unity: sum_A q_A = 1
+  for (size_t a = 0; a < pressure_mass_.size(); ++a) U[off + a] -= mean;
+}
+
+void DivConformingFluid::set_state(const std::vector<double>& u) {
+  if (static_cast<int>(u.size()) != space_.n_dofs())
+    throw std::invalid_argument("DivConformingFluid::set_state: u must have n_dofs() = " +
+                                std::to_string(space_.n_dofs()) + " entries, got " + std::to_string(u.size()));
+  U_ = u;
+  std::fill(Udot_.begin(), Udot_.end(), 0.0);
+}
+
+void DivConformingFluid::project_initial_state(const std::function<Vec3(const Vec3&)>& v0,
+                                               const std::function<Vec3(const Vec3&)>& vdot0) {
+  const int D = space_.dim();
+  auto project = [&](const std::function<Vec3(const Vec3&)>& f) {
+    std::vector<double> X(space_.n_dofs(), 0.0);
+    // (v, w) - (p, div w) - (f, w) + (q, div v): the interior kernel with a = v, nu = 0, no convection, g = f.
+    auto levels = [&](const std::vector<double>& U) {
+      Levels lv;
+      lv.v = U;
+      lv.a = U;
+      lv.dv_dU = 1;  // with nu = 0 and no convection v enters only through div v; a carries the mass term
+      lv.da_dU = 1;
+      lv.nu = 0;
+      lv.convection = 0;
+      lv.nitsche = false;
+      lv.g = f;
+      return lv;
+    };
+    const DcSolveStats st = newton(X, levels);
+    if (!st.converged)
+      throw std::runtime_error("DivConformingFluid::project_initial_state: the projection's solve failed");
+    for (int i = space_.offset(D); i < space_.n_dofs(); ++i) X[i] = 0.0;
+    return X;
+  };
+  U_ = project(v0);
+  Udot_ = project(vdot0);
+  time_ = 0;
+  steps_ = 0;
+  div_history_.clear();
+}
+
+DcSolveStats DivConformingFluid::solve_steady() {
+  const double nu = opt_.viscosity / opt_.density;
+  auto levels = [&](const std::vector<double>& U) {
+    Levels lv;
+    lv.v = U;
+    lv.a.assign(U.size(), 0.0);
+    lv.dv_dU = 1;
+    lv.da_dU = 0;
+    lv.nu = nu;
+    lv.convection = opt_.stokes ? 0.0 : 1.0;
+    lv.t = time_;
+    lv.g = [this](const Vec3& x) {
+      Vec3 f = opt_.body_force;
+      if (opt_.body_force_field) f += opt_.body_force_field(x, time_);
+      return Vec3(f / opt_.density);
+    };
+    return lv;
+  };
+  const DcSolveStats st = newton(U_, levels);
+  shift_pressure_to_zero_mean(U_);
+  return st;
+}
+
+DcSolveStats DivConformingFluid::step() {
+  const double nu = opt_.viscosity / opt_.density;
+  const int n = space_.n_dofs(), nv = space_.n_velocity();
+  const std::vector<double> Un = U_, Udotn = Udot_;
+  const double t_af = time_ + alpha_.alpha_f * opt_.dt;
+  auto levels = [&](const std::vector<double>& U) {
+    Levels lv;
+    lv.v.resize(n);
+    lv.a.assign(n, 0.0);
+    for (int i = 0; i < nv; ++i) {
+      lv.v[i] = alpha_.value_alpha_f(U[i], Un[i]);
+      lv.a[i] = alpha_.rate_alpha_m(U[i], Un[i], Udotn[i]);
+    }
+    for (int i = nv; i < n; ++i) lv.v[i] = U[i];  // pressure at t_{n+1}
+    lv.dv_dU = alpha_.alpha_f;
+    lv.da_dU = alpha_.rate_alpha_m_scale();
+    lv.nu = nu;
+    lv.convection = opt_.stokes ? 0.0 : 1.0;
+    lv.t = t_af;
+    lv.g = [this, t_af](const Vec3& x) {
+      Vec3 f = opt_.body_force;
+      if (opt_.body_force_field) f += opt_.body_force_field(x, t_af);
+      return Vec3(f / opt_.density);
+    };
+    return lv;
+  };
+  std::vector<double> X = U_;  // predictor: the same state
+  const DcSolveStats st = newton(X, levels);
+  if (!st.converged) return st;
+  for (int i = 0; i < nv; ++i) Udot_[i] = alpha_.rate(X[i], Un[i], Udotn[i]);
+  U_ = X;
+  shift_pressure_to_zero_mean(U_);
+  ++steps_;
+  time_ = steps_ * opt_.dt;
+  div_history_.push_back(divergence_ratio());
+  return st;
+}
+
+DivConformingFluid::Errors DivConformingFluid::errors(const std::function<Vec3(const Vec3&)>& v,
+                                                      const std::function<geometry::Mat3(const Vec3&)>& grad_v,
+                                                      const std::function<double(const Vec3&)>& p) const {
+  const int D = space_.dim();
+  const int ng = space_.degree() + 4;
+  ElementBasis eb;
+  // Means of the two pressures first.
+  double vol = 0, mean_h = 0, mean_ex = 0;
+  for (int e = 0; e < space_.n_elements(); ++e) {
+    const Index3 ei = space_.element_multi_index(e);
+    space_.evaluate(ei, space_.element_rule(ei, ng), eb);
+    for (int q = 0; q < eb.n_points; ++q) {
+      const auto pv = DivConformingSpace::interpolate(eb, q, D, U_.data());
+      vol += eb.weight[q];
+      mean_h += eb.weight[q] * pv.p;
+      mean_ex += eb.weight[q] * p(eb.x[q]);
+    }
+  }
+  mean_h /= vol;
+  mean_ex /= vol;
+  Errors er;
+  for (int e = 0; e < space_.n_elements(); ++e) {
+    const Index3 ei = space_.element_multi_index(e);
+    space_.evaluate(ei, space_.element_rule(ei, ng), eb);
+    for (int q = 0; q < eb.n_points; ++q) {
+      const auto pv = DivConformingSpace::interpolate(eb, q, D, U_.data());
+      const Vec3 ve = v(eb.x[q]);
+      const geometry::Mat3 ge = grad_v(eb.x[q]);
+      const double pe = p(eb.x[q]) - mean_ex, w = eb.weight[q];
+      for (int i = 0; i < D; ++i) {
+        er.v_l2 += w * std::pow(pv.v[i] - ve[i], 2);
+        er.v_l2_norm += w * ve[i] * ve[i];
+        for (int j = 0; j < D; ++j) {
+          er.v_h1 += w * std::pow(pv.grad[i][j] - ge(i, j), 2);
+          er.v_h1_norm += w * ge(i, j) * ge(i, j);
+        }
+      }
+      er.p_l2 += w * std::pow(pv.p - mean_h - pe, 2);
+      er.p_l2_norm += w * pe * pe;
+    }
+  }
+  for (double* x : {&er.v_l2, &er.v_h1, &er.p_l2, &er.v_l2_norm, &er.v_h1_norm, &er.p_l2_norm}) *x = std::sqrt(*x);
+  return er;
+}
+
+double DivConformingFluid::divergence_ratio() const {
+  const int D = space_.dim();
+  ElementBasis eb;
+  double max_div = 0, max_grad = 0;
+  for (int e = 0; e < space_.n_elements(); ++e) {
+    const Index3 ei = space_.element_multi_index(e);
+    space_.evaluate(ei, space_.element_rule(ei, n_gauss()), eb);
+    for (int q = 0; q < eb.n_points; ++q) {
+      const auto pv = DivConformingSpace::interpolate(eb, q, D, U_.data());
+      double div = 0, g2 = 0;
+      for (int i = 0; i < D; ++i) {
+        div += pv.grad[i][i];
+        for (int j = 0; j < D; ++j) g2 += pv.grad[i][j] * pv.grad[i][j];
+      }
+      max_div = std::max(max_div, std::abs(div));
+      max_grad = std::max(max_grad, std::sqrt(g2));
+    }
+  }
+  return max_grad > 0 ? max_div / max_grad : 0.0;
+}
+
+double DivConformingFluid::max_velocity() const {
+  const int D = space_.dim();
+  ElementBasis eb;
+  double vmax = 0;
+  for (int e = 0; e < space_.n_elements(); ++e) {
+    const Index3 ei = space_.element_multi_index(e);
+    space_.evaluate(ei, space_.element_rule(ei, n_gauss()), eb);
+    for (int q = 0; q < eb.n_points; ++q) {
+      const auto pv = DivConformingSpace::interpolate(eb, q, D, U_.data());
+      double v2 = 0;
+      for (int i = 0; i < D; ++i) v2 += pv.v[i] * pv.v[i];
+      vmax = std::max(vmax, std::sqrt(v2));
+    }
+  }
+  return vmax;
+}
+
+}  // namespace cellfsi::fluid::dc
