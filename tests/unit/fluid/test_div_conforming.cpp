@@ -17,6 +17,8 @@
 #include <numbers>
 #include <random>
 
+#include <petscsys.h>
+
 #include "fluid/div_conforming/dc_fluid.hpp"
 #include "fluid/div_conforming/dc_kernel.hpp"
 #include "fluid/div_conforming/dc_space.hpp"
@@ -201,6 +203,23 @@ TEST(DivConformingSpace, RejectsBadInputWithAMessage) {
   EXPECT_DOUBLE_EQ(sp.hi(0), 2.0);
   // v_x: 6 periodic x 6 open degree-3 functions; v_y: 6 x 7 (degree 4 in y); pressure: 6 x 6.
   EXPECT_EQ(sp.n_dofs(), 6 * 6 + 6 * 7 + 6 * 6);
+  // Curved geometry needs the Piola map: refused.
+  EXPECT_THROW(DivConformingSpace::from_patch(geometry::narrowing_channel({}, 12, 4, 2), 2), std::invalid_argument);
+}
+
+TEST(DivConformingFluid, OptionsAreReadAndChecked) {
+  DcFluidOptions opt;
+  PetscOptionsSetValue(nullptr, "-fluid_viscosity", "0.02");
+  PetscOptionsSetValue(nullptr, "-fluid_stokes", "true");
+  opt.set_from_options();
+  EXPECT_DOUBLE_EQ(opt.viscosity, 0.02);
+  EXPECT_TRUE(opt.stokes);
+  PetscOptionsSetValue(nullptr, "-fluid_dc_penalty", "1.5");  // below the coercivity bound 2
+  EXPECT_THROW(opt.set_from_options(), std::invalid_argument);
+  for (const char* k : {"-fluid_viscosity", "-fluid_stokes", "-fluid_dc_penalty"}) PetscOptionsClearValue(nullptr, k);
+  DcFluidOptions moving_normal;
+  moving_normal.wall_velocity[1][0] = Vec3(0, 0.1, 0);  // a wall y = const moving along y
+  EXPECT_THROW(moving_normal.validate(), std::invalid_argument);
 }
 
 // --- The kernels ----------------------------------------------------------------------------------------------
