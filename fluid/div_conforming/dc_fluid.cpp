@@ -121,30 +121,60 @@ void DcFluidOptions::validate() const {
                                                  " is " + std::to_string(wall_velocity[d][s][d]) + ")");
 }
 
-DivConformingFluid::DivConformingFluid(const DivConformingSpace& space, const DcFluidOptions& options)
-    : space_(space), opt_(options) {
+DivConformingFluid::DivConformingFluid(MPI_Comm comm, const DivConformingSpace& space,
+                                       const DcFluidOptions& options)
+    : comm_(comm), space_(space), opt_(options) {
   opt_.validate();
   alpha_ = GeneralizedAlpha::from_rho_inf(opt_.rho_inf, opt_.dt);
-  const int n = space_.n_dofs(), D = space_.dim();
+  const int n = space_.n_dofs(), D = space_.dim(), n_el = space_.n_elements();
   U_.assign(n, 0.0);
   Udot_.assign(n, 0.0);
   fixed_rows_ = space_.wall_normal_dofs();
   fixed_rows_.push_back(space_.offset(D));  // the pressure pin
   std::sort(fixed_rows_.begin(), fixed_rows_.end());
 
-  pressure_mass_.assign(space_.n_pressure(), 0.0);
+  // Elements: contiguous ranges of the linear index. Unknowns: to the lowest rank whose elements touch them,
+  // numbered rank by rank (natural order within a rank).
+  int rank = 0, size = 1;
+  CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
+  CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
+  auto first_element = [&](int r) { return static_cast<int>(static_cast<long>(n_el) * r / size); };
+  elem_begin_ = first_element(rank);
+  elem_end_ = first_element(rank + 1);
+  std::vector<int> owner(n, size);
   ElementBasis eb;
-  for (int e = 0; e < space_.n_elements(); ++e) {
-    const Index3 ei = space_.element_multi_index(e);
-    space_.evaluate(ei, space_.element_rule(ei, n_gauss()), eb);
-    const ComponentBasis& cb = eb.comp[D];
-    for (int q = 0; q < eb.n_points; ++q)
-      for (int a = 0; a < cb.n; ++a)
-        pressure_mass_[cb.index[a] - space_.offset(D)] += eb.weight[q] * cb.value[q * cb.n + a];
+  for (int r = 0; r < size; ++r)
+    for (int e = first_element(r); e < first_element(r + 1); ++e) {
+      const Index3 ei = space_.element_multi_index(e);
+      space_.evaluate(ei, space_.element_rule(ei, 1), eb);  // indices only
+      for (PetscInt g : local_indices(eb, D)) owner[g] = std::min(owner[g], r);
+    }
+  petsc_index_.assign(n, -1);
+  PetscInt next = 0;
+  for (int r = 0; r < size; ++r) {
+    if (r == rank) row_begin_ = next;
+    for (int g = 0; g < n; ++g)
+      if (owner[g] == r) petsc_index_[g] = next++;
+    if (r == rank) row_end_ = next;
   }
+  for (int g : fixed_rows_)
+    if (owner[g] == rank) owned_fixed_.push_back(petsc_index_[g]);
 
+  pressure_mass_.assign(space_.n_pressure(), 0.0);
+  for_owned_elements(n_gauss(), [&](const ElementBasis& b) {
+    const ComponentBasis& cb = b.comp[D];
+    for (int q = 0; q < b.n_points; ++q)
+      for (int a = 0; a < cb.n; ++a)
+        pressure_mass_[cb.index[a] - space_.offset(D)] += b.weight[q] * cb.value[q * cb.n + a];
+  });
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, pressure_mass_.data(), static_cast<int>(pressure_mass_.size()),
+                              MPI_DOUBLE, MPI_SUM, comm_));
+
+  CELLFSI_PETSC(VecCreateMPI(comm_, row_end_ - row_begin_, n, &F_));
+  CELLFSI_PETSC(VecDuplicate(F_, &x_));
+  CELLFSI_PETSC(VecScatterCreateToAll(x_, &to_all_, &x_all_));
   create_matrix();
-  CELLFSI_PETSC(KSPCreate(PETSC_COMM_SELF, &ksp_));
+  CELLFSI_PETSC(KSPCreate(comm_, &ksp_));
   CELLFSI_PETSC(KSPSetOptionsPrefix(ksp_, "fluid_"));
   CELLFSI_PETSC(KSPSetType(ksp_, KSPPREONLY));
   PC pc;
@@ -173,18 +203,35 @@ DivConformingFluid::DivConformingFluid(const DivConformingSpace& space, const Dc
 DivConformingFluid::~DivConformingFluid() {
   KSPDestroy(&ksp_);
   MatDestroy(&J_);
+  VecScatterDestroy(&to_all_);
+  VecDestroy(&x_all_);
+  VecDestroy(&x_);
+  VecDestroy(&F_);
+}
+
+template <class F>
+void DivConformingFluid::for_owned_elements(int n_gauss, F&& f) const {
+  ElementBasis eb;
+  for (int e = elem_begin_; e < elem_end_; ++e) {
+    const Index3 ei = space_.element_multi_index(e);
+    space_.evaluate(ei, space_.element_rule(ei, n_gauss), eb);
+    f(eb);
+  }
 }
 
 void DivConformingFluid::create_matrix() {
+  // The pattern of every row (in PETSc numbering), from every element: O(unknowns) on each rank, as the state.
   const int n = space_.n_dofs(), D = space_.dim();
   std::vector<std::vector<PetscInt>> rows(n);
   ElementBasis eb;
   for (int e = 0; e < space_.n_elements(); ++e) {
     const Index3 ei = space_.element_multi_index(e);
     space_.evaluate(ei, space_.element_rule(ei, 1), eb);  // indices only
-    const std::vector<PetscInt> idx = local_indices(eb, D);
+    std::vector<PetscInt> idx = local_indices(eb, D);
+    for (PetscInt& g : idx) g = petsc_index_[g];
     const size_t n_vel = idx.size() - eb.comp[D].n;
     for (size_t a = 0; a < idx.size(); ++a) {
+      if (idx[a] < row_begin_ || idx[a] >= row_end_) continue;
       auto& r = rows[idx[a]];
       if (a < n_vel) {
         r.insert(r.end(), idx.begin(), idx.end());
@@ -194,19 +241,22 @@ void DivConformingFluid::create_matrix() {
       }
     }
   }
-  std::vector<PetscInt> nnz(n);
-  for (int i = 0; i < n; ++i) {
-    std::sort(rows[i].begin(), rows[i].end());
-    rows[i].erase(std::unique(rows[i].begin(), rows[i].end()), rows[i].end());
-    nnz[i] = static_cast<PetscInt>(rows[i].size());
+  const PetscInt n_own = row_end_ - row_begin_;
+  std::vector<PetscInt> d_nnz(n_own), o_nnz(n_own);
+  for (PetscInt i = row_begin_; i < row_end_; ++i) {
+    auto& r = rows[i];
+    std::sort(r.begin(), r.end());
+    r.erase(std::unique(r.begin(), r.end()), r.end());
+    d_nnz[i - row_begin_] = std::count_if(r.begin(), r.end(), [&](PetscInt c) { return c >= row_begin_ && c < row_end_; });
+    o_nnz[i - row_begin_] = static_cast<PetscInt>(r.size()) - d_nnz[i - row_begin_];
   }
-  CELLFSI_PETSC(MatCreateSeqAIJ(PETSC_COMM_SELF, n, n, 0, nnz.data(), &J_));
+  CELLFSI_PETSC(MatCreateAIJ(comm_, n_own, n_own, n, n, 0, d_nnz.data(), 0, o_nnz.data(), &J_));
   CELLFSI_PETSC(MatSetOption(J_, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
   // Insert the pattern once (zeros), so that later assemblies never allocate.
-  for (int i = 0; i < n; ++i) {
-    std::vector<PetscScalar> zeros(rows[i].size(), 0.0);
-    const PetscInt row = i;
-    CELLFSI_PETSC(MatSetValues(J_, 1, &row, nnz[i], rows[i].data(), zeros.data(), INSERT_VALUES));
+  for (PetscInt i = row_begin_; i < row_end_; ++i) {
+    const std::vector<PetscScalar> zeros(rows[i].size(), 0.0);
+    CELLFSI_PETSC(MatSetValues(J_, 1, &i, static_cast<PetscInt>(rows[i].size()), rows[i].data(), zeros.data(),
+                               INSERT_VALUES));
   }
   CELLFSI_PETSC(MatAssemblyBegin(J_, MAT_FINAL_ASSEMBLY));
   CELLFSI_PETSC(MatAssemblyEnd(J_, MAT_FINAL_ASSEMBLY));
@@ -221,9 +271,9 @@ Vec3 DivConformingFluid::wall_velocity(int d, int side, const Vec3& x, double t)
   return v;
 }
 
-void DivConformingFluid::assemble(const Levels& lv, std::vector<double>& F, Mat J) const {
-  const int D = space_.dim(), n = space_.n_dofs();
-  F.assign(n, 0.0);
+void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J) const {
+  const int D = space_.dim();
+  CELLFSI_PETSC(VecZeroEntries(F));
   if (J) CELLFSI_PETSC(MatZeroEntries(J));
   ElementBasis eb;
   std::vector<double> Fe, Ke;
@@ -252,8 +302,9 @@ void DivConformingFluid::assemble(const Levels& lv, std::vector<double>& F, Mat 
       const PointResidual r = kernel(q, point_state(q), J ? &t : nullptr);
       add_point(eb, q, D, eb.weight[q], r, J ? &t : nullptr, lv.dv_dU, lv.da_dU, Fe, J ? &Ke : nullptr, n_loc);
     }
-    const std::vector<PetscInt> idx = local_indices(eb, D);
-    for (int a = 0; a < n_loc; ++a) F[idx[a]] += Fe[a];
+    std::vector<PetscInt> idx = local_indices(eb, D);
+    for (PetscInt& g : idx) g = petsc_index_[g];
+    CELLFSI_PETSC(VecSetValues(F, n_loc, idx.data(), Fe.data(), ADD_VALUES));
     if (J) CELLFSI_PETSC(MatSetValues(J, n_loc, idx.data(), n_loc, idx.data(), Ke.data(), ADD_VALUES));
   };
 
@@ -261,7 +312,7 @@ void DivConformingFluid::assemble(const Levels& lv, std::vector<double>& F, Mat 
   ip.dim = D;
   ip.nu = lv.nu;
   ip.convection = lv.convection;
-  for (int e = 0; e < space_.n_elements(); ++e) {
+  for (int e = elem_begin_; e < elem_end_; ++e) {
     const Index3 ei = space_.element_multi_index(e);
     space_.evaluate(ei, space_.element_rule(ei, n_gauss()), eb);
     integrate([&](int q, const PointState& s, PointTangent* t) {
@@ -283,7 +334,7 @@ void DivConformingFluid::assemble(const Levels& lv, std::vector<double>& F, Mat 
         np.n = {0, 0, 0};
         np.n[d] = side == 0 ? -1.0 : 1.0;
         const PointTangent tangent = dc_nitsche_tangent(np);
-        for (int e = 0; e < space_.n_elements(); ++e) {
+        for (int e = elem_begin_; e < elem_end_; ++e) {
           const Index3 ei = space_.element_multi_index(e);
           if (ei[d] != (side == 0 ? 0 : space_.n_elements(d) - 1)) continue;
           space_.evaluate(ei, space_.face_rule(ei, d, side, n_gauss()), eb);
@@ -297,6 +348,8 @@ void DivConformingFluid::assemble(const Levels& lv, std::vector<double>& F, Mat 
       }
     }
   }
+  CELLFSI_PETSC(VecAssemblyBegin(F));
+  CELLFSI_PETSC(VecAssemblyEnd(F));
   if (J) {
     CELLFSI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
     CELLFSI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
@@ -307,20 +360,17 @@ DcSolveStats DivConformingFluid::newton(std::vector<double>& U,
                                         const std::function<Levels(const std::vector<double>&)>& levels) {
   const int n = space_.n_dofs();
   DcSolveStats st;
-  std::vector<double> F;
-  Vec b, x;
-  CELLFSI_PETSC(VecCreateSeq(PETSC_COMM_SELF, n, &b));
-  CELLFSI_PETSC(VecDuplicate(b, &x));
-  const std::vector<PetscInt> fixed(fixed_rows_.begin(), fixed_rows_.end());
   double f0 = -1;
   for (int it = 0; it <= opt_.newton_max_it; ++it) {
     const Levels lv = levels(U);
     const bool last = it == opt_.newton_max_it;
-    assemble(lv, F, last ? nullptr : J_);
-    for (int r : fixed_rows_) F[r] = 0.0;
-    double fn = 0;
-    for (double f : F) fn += f * f;
-    fn = std::sqrt(fn);
+    assemble(lv, F_, last ? nullptr : J_);
+    PetscScalar* f;
+    CELLFSI_PETSC(VecGetArray(F_, &f));
+    for (PetscInt r : owned_fixed_) f[r - row_begin_] = 0.0;
+    CELLFSI_PETSC(VecRestoreArray(F_, &f));
+    PetscReal fn = 0;
+    CELLFSI_PETSC(VecNorm(F_, NORM_2, &fn));
     st.residual_norm = fn;
     if (f0 < 0) f0 = fn;
     if (fn == 0.0 || (it > 0 && fn <= opt_.newton_rtol * f0)) {
@@ -328,33 +378,32 @@ DcSolveStats DivConformingFluid::newton(std::vector<double>& U,
       break;
     }
     if (last) break;
-    CELLFSI_PETSC(MatZeroRows(J_, static_cast<PetscInt>(fixed.size()), fixed.data(), 1.0, nullptr, nullptr));
-    PetscScalar* bp;
-    CELLFSI_PETSC(VecGetArray(b, &bp));
-    for (int i = 0; i < n; ++i) bp[i] = -F[i];
-    CELLFSI_PETSC(VecRestoreArray(b, &bp));
+    CELLFSI_PETSC(MatZeroRows(J_, static_cast<PetscInt>(owned_fixed_.size()), owned_fixed_.data(), 1.0, nullptr,
+                              nullptr));
+    CELLFSI_PETSC(VecScale(F_, -1.0));
     CELLFSI_PETSC(KSPSetOperators(ksp_, J_, J_));
-    CELLFSI_PETSC(KSPSolve(ksp_, b, x));
+    CELLFSI_PETSC(KSPSolve(ksp_, F_, x_));
     KSPConvergedReason reason;
     CELLFSI_PETSC(KSPGetConvergedReason(ksp_, &reason));
     if (reason < 0) break;
+    CELLFSI_PETSC(VecScatterBegin(to_all_, x_, x_all_, INSERT_VALUES, SCATTER_FORWARD));
+    CELLFSI_PETSC(VecScatterEnd(to_all_, x_, x_all_, INSERT_VALUES, SCATTER_FORWARD));
     const PetscScalar* xp;
-    CELLFSI_PETSC(VecGetArrayRead(x, &xp));
+    CELLFSI_PETSC(VecGetArrayRead(x_all_, &xp));
     double dmax = 0, umax = 0;
     for (int i = 0; i < n; ++i) {
-      U[i] += xp[i];
-      dmax = std::max(dmax, std::abs(xp[i]));
+      const double dx = xp[petsc_index_[i]];
+      U[i] += dx;
+      dmax = std::max(dmax, std::abs(dx));
       umax = std::max(umax, std::abs(U[i]));
     }
-    CELLFSI_PETSC(VecRestoreArrayRead(x, &xp));
+    CELLFSI_PETSC(VecRestoreArrayRead(x_all_, &xp));
     st.newton_iterations = it + 1;
     if (dmax <= opt_.newton_stol * umax) {  // the update is round-off: U is the solution
       st.converged = true;
       break;
     }
   }
-  VecDestroy(&b);
-  VecDestroy(&x);
   return st;
 }
 
@@ -474,53 +523,52 @@ DivConformingFluid::Errors DivConformingFluid::errors(const std::function<Vec3(c
                                                       const std::function<double(const Vec3&)>& p) const {
   const int D = space_.dim();
   const int ng = space_.degree() + 4;
-  ElementBasis eb;
   // Means of the two pressures first.
-  double vol = 0, mean_h = 0, mean_ex = 0;
-  for (int e = 0; e < space_.n_elements(); ++e) {
-    const Index3 ei = space_.element_multi_index(e);
-    space_.evaluate(ei, space_.element_rule(ei, ng), eb);
+  double means[3] = {0, 0, 0};  // volume, int p_h, int p
+  for_owned_elements(ng, [&](const ElementBasis& eb) {
     for (int q = 0; q < eb.n_points; ++q) {
       const auto pv = DivConformingSpace::interpolate(eb, q, D, U_.data());
-      vol += eb.weight[q];
-      mean_h += eb.weight[q] * pv.p;
-      mean_ex += eb.weight[q] * p(eb.x[q]);
+      means[0] += eb.weight[q];
+      means[1] += eb.weight[q] * pv.p;
+      means[2] += eb.weight[q] * p(eb.x[q]);
     }
-  }
-  mean_h /= vol;
-  mean_ex /= vol;
-  Errors er;
-  for (int e = 0; e < space_.n_elements(); ++e) {
-    const Index3 ei = space_.element_multi_index(e);
-    space_.evaluate(ei, space_.element_rule(ei, ng), eb);
+  });
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, means, 3, MPI_DOUBLE, MPI_SUM, comm_));
+  const double mean_h = means[1] / means[0], mean_ex = means[2] / means[0];
+  double sums[6] = {0, 0, 0, 0, 0, 0};  // squares: v L2, v H1, p L2 errors, then the exact norms
+  for_owned_elements(ng, [&](const ElementBasis& eb) {
     for (int q = 0; q < eb.n_points; ++q) {
       const auto pv = DivConformingSpace::interpolate(eb, q, D, U_.data());
       const Vec3 ve = v(eb.x[q]);
       const geometry::Mat3 ge = grad_v(eb.x[q]);
       const double pe = p(eb.x[q]) - mean_ex, w = eb.weight[q];
       for (int i = 0; i < D; ++i) {
-        er.v_l2 += w * std::pow(pv.v[i] - ve[i], 2);
-        er.v_l2_norm += w * ve[i] * ve[i];
+        sums[0] += w * std::pow(pv.v[i] - ve[i], 2);
+        sums[3] += w * ve[i] * ve[i];
         for (int j = 0; j < D; ++j) {
-          er.v_h1 += w * std::pow(pv.grad[i][j] - ge(i, j), 2);
-          er.v_h1_norm += w * ge(i, j) * ge(i, j);
+          sums[1] += w * std::pow(pv.grad[i][j] - ge(i, j), 2);
+          sums[4] += w * ge(i, j) * ge(i, j);
         }
       }
-      er.p_l2 += w * std::pow(pv.p - mean_h - pe, 2);
-      er.p_l2_norm += w * pe * pe;
+      sums[2] += w * std::pow(pv.p - mean_h - pe, 2);
+      sums[5] += w * pe * pe;
     }
-  }
-  for (double* x : {&er.v_l2, &er.v_h1, &er.p_l2, &er.v_l2_norm, &er.v_h1_norm, &er.p_l2_norm}) *x = std::sqrt(*x);
+  });
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, sums, 6, MPI_DOUBLE, MPI_SUM, comm_));
+  Errors er;
+  er.v_l2 = std::sqrt(sums[0]);
+  er.v_h1 = std::sqrt(sums[1]);
+  er.p_l2 = std::sqrt(sums[2]);
+  er.v_l2_norm = std::sqrt(sums[3]);
+  er.v_h1_norm = std::sqrt(sums[4]);
+  er.p_l2_norm = std::sqrt(sums[5]);
   return er;
 }
 
 double DivConformingFluid::divergence_ratio() const {
   const int D = space_.dim();
-  ElementBasis eb;
-  double max_div = 0, max_grad = 0;
-  for (int e = 0; e < space_.n_elements(); ++e) {
-    const Index3 ei = space_.element_multi_index(e);
-    space_.evaluate(ei, space_.element_rule(ei, n_gauss()), eb);
+  double m[2] = {0, 0};  // max |div v_h|, max |grad v_h|
+  for_owned_elements(n_gauss(), [&](const ElementBasis& eb) {
     for (int q = 0; q < eb.n_points; ++q) {
       const auto pv = DivConformingSpace::interpolate(eb, q, D, U_.data());
       double div = 0, g2 = 0;
@@ -528,27 +576,26 @@ double DivConformingFluid::divergence_ratio() const {
         div += pv.grad[i][i];
         for (int j = 0; j < D; ++j) g2 += pv.grad[i][j] * pv.grad[i][j];
       }
-      max_div = std::max(max_div, std::abs(div));
-      max_grad = std::max(max_grad, std::sqrt(g2));
+      m[0] = std::max(m[0], std::abs(div));
+      m[1] = std::max(m[1], std::sqrt(g2));
     }
-  }
-  return max_grad > 0 ? max_div / max_grad : 0.0;
+  });
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, m, 2, MPI_DOUBLE, MPI_MAX, comm_));
+  return m[1] > 0 ? m[0] / m[1] : 0.0;
 }
 
 double DivConformingFluid::max_velocity() const {
   const int D = space_.dim();
-  ElementBasis eb;
   double vmax = 0;
-  for (int e = 0; e < space_.n_elements(); ++e) {
-    const Index3 ei = space_.element_multi_index(e);
-    space_.evaluate(ei, space_.element_rule(ei, n_gauss()), eb);
+  for_owned_elements(n_gauss(), [&](const ElementBasis& eb) {
     for (int q = 0; q < eb.n_points; ++q) {
       const auto pv = DivConformingSpace::interpolate(eb, q, D, U_.data());
       double v2 = 0;
       for (int i = 0; i < D; ++i) v2 += pv.v[i] * pv.v[i];
       vmax = std::max(vmax, std::sqrt(v2));
     }
-  }
+  });
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &vmax, 1, MPI_DOUBLE, MPI_MAX, comm_));
   return vmax;
 }
 

@@ -10,11 +10,15 @@
 #include <cstdio>
 #include <numbers>
 
+#include <petscsys.h>
+
 #include "fluid/div_conforming/dc_fluid.hpp"
+#include "../support/print_rank0.hpp"
 
 using namespace cellfsi;
 using namespace cellfsi::fluid::dc;
 using geometry::Mat3;
+using cellfsi::test_support::print0;
 
 namespace {
 
@@ -69,7 +73,7 @@ Rates manufactured_errors(int k, const std::vector<int>& meshes, bool stokes, do
     opt.stokes = stokes;
     opt.body_force_field = [&](const Vec3& x, double) { return m.force(x, stokes ? 0.0 : 1.0); };
     opt.wall_velocity_field = [&](const Vec3& x, double) { return m.v(x); };
-    DivConformingFluid fs(sp, opt);
+    DivConformingFluid fs(PETSC_COMM_WORLD, sp, opt);
     const DcSolveStats st = fs.solve_steady();
     EXPECT_TRUE(st.converged) << "n=" << n;
     EXPECT_LE(fs.divergence_ratio(), 1e-9) << "n=" << n;
@@ -78,7 +82,7 @@ Rates manufactured_errors(int k, const std::vector<int>& meshes, bool stokes, do
     r.v_l2.push_back(er.v_l2 / er.v_l2_norm);
     r.v_h1.push_back(er.v_h1 / er.v_h1_norm);
     r.p_l2.push_back(er.p_l2 / er.p_l2_norm);
-    std::printf("  k=%d %s %3dx%-3d: rel errors v L2 %.3e, v H1 %.3e, p L2 %.3e; Newton %d, div ratio %.1e\n", k,
+    print0("  k=%d %s %3dx%-3d: rel errors v L2 %.3e, v H1 %.3e, p L2 %.3e; Newton %d, div ratio %.1e\n", k,
                 stokes ? "Stokes" : "NS    ", n, n, r.v_l2.back(), r.v_h1.back(), r.p_l2.back(),
                 st.newton_iterations, fs.divergence_ratio());
   }
@@ -89,7 +93,7 @@ void expect_rates(const Rates& r, int k, const char* what) {
   const size_t m = r.v_l2.size();
   auto rate = [&](const std::vector<double>& e, size_t i) { return std::log2(e[i - 1] / e[i]); };
   for (size_t i = 1; i < m; ++i)
-    std::printf("  %s k=%d rates (mesh %zu -> %zu): v L2 %.2f, v H1 %.2f, p L2 %.2f\n", what, k, i - 1, i,
+    print0("  %s k=%d rates (mesh %zu -> %zu): v L2 %.2f, v H1 %.2f, p L2 %.2f\n", what, k, i - 1, i,
                 rate(r.v_l2, i), rate(r.v_h1, i), rate(r.p_l2, i));
   EXPECT_NEAR(rate(r.v_l2, m - 1), k + 1, 0.1) << what << " velocity L2, k=" << k;
   EXPECT_NEAR(rate(r.v_h1, m - 1), k, 0.1) << what << " velocity H1, k=" << k;
@@ -139,7 +143,7 @@ TEST(DivConformingFluid, TimeIntegrationIsSecondOrder) {
     opt.density = 1.0;
     opt.viscosity = nu;
     opt.dt = dts[i];
-    DivConformingFluid fs(sp, opt);
+    DivConformingFluid fs(PETSC_COMM_WORLD, sp, opt);
     fs.project_initial_state([&](const Vec3& x) { return v(x, 0); },
                              [&](const Vec3& x) { return Vec3(-2 * nu * v(x, 0)); });
     const int steps = static_cast<int>(std::lround(T / dts[i]));
@@ -157,7 +161,7 @@ TEST(DivConformingFluid, TimeIntegrationIsSecondOrder) {
   };
   const double d01 = distance(u[0], u[1]), d12 = distance(u[1], u[2]);
   const double rate = std::log2(d01 / d12);
-  std::printf("  Taylor-Green k=2 16x16, dt = 0.04, 0.02, 0.01: rel L2 errors %.3e %.3e %.3e; successive "
+  print0("  Taylor-Green k=2 16x16, dt = 0.04, 0.02, 0.01: rel L2 errors %.3e %.3e %.3e; successive "
               "differences %.3e %.3e, rate %.2f\n", e[0], e[1], e[2], d01, d12, rate);
   EXPECT_NEAR(rate, 2.0, 0.1);
 }
@@ -222,7 +226,7 @@ TEST(DivConformingFluid, ManufacturedStokes3dConvergesAtTheOptimalRates) {
     opt.stokes = true;
     opt.body_force_field = [&](const Vec3& x, double) { return m.force(x); };
     opt.wall_velocity_field = [&](const Vec3& x, double) { return m.v(x); };
-    DivConformingFluid fs(sp, opt);
+    DivConformingFluid fs(PETSC_COMM_WORLD, sp, opt);
     ASSERT_TRUE(fs.solve_steady().converged) << "n=" << n;
     EXPECT_LE(fs.divergence_ratio(), 1e-9) << "n=" << n;
     const TrigProduct pf = m.p_fn();
@@ -231,7 +235,7 @@ TEST(DivConformingFluid, ManufacturedStokes3dConvergesAtTheOptimalRates) {
     r.v_l2.push_back(er.v_l2 / er.v_l2_norm);
     r.v_h1.push_back(er.v_h1 / er.v_h1_norm);
     r.p_l2.push_back(er.p_l2 / er.p_l2_norm);
-    std::printf("  3D k=2 Stokes %2d^3: rel errors v L2 %.3e, v H1 %.3e, p L2 %.3e; div ratio %.1e\n", n,
+    print0("  3D k=2 Stokes %2d^3: rel errors v L2 %.3e, v H1 %.3e, p L2 %.3e; div ratio %.1e\n", n,
                 r.v_l2.back(), r.v_h1.back(), r.p_l2.back(), fs.divergence_ratio());
   }
   double rate[3][3];  // [pair][v L2, v H1, p L2]
@@ -240,7 +244,7 @@ TEST(DivConformingFluid, ManufacturedStokes3dConvergesAtTheOptimalRates) {
     rate[i][0] = std::log(r.v_l2[i - 1] / r.v_l2[i]) / h;
     rate[i][1] = std::log(r.v_h1[i - 1] / r.v_h1[i]) / h;
     rate[i][2] = std::log(r.p_l2[i - 1] / r.p_l2[i]) / h;
-    std::printf("  3D k=2 rates (%d -> %d): v L2 %.2f, v H1 %.2f, p L2 %.2f\n", meshes[i - 1], meshes[i],
+    print0("  3D k=2 rates (%d -> %d): v L2 %.2f, v H1 %.2f, p L2 %.2f\n", meshes[i - 1], meshes[i],
                 rate[i][0], rate[i][1], rate[i][2]);
   }
   // These meshes are pre-asymptotic: the rates come down to the optimal ones from above (observed 3.58, 2.34,
