@@ -5,8 +5,16 @@
 #include <stdexcept>
 #include <string>
 
+#include <vtkDoubleArray.h>
+#include <vtkNew.h>
+#include <vtkPointData.h>
+#include <vtkPoints.h>
+#include <vtkStructuredGrid.h>
+#include <vtkXMLStructuredGridWriter.h>
+
 #include "common/petsc_error.hpp"
 #include "fluid/div_conforming/dc_kernel.hpp"
+#include "geometry/patch_vtk.hpp"
 
 namespace cellfsi::fluid::dc {
 
@@ -597,6 +605,91 @@ double DivConformingFluid::max_velocity() const {
   });
   CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &vmax, 1, MPI_DOUBLE, MPI_MAX, comm_));
   return vmax;
+}
+
+void DivConformingFluid::restore(const std::vector<double>& u, const std::vector<double>& udot, int steps) {
+  if (steps < 0) throw std::invalid_argument("DivConformingFluid::restore: steps must be >= 0");
+  set_state(u);
+  if (udot.size() != u.size())
+    throw std::invalid_argument("DivConformingFluid::restore: udot must have as many entries as u");
+  Udot_ = udot;
+  steps_ = steps;
+  time_ = steps_ * opt_.dt;
+}
+
+std::vector<DivConformingFluid::Sample> DivConformingFluid::sample(const std::vector<Vec3>& points) const {
+  const int D = space_.dim();
+  std::vector<Sample> out(points.size());
+  ElementBasis eb;
+  for (size_t i = 0; i < points.size(); ++i) {
+    space_.evaluate(space_.find_element(points[i]), space_.point_rule(points[i]), eb);
+    const auto pv = DivConformingSpace::interpolate(eb, 0, D, U_.data());
+    for (int a = 0; a < D; ++a) {
+      out[i].v[a] = pv.v[a];
+      for (int b = 0; b < D; ++b) out[i].grad_v(a, b) = pv.grad[a][b];
+    }
+    out[i].p = pv.p;
+  }
+  return out;
+}
+
+void DivConformingFluid::write_vtk(const std::string& path, int samples_per_element) const {
+  if (samples_per_element < 1)
+    throw std::invalid_argument("DivConformingFluid::write_vtk: samples_per_element must be >= 1, got " +
+                                std::to_string(samples_per_element));
+  int rank = 0;
+  CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
+  const int D = space_.dim(), s = samples_per_element;
+  int n[3] = {1, 1, 1};
+  for (int d = 0; d < D; ++d) n[d] = space_.n_elements(d) * s + 1;
+  // Rank 0 writes; the others wait for it so that the file exists when the call returns everywhere, and learn
+  // whether it failed.
+  int failed = 0;
+  std::string message;
+  if (rank == 0) {
+    try {
+      std::vector<Vec3> pts;
+      pts.reserve(static_cast<size_t>(n[0]) * n[1] * n[2]);
+      for (int m2 = 0; m2 < n[2]; ++m2)
+        for (int m1 = 0; m1 < n[1]; ++m1)
+          for (int m0 = 0; m0 < n[0]; ++m0) {
+            const int m[3] = {m0, m1, m2};
+            Vec3 x = Vec3::Zero();
+            for (int d = 0; d < D; ++d) x[d] = space_.lo(d) + (space_.hi(d) - space_.lo(d)) * m[d] / (n[d] - 1);
+            pts.push_back(x);
+          }
+      // A periodic direction's last sample, at the period's end, is wrapped to its start: the same value.
+      const std::vector<Sample> smp = sample(pts);
+      vtkNew<vtkStructuredGrid> grid;
+      grid->SetDimensions(n[0], n[1], n[2]);
+      vtkNew<vtkPoints> points;
+      points->SetDataTypeToDouble();
+      vtkNew<vtkDoubleArray> vel, pre, dvg;
+      vel->SetName("velocity");
+      vel->SetNumberOfComponents(3);
+      pre->SetName("pressure");
+      dvg->SetName("divergence");
+      for (size_t i = 0; i < pts.size(); ++i) {
+        points->InsertNextPoint(pts[i][0], pts[i][1], pts[i][2]);
+        vel->InsertNextTuple3(smp[i].v[0], smp[i].v[1], smp[i].v[2]);
+        pre->InsertNextValue(smp[i].p);
+        dvg->InsertNextValue(smp[i].grad_v.trace());
+      }
+      grid->SetPoints(points);
+      grid->GetPointData()->AddArray(vel);
+      grid->GetPointData()->AddArray(pre);
+      grid->GetPointData()->AddArray(dvg);
+      vtkNew<vtkXMLStructuredGridWriter> writer;
+      writer->SetInputData(grid);
+      geometry::write_vtk_atomically(writer, path);
+    } catch (const std::exception& e) {
+      failed = 1;
+      message = e.what();
+    }
+  }
+  CELLFSI_PETSC(MPI_Bcast(&failed, 1, MPI_INT, 0, comm_));
+  if (failed)
+    throw std::runtime_error("DivConformingFluid::write_vtk: " + (rank == 0 ? message : std::string("rank 0 failed")));
 }
 
 }  // namespace cellfsi::fluid::dc

@@ -96,6 +96,9 @@ class DivConformingFluid {
   /// Sets the unknowns directly (velocity then pressure, dc_space.hpp's numbering); velocity rate 0.
   void set_state(const std::vector<double>& u);
 
+  /// Restores a state saved from state() and state_rate() after `steps` steps (a restart); time = steps dt.
+  void restore(const std::vector<double>& u, const std::vector<double>& udot, int steps);
+
   /// The steady problem (no time derivative) at the current time, from the current state as first guess.
   DcSolveStats solve_steady();
   /// One generalized-alpha step. The state advances only if Newton converged.
@@ -124,6 +127,18 @@ class DivConformingFluid {
   double divergence_ratio() const;
   /// max |v_h| over the same points.
   double max_velocity() const;
+  /// Velocity, its gradient (grad_v(i, j) = d v_i / d x_j) and the pressure at points anywhere in the box
+  /// (periodic coordinates wrapped). Local: the state is on every rank.
+  struct Sample {
+    Vec3 v = Vec3::Zero();
+    geometry::Mat3 grad_v = geometry::Mat3::Zero();
+    double p = 0;
+  };
+  std::vector<Sample> sample(const std::vector<Vec3>& points) const;
+  /// Writes the fields as a VTK structured grid (.vts) sampled at samples_per_element + 1 points per element and
+  /// direction (element ends shared): arrays velocity, pressure, divergence. Rank 0 writes; collective.
+  void write_vtk(const std::string& path, int samples_per_element = 2) const;
+
   /// divergence_ratio() after each step() (the "at every step").
   const std::vector<double>& divergence_history() const { return div_history_; }
 

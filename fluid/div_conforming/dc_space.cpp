@@ -118,6 +118,21 @@ TensorRule DivConformingSpace::element_rule(const Index3& e, int n_gauss) const 
   return r;
 }
 
+Index3 DivConformingSpace::find_element(const Vec3& x) const {
+  Index3 e{0, 0, 0};
+  for (int d = 0; d < dim_; ++d) e[d] = low_[d].find_element(x[d]);
+  return e;
+}
+
+TensorRule DivConformingSpace::point_rule(const Vec3& x) const {
+  TensorRule r;
+  for (int d = 0; d < 3; ++d) {
+    r.points[d] = {d < dim_ ? low_[d].normalize(x[d]) : 0.0};
+    r.weights[d] = {1.0};
+  }
+  return r;
+}
+
 TensorRule DivConformingSpace::face_rule(const Index3& e, int d, int side, int n_gauss) const {
   TensorRule r = element_rule(e, n_gauss);
   r.points[d] = {side == 0 ? low_[d].element_begin(e[d]) : low_[d].element_end(e[d])};

@@ -99,6 +99,10 @@ class DivConformingSpace {
   TensorRule element_rule(const Index3& e, int n_gauss) const;
   /// Rule on the face of element e at side `side` (0: x_d = lo, 1: x_d = hi) of direction d.
   TensorRule face_rule(const Index3& e, int d, int side, int n_gauss) const;
+  /// The element containing x (per direction: wrapped into the period if periodic, clamped to the box
+  /// otherwise) and the one-point rule at x in it (periodic coordinates wrapped).
+  Index3 find_element(const Vec3& x) const;
+  TensorRule point_rule(const Vec3& x) const;
   /// The basis of every component at the points of `rule` in element e.
   void evaluate(const Index3& e, const TensorRule& rule, ElementBasis& out) const;
   /// The fields at the points of eb from a coefficient array over all unknowns: velocity (dim) and its

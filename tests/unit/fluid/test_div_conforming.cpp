@@ -18,6 +18,11 @@
 #include <random>
 
 #include <petscsys.h>
+#include <vtkDataArray.h>
+#include <vtkNew.h>
+#include <vtkPointData.h>
+#include <vtkStructuredGrid.h>
+#include <vtkXMLStructuredGridReader.h>
 
 #include "fluid/div_conforming/dc_fluid.hpp"
 #include "fluid/div_conforming/dc_kernel.hpp"
@@ -464,6 +469,74 @@ TEST(DivConformingFluid, TaylorGreenStaysDivergenceFreeAtEveryStep) {
               "%.3e, final %.3e\n", div0, worst, e0, e);
   // The error is the initial projection's (spatial, ~h^3); ten steps (time error ~(nu dt)^2) add little to it.
   EXPECT_LT(e, 1.1 * e0);
+}
+
+// --- Sampling, restart, output ---------------------------------------------------------------------------------
+
+TEST(DivConformingFluid, SamplesRestartsAndWritesVtk) {
+  // Poiseuille (exact in the space): samples at points anywhere (periodic x beyond the period too) give the exact
+  // v and grad v to 1e-12 of their scale. A restart (restore of state, rate and step count into a new solver) then
+  // three steps equals six steps of one solver: the same operations in the same order, so equal to the last bit
+  // up to BLAS threading (asserted 1e-15 of max|U|). The VTK file has the sampled velocity at its points.
+  const ChannelCase c;
+  const double G = 4800;
+  DcFluidOptions opt;
+  opt.density = c.rho;
+  opt.viscosity = c.mu;
+  opt.body_force = Vec3(G, 0, 0);
+  opt.dt = 1e-3;
+  const DivConformingSpace sp = channel_2d(2, 12, 4, c.lx, c.ly);
+  DivConformingFluid fs(PETSC_COMM_WORLD, sp, opt);
+  ASSERT_TRUE(fs.solve_steady().converged);
+  const std::vector<Vec3> pts{Vec3(0.0011, 0.0003, 0), Vec3(-0.002, 0.0009, 0), Vec3(0.0075, 0.0005, 0),
+                              Vec3(0.003, 0.001, 0)};
+  const auto smp = fs.sample(pts);
+  const double vmax = G * c.ly * c.ly / (8 * c.mu), gmax = G * c.ly / (2 * c.mu);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const double y = pts[i][1];
+    EXPECT_NEAR(smp[i].v[0], G / (2 * c.mu) * y * (c.ly - y), 1e-12 * vmax) << "point " << i;
+    EXPECT_NEAR(smp[i].v[1], 0.0, 1e-12 * vmax) << "point " << i;
+    EXPECT_NEAR(smp[i].grad_v(0, 1), G / (2 * c.mu) * (c.ly - 2 * y), 1e-12 * gmax) << "point " << i;
+    EXPECT_NEAR(smp[i].grad_v(0, 0), 0.0, 1e-12 * gmax) << "point " << i;
+  }
+
+  // Restart: from rest, 6 steps in one go, or 3 steps, a restore into a new solver and 3 more.
+  DivConformingFluid one(PETSC_COMM_WORLD, sp, opt), first(PETSC_COMM_WORLD, sp, opt);
+  for (int s = 0; s < 6; ++s) ASSERT_TRUE(one.step().converged);
+  for (int s = 0; s < 3; ++s) ASSERT_TRUE(first.step().converged);
+  DivConformingFluid second(PETSC_COMM_WORLD, sp, opt);
+  second.restore(first.state(), first.state_rate(), first.steps_taken());
+  for (int s = 0; s < 3; ++s) ASSERT_TRUE(second.step().converged);
+  EXPECT_EQ(second.steps_taken(), 6);
+  EXPECT_DOUBLE_EQ(second.time(), one.time());
+  double diff = 0, scale = 0;
+  for (size_t i = 0; i < one.state().size(); ++i) {
+    diff = std::max(diff, std::abs(one.state()[i] - second.state()[i]));
+    scale = std::max(scale, std::abs(one.state()[i]));
+  }
+  print0("  restart after 3 of 6 steps: max|U_restarted - U| / max|U| = %.2e\n", diff / scale);
+  EXPECT_LE(diff, 1e-15 * scale);
+
+  // VTK: 2 samples per element -> 25 x 9 points; the file's velocity equals sample() at its points.
+  const std::string path = ::testing::TempDir() + "dc_poiseuille.vts";
+  fs.write_vtk(path, 2);
+  vtkNew<vtkXMLStructuredGridReader> reader;
+  reader->SetFileName(path.c_str());
+  reader->Update();
+  vtkStructuredGrid* grid = reader->GetOutput();
+  int dims[3];
+  grid->GetDimensions(dims);
+  EXPECT_EQ(dims[0], 25);
+  EXPECT_EQ(dims[1], 9);
+  vtkDataArray* vel = grid->GetPointData()->GetArray("velocity");
+  ASSERT_NE(vel, nullptr);
+  ASSERT_NE(grid->GetPointData()->GetArray("divergence"), nullptr);
+  for (vtkIdType id : {vtkIdType(0), vtkIdType(30), vtkIdType(25 * 9 - 1)}) {
+    double x[3];
+    grid->GetPoint(id, x);
+    const auto s = fs.sample({Vec3(x[0], x[1], x[2])});
+    EXPECT_NEAR(vel->GetComponent(id, 0), s[0].v[0], 1e-14 * vmax) << "point " << id;
+  }
 }
 
 // --- MPI -------------------------------------------------------------------------------------------------------
