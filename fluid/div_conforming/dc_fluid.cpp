@@ -12,6 +12,8 @@
 #include <vtkStructuredGrid.h>
 #include <vtkXMLStructuredGridWriter.h>
 
+#include <Eigen/Sparse>
+
 #include "common/petsc_error.hpp"
 #include "fluid/div_conforming/dc_kernel.hpp"
 #include "geometry/patch_vtk.hpp"
@@ -316,6 +318,16 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J) const {
     if (J) CELLFSI_PETSC(MatSetValues(J, n_loc, idx.data(), n_loc, idx.data(), Ke.data(), ADD_VALUES));
   };
 
+  // nu at point q of eb: the field's where there is one, else lv.nu.
+  const bool field = lv.viscosity_field && !nu_field_.empty();
+  auto nu_at = [&](int q) {
+    if (!field) return lv.nu;
+    const ComponentBasis& cb = eb.comp[D];
+    double nu = 0;
+    for (int a = 0; a < cb.n; ++a) nu += nu_field_[cb.index[a] - space_.offset(D)] * cb.value[q * cb.n + a];
+    return nu;
+  };
+
   InteriorParameters ip;
   ip.dim = D;
   ip.nu = lv.nu;
@@ -326,6 +338,7 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J) const {
     integrate([&](int q, const PointState& s, PointTangent* t) {
       const Vec3 g = lv.g ? lv.g(eb.x[q]) : Vec3(Vec3::Zero());
       for (int i = 0; i < 3; ++i) ip.g[i] = g[i];
+      ip.nu = nu_at(q);
       if (t) *t = dc_interior_tangent(s, ip);
       return dc_interior_residual(s, ip);
     });
@@ -334,14 +347,12 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J) const {
   if (lv.nitsche) {
     NitscheParameters np;
     np.dim = D;
-    np.nu = lv.nu;
     for (int d = 0; d < D; ++d) {
       if (space_.periodic(d)) continue;
-      np.beta = opt_.penalty * lv.nu * (space_.degree() + 1) * (space_.degree() + 1) / space_.element_size(d);
+      const double beta_per_nu = opt_.penalty * (space_.degree() + 1) * (space_.degree() + 1) / space_.element_size(d);
       for (int side = 0; side < 2; ++side) {
         np.n = {0, 0, 0};
         np.n[d] = side == 0 ? -1.0 : 1.0;
-        const PointTangent tangent = dc_nitsche_tangent(np);
         for (int e = elem_begin_; e < elem_end_; ++e) {
           const Index3 ei = space_.element_multi_index(e);
           if (ei[d] != (side == 0 ? 0 : space_.n_elements(d) - 1)) continue;
@@ -349,7 +360,9 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J) const {
           integrate([&](int q, const PointState& s, PointTangent* t) {
             const Vec3 vw = wall_velocity(d, side, eb.x[q], lv.t);
             for (int i = 0; i < 3; ++i) np.v_wall[i] = vw[i];
-            if (t) *t = tangent;
+            np.nu = nu_at(q);
+            np.beta = beta_per_nu * np.nu;
+            if (t) *t = dc_nitsche_tangent(np);
             return dc_nitsche_residual(s, np);
           });
         }
@@ -449,6 +462,7 @@ void DivConformingFluid::project_initial_state(const std::function<Vec3(const Ve
       lv.nu = 0;
       lv.convection = 0;
       lv.nitsche = false;
+      lv.viscosity_field = false;
       lv.g = f;
       return lv;
     };
@@ -690,6 +704,49 @@ void DivConformingFluid::write_vtk(const std::string& path, int samples_per_elem
   CELLFSI_PETSC(MPI_Bcast(&failed, 1, MPI_INT, 0, comm_));
   if (failed)
     throw std::runtime_error("DivConformingFluid::write_vtk: " + (rank == 0 ? message : std::string("rank 0 failed")));
+}
+
+void DivConformingFluid::set_viscosity(const std::vector<double>& mu) {
+  if (static_cast<int>(mu.size()) != space_.n_pressure())
+    throw std::invalid_argument("DivConformingFluid::set_viscosity: mu must have n_pressure() = " +
+                                std::to_string(space_.n_pressure()) + " entries, got " + std::to_string(mu.size()));
+  for (double m : mu)
+    if (!(m > 0))
+      throw std::invalid_argument("DivConformingFluid::set_viscosity: every viscosity must be > 0 g/(cm s), got " +
+                                  std::to_string(m));
+  nu_field_.resize(mu.size());
+  for (size_t a = 0; a < mu.size(); ++a) nu_field_[a] = mu[a] / opt_.density;
+}
+
+void DivConformingFluid::project_viscosity(const std::function<double(const Vec3&)>& mu) {
+  // The pressure-space mass matrix and load over every element on every rank (the field, like the state, is
+  // on every rank), solved by sparse Cholesky.
+  const int D = space_.dim(), np = space_.n_pressure(), off = space_.offset(D);
+  std::vector<Eigen::Triplet<double>> entries;
+  Eigen::VectorXd load = Eigen::VectorXd::Zero(np);
+  ElementBasis eb;
+  for (int e = 0; e < space_.n_elements(); ++e) {
+    const Index3 ei = space_.element_multi_index(e);
+    space_.evaluate(ei, space_.element_rule(ei, n_gauss()), eb);
+    const ComponentBasis& cb = eb.comp[D];
+    for (int q = 0; q < eb.n_points; ++q) {
+      const double m = mu(eb.x[q]);
+      for (int a = 0; a < cb.n; ++a) {
+        const double wa = eb.weight[q] * cb.value[q * cb.n + a];
+        load[cb.index[a] - off] += wa * m;
+        for (int b = 0; b < cb.n; ++b)
+          entries.emplace_back(cb.index[a] - off, cb.index[b] - off, wa * cb.value[q * cb.n + b]);
+      }
+    }
+  }
+  Eigen::SparseMatrix<double> M(np, np);
+  M.setFromTriplets(entries.begin(), entries.end());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(M);
+  if (ldlt.info() != Eigen::Success)
+    throw std::runtime_error("DivConformingFluid::project_viscosity: the mass matrix's factorisation failed");
+  const Eigen::VectorXd coeffs = ldlt.solve(load);
+  nu_field_.resize(np);
+  for (int a = 0; a < np; ++a) nu_field_[a] = coeffs[a] / opt_.density;
 }
 
 }  // namespace cellfsi::fluid::dc

@@ -127,6 +127,18 @@ class DivConformingFluid {
   double divergence_ratio() const;
   /// max |v_h| over the same points.
   double max_velocity() const;
+  // --- A viscosity that varies in space (as FluidSolver's; docs/fluid.md, "The viscosity field") ---
+  /// Sets the viscosity field by control value of the pressure space (degree k): mu[A] is the dynamic viscosity
+  /// [g/(cm s)] of pressure function A, so that nu^h = sum_A (mu_A / rho) q_A. The viscous term and the Nitsche
+  /// terms (their penalty included) then use nu^h at each point; the weak form needs no grad nu (Galerkin).
+  void set_viscosity(const std::vector<double>& mu);
+  /// The L2 projection of mu(x) [g/(cm s)] onto the pressure space, as the field (order k + 1 for a smooth mu).
+  void project_viscosity(const std::function<double(const Vec3&)>& mu);
+  void clear_viscosity() { nu_field_.clear(); }
+  bool has_viscosity_field() const { return !nu_field_.empty(); }
+  /// The field's kinematic viscosity nu_A per pressure function (empty without a field).
+  const std::vector<double>& viscosity_field() const { return nu_field_; }
+
   /// Velocity, its gradient (grad_v(i, j) = d v_i / d x_j) and the pressure at points anywhere in the box
   /// (periodic coordinates wrapped). Local: the state is on every rank.
   struct Sample {
@@ -150,6 +162,7 @@ class DivConformingFluid {
     double dv_dU = 1, da_dU = 0;
     double nu = 0, convection = 0, t = 0;
     bool nitsche = true;
+    bool viscosity_field = true;  // use nu^h where there is a field (false: lv.nu, as a projection's 0)
     std::function<Vec3(const Vec3&)> g;  // body force per unit mass (or the data of a projection)
   };
   /// Residual F and, if J is not null, the tangent (PETSc numbering), both without the fixed rows. Collective.
@@ -177,6 +190,7 @@ class DivConformingFluid {
   std::vector<int> fixed_rows_;          // wall normal velocities and the pressure pin (natural numbering)
   std::vector<double> pressure_mass_;    // int q_A over the box
   std::vector<double> div_history_;
+  std::vector<double> nu_field_;  // kinematic viscosity per pressure function; empty: uniform
   double time_ = 0;
   int steps_ = 0;
   Mat J_ = nullptr;

@@ -389,6 +389,40 @@ TEST(DivConformingFluid, PoiseuilleFlowIsExactSteadyAndOverTimeSteps) {
       });
 }
 
+TEST(DivConformingFluid, ShearFlowWithAViscosityFieldIsExact) {
+  // A viscosity that varies across the unit channel, mu = 1 + y / 2 (rho = 1; linear: the projection onto the
+  // pressure space is exact), walls at rest, v = (y (1 - y), 0): -(mu v_x')' = 1.5 + 2 y is the body force along x,
+  // p = const. v_x is quadratic in y: the discrete solution is the exact one (k = 2, 3; Stokes and Navier-Stokes).
+  const auto v = [](const Vec3& x) { return Vec3(x[1] * (1 - x[1]), 0, 0); };
+  const auto grad = [](const Vec3& x) {
+    Mat3 m = Mat3::Zero();
+    m(0, 1) = 1 - 2 * x[1];
+    return m;
+  };
+  for (int k : {2, 3})
+    for (bool stokes : {true, false}) {
+      const DivConformingSpace sp = channel_2d(k, 8, 6);
+      DcFluidOptions opt;
+      opt.density = 1.0;
+      opt.viscosity = 5.0;  // replaced by the field
+      opt.stokes = stokes;
+      opt.newton_rtol = 0;
+      opt.body_force_field = [](const Vec3& x, double) { return Vec3(1.5 + 2 * x[1], 0, 0); };
+      DivConformingFluid fs(PETSC_COMM_WORLD, sp, opt);
+      fs.project_viscosity([](const Vec3& x) { return 1 + 0.5 * x[1]; });
+      ASSERT_TRUE(fs.has_viscosity_field());
+      ASSERT_TRUE(fs.solve_steady().converged);
+      const double e = relative_velocity_error(fs, v, grad);
+      print0("  viscosity field mu = 1 + y/2, k=%d %s: rel L2 error %.2e\n", k, stokes ? "Stokes" : "NS", e);
+      EXPECT_LT(e, 1e-12) << "k=" << k;
+      fs.clear_viscosity();  // back to the uniform 5: the same force gives another flow
+      ASSERT_TRUE(fs.solve_steady().converged);
+      EXPECT_GT(relative_velocity_error(fs, v, grad), 0.1);
+    }
+  EXPECT_THROW(DivConformingFluid(PETSC_COMM_WORLD, channel_2d(2, 4, 4), DcFluidOptions{}).set_viscosity({1.0}),
+               std::invalid_argument);
+}
+
 TEST(DivConformingFluid, AGradientBodyForceLeavesTheVelocityAtRest) {
   // Pressure robustness: f = rho grad phi is balanced by the pressure alone, v_h = 0 exactly, because
   // (w, grad phi) = -(div w, phi) with w.n = 0 on walls and div w in the pressure space (the integrals are exact:
