@@ -479,57 +479,60 @@ void DivConformingFluid::project_initial_state(const std::function<Vec3(const Ve
   div_history_.clear();
 }
 
-DcSolveStats DivConformingFluid::solve_steady() {
-  const double nu = opt_.viscosity / opt_.density;
-  auto levels = [&](const std::vector<double>& U) {
-    Levels lv;
-    lv.v = U;
-    lv.a.assign(U.size(), 0.0);
-    lv.dv_dU = 1;
-    lv.da_dU = 0;
-    lv.nu = nu;
-    lv.convection = opt_.stokes ? 0.0 : 1.0;
-    lv.t = time_;
-    lv.g = [this](const Vec3& x) {
-      Vec3 f = opt_.body_force;
-      if (opt_.body_force_field) f += opt_.body_force_field(x, time_);
-      return Vec3(f / opt_.density);
-    };
-    return lv;
+DivConformingFluid::Levels DivConformingFluid::steady_levels(const std::vector<double>& U) const {
+  Levels lv;
+  lv.v = U;
+  lv.a.assign(U.size(), 0.0);
+  lv.dv_dU = 1;
+  lv.da_dU = 0;
+  lv.nu = opt_.viscosity / opt_.density;
+  lv.convection = opt_.stokes ? 0.0 : 1.0;
+  lv.t = time_;
+  lv.g = body_force_per_mass(time_);
+  return lv;
+}
+
+DivConformingFluid::Levels DivConformingFluid::step_levels(const std::vector<double>& U,
+                                                           const std::vector<double>& Un,
+                                                           const std::vector<double>& Udotn) const {
+  const int n = space_.n_dofs(), nv = space_.n_velocity();
+  Levels lv;
+  lv.v.resize(n);
+  lv.a.assign(n, 0.0);
+  for (int i = 0; i < nv; ++i) {
+    lv.v[i] = alpha_.value_alpha_f(U[i], Un[i]);
+    lv.a[i] = alpha_.rate_alpha_m(U[i], Un[i], Udotn[i]);
+  }
+  for (int i = nv; i < n; ++i) lv.v[i] = U[i];  // pressure at t_{n+1}
+  lv.dv_dU = alpha_.alpha_f;
+  lv.da_dU = alpha_.rate_alpha_m_scale();
+  lv.nu = opt_.viscosity / opt_.density;
+  lv.convection = opt_.stokes ? 0.0 : 1.0;
+  lv.t = time_ + alpha_.alpha_f * opt_.dt;
+  lv.g = body_force_per_mass(lv.t);
+  return lv;
+}
+
+std::function<Vec3(const Vec3&)> DivConformingFluid::body_force_per_mass(double t) const {
+  return [this, t](const Vec3& x) {
+    Vec3 f = opt_.body_force;
+    if (opt_.body_force_field) f += opt_.body_force_field(x, t);
+    return Vec3(f / opt_.density);
   };
-  const DcSolveStats st = newton(U_, levels);
+}
+
+DcSolveStats DivConformingFluid::solve_steady() {
+  const DcSolveStats st = newton(U_, [this](const std::vector<double>& U) { return steady_levels(U); });
   shift_pressure_to_zero_mean(U_);
   return st;
 }
 
 DcSolveStats DivConformingFluid::step() {
-  const double nu = opt_.viscosity / opt_.density;
-  const int n = space_.n_dofs(), nv = space_.n_velocity();
+  const int nv = space_.n_velocity();
   const std::vector<double> Un = U_, Udotn = Udot_;
-  const double t_af = time_ + alpha_.alpha_f * opt_.dt;
-  auto levels = [&](const std::vector<double>& U) {
-    Levels lv;
-    lv.v.resize(n);
-    lv.a.assign(n, 0.0);
-    for (int i = 0; i < nv; ++i) {
-      lv.v[i] = alpha_.value_alpha_f(U[i], Un[i]);
-      lv.a[i] = alpha_.rate_alpha_m(U[i], Un[i], Udotn[i]);
-    }
-    for (int i = nv; i < n; ++i) lv.v[i] = U[i];  // pressure at t_{n+1}
-    lv.dv_dU = alpha_.alpha_f;
-    lv.da_dU = alpha_.rate_alpha_m_scale();
-    lv.nu = nu;
-    lv.convection = opt_.stokes ? 0.0 : 1.0;
-    lv.t = t_af;
-    lv.g = [this, t_af](const Vec3& x) {
-      Vec3 f = opt_.body_force;
-      if (opt_.body_force_field) f += opt_.body_force_field(x, t_af);
-      return Vec3(f / opt_.density);
-    };
-    return lv;
-  };
   std::vector<double> X = U_;  // predictor: the same state
-  const DcSolveStats st = newton(X, levels);
+  const DcSolveStats st =
+      newton(X, [&](const std::vector<double>& U) { return step_levels(U, Un, Udotn); });
   if (!st.converged) return st;
   for (int i = 0; i < nv; ++i) Udot_[i] = alpha_.rate(X[i], Un[i], Udotn[i]);
   U_ = X;
@@ -538,6 +541,17 @@ DcSolveStats DivConformingFluid::step() {
   time_ = steps_ * opt_.dt;
   div_history_.push_back(divergence_ratio());
   return st;
+}
+
+Mat DivConformingFluid::jacobian(bool time_step, bool pin_pressure) {
+  const Levels lv = time_step ? step_levels(U_, U_, Udot_) : steady_levels(U_);
+  assemble(lv, F_, J_);
+  std::vector<PetscInt> rows;
+  const PetscInt pin = petsc_index_[space_.offset(space_.dim())];
+  for (PetscInt r : owned_fixed_)
+    if (pin_pressure || r != pin) rows.push_back(r);
+  CELLFSI_PETSC(MatZeroRows(J_, static_cast<PetscInt>(rows.size()), rows.data(), 1.0, nullptr, nullptr));
+  return J_;
 }
 
 DivConformingFluid::Errors DivConformingFluid::errors(const std::function<Vec3(const Vec3&)>& v,

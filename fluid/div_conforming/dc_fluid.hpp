@@ -99,6 +99,13 @@ class DivConformingFluid {
   /// Restores a state saved from state() and state_rate() after `steps` steps (a restart); time = steps dt.
   void restore(const std::vector<double>& u, const std::vector<double>& udot, int steps);
 
+  /// The tangent at the current state, of a time step (time_step: the state as the first iterate of the next
+  /// step) or of the steady problem, with unit rows for the walls' normal velocities and, if pin_pressure, the
+  /// pressure pin; in the PETSc numbering (on one rank the natural one of dc_space.hpp). The matrix belongs to
+  /// the solver and changes with the next solve. For the tests of a solver of this operator (dc_fourier.hpp).
+  /// Collective.
+  Mat jacobian(bool time_step, bool pin_pressure);
+
   /// The steady problem (no time derivative) at the current time, from the current state as first guess.
   DcSolveStats solve_steady();
   /// One generalized-alpha step. The state advances only if Newton converged.
@@ -165,6 +172,11 @@ class DivConformingFluid {
     bool viscosity_field = true;  // use nu^h where there is a field (false: lv.nu, as a projection's 0)
     std::function<Vec3(const Vec3&)> g;  // body force per unit mass (or the data of a projection)
   };
+  Levels steady_levels(const std::vector<double>& U) const;
+  /// A generalized-alpha step from (Un, Udotn) with iterate U.
+  Levels step_levels(const std::vector<double>& U, const std::vector<double>& Un,
+                     const std::vector<double>& Udotn) const;
+  std::function<Vec3(const Vec3&)> body_force_per_mass(double t) const;
   /// Residual F and, if J is not null, the tangent (PETSc numbering), both without the fixed rows. Collective.
   void assemble(const Levels& lv, Vec F, Mat J) const;
   /// Newton on R(U) = 0 with levels(U) describing the fields; fixed rows (wall normals, the pressure pin)
