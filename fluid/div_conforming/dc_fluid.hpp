@@ -119,6 +119,8 @@ class DivConformingFluid {
   const DcFluidOptions& options() const { return opt_; }
   KSP ksp() const { return ksp_; }
   MPI_Comm comm() const { return comm_; }
+  /// The PETSc numbering (rows of jacobian(), the linear solver's vectors) of each natural unknown.
+  const std::vector<PetscInt>& petsc_numbering() const { return petsc_index_; }
   /// The elements this rank assembles: linear indices [begin, end) (DivConformingSpace::element_multi_index).
   std::array<int, 2> owned_elements() const { return {elem_begin_, elem_end_}; }
 
