@@ -23,7 +23,10 @@
 // div v_{n+alpha_f} = 0. Since div is exact in this space and the initial velocity is divergence-free
 // (project_initial_state), every v_n and vdot_n is divergence-free to the linear solver's round-off.
 // Nonlinear solver: Newton with the exact tangent; linear solver: PETSc KSP with prefix "fluid_" (default:
-// preonly with MUMPS LU), set from options last.
+// preonly with MUMPS LU, relative pivot threshold 0.5), set from options last.
+//
+// Viscosity: uniform (options().viscosity) or a field nu^h on the pressure space (set_viscosity,
+// project_viscosity), used at each point by the viscous and the Nitsche terms, the penalty included.
 //
 // Parallelism: the elements are split into contiguous ranges of their lexicographic index, one per rank; an
 // unknown belongs to the lowest rank whose elements it touches, and the unknowns are renumbered so that each
