@@ -35,8 +35,9 @@ double get_real(const char* name, double value) {
 
 /// Adds the point's contribution to the element residual Fe and (if Ke) tangent, from the kernels' outputs.
 /// Local numbering: the functions of component 0, then 1, ..., then pressure (eb.comp[c].n each).
-void add_point(const ElementBasis& eb, int q, int dim, double w, const PointResidual& r, const PointTangent* t,
-               double dv_dU, double da_dU, std::vector<double>& Fe, std::vector<double>* Ke, int n_loc) {
+void add_point(const ElementBasis& eb, int q, int dim, double w, const PointResidual& r,
+               const PointTangent* t, double dv_dU, double da_dU, std::vector<double>& Fe,
+               std::vector<double>* Ke, int n_loc) {
   int off[5] = {0, 0, 0, 0, 0};
   for (int c = 0; c <= dim; ++c) off[c + 1] = off[c] + eb.comp[c].n;
   auto val = [&](int c, int a) { return eb.comp[c].value[static_cast<size_t>(q) * eb.comp[c].n + a]; };
@@ -121,8 +122,9 @@ void DcFluidOptions::validate() const {
   require(viscosity > 0, "viscosity must be > 0 g/(cm s), got " + std::to_string(viscosity));
   require(rho_inf >= 0 && rho_inf <= 1, "rho_inf must be in [0, 1], got " + std::to_string(rho_inf));
   require(dt > 0, "dt must be > 0 s, got " + std::to_string(dt));
-  require(penalty > 2.0, "the Nitsche constant -fluid_dc_penalty must be > 2 (coercivity, dc_fluid.hpp), got " +
-                             std::to_string(penalty));
+  require(penalty > 2.0,
+          "the Nitsche constant -fluid_dc_penalty must be > 2 (coercivity, dc_fluid.hpp), got " +
+              std::to_string(penalty));
   require(newton_max_it >= 1, "newton_max_it must be >= 1");
   for (int d = 0; d < 3; ++d)
     for (int s = 0; s < 2; ++s)
@@ -193,11 +195,11 @@ DivConformingFluid::DivConformingFluid(MPI_Comm comm, const DivConformingSpace& 
   CELLFSI_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
   CELLFSI_PETSC(KSPSetOperators(ksp_, J_, J_));
   CELLFSI_PETSC(KSPSetFromOptions(ksp_));  // the command line wins over the defaults above
-  // MUMPS's relative pivot threshold CNTL(1): 0.5 instead of its 0.01. With 0.01 the saddle-point matrix (mass,
-  // viscous and Nitsche rows of different scales, the zero pressure block) is factored with enough growth that the
-  // continuity rows of a one-iteration solve hold only to ~1e-10 of |grad v| (7e-11 measured on the manufactured
-  // solution at 16^2); with 0.5, 1e-14. -fluid_mat_mumps_cntl_1 still overrides it (MUMPS reads its options when
-  // it factors).
+  // MUMPS's relative pivot threshold CNTL(1): 0.5 instead of its 0.01. With 0.01 the saddle-point matrix
+  // (mass, viscous and Nitsche rows of different scales, the zero pressure block) is factored with enough
+  // growth that the continuity rows of a one-iteration solve hold only to ~1e-10 of |grad v| (7e-11 measured
+  // on the manufactured solution at 16^2); with 0.5, 1e-14. -fluid_mat_mumps_cntl_1 still overrides it (MUMPS
+  // reads its options when it factors).
   PCType pc_type;
   MatSolverType solver_type = nullptr;
   CELLFSI_PETSC(PCGetType(pc, &pc_type));
@@ -230,7 +232,8 @@ void DivConformingFluid::for_owned_elements(int n_gauss, F&& f) const {
 }
 
 void DivConformingFluid::create_matrix() {
-  // The pattern of every row (in PETSc numbering), from every element: O(unknowns) on each rank, as the state.
+  // The pattern of every row (in PETSc numbering), from every element: O(unknowns) on each rank, as the
+  // state.
   const int n = space_.n_dofs(), D = space_.dim();
   std::vector<std::vector<PetscInt>> rows(n);
   ElementBasis eb;
@@ -257,7 +260,8 @@ void DivConformingFluid::create_matrix() {
     auto& r = rows[i];
     std::sort(r.begin(), r.end());
     r.erase(std::unique(r.begin(), r.end()), r.end());
-    d_nnz[i - row_begin_] = std::count_if(r.begin(), r.end(), [&](PetscInt c) { return c >= row_begin_ && c < row_end_; });
+    d_nnz[i - row_begin_] =
+        std::count_if(r.begin(), r.end(), [&](PetscInt c) { return c >= row_begin_ && c < row_end_; });
     o_nnz[i - row_begin_] = static_cast<PetscInt>(r.size()) - d_nnz[i - row_begin_];
   }
   CELLFSI_PETSC(MatCreateAIJ(comm_, n_own, n_own, n, n, 0, d_nnz.data(), 0, o_nnz.data(), &J_));
@@ -310,7 +314,8 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J) const {
     for (int q = 0; q < eb.n_points; ++q) {
       PointTangent t;
       const PointResidual r = kernel(q, point_state(q), J ? &t : nullptr);
-      add_point(eb, q, D, eb.weight[q], r, J ? &t : nullptr, lv.dv_dU, lv.da_dU, Fe, J ? &Ke : nullptr, n_loc);
+      add_point(eb, q, D, eb.weight[q], r, J ? &t : nullptr, lv.dv_dU, lv.da_dU, Fe, J ? &Ke : nullptr,
+                n_loc);
     }
     std::vector<PetscInt> idx = local_indices(eb, D);
     for (PetscInt& g : idx) g = petsc_index_[g];
@@ -349,7 +354,8 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J) const {
     np.dim = D;
     for (int d = 0; d < D; ++d) {
       if (space_.periodic(d)) continue;
-      const double beta_per_nu = opt_.penalty * (space_.degree() + 1) * (space_.degree() + 1) / space_.element_size(d);
+      const double beta_per_nu =
+          opt_.penalty * (space_.degree() + 1) * (space_.degree() + 1) / space_.element_size(d);
       for (int side = 0; side < 2; ++side) {
         np.n = {0, 0, 0};
         np.n[d] = side == 0 ? -1.0 : 1.0;
@@ -399,8 +405,8 @@ DcSolveStats DivConformingFluid::newton(std::vector<double>& U,
       break;
     }
     if (last) break;
-    CELLFSI_PETSC(MatZeroRows(J_, static_cast<PetscInt>(owned_fixed_.size()), owned_fixed_.data(), 1.0, nullptr,
-                              nullptr));
+    CELLFSI_PETSC(MatZeroRows(J_, static_cast<PetscInt>(owned_fixed_.size()), owned_fixed_.data(), 1.0,
+                              nullptr, nullptr));
     CELLFSI_PETSC(VecScale(F_, -1.0));
     CELLFSI_PETSC(KSPSetOperators(ksp_, J_, J_));
     CELLFSI_PETSC(KSPSolve(ksp_, F_, x_));
@@ -441,8 +447,9 @@ void DivConformingFluid::shift_pressure_to_zero_mean(std::vector<double>& U) con
 
 void DivConformingFluid::set_state(const std::vector<double>& u) {
   if (static_cast<int>(u.size()) != space_.n_dofs())
-    throw std::invalid_argument("DivConformingFluid::set_state: u must have n_dofs() = " +
-                                std::to_string(space_.n_dofs()) + " entries, got " + std::to_string(u.size()));
+    throw std::invalid_argument(
+        "DivConformingFluid::set_state: u must have n_dofs() = " + std::to_string(space_.n_dofs()) +
+        " entries, got " + std::to_string(u.size()));
   U_ = u;
   std::fill(Udot_.begin(), Udot_.end(), 0.0);
 }
@@ -452,7 +459,8 @@ void DivConformingFluid::project_initial_state(const std::function<Vec3(const Ve
   const int D = space_.dim();
   auto project = [&](const std::function<Vec3(const Vec3&)>& f) {
     std::vector<double> X(space_.n_dofs(), 0.0);
-    // (v, w) - (p, div w) - (f, w) + (q, div v): the interior kernel with a = v, nu = 0, no convection, g = f.
+    // (v, w) - (p, div w) - (f, w) + (q, div v): the interior kernel with a = v, nu = 0, no convection, g =
+    // f.
     auto levels = [&](const std::vector<double>& U) {
       Levels lv;
       lv.v = U;
@@ -531,8 +539,7 @@ DcSolveStats DivConformingFluid::step() {
   const int nv = space_.n_velocity();
   const std::vector<double> Un = U_, Udotn = Udot_;
   std::vector<double> X = U_;  // predictor: the same state
-  const DcSolveStats st =
-      newton(X, [&](const std::vector<double>& U) { return step_levels(U, Un, Udotn); });
+  const DcSolveStats st = newton(X, [&](const std::vector<double>& U) { return step_levels(U, Un, Udotn); });
   if (!st.converged) return st;
   for (int i = 0; i < nv; ++i) Udot_[i] = alpha_.rate(X[i], Un[i], Udotn[i]);
   U_ = X;
@@ -554,9 +561,9 @@ Mat DivConformingFluid::jacobian(bool time_step, bool pin_pressure) {
   return J_;
 }
 
-DivConformingFluid::Errors DivConformingFluid::errors(const std::function<Vec3(const Vec3&)>& v,
-                                                      const std::function<geometry::Mat3(const Vec3&)>& grad_v,
-                                                      const std::function<double(const Vec3&)>& p) const {
+DivConformingFluid::Errors DivConformingFluid::errors(
+    const std::function<Vec3(const Vec3&)>& v, const std::function<geometry::Mat3(const Vec3&)>& grad_v,
+    const std::function<double(const Vec3&)>& p) const {
   const int D = space_.dim();
   const int ng = space_.degree() + 4;
   // Means of the two pressures first.
@@ -683,7 +690,8 @@ void DivConformingFluid::write_vtk(const std::string& path, int samples_per_elem
           for (int m0 = 0; m0 < n[0]; ++m0) {
             const int m[3] = {m0, m1, m2};
             Vec3 x = Vec3::Zero();
-            for (int d = 0; d < D; ++d) x[d] = space_.lo(d) + (space_.hi(d) - space_.lo(d)) * m[d] / (n[d] - 1);
+            for (int d = 0; d < D; ++d)
+              x[d] = space_.lo(d) + (space_.hi(d) - space_.lo(d)) * m[d] / (n[d] - 1);
             pts.push_back(x);
           }
       // A periodic direction's last sample, at the period's end, is wrapped to its start: the same value.
@@ -717,17 +725,20 @@ void DivConformingFluid::write_vtk(const std::string& path, int samples_per_elem
   }
   CELLFSI_PETSC(MPI_Bcast(&failed, 1, MPI_INT, 0, comm_));
   if (failed)
-    throw std::runtime_error("DivConformingFluid::write_vtk: " + (rank == 0 ? message : std::string("rank 0 failed")));
+    throw std::runtime_error("DivConformingFluid::write_vtk: " +
+                             (rank == 0 ? message : std::string("rank 0 failed")));
 }
 
 void DivConformingFluid::set_viscosity(const std::vector<double>& mu) {
   if (static_cast<int>(mu.size()) != space_.n_pressure())
     throw std::invalid_argument("DivConformingFluid::set_viscosity: mu must have n_pressure() = " +
-                                std::to_string(space_.n_pressure()) + " entries, got " + std::to_string(mu.size()));
+                                std::to_string(space_.n_pressure()) + " entries, got " +
+                                std::to_string(mu.size()));
   for (double m : mu)
     if (!(m > 0))
-      throw std::invalid_argument("DivConformingFluid::set_viscosity: every viscosity must be > 0 g/(cm s), got " +
-                                  std::to_string(m));
+      throw std::invalid_argument(
+          "DivConformingFluid::set_viscosity: every viscosity must be > 0 g/(cm s), got " +
+          std::to_string(m));
   nu_field_.resize(mu.size());
   for (size_t a = 0; a < mu.size(); ++a) nu_field_[a] = mu[a] / opt_.density;
 }

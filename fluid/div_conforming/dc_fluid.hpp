@@ -6,9 +6,9 @@
 // What it solves (kinematic pressure, nu = mu / rho, g = f / rho; CGS as fluid/fluid_solver.hpp):
 //   dv/dt + c (v.grad)v - div(2 nu eps(v)) + grad p = g,   div v = 0,
 // c = 0 in Stokes mode. The weak form is in dc_kernel.hpp. Boundaries: a periodic direction is periodic; both
-// ends of every other direction are walls moving tangentially with a prescribed velocity. On a wall the normal
-// velocity is imposed strongly (its unknowns are the coefficients of the one velocity function nonzero there)
-// and the tangential velocity weakly, by symmetric Nitsche with penalty
+// ends of every other direction are walls moving tangentially with a prescribed velocity. On a wall the
+// normal velocity is imposed strongly (its unknowns are the coefficients of the one velocity function nonzero
+// there) and the tangential velocity weakly, by symmetric Nitsche with penalty
 //   beta = C_pen nu (k + 1)^2 / h,   C_pen = 4 by default (-fluid_dc_penalty),
 // h the element size normal to the wall. Why 4: on a wall w.n = 0, so eps(w) n . w involves only d_n w_t, of
 // degree k - 1 in the normal direction; the polynomial trace inequality ||u||^2_face <= k^2 / h ||u||^2_K for
@@ -30,11 +30,12 @@
 //
 // Parallelism: the elements are split into contiguous ranges of their lexicographic index, one per rank; an
 // unknown belongs to the lowest rank whose elements it touches, and the unknowns are renumbered so that each
-// rank's are contiguous (PETSc's MPIAIJ rows). Each rank assembles its elements (entries for other ranks' rows
-// travel through PETSc's stash) and MUMPS solves in parallel. The state (U, its rate) is replicated on every
-// rank: after each linear solve the update is gathered to all (VecScatterCreateToAll). Simple and exact (1 and 2
-// ranks agree to 7e-15, tested), but O(unknowns) memory and communication per rank: a partition of the
-// element grid with ghost width k + 1 (the velocity's stencil half-width) is the next step for large runs.
+// rank's are contiguous (PETSc's MPIAIJ rows). Each rank assembles its elements (entries for other ranks'
+// rows travel through PETSc's stash) and MUMPS solves in parallel. The state (U, its rate) is replicated on
+// every rank: after each linear solve the update is gathered to all (VecScatterCreateToAll). Simple and exact
+// (1 and 2 ranks agree to 7e-15, tested), but O(unknowns) memory and communication per rank: a partition of
+// the element grid with ghost width k + 1 (the velocity's stencil half-width) is the next step for large
+// runs.
 #include <petscksp.h>
 
 #include <array>
@@ -49,15 +50,15 @@ namespace cellfsi::fluid::dc {
 
 /// Physical and numerical settings; the defaults are the paper's plasma (CGS), as fluid::FluidOptions.
 struct DcFluidOptions {
-  double density = 1.025;    // rho [g/cm^3]
-  double viscosity = 0.012;  // mu [g/(cm s)]
+  double density = 1.025;          // rho [g/cm^3]
+  double viscosity = 0.012;        // mu [g/(cm s)]
   Vec3 body_force = Vec3::Zero();  // f [dyn/cm^3], uniform
   /// An additional body force per unit volume f(x, t) [dyn/cm^3] (manufactured solutions); none if empty.
   std::function<Vec3(const Vec3&, double)> body_force_field;
-  bool stokes = false;    // drop convection
-  double rho_inf = 0.5;   // generalized-alpha spectral radius at infinity
-  double dt = 5e-4;       // time step [s]
-  double penalty = 4.0;   // C_pen of the Nitsche penalty C_pen nu (k + 1)^2 / h
+  bool stokes = false;   // drop convection
+  double rho_inf = 0.5;  // generalized-alpha spectral radius at infinity
+  double dt = 5e-4;      // time step [s]
+  double penalty = 4.0;  // C_pen of the Nitsche penalty C_pen nu (k + 1)^2 / h
   /// Velocity of the wall at side s (0: x_d = lo, 1: x_d = hi) of non-periodic direction d; its normal
   /// component must be 0.
   std::array<std::array<Vec3, 2>, 3> wall_velocity{
@@ -103,10 +104,10 @@ class DivConformingFluid {
   void restore(const std::vector<double>& u, const std::vector<double>& udot, int steps);
 
   /// The tangent at the current state, of a time step (time_step: the state as the first iterate of the next
-  /// step) or of the steady problem, with unit rows for the walls' normal velocities and, if pin_pressure, the
-  /// pressure pin; in the PETSc numbering (on one rank the natural one of dc_space.hpp). The matrix belongs to
-  /// the solver and changes with the next solve. For the tests of a solver of this operator (dc_fourier.hpp).
-  /// Collective.
+  /// step) or of the steady problem, with unit rows for the walls' normal velocities and, if pin_pressure,
+  /// the pressure pin; in the PETSc numbering (on one rank the natural one of dc_space.hpp). The matrix
+  /// belongs to the solver and changes with the next solve. For the tests of a solver of this operator
+  /// (dc_fourier.hpp). Collective.
   Mat jacobian(bool time_step, bool pin_pressure);
 
   /// The steady problem (no time derivative) at the current time, from the current state as first guess.
@@ -116,7 +117,7 @@ class DivConformingFluid {
   double time() const { return time_; }
   int steps_taken() const { return steps_; }
 
-  const std::vector<double>& state() const { return U_; }       // velocity then pressure
+  const std::vector<double>& state() const { return U_; }          // velocity then pressure
   const std::vector<double>& state_rate() const { return Udot_; }  // velocity rate (pressure entries 0)
   const DivConformingSpace& space() const { return space_; }
   const DcFluidOptions& options() const { return opt_; }
@@ -133,18 +134,21 @@ class DivConformingFluid {
     double v_l2 = 0, v_h1 = 0, p_l2 = 0;
     double v_l2_norm = 0, v_h1_norm = 0, p_l2_norm = 0;
   };
-  Errors errors(const std::function<Vec3(const Vec3&)>& v, const std::function<geometry::Mat3(const Vec3&)>& grad_v,
+  Errors errors(const std::function<Vec3(const Vec3&)>& v,
+                const std::function<geometry::Mat3(const Vec3&)>& grad_v,
                 const std::function<double(const Vec3&)>& p) const;
   /// max |div v_h| / max |grad v_h| (Frobenius) over the Gauss points of every element (0 for v_h = 0).
   double divergence_ratio() const;
   /// max |v_h| over the same points.
   double max_velocity() const;
   // --- A viscosity that varies in space (as FluidSolver's; docs/fluid.md, "The viscosity field") ---
-  /// Sets the viscosity field by control value of the pressure space (degree k): mu[A] is the dynamic viscosity
-  /// [g/(cm s)] of pressure function A, so that nu^h = sum_A (mu_A / rho) q_A. The viscous term and the Nitsche
-  /// terms (their penalty included) then use nu^h at each point; the weak form needs no grad nu (Galerkin).
+  /// Sets the viscosity field by control value of the pressure space (degree k): mu[A] is the dynamic
+  /// viscosity [g/(cm s)] of pressure function A, so that nu^h = sum_A (mu_A / rho) q_A. The viscous term and
+  /// the Nitsche terms (their penalty included) then use nu^h at each point; the weak form needs no grad nu
+  /// (Galerkin).
   void set_viscosity(const std::vector<double>& mu);
-  /// The L2 projection of mu(x) [g/(cm s)] onto the pressure space, as the field (order k + 1 for a smooth mu).
+  /// The L2 projection of mu(x) [g/(cm s)] onto the pressure space, as the field (order k + 1 for a smooth
+  /// mu).
   void project_viscosity(const std::function<double(const Vec3&)>& mu);
   void clear_viscosity() { nu_field_.clear(); }
   bool has_viscosity_field() const { return !nu_field_.empty(); }
@@ -159,8 +163,8 @@ class DivConformingFluid {
     double p = 0;
   };
   std::vector<Sample> sample(const std::vector<Vec3>& points) const;
-  /// Writes the fields as a VTK structured grid (.vts) sampled at samples_per_element + 1 points per element and
-  /// direction (element ends shared): arrays velocity, pressure, divergence. Rank 0 writes; collective.
+  /// Writes the fields as a VTK structured grid (.vts) sampled at samples_per_element + 1 points per element
+  /// and direction (element ends shared): arrays velocity, pressure, divergence. Rank 0 writes; collective.
   void write_vtk(const std::string& path, int samples_per_element = 2) const;
 
   /// divergence_ratio() after each step() (the "at every step").
@@ -182,11 +186,13 @@ class DivConformingFluid {
   Levels step_levels(const std::vector<double>& U, const std::vector<double>& Un,
                      const std::vector<double>& Udotn) const;
   std::function<Vec3(const Vec3&)> body_force_per_mass(double t) const;
-  /// Residual F and, if J is not null, the tangent (PETSc numbering), both without the fixed rows. Collective.
+  /// Residual F and, if J is not null, the tangent (PETSc numbering), both without the fixed rows.
+  /// Collective.
   void assemble(const Levels& lv, Vec F, Mat J) const;
   /// Newton on R(U) = 0 with levels(U) describing the fields; fixed rows (wall normals, the pressure pin)
   /// keep U's values.
-  DcSolveStats newton(std::vector<double>& U, const std::function<Levels(const std::vector<double>&)>& levels);
+  DcSolveStats newton(std::vector<double>& U,
+                      const std::function<Levels(const std::vector<double>&)>& levels);
   void create_matrix();
   /// Calls f(eb) for each of this rank's elements with its basis at the element's Gauss points.
   template <class F>
@@ -199,13 +205,13 @@ class DivConformingFluid {
   const DivConformingSpace& space_;
   DcFluidOptions opt_;
   int elem_begin_ = 0, elem_end_ = 0;
-  std::vector<PetscInt> petsc_index_;  // natural (dc_space.hpp) -> PETSc numbering
+  std::vector<PetscInt> petsc_index_;     // natural (dc_space.hpp) -> PETSc numbering
   PetscInt row_begin_ = 0, row_end_ = 0;  // this rank's rows in PETSc numbering
   std::vector<PetscInt> owned_fixed_;     // this rank's fixed rows, PETSc numbering
   GeneralizedAlpha alpha_;
   std::vector<double> U_, Udot_;
-  std::vector<int> fixed_rows_;          // wall normal velocities and the pressure pin (natural numbering)
-  std::vector<double> pressure_mass_;    // int q_A over the box
+  std::vector<int> fixed_rows_;        // wall normal velocities and the pressure pin (natural numbering)
+  std::vector<double> pressure_mass_;  // int q_A over the box
   std::vector<double> div_history_;
   std::vector<double> nu_field_;  // kinematic viscosity per pressure function; empty: uniform
   double time_ = 0;

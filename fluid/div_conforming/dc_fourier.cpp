@@ -10,15 +10,18 @@
 
 namespace cellfsi::fluid::dc {
 
-DcFourierSolver::DcFourierSolver(const DivConformingSpace& space, MPI_Comm comm, std::vector<PetscInt> petsc_index)
+DcFourierSolver::DcFourierSolver(const DivConformingSpace& space, MPI_Comm comm,
+                                 std::vector<PetscInt> petsc_index)
     : space_(space), comm_(comm), petsc_index_(std::move(petsc_index)) {
   if (space.dim() != 2 || !space.periodic(0))
     throw std::invalid_argument("DcFourierSolver: needs a 2D space periodic in x (got dim " +
-                                std::to_string(space.dim()) + (space.periodic(0) ? "" : ", x not periodic") + ")");
+                                std::to_string(space.dim()) + (space.periodic(0) ? "" : ", x not periodic") +
+                                ")");
   nx_ = space.n_elements(0);
   int off = 0;
   for (int c = 0; c <= 2; ++c) {
-    if (space.n_basis(c, 0) != nx_) throw std::logic_error("DcFourierSolver: a periodic component without n_x functions");
+    if (space.n_basis(c, 0) != nx_)
+      throw std::logic_error("DcFourierSolver: a periodic component without n_x functions");
     line_offset_.push_back(off);
     off += space.n_basis(c, 1);
   }
@@ -27,7 +30,8 @@ DcFourierSolver::DcFourierSolver(const DivConformingSpace& space, MPI_Comm comm,
     if (static_cast<int>(petsc_index_.size()) != space.n_dofs())
       throw std::invalid_argument("DcFourierSolver: petsc_index must have n_dofs() entries");
     natural_index_.assign(petsc_index_.size(), -1);
-    for (size_t g = 0; g < petsc_index_.size(); ++g) natural_index_[petsc_index_[g]] = static_cast<PetscInt>(g);
+    for (size_t g = 0; g < petsc_index_.size(); ++g)
+      natural_index_[petsc_index_[g]] = static_cast<PetscInt>(g);
   }
   int rank = 0, size = 1;
   CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
@@ -51,7 +55,9 @@ void DcFourierSolver::build(Mat A_in, bool pin_pressure) {
     A = copies[0];
   }
   auto to_petsc = [&](int g) { return petsc_index_.empty() ? static_cast<PetscInt>(g) : petsc_index_[g]; };
-  auto to_natural = [&](PetscInt p) { return natural_index_.empty() ? static_cast<int>(p) : static_cast<int>(natural_index_[p]); };
+  auto to_natural = [&](PetscInt p) {
+    return natural_index_.empty() ? static_cast<int>(p) : static_cast<int>(natural_index_[p]);
+  };
   // Decodes a natural index into (component, x index, line index).
   auto decode = [&](int g, int& i, int& line) {
     int c = n_comp - 1;
@@ -131,7 +137,8 @@ void DcFourierSolver::build(Mat A_in, bool pin_pressure) {
 void DcFourierSolver::solve(const std::vector<double>& b, std::vector<double>& x) const {
   if (!built_) throw std::logic_error("DcFourierSolver::solve before build");
   const double two_pi = 2 * std::numbers::pi;
-  // b_hat_m(line) = sum_i b(i, line) e^{-2 pi i m i / n}; x(i, line) = 1/n sum_m x_hat_m(line) e^{2 pi i m i / n}.
+  // b_hat_m(line) = sum_i b(i, line) e^{-2 pi i m i / n}; x(i, line) = 1/n sum_m x_hat_m(line) e^{2 pi i m i
+  // / n}.
   std::vector<Complex> twiddle(nx_);
   for (int t = 0; t < nx_; ++t) twiddle[t] = std::polar(1.0, two_pi * t / nx_);
   auto index = [&](int c, int i, int j) { return space_.offset(c) + i + nx_ * j; };
@@ -153,7 +160,8 @@ void DcFourierSolver::solve(const std::vector<double>& b, std::vector<double>& x
         for (int i = 0; i < nx_; ++i)
           x[index(c, i, j)] += (xhat[line_offset_[c] + j] * twiddle[(m * i) % nx_]).real() / nx_;
   }
-  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, x.data(), static_cast<int>(x.size()), MPI_DOUBLE, MPI_SUM, comm_));
+  CELLFSI_PETSC(
+      MPI_Allreduce(MPI_IN_PLACE, x.data(), static_cast<int>(x.size()), MPI_DOUBLE, MPI_SUM, comm_));
 }
 
 }  // namespace cellfsi::fluid::dc

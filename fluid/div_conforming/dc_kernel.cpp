@@ -21,8 +21,8 @@ PointTangent dc_interior_tangent(const PointState& s, const InteriorParameters& 
   for (int i = 0; i < D; ++i) {
     t.dr0_da[i][i] = 1.0;
     for (int k = 0; k < D; ++k) {
-      t.dr0_dv[i][k] = prm.convection * s.dv[i][k];            // d/dv_k of v_l d_l v_i
-      t.dr0_ddv[i][i][k] = prm.convection * s.v[k];            // d/d(d_k v_i)
+      t.dr0_dv[i][k] = prm.convection * s.dv[i][k];  // d/dv_k of v_l d_l v_i
+      t.dr0_ddv[i][i][k] = prm.convection * s.v[k];  // d/d(d_k v_i)
     }
     for (int j = 0; j < D; ++j) {
       t.dr1_ddv[i][j][i][j] += prm.nu;

@@ -2,8 +2,8 @@
 // Pointwise kernels of the Galerkin Navier-Stokes formulation on the divergence-conforming space: plain
 // functions of plain data at one point (no mesh, no PETSc), as fluid/vms_kernel.hpp for the VMS one.
 //
-// Kinematic pressure p (pressure / rho), kinematic viscosity nu = mu / rho, body force per unit mass g, as the
-// VMS solver. The weak form, for test functions w (velocity) and q (pressure), is written as
+// Kinematic pressure p (pressure / rho), kinematic viscosity nu = mu / rho, body force per unit mass g, as
+// the VMS solver. The weak form, for test functions w (velocity) and q (pressure), is written as
 //   R_w = int  w . r0 + grad w : r1     (r1[i][j] multiplies d w_i / d x_j)
 //   R_q = int  q rq
 // Interior points (dc_interior_point):
@@ -28,25 +28,25 @@ using PointMat = std::array<std::array<double, 3>, 3>;
 
 /// Fields at a point.
 struct PointState {
-  PointVec v{};    // velocity
-  PointMat dv{};   // dv[i][j] = d v_i / d x_j
-  PointVec a{};    // acceleration
-  double p = 0;  // kinematic pressure
+  PointVec v{};   // velocity
+  PointMat dv{};  // dv[i][j] = d v_i / d x_j
+  PointVec a{};   // acceleration
+  double p = 0;   // kinematic pressure
 };
 
 struct InteriorParameters {
   int dim = 2;
-  double nu = 0;         // kinematic viscosity [cm^2/s]
+  double nu = 0;          // kinematic viscosity [cm^2/s]
   double convection = 1;  // 1: Navier-Stokes, 0: Stokes
-  PointVec g{};               // body force per unit mass at the point [cm/s^2]
+  PointVec g{};           // body force per unit mass at the point [cm/s^2]
 };
 
 struct NitscheParameters {
   int dim = 2;
   double nu = 0;
-  double beta = 0;  // penalty [cm/s]: C_pen nu (k + 1)^2 / h
-  PointVec n{};          // outward unit normal
-  PointVec v_wall{};     // wall velocity at the point
+  double beta = 0;    // penalty [cm/s]: C_pen nu (k + 1)^2 / h
+  PointVec n{};       // outward unit normal
+  PointVec v_wall{};  // wall velocity at the point
 };
 
 struct PointResidual {
@@ -57,13 +57,13 @@ struct PointResidual {
 
 /// Derivatives of PointResidual with respect to the fields.
 struct PointTangent {
-  PointMat dr0_dv{};                                  // [i][k]
-  std::array<PointMat, 3> dr0_ddv{};                  // [i][k][l] = d r0_i / d (d_l v_k)
-  PointMat dr0_da{};                                  // [i][k]
-  std::array<PointMat, 3> dr1_dv{};                   // [i][j][k]
-  std::array<std::array<PointMat, 3>, 3> dr1_ddv{};   // [i][j][k][l]
-  PointMat dr1_dp{};                                  // [i][j]
-  PointMat drq_ddv{};                                 // [k][l]
+  PointMat dr0_dv{};                                 // [i][k]
+  std::array<PointMat, 3> dr0_ddv{};                 // [i][k][l] = d r0_i / d (d_l v_k)
+  PointMat dr0_da{};                                 // [i][k]
+  std::array<PointMat, 3> dr1_dv{};                  // [i][j][k]
+  std::array<std::array<PointMat, 3>, 3> dr1_ddv{};  // [i][j][k][l]
+  PointMat dr1_dp{};                                 // [i][j]
+  PointMat drq_ddv{};                                // [k][l]
 };
 
 PointResidual dc_interior_residual(const PointState& s, const InteriorParameters& prm);

@@ -21,9 +21,9 @@ DivConformingSpace::DivConformingSpace(int dim, int k, const Index3& n_elements,
                                        const Vec3& hi, const std::array<bool, 3>& periodic)
     : dim_(dim), k_(k) {
   require(dim == 2 || dim == 3, "dim must be 2 or 3, got " + std::to_string(dim));
-  require(k >= 1 && k + 1 <= geometry::kMaxDegree,
-          "the pressure degree k must be in [1, " + std::to_string(geometry::kMaxDegree - 1) + "], got " +
-              std::to_string(k));
+  require(k >= 1 && k + 1 <= geometry::kMaxDegree, "the pressure degree k must be in [1, " +
+                                                       std::to_string(geometry::kMaxDegree - 1) + "], got " +
+                                                       std::to_string(k));
   for (int d = 0; d < dim; ++d) {
     const std::string dir = "direction " + std::to_string(d);
     require(n_elements[d] >= 1, dir + ": n_elements must be >= 1, got " + std::to_string(n_elements[d]));
@@ -32,9 +32,9 @@ DivConformingSpace::DivConformingSpace(int dim, int k, const Index3& n_elements,
     lo_[d] = lo[d];
     hi_[d] = hi[d];
     if (periodic[d]) {
-      require(n_elements[d] >= k + 1, dir + ": a periodic direction needs n_elements >= k + 1 = " +
-                                          std::to_string(k + 1) + " (the velocity's degree), got " +
-                                          std::to_string(n_elements[d]));
+      require(n_elements[d] >= k + 1,
+              dir + ": a periodic direction needs n_elements >= k + 1 = " + std::to_string(k + 1) +
+                  " (the velocity's degree), got " + std::to_string(n_elements[d]));
       high_[d] = KnotVector::periodic_uniform(k + 1, n_elements[d], lo[d], hi[d]);
       low_[d] = KnotVector::periodic_uniform(k, n_elements[d], lo[d], hi[d]);
     } else {

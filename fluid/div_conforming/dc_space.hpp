@@ -10,8 +10,8 @@
 // its zero-mean part). The spaces:
 //   velocity component i: high along x_i, low along the other directions;
 //   pressure:             low along every direction.
-// Hence div v_h = sum_i d v_i / d x_i lies in the pressure space for every v_h, with coefficients given by the
-// difference matrices of divergence() (the de Rham property of the pair; no quadrature involved).
+// Hence div v_h = sum_i d v_i / d x_i lies in the pressure space for every v_h, with coefficients given by
+// the difference matrices of divergence() (the de Rham property of the pair; no quadrature involved).
 //
 // Numbering of the unknowns: velocity component 0, then 1 (then 2), then pressure; within each, the folded
 // basis indices lexicographically with direction 0 fastest (as geometry::Patch numbers control points).

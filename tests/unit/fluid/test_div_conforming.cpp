@@ -4,10 +4,10 @@
 // The space: partition of unity; div of any velocity lies in the pressure space (pointwise, and as its own L2
 // projection); the de Rham property (d/dx maps the degree-(k+1) spline space onto the degree-k one; div maps
 // the velocities with zero normal wall values onto the zero-mean pressures). The kernels: tangents against
-// central differences. The solver: Couette and Poiseuille flows (in the space: linear and quadratic in y along
-// x, the velocity's x component has degree k >= 2 in y) exact to 1e-12, steady and over time steps; a body force
-// that is a gradient leaves the velocity at round-off (pressure robustness); divergence-free to 1e-9 of the
-// velocity gradient at every time step. The manufactured-solution rates are in
+// central differences. The solver: Couette and Poiseuille flows (in the space: linear and quadratic in y
+// along x, the velocity's x component has degree k >= 2 in y) exact to 1e-12, steady and over time steps; a
+// body force that is a gradient leaves the velocity at round-off (pressure robustness); divergence-free to
+// 1e-9 of the velocity gradient at every time step. The manufactured-solution rates are in
 // tests/convergence/test_div_conforming_convergence.cpp.
 #include <gtest/gtest.h>
 
@@ -24,17 +24,17 @@
 #include <vtkStructuredGrid.h>
 #include <vtkXMLStructuredGridReader.h>
 
+#include "../../support/print_rank0.hpp"
 #include "fluid/div_conforming/dc_fluid.hpp"
 #include "fluid/div_conforming/dc_fourier.hpp"
 #include "fluid/div_conforming/dc_kernel.hpp"
 #include "fluid/div_conforming/dc_space.hpp"
 #include "geometry/builders.hpp"
-#include "../../support/print_rank0.hpp"
 
 using namespace cellfsi;
 using namespace cellfsi::fluid::dc;
-using geometry::Mat3;
 using cellfsi::test_support::print0;
+using geometry::Mat3;
 
 namespace {
 
@@ -80,7 +80,8 @@ std::vector<double> random_velocity(const DivConformingSpace& sp, unsigned seed)
 
 }  // namespace
 
-// --- The space ----------------------------------------------------------------------------------------------
+// --- The space
+// ----------------------------------------------------------------------------------------------
 
 TEST(DivConformingSpace, EveryComponentIsAPartitionOfUnity) {
   for (int k : {2, 3}) {
@@ -141,7 +142,8 @@ TEST(DivConformingSpace, DivergenceEqualsItsL2Projection) {
       for (int a = 0; a < cb.n; ++a) {
         b[cb.index[a] - off] += eb.weight[q] * cb.value[q * cb.n + a] * div;
         for (int c = 0; c < cb.n; ++c)
-          M(cb.index[a] - off, cb.index[c] - off) += eb.weight[q] * cb.value[q * cb.n + a] * cb.value[q * cb.n + c];
+          M(cb.index[a] - off, cb.index[c] - off) +=
+              eb.weight[q] * cb.value[q * cb.n + a] * cb.value[q * cb.n + c];
       }
     }
   }
@@ -160,9 +162,10 @@ TEST(DivConformingSpace, DeRhamPropertyDivergenceIsOntoTheZeroMeanPressures) {
   // the range of div is the pressure space minus the constants: rank = n_pressure - 1. Also per direction,
   // d/dx maps the degree-(k+1) space onto the degree-k one (open: rank n_low; periodic: n_low - 1).
   for (int k : {2, 3}) {
-    for (const auto& sp : {channel_2d(k, 5, 4),
-                           DivConformingSpace(2, k, {4, 5, 1}, Vec3(0, 0, 0), Vec3(1, 1, 0), {false, false, false}),
-                           DivConformingSpace(3, k, {4, 3, 3}, Vec3(0, 0, 0), Vec3(1, 1, 1), {true, false, false})}) {
+    for (const auto& sp :
+         {channel_2d(k, 5, 4),
+          DivConformingSpace(2, k, {4, 5, 1}, Vec3(0, 0, 0), Vec3(1, 1, 0), {false, false, false}),
+          DivConformingSpace(3, k, {4, 3, 3}, Vec3(0, 0, 0), Vec3(1, 1, 1), {true, false, false})}) {
       const std::vector<int> fixed = sp.wall_normal_dofs();
       std::vector<char> is_fixed(sp.n_velocity(), 0);
       for (int f : fixed) is_fixed[f] = 1;
@@ -181,7 +184,8 @@ TEST(DivConformingSpace, DeRhamPropertyDivergenceIsOntoTheZeroMeanPressures) {
       lu.setThreshold(1e-10);
       EXPECT_EQ(lu.rank(), sp.n_pressure() - 1) << "dim " << sp.dim() << " k=" << k;
       for (int d = 0; d < sp.dim(); ++d) {
-        // The derivative matrix of direction d from the component-d knot vector (high) to the pressure's (low).
+        // The derivative matrix of direction d from the component-d knot vector (high) to the pressure's
+        // (low).
         const int nh = sp.high(d).n_basis(), nl = sp.low(d).n_basis();
         Eigen::MatrixXd Dd = Eigen::MatrixXd::Zero(nl, nh);
         for (int m = 0; m < nl; ++m) {
@@ -212,7 +216,8 @@ TEST(DivConformingSpace, RejectsBadInputWithAMessage) {
   // v_x: 6 periodic x 6 open degree-3 functions; v_y: 6 x 7 (degree 4 in y); pressure: 6 x 6.
   EXPECT_EQ(sp.n_dofs(), 6 * 6 + 6 * 7 + 6 * 6);
   // Curved geometry needs the Piola map: refused.
-  EXPECT_THROW(DivConformingSpace::from_patch(geometry::narrowing_channel({}, 12, 4, 2), 2), std::invalid_argument);
+  EXPECT_THROW(DivConformingSpace::from_patch(geometry::narrowing_channel({}, 12, 4, 2), 2),
+               std::invalid_argument);
 }
 
 TEST(DivConformingFluid, OptionsAreReadAndChecked) {
@@ -224,13 +229,15 @@ TEST(DivConformingFluid, OptionsAreReadAndChecked) {
   EXPECT_TRUE(opt.stokes);
   PetscOptionsSetValue(nullptr, "-fluid_dc_penalty", "1.5");  // below the coercivity bound 2
   EXPECT_THROW(opt.set_from_options(), std::invalid_argument);
-  for (const char* k : {"-fluid_viscosity", "-fluid_stokes", "-fluid_dc_penalty"}) PetscOptionsClearValue(nullptr, k);
+  for (const char* k : {"-fluid_viscosity", "-fluid_stokes", "-fluid_dc_penalty"})
+    PetscOptionsClearValue(nullptr, k);
   DcFluidOptions moving_normal;
   moving_normal.wall_velocity[1][0] = Vec3(0, 0.1, 0);  // a wall y = const moving along y
   EXPECT_THROW(moving_normal.validate(), std::invalid_argument);
 }
 
-// --- The kernels ----------------------------------------------------------------------------------------------
+// --- The kernels
+// ----------------------------------------------------------------------------------------------
 
 namespace {
 
@@ -263,8 +270,9 @@ double tangent_mismatch(const PointState& s0, const PointTangent& t, int D, Resi
     compare([&](PointState& s, double e) { s.a[k] += e; }, comp,
             [&](int i, int j) { return j < 0 ? t.dr0_da[i][k] : 0.0; });
     for (int l = 0; l < D; ++l) {
-      const double fdq = compare([&](PointState& s, double e) { s.dv[k][l] += e; }, comp,
-                                 [&](int i, int j) { return j < 0 ? t.dr0_ddv[i][k][l] : t.dr1_ddv[i][j][k][l]; });
+      const double fdq =
+          compare([&](PointState& s, double e) { s.dv[k][l] += e; }, comp,
+                  [&](int i, int j) { return j < 0 ? t.dr0_ddv[i][k][l] : t.dr1_ddv[i][j][k][l]; });
       worst = std::max(worst, std::abs(fdq - t.drq_ddv[k][l]));
     }
   }
@@ -315,7 +323,8 @@ TEST(DivConformingKernel, TangentsMatchCentralDifferences) {
   }
 }
 
-// --- Exact flows ---------------------------------------------------------------------------------------------------
+// --- Exact flows
+// ---------------------------------------------------------------------------------------------------
 
 namespace {
 
@@ -333,7 +342,8 @@ double relative_velocity_error(const DivConformingFluid& fs, const std::function
 /// The flow v(y) of a 12 x 4 channel (with options opt) for k = 2, 3, Stokes and Navier-Stokes: the relative
 /// L2 velocity errors of the steady solve and of three time steps from the exact state's divergence-free
 /// projection, each below 1e-12.
-void expect_exact_channel_flow(const char* name, DcFluidOptions opt, const std::function<Vec3(const Vec3&)>& v,
+void expect_exact_channel_flow(const char* name, DcFluidOptions opt,
+                               const std::function<Vec3(const Vec3&)>& v,
                                const std::function<Mat3(const Vec3&)>& grad) {
   const ChannelCase c;
   opt.density = c.rho;
@@ -352,7 +362,7 @@ void expect_exact_channel_flow(const char* name, DcFluidOptions opt, const std::
       const double e_steps = relative_velocity_error(fs, v, grad);
       EXPECT_LT(e_steps, 1e-12) << name << " k=" << k << (stokes ? " Stokes" : " Navier-Stokes");
       print0("  %s k=%d %s: rel L2 error steady %.2e, after 3 steps %.2e\n", name, k,
-                  stokes ? "Stokes" : "NS", e_steady, e_steps);
+             stokes ? "Stokes" : "NS", e_steady, e_steps);
     }
 }
 
@@ -375,8 +385,8 @@ TEST(DivConformingFluid, CouetteFlowIsExactSteadyAndOverTimeSteps) {
 }
 
 TEST(DivConformingFluid, PoiseuilleFlowIsExactSteadyAndOverTimeSteps) {
-  // A body force G along x between walls at rest: v = (G / (2 mu) y (H - y), 0), p = const. v_x is quadratic in
-  // y and constant in x: in the space for k >= 2 (its degree along y is k).
+  // A body force G along x between walls at rest: v = (G / (2 mu) y (H - y), 0), p = const. v_x is quadratic
+  // in y and constant in x: in the space for k >= 2 (its degree along y is k).
   const ChannelCase c;
   const double G = 4800;  // dyn/cm^3: v_max = G H^2 / (8 mu) = 0.05 cm/s
   DcFluidOptions opt;
@@ -392,8 +402,9 @@ TEST(DivConformingFluid, PoiseuilleFlowIsExactSteadyAndOverTimeSteps) {
 
 TEST(DivConformingFluid, ShearFlowWithAViscosityFieldIsExact) {
   // A viscosity that varies across the unit channel, mu = 1 + y / 2 (rho = 1; linear: the projection onto the
-  // pressure space is exact), walls at rest, v = (y (1 - y), 0): -(mu v_x')' = 1.5 + 2 y is the body force along x,
-  // p = const. v_x is quadratic in y: the discrete solution is the exact one (k = 2, 3; Stokes and Navier-Stokes).
+  // pressure space is exact), walls at rest, v = (y (1 - y), 0): -(mu v_x')' = 1.5 + 2 y is the body force
+  // along x, p = const. v_x is quadratic in y: the discrete solution is the exact one (k = 2, 3; Stokes and
+  // Navier-Stokes).
   const auto v = [](const Vec3& x) { return Vec3(x[1] * (1 - x[1]), 0, 0); };
   const auto grad = [](const Vec3& x) {
     Mat3 m = Mat3::Zero();
@@ -420,14 +431,15 @@ TEST(DivConformingFluid, ShearFlowWithAViscosityFieldIsExact) {
       ASSERT_TRUE(fs.solve_steady().converged);
       EXPECT_GT(relative_velocity_error(fs, v, grad), 0.1);
     }
-  EXPECT_THROW(DivConformingFluid(PETSC_COMM_WORLD, channel_2d(2, 4, 4), DcFluidOptions{}).set_viscosity({1.0}),
-               std::invalid_argument);
+  EXPECT_THROW(
+      DivConformingFluid(PETSC_COMM_WORLD, channel_2d(2, 4, 4), DcFluidOptions{}).set_viscosity({1.0}),
+      std::invalid_argument);
 }
 
 TEST(DivConformingFluid, AGradientBodyForceLeavesTheVelocityAtRest) {
   // Pressure robustness: f = rho grad phi is balanced by the pressure alone, v_h = 0 exactly, because
-  // (w, grad phi) = -(div w, phi) with w.n = 0 on walls and div w in the pressure space (the integrals are exact:
-  // phi is a polynomial). The VMS equal-order space gives a velocity error ~ h^k |phi| / nu instead.
+  // (w, grad phi) = -(div w, phi) with w.n = 0 on walls and div w in the pressure space (the integrals are
+  // exact: phi is a polynomial). The VMS equal-order space gives a velocity error ~ h^k |phi| / nu instead.
   // nu = 1, |grad phi| ~ 1 on the unit square: any velocity above round-off would be a failure.
   struct Case {
     std::array<bool, 3> periodic;
@@ -435,9 +447,12 @@ TEST(DivConformingFluid, AGradientBodyForceLeavesTheVelocityAtRest) {
     const char* name;
   };
   const Case cases[] = {
-      {{false, false, false}, [](const Vec3& x) { return Vec3(3 * x[0] * x[0] * x[1] * x[1], 2 * std::pow(x[0], 3) * x[1], 0); },
+      {{false, false, false},
+       [](const Vec3& x) { return Vec3(3 * x[0] * x[0] * x[1] * x[1], 2 * std::pow(x[0], 3) * x[1], 0); },
        "cavity, phi = x^3 y^2"},
-      {{true, false, false}, [](const Vec3& x) { return Vec3(0, 3 * x[1] * x[1] - 1, 0); }, "channel, phi = y^3 - y"}};
+      {{true, false, false},
+       [](const Vec3& x) { return Vec3(0, 3 * x[1] * x[1] - 1, 0); },
+       "channel, phi = y^3 - y"}};
   for (const Case& cs : cases)
     for (int k : {2, 3})
       for (bool stokes : {true, false}) {
@@ -457,13 +472,13 @@ TEST(DivConformingFluid, AGradientBodyForceLeavesTheVelocityAtRest) {
         for (int s = 0; s < 3; ++s) ASSERT_TRUE(fs.step().converged);
         EXPECT_LT(fs.max_velocity(), 1e-12) << cs.name << " k=" << k << " (time steps)";
         print0("  gradient force, %s, k=%d %s: max|v_h| steady %.2e, after 3 steps %.2e\n", cs.name, k,
-                    stokes ? "Stokes" : "NS", v_steady, fs.max_velocity());
+               stokes ? "Stokes" : "NS", v_steady, fs.max_velocity());
       }
 }
 
 TEST(DivConformingFluid, In3dPoiseuilleIsExactAndAGradientForceLeavesTheVelocityAtRest) {
-  // The 3D path (dimension-generic code). (1) A body force G along x between walls y = 0, H at rest, periodic in x
-  // and z: Poiseuille's v = (G / (2 mu) y (H - y), 0, 0), in the space for k = 2 (steady, Stokes and
+  // The 3D path (dimension-generic code). (1) A body force G along x between walls y = 0, H at rest, periodic
+  // in x and z: Poiseuille's v = (G / (2 mu) y (H - y), 0, 0), in the space for k = 2 (steady, Stokes and
   // Navier-Stokes), and the start-up from rest over 3 steps divergence-free to 1e-9 at every step.
   // (2) A cavity (walls in x, y, z) with f = grad phi, phi = x^2 y z^3: v_h = 0 to round-off.
   const double G = 2.0, mu = 0.5, H = 1.0;
@@ -509,7 +524,8 @@ TEST(DivConformingFluid, In3dPoiseuilleIsExactAndAGradientForceLeavesTheVelocity
   EXPECT_LT(fs.max_velocity(), 1e-12);
 }
 
-// --- Time stepping: divergence at every step -------------------------------------------------------------------
+// --- Time stepping: divergence at every step
+// -------------------------------------------------------------------
 
 TEST(DivConformingFluid, TaylorGreenStaysDivergenceFreeAtEveryStep) {
   // The Taylor-Green vortex on the 2 pi-periodic square (Navier-Stokes, nu = 0.1), k = 2 on 12 x 12, 10 steps
@@ -539,7 +555,8 @@ TEST(DivConformingFluid, TaylorGreenStaysDivergenceFreeAtEveryStep) {
     m(1, 1) = -std::cos(x[0]) * std::cos(x[1]) * F;
     return m;
   };
-  const double e0 = relative_velocity_error(fs, [&](const Vec3& x) { return v(x, 0); }, grad);
+  const double e0 = relative_velocity_error(
+      fs, [&](const Vec3& x) { return v(x, 0); }, grad);
   for (int s = 0; s < 10; ++s) ASSERT_TRUE(fs.step().converged) << "step " << s;
   ASSERT_EQ(fs.divergence_history().size(), 10u);
   double worst = 0;
@@ -547,20 +564,26 @@ TEST(DivConformingFluid, TaylorGreenStaysDivergenceFreeAtEveryStep) {
     EXPECT_LE(r, 1e-9);
     worst = std::max(worst, r);
   }
-  const double e = relative_velocity_error(fs, [&](const Vec3& x) { return v(x, fs.time()); }, grad);
-  print0("  Taylor-Green k=2 12x12, 10 steps: div ratio initial %.2e, worst step %.2e; rel L2 error initial "
-              "%.3e, final %.3e\n", div0, worst, e0, e);
-  // The error is the initial projection's (spatial, ~h^3); ten steps (time error ~(nu dt)^2) add little to it.
+  const double e = relative_velocity_error(
+      fs, [&](const Vec3& x) { return v(x, fs.time()); }, grad);
+  print0(
+      "  Taylor-Green k=2 12x12, 10 steps: div ratio initial %.2e, worst step %.2e; rel L2 error initial "
+      "%.3e, final %.3e\n",
+      div0, worst, e0, e);
+  // The error is the initial projection's (spatial, ~h^3); ten steps (time error ~(nu dt)^2) add little to
+  // it.
   EXPECT_LT(e, 1.1 * e0);
 }
 
-// --- Sampling, restart, output ---------------------------------------------------------------------------------
+// --- Sampling, restart, output
+// ---------------------------------------------------------------------------------
 
 TEST(DivConformingFluid, SamplesRestartsAndWritesVtk) {
-  // Poiseuille (exact in the space): samples at points anywhere (periodic x beyond the period too) give the exact
-  // v and grad v to 1e-12 of their scale. A restart (restore of state, rate and step count into a new solver) then
-  // three steps equals six steps of one solver: the same operations in the same order, so equal to the last bit
-  // up to BLAS threading (asserted 1e-15 of max|U|). The VTK file has the sampled velocity at its points.
+  // Poiseuille (exact in the space): samples at points anywhere (periodic x beyond the period too) give the
+  // exact v and grad v to 1e-12 of their scale. A restart (restore of state, rate and step count into a new
+  // solver) then three steps equals six steps of one solver: the same operations in the same order, so equal
+  // to the last bit up to BLAS threading (asserted 1e-15 of max|U|). The VTK file has the sampled velocity at
+  // its points.
   const ChannelCase c;
   const double G = 4800;
   DcFluidOptions opt;
@@ -622,7 +645,8 @@ TEST(DivConformingFluid, SamplesRestartsAndWritesVtk) {
   }
 }
 
-// --- The Fourier solver ------------------------------------------------------------------------------------------
+// --- The Fourier solver
+// ------------------------------------------------------------------------------------------
 
 namespace {
 
@@ -632,11 +656,12 @@ struct FourierCase {
   const char* name;
 };
 
-/// The tangent of `cs` (fluid on `comm`) solved by DcFourierSolver on `comm` and by MUMPS on one rank (the fluid on
-/// PETSC_COMM_SELF, the operator with its pressure pin) for a consistent random right-hand side: max|x_F - x_D| /
-/// max|x_D| after both pressures are shifted to zero mean. deviation: the Fourier solver's.
+/// The tangent of `cs` (fluid on `comm`) solved by DcFourierSolver on `comm` and by MUMPS on one rank (the
+/// fluid on PETSC_COMM_SELF, the operator with its pressure pin) for a consistent random right-hand side:
+/// max|x_F - x_D| / max|x_D| after both pressures are shifted to zero mean. deviation: the Fourier solver's.
 double fourier_vs_direct(const FourierCase& cs, MPI_Comm comm, double& deviation) {
-  const DivConformingSpace sp(2, cs.k, {cs.nx, cs.ny, 1}, Vec3(0, 0, 0), Vec3(1, 0.5, 0), {true, cs.periodic_y, false});
+  const DivConformingSpace sp(2, cs.k, {cs.nx, cs.ny, 1}, Vec3(0, 0, 0), Vec3(1, 0.5, 0),
+                              {true, cs.periodic_y, false});
   DcFluidOptions opt;
   opt.density = 1.0;
   opt.viscosity = 0.1;
@@ -645,8 +670,8 @@ double fourier_vs_direct(const FourierCase& cs, MPI_Comm comm, double& deviation
   opt.newton_rtol = 0;  // both fluids end on the update criterion: the same state to round-off
   if (!cs.periodic_y) opt.wall_velocity[1][1] = Vec3(1.0, 0, 0);
 
-  // b: random, 0 on the wall-normal rows (unit rows, 0 as in a Newton update), pressure rows summing to 0: then
-  // b is consistent (the continuity rows' sum is int div w = the flux through the walls, 0 for these w).
+  // b: random, 0 on the wall-normal rows (unit rows, 0 as in a Newton update), pressure rows summing to 0:
+  // then b is consistent (the continuity rows' sum is int div w = the flux through the walls, 0 for these w).
   std::vector<double> b = random_velocity(sp, 5);
   b.resize(sp.n_dofs());
   std::mt19937 gen(9);
@@ -716,11 +741,12 @@ double fourier_vs_direct(const FourierCase& cs, MPI_Comm comm, double& deviation
 }  // namespace
 
 TEST(DcFourierSolver, EqualsTheDirectSolve) {
-  // Tangents that are translation-invariant in x: a Navier-Stokes time step at a Couette state (moving top wall)
-  // in the channel, the steady Stokes operator there, and a time step on the all-periodic square at rest; k = 2
-  // and 3. The Fourier solve (mode 0 pinned) against MUMPS on the same operator with its pressure pin:
-  // velocities and zero-mean pressures agree to 1e-12 of max|x| (measured 4e-15 .. 1.1e-14; with MUMPS's default
-  // pivot threshold 0.01 instead of 0.5 its own solve was off by 4e-12). The stencil is circulant to 1e-13.
+  // Tangents that are translation-invariant in x: a Navier-Stokes time step at a Couette state (moving top
+  // wall) in the channel, the steady Stokes operator there, and a time step on the all-periodic square at
+  // rest; k = 2 and 3. The Fourier solve (mode 0 pinned) against MUMPS on the same operator with its pressure
+  // pin: velocities and zero-mean pressures agree to 1e-12 of max|x| (measured 4e-15 .. 1.1e-14; with MUMPS's
+  // default pivot threshold 0.01 instead of 0.5 its own solve was off by 4e-12). The stencil is circulant to
+  // 1e-13.
   const FourierCase cases[] = {{2, 16, 8, false, true, "channel, NS step at Couette"},
                                {3, 12, 6, false, true, "channel, NS step at Couette"},
                                {2, 16, 8, false, false, "channel, steady Stokes"},
@@ -728,23 +754,26 @@ TEST(DcFourierSolver, EqualsTheDirectSolve) {
   for (const FourierCase& cs : cases) {
     double deviation = 0;
     const double diff = fourier_vs_direct(cs, PETSC_COMM_SELF, deviation);
-    print0("  Fourier vs MUMPS, %s, k=%d %dx%d: stencil deviation %.1e, max|x_F - x_D| / max|x| = %.1e\n", cs.name,
-           cs.k, cs.nx, cs.ny, deviation, diff);
+    print0("  Fourier vs MUMPS, %s, k=%d %dx%d: stencil deviation %.1e, max|x_F - x_D| / max|x| = %.1e\n",
+           cs.name, cs.k, cs.nx, cs.ny, deviation, diff);
     EXPECT_LE(deviation, 1e-13) << cs.name;
     EXPECT_LE(diff, 1e-12) << cs.name << " k=" << cs.k;
   }
-  const DivConformingSpace not_periodic_in_x(2, 2, {4, 4, 1}, Vec3(0, 0, 0), Vec3(1, 1, 0), {false, true, false});
+  const DivConformingSpace not_periodic_in_x(2, 2, {4, 4, 1}, Vec3(0, 0, 0), Vec3(1, 1, 0),
+                                             {false, true, false});
   EXPECT_THROW(DcFourierSolver{not_periodic_in_x}, std::invalid_argument);
 }
 
-// --- MPI -------------------------------------------------------------------------------------------------------
+// --- MPI
+// -------------------------------------------------------------------------------------------------------
 
 TEST(DivConformingParallel, OneAndTwoRanksGiveTheSameState) {
-  // Inside a 2-rank job (ctest div_conforming_parallel_2ranks): a steady Navier-Stokes flow in the channel (a body
-  // force that varies in x and y, a moving top wall), then three time steps, on all ranks of PETSC_COMM_WORLD and on
-  // each rank alone (PETSC_COMM_SELF). Both end on Newton's update criterion (rtol 0), so they differ only by
-  // the round-off of two LU orderings amplified by the matrix's condition number: measured 7e-15 of max|U|;
-  // asserted 1e-10 (eps times a condition number up to 1e6, for other MUMPS/BLAS builds).
+  // Inside a 2-rank job (ctest div_conforming_parallel_2ranks): a steady Navier-Stokes flow in the channel (a
+  // body force that varies in x and y, a moving top wall), then three time steps, on all ranks of
+  // PETSC_COMM_WORLD and on each rank alone (PETSC_COMM_SELF). Both end on Newton's update criterion (rtol
+  // 0), so they differ only by the round-off of two LU orderings amplified by the matrix's condition number:
+  // measured 7e-15 of max|U|; asserted 1e-10 (eps times a condition number up to 1e6, for other MUMPS/BLAS
+  // builds).
   const DivConformingSpace sp = channel_2d(2, 12, 8);
   DcFluidOptions opt;
   opt.density = 1.0;
@@ -774,8 +803,8 @@ TEST(DivConformingParallel, OneAndTwoRanksGiveTheSameState) {
   }
   int size = 1;
   MPI_Comm_size(PETSC_COMM_WORLD, &size);
-  print0("  1 rank vs %d ranks: max|U_1 - U_%d| / max|U| = %.2e (steady Newton iterations %d, %d)\n", size, size,
-         diff / scale, steps[0], steps[1]);
+  print0("  1 rank vs %d ranks: max|U_1 - U_%d| / max|U| = %.2e (steady Newton iterations %d, %d)\n", size,
+         size, diff / scale, steps[0], steps[1]);
   EXPECT_LE(diff / scale, 1e-10);
 }
 
@@ -788,8 +817,9 @@ TEST(DivConformingParallel, TheFourierSolverOnAllRanksEqualsTheDirectSolve) {
                                 FourierCase{2, 12, 12, true, true, "periodic square, NS step at rest"}}) {
     double deviation = 0;
     const double diff = fourier_vs_direct(cs, PETSC_COMM_WORLD, deviation);
-    print0("  Fourier on %d rank(s) vs MUMPS on 1, %s: stencil deviation %.1e, max|x_F - x_D| / max|x| = %.1e\n",
-           size, cs.name, deviation, diff);
+    print0(
+        "  Fourier on %d rank(s) vs MUMPS on 1, %s: stencil deviation %.1e, max|x_F - x_D| / max|x| = %.1e\n",
+        size, cs.name, deviation, diff);
     EXPECT_LE(deviation, 1e-13) << cs.name;
     EXPECT_LE(diff, 1e-12) << cs.name;
   }
