@@ -6,12 +6,13 @@
 // the VMS solver. The weak form, for test functions w (velocity) and q (pressure), is written as
 //   R_w = int  w . r0 + grad w : r1     (r1[i][j] multiplies d w_i / d x_j)
 //   R_q = int  q rq
-// Interior points (dc_interior_point):
+// Interior points (dc_interior_residual, dc_interior_tangent):
 //   r0 = a + c (v . grad) v - g,   r1 = 2 nu eps(v) - p I,   rq = div v
 // with a the acceleration (vdot at t_{n+alpha_m}; v itself for an L2 projection, nu = 0 and c = 0 there) and
 // c = 1 for Navier-Stokes, 0 for Stokes. No stabilisation: the pair is inf-sup stable and, div v_h being 0
-// pointwise, the convective form (w, (v.grad)v) is energy-conserving (skew-symmetric).
-// Wall points (dc_nitsche_point), outward normal n, wall velocity v_w, penalty beta (symmetric Nitsche):
+// pointwise and v.n = 0 on walls, the convective form (w, (v.grad)v) is energy-conserving (skew-symmetric).
+// Wall points (dc_nitsche_residual, dc_nitsche_tangent; symmetric Nitsche), outward normal n, wall velocity
+// v_w, penalty beta:
 //   r0 = -2 nu eps(v) n + beta (v - v_w),   r1[i][j] = -nu ((v - v_w)_i n_j + (v - v_w)_j n_i),   rq = 0
 // i.e. - int w . (2 nu eps(v) n) - int (2 nu eps(w) n) . (v - v_w) + int beta w . (v - v_w). The pressure's
 // wall terms -int p w.n and int q n.(v - v_w) vanish: the normal velocity is imposed strongly (w.n = 0 and
