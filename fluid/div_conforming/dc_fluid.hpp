@@ -111,6 +111,7 @@ class DivConformingFluid {
   Mat jacobian(bool time_step, bool pin_pressure);
 
   /// The steady problem (no time derivative) at the current time, from the current state as first guess.
+  /// Throws std::invalid_argument on a box without walls (its steady problem is singular).
   DcSolveStats solve_steady();
   /// One generalized-alpha step. The state advances only if Newton converged.
   DcSolveStats step();

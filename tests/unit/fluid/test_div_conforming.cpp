@@ -231,6 +231,9 @@ TEST(DivConformingFluid, OptionsAreReadAndChecked) {
   EXPECT_THROW(opt.set_from_options(), std::invalid_argument);
   for (const char* k : {"-fluid_viscosity", "-fluid_stokes", "-fluid_dc_penalty"})
     PetscOptionsClearValue(nullptr, k);
+  const DivConformingSpace all_periodic(2, 2, {4, 4, 1}, Vec3(0, 0, 0), Vec3(1, 1, 0), {true, true, false});
+  DivConformingFluid no_walls(PETSC_COMM_WORLD, all_periodic, DcFluidOptions{});
+  EXPECT_THROW(no_walls.solve_steady(), std::invalid_argument);  // singular: constant velocities
   DcFluidOptions moving_normal;
   moving_normal.wall_velocity[1][0] = Vec3(0, 0.1, 0);  // a wall y = const moving along y
   EXPECT_THROW(moving_normal.validate(), std::invalid_argument);
