@@ -534,7 +534,8 @@ DcSolveStats DivConformingFluid::solve_steady() {
   for (int d = 0; d < space_.dim(); ++d) any_wall = any_wall || !space_.periodic(d);
   if (!any_wall)
     throw std::invalid_argument(
-        "DivConformingFluid::solve_steady: on a box periodic in every direction the steady problem is singular "
+        "DivConformingFluid::solve_steady: on a box periodic in every direction the steady problem is "
+        "singular "
         "(any constant velocity can be added); give a direction walls, or advance in time with step()");
   const DcSolveStats st = newton(U_, [this](const std::vector<double>& U) { return steady_levels(U); });
   shift_pressure_to_zero_mean(U_);
