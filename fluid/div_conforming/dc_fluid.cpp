@@ -1,0 +1,784 @@
+#include "fluid/div_conforming/dc_fluid.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include <vtkDoubleArray.h>
+#include <vtkNew.h>
+#include <vtkPointData.h>
+#include <vtkPoints.h>
+#include <vtkStructuredGrid.h>
+#include <vtkXMLStructuredGridWriter.h>
+
+#include <Eigen/Sparse>
+
+#include "common/petsc_error.hpp"
+#include "fluid/div_conforming/dc_kernel.hpp"
+#include "geometry/patch_vtk.hpp"
+
+namespace cellfsi::fluid::dc {
+
+namespace {
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument("DcFluidOptions: " + what);
+}
+
+double get_real(const char* name, double value) {
+  PetscReal v = value;
+  PetscBool set = PETSC_FALSE;
+  CELLFSI_PETSC(PetscOptionsGetReal(nullptr, nullptr, name, &v, &set));
+  return set ? v : value;
+}
+
+/// Adds the point's contribution to the element residual Fe and (if Ke) tangent, from the kernels' outputs.
+/// Local numbering: the functions of component 0, then 1, ..., then pressure (eb.comp[c].n each).
+void add_point(const ElementBasis& eb, int q, int dim, double w, const PointResidual& r,
+               const PointTangent* t, double dv_dU, double da_dU, std::vector<double>& Fe,
+               std::vector<double>* Ke, int n_loc) {
+  int off[5] = {0, 0, 0, 0, 0};
+  for (int c = 0; c <= dim; ++c) off[c + 1] = off[c] + eb.comp[c].n;
+  auto val = [&](int c, int a) { return eb.comp[c].value[static_cast<size_t>(q) * eb.comp[c].n + a]; };
+  auto grd = [&](int c, int a, int j) {
+    return eb.comp[c].grad[(static_cast<size_t>(q) * eb.comp[c].n + a) * 3 + j];
+  };
+  for (int i = 0; i < dim; ++i)
+    for (int a = 0; a < eb.comp[i].n; ++a) {
+      double s = val(i, a) * r.r0[i];
+      for (int j = 0; j < dim; ++j) s += grd(i, a, j) * r.r1[i][j];
+      Fe[off[i] + a] += w * s;
+    }
+  for (int a = 0; a < eb.comp[dim].n; ++a) Fe[off[dim] + a] += w * val(dim, a) * r.rq;
+  if (!t) return;
+  std::vector<double>& K = *Ke;
+  // Velocity columns: for trial function b of component k, its effect on r0_i (s[i]) and r1_ij (tt[i][j]).
+  for (int k = 0; k < dim; ++k)
+    for (int b = 0; b < eb.comp[k].n; ++b) {
+      const double Nb = val(k, b);
+      double dNb[3] = {0, 0, 0};
+      for (int l = 0; l < dim; ++l) dNb[l] = grd(k, b, l);
+      double s[3] = {0, 0, 0}, tt[3][3] = {};
+      for (int i = 0; i < dim; ++i) {
+        double sv = t->dr0_dv[i][k] * Nb;
+        for (int l = 0; l < dim; ++l) sv += t->dr0_ddv[i][k][l] * dNb[l];
+        s[i] = dv_dU * sv + da_dU * t->dr0_da[i][k] * Nb;
+        for (int j = 0; j < dim; ++j) {
+          double tv = t->dr1_dv[i][j][k] * Nb;
+          for (int l = 0; l < dim; ++l) tv += t->dr1_ddv[i][j][k][l] * dNb[l];
+          tt[i][j] = dv_dU * tv;
+        }
+      }
+      double sq = 0;
+      for (int l = 0; l < dim; ++l) sq += t->drq_ddv[k][l] * dNb[l];
+      sq *= dv_dU;
+      const int col = off[k] + b;
+      for (int i = 0; i < dim; ++i)
+        for (int a = 0; a < eb.comp[i].n; ++a) {
+          double kab = val(i, a) * s[i];
+          for (int j = 0; j < dim; ++j) kab += grd(i, a, j) * tt[i][j];
+          K[static_cast<size_t>(off[i] + a) * n_loc + col] += w * kab;
+        }
+      for (int a = 0; a < eb.comp[dim].n; ++a)
+        K[static_cast<size_t>(off[dim] + a) * n_loc + col] += w * val(dim, a) * sq;
+    }
+  // Pressure columns (momentum rows only: the pressure block is zero).
+  for (int b = 0; b < eb.comp[dim].n; ++b) {
+    const double Nb = val(dim, b);
+    const int col = off[dim] + b;
+    for (int i = 0; i < dim; ++i)
+      for (int a = 0; a < eb.comp[i].n; ++a) {
+        double kab = 0;
+        for (int j = 0; j < dim; ++j) kab += grd(i, a, j) * t->dr1_dp[i][j];
+        K[static_cast<size_t>(off[i] + a) * n_loc + col] += w * kab * Nb;
+      }
+  }
+}
+
+/// Global indices of an element's local unknowns (add_point's local numbering).
+std::vector<PetscInt> local_indices(const ElementBasis& eb, int dim) {
+  std::vector<PetscInt> idx;
+  for (int c = 0; c <= dim; ++c) idx.insert(idx.end(), eb.comp[c].index.begin(), eb.comp[c].index.end());
+  return idx;
+}
+
+}  // namespace
+
+void DcFluidOptions::set_from_options() {
+  density = get_real("-fluid_density", density);
+  viscosity = get_real("-fluid_viscosity", viscosity);
+  rho_inf = get_real("-fluid_rho_inf", rho_inf);
+  dt = get_real("-fluid_dt", dt);
+  penalty = get_real("-fluid_dc_penalty", penalty);
+  PetscBool flag = stokes ? PETSC_TRUE : PETSC_FALSE, set = PETSC_FALSE;
+  CELLFSI_PETSC(PetscOptionsGetBool(nullptr, nullptr, "-fluid_stokes", &flag, &set));
+  stokes = flag == PETSC_TRUE;
+  validate();
+}
+
+void DcFluidOptions::validate() const {
+  require(density > 0, "density must be > 0 g/cm^3, got " + std::to_string(density));
+  require(viscosity > 0, "viscosity must be > 0 g/(cm s), got " + std::to_string(viscosity));
+  require(rho_inf >= 0 && rho_inf <= 1, "rho_inf must be in [0, 1], got " + std::to_string(rho_inf));
+  require(dt > 0, "dt must be > 0 s, got " + std::to_string(dt));
+  require(penalty > 2.0,
+          "the Nitsche constant -fluid_dc_penalty must be > 2 (coercivity, dc_fluid.hpp), got " +
+              std::to_string(penalty));
+  require(newton_max_it >= 1, "newton_max_it must be >= 1");
+  for (int d = 0; d < 3; ++d)
+    for (int s = 0; s < 2; ++s)
+      require(wall_velocity[d][s][d] == 0.0, "the wall velocity of direction " + std::to_string(d) +
+                                                 " must be tangential (its component " + std::to_string(d) +
+                                                 " is " + std::to_string(wall_velocity[d][s][d]) + ")");
+}
+
+DivConformingFluid::DivConformingFluid(MPI_Comm comm, const DivConformingSpace& space,
+                                       const DcFluidOptions& options)
+    : comm_(comm), space_(space), opt_(options) {
+  opt_.validate();
+  alpha_ = GeneralizedAlpha::from_rho_inf(opt_.rho_inf, opt_.dt);
+  const int n = space_.n_dofs(), D = space_.dim(), n_el = space_.n_elements();
+  U_.assign(n, 0.0);
+  Udot_.assign(n, 0.0);
+  fixed_rows_ = space_.wall_normal_dofs();
+  fixed_rows_.push_back(space_.offset(D));  // the pressure pin
+  std::sort(fixed_rows_.begin(), fixed_rows_.end());
+
+  // Elements: contiguous ranges of the linear index. Unknowns: to the lowest rank whose elements touch them,
+  // numbered rank by rank (natural order within a rank).
+  int rank = 0, size = 1;
+  CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
+  CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
+  auto first_element = [&](int r) { return static_cast<int>(static_cast<long>(n_el) * r / size); };
+  elem_begin_ = first_element(rank);
+  elem_end_ = first_element(rank + 1);
+  std::vector<int> owner(n, size);
+  ElementBasis eb;
+  for (int r = 0; r < size; ++r)
+    for (int e = first_element(r); e < first_element(r + 1); ++e) {
+      const Index3 ei = space_.element_multi_index(e);
+      space_.evaluate(ei, space_.element_rule(ei, 1), eb);  // indices only
+      for (PetscInt g : local_indices(eb, D)) owner[g] = std::min(owner[g], r);
+    }
+  petsc_index_.assign(n, -1);
+  PetscInt next = 0;
+  for (int r = 0; r < size; ++r) {
+    if (r == rank) row_begin_ = next;
+    for (int g = 0; g < n; ++g)
+      if (owner[g] == r) petsc_index_[g] = next++;
+    if (r == rank) row_end_ = next;
+  }
+  for (int g : fixed_rows_)
+    if (owner[g] == rank) owned_fixed_.push_back(petsc_index_[g]);
+
+  pressure_mass_.assign(space_.n_pressure(), 0.0);
+  for_owned_elements(n_gauss(), [&](const ElementBasis& b) {
+    const ComponentBasis& cb = b.comp[D];
+    for (int q = 0; q < b.n_points; ++q)
+      for (int a = 0; a < cb.n; ++a)
+        pressure_mass_[cb.index[a] - space_.offset(D)] += b.weight[q] * cb.value[q * cb.n + a];
+  });
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, pressure_mass_.data(), static_cast<int>(pressure_mass_.size()),
+                              MPI_DOUBLE, MPI_SUM, comm_));
+
+  CELLFSI_PETSC(VecCreateMPI(comm_, row_end_ - row_begin_, n, &F_));
+  CELLFSI_PETSC(VecDuplicate(F_, &x_));
+  CELLFSI_PETSC(VecScatterCreateToAll(x_, &to_all_, &x_all_));
+  create_matrix();
+  CELLFSI_PETSC(KSPCreate(comm_, &ksp_));
+  CELLFSI_PETSC(KSPSetOptionsPrefix(ksp_, "fluid_"));
+  CELLFSI_PETSC(KSPSetType(ksp_, KSPPREONLY));
+  PC pc;
+  CELLFSI_PETSC(KSPGetPC(ksp_, &pc));
+  CELLFSI_PETSC(PCSetType(pc, PCLU));
+  CELLFSI_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+  CELLFSI_PETSC(KSPSetOperators(ksp_, J_, J_));
+  CELLFSI_PETSC(KSPSetFromOptions(ksp_));  // the command line wins over the defaults above
+  // MUMPS's relative pivot threshold CNTL(1): 0.5 instead of its 0.01. With 0.01 the saddle-point matrix
+  // (mass, viscous and Nitsche rows of different scales, the zero pressure block) is factored with enough
+  // growth that the continuity rows of a one-iteration solve hold only to ~1e-10 of |grad v| (7e-11 measured
+  // on the manufactured solution at 16^2); with 0.5, 1e-14. -fluid_mat_mumps_cntl_1 still overrides it (MUMPS
+  // reads its options when it factors).
+  PCType pc_type;
+  MatSolverType solver_type = nullptr;
+  CELLFSI_PETSC(PCGetType(pc, &pc_type));
+  if (pc_type && std::string(pc_type) == PCLU) CELLFSI_PETSC(PCFactorGetMatSolverType(pc, &solver_type));
+  if (solver_type && std::string(solver_type) == MATSOLVERMUMPS) {
+    Mat F;
+    CELLFSI_PETSC(PCFactorSetUpMatSolverType(pc));
+    CELLFSI_PETSC(PCFactorGetMatrix(pc, &F));
+    CELLFSI_PETSC(MatMumpsSetCntl(F, 1, 0.5));
+  }
+}
+
+DivConformingFluid::~DivConformingFluid() {
+  KSPDestroy(&ksp_);
+  MatDestroy(&J_);
+  VecScatterDestroy(&to_all_);
+  VecDestroy(&x_all_);
+  VecDestroy(&x_);
+  VecDestroy(&F_);
+}
+
+template <class F>
+void DivConformingFluid::for_owned_elements(int n_gauss, F&& f) const {
+  ElementBasis eb;
+  for (int e = elem_begin_; e < elem_end_; ++e) {
+    const Index3 ei = space_.element_multi_index(e);
+    space_.evaluate(ei, space_.element_rule(ei, n_gauss), eb);
+    f(eb);
+  }
+}
+
+void DivConformingFluid::create_matrix() {
+  // The pattern of every row (in PETSc numbering), from every element: O(unknowns) on each rank, as the
+  // state.
+  const int n = space_.n_dofs(), D = space_.dim();
+  std::vector<std::vector<PetscInt>> rows(n);
+  ElementBasis eb;
+  for (int e = 0; e < space_.n_elements(); ++e) {
+    const Index3 ei = space_.element_multi_index(e);
+    space_.evaluate(ei, space_.element_rule(ei, 1), eb);  // indices only
+    std::vector<PetscInt> idx = local_indices(eb, D);
+    for (PetscInt& g : idx) g = petsc_index_[g];
+    const size_t n_vel = idx.size() - eb.comp[D].n;
+    for (size_t a = 0; a < idx.size(); ++a) {
+      if (idx[a] < row_begin_ || idx[a] >= row_end_) continue;
+      auto& r = rows[idx[a]];
+      if (a < n_vel) {
+        r.insert(r.end(), idx.begin(), idx.end());
+      } else {  // pressure rows: the velocity columns and the diagonal (for the pin's unit row)
+        r.insert(r.end(), idx.begin(), idx.begin() + n_vel);
+        r.push_back(idx[a]);
+      }
+    }
+  }
+  const PetscInt n_own = row_end_ - row_begin_;
+  std::vector<PetscInt> d_nnz(n_own), o_nnz(n_own);
+  for (PetscInt i = row_begin_; i < row_end_; ++i) {
+    auto& r = rows[i];
+    std::sort(r.begin(), r.end());
+    r.erase(std::unique(r.begin(), r.end()), r.end());
+    d_nnz[i - row_begin_] =
+        std::count_if(r.begin(), r.end(), [&](PetscInt c) { return c >= row_begin_ && c < row_end_; });
+    o_nnz[i - row_begin_] = static_cast<PetscInt>(r.size()) - d_nnz[i - row_begin_];
+  }
+  CELLFSI_PETSC(MatCreateAIJ(comm_, n_own, n_own, n, n, 0, d_nnz.data(), 0, o_nnz.data(), &J_));
+  CELLFSI_PETSC(MatSetOption(J_, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
+  // Insert the pattern once (zeros), so that later assemblies never allocate.
+  for (PetscInt i = row_begin_; i < row_end_; ++i) {
+    const std::vector<PetscScalar> zeros(rows[i].size(), 0.0);
+    CELLFSI_PETSC(MatSetValues(J_, 1, &i, static_cast<PetscInt>(rows[i].size()), rows[i].data(), zeros.data(),
+                               INSERT_VALUES));
+  }
+  CELLFSI_PETSC(MatAssemblyBegin(J_, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(J_, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatSetOption(J_, MAT_NEW_NONZERO_LOCATION_ERR, PETSC_TRUE));
+  // The element matrices carry the zero pressure-pressure block; added zeros are skipped, not inserted.
+  CELLFSI_PETSC(MatSetOption(J_, MAT_IGNORE_ZERO_ENTRIES, PETSC_TRUE));
+}
+
+Vec3 DivConformingFluid::wall_velocity(int d, int side, const Vec3& x, double t) const {
+  Vec3 v = opt_.wall_velocity_field ? opt_.wall_velocity_field(x, t) : opt_.wall_velocity[d][side];
+  v[d] = 0.0;  // only the tangential part is imposed (weakly); the normal one is the strong 0
+  return v;
+}
+
+void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J) const {
+  const int D = space_.dim();
+  CELLFSI_PETSC(VecZeroEntries(F));
+  if (J) CELLFSI_PETSC(MatZeroEntries(J));
+  ElementBasis eb;
+  std::vector<double> Fe, Ke;
+
+  auto point_state = [&](int q) {
+    PointState s;
+    const auto pv = DivConformingSpace::interpolate(eb, q, D, lv.v.data());
+    const auto pa = DivConformingSpace::interpolate(eb, q, D, lv.a.data());
+    for (int i = 0; i < D; ++i) {
+      s.v[i] = pv.v[i];
+      s.a[i] = pa.v[i];
+      for (int j = 0; j < D; ++j) s.dv[i][j] = pv.grad[i][j];
+    }
+    s.p = pv.p;  // lv.v carries U's pressure
+    return s;
+  };
+  // Integrates a kernel (residual at point q; tangent into t if t is not null) over the points of eb and adds
+  // the element's residual and tangent to F and J.
+  auto integrate = [&](const std::function<PointResidual(int, const PointState&, PointTangent*)>& kernel) {
+    int n_loc = 0;
+    for (int c = 0; c <= D; ++c) n_loc += eb.comp[c].n;
+    Fe.assign(n_loc, 0.0);
+    if (J) Ke.assign(static_cast<size_t>(n_loc) * n_loc, 0.0);
+    for (int q = 0; q < eb.n_points; ++q) {
+      PointTangent t;
+      const PointResidual r = kernel(q, point_state(q), J ? &t : nullptr);
+      add_point(eb, q, D, eb.weight[q], r, J ? &t : nullptr, lv.dv_dU, lv.da_dU, Fe, J ? &Ke : nullptr,
+                n_loc);
+    }
+    std::vector<PetscInt> idx = local_indices(eb, D);
+    for (PetscInt& g : idx) g = petsc_index_[g];
+    CELLFSI_PETSC(VecSetValues(F, n_loc, idx.data(), Fe.data(), ADD_VALUES));
+    if (J) CELLFSI_PETSC(MatSetValues(J, n_loc, idx.data(), n_loc, idx.data(), Ke.data(), ADD_VALUES));
+  };
+
+  // nu at point q of eb: the field's where there is one, else lv.nu.
+  const bool field = lv.viscosity_field && !nu_field_.empty();
+  auto nu_at = [&](int q) {
+    if (!field) return lv.nu;
+    const ComponentBasis& cb = eb.comp[D];
+    double nu = 0;
+    for (int a = 0; a < cb.n; ++a) nu += nu_field_[cb.index[a] - space_.offset(D)] * cb.value[q * cb.n + a];
+    return nu;
+  };
+
+  InteriorParameters ip;
+  ip.dim = D;
+  ip.nu = lv.nu;
+  ip.convection = lv.convection;
+  for (int e = elem_begin_; e < elem_end_; ++e) {
+    const Index3 ei = space_.element_multi_index(e);
+    space_.evaluate(ei, space_.element_rule(ei, n_gauss()), eb);
+    integrate([&](int q, const PointState& s, PointTangent* t) {
+      const Vec3 g = lv.g ? lv.g(eb.x[q]) : Vec3(Vec3::Zero());
+      for (int i = 0; i < 3; ++i) ip.g[i] = g[i];
+      ip.nu = nu_at(q);
+      if (t) *t = dc_interior_tangent(s, ip);
+      return dc_interior_residual(s, ip);
+    });
+  }
+
+  if (lv.nitsche) {
+    NitscheParameters np;
+    np.dim = D;
+    for (int d = 0; d < D; ++d) {
+      if (space_.periodic(d)) continue;
+      const double beta_per_nu =
+          opt_.penalty * (space_.degree() + 1) * (space_.degree() + 1) / space_.element_size(d);
+      for (int side = 0; side < 2; ++side) {
+        np.n = {0, 0, 0};
+        np.n[d] = side == 0 ? -1.0 : 1.0;
+        for (int e = elem_begin_; e < elem_end_; ++e) {
+          const Index3 ei = space_.element_multi_index(e);
+          if (ei[d] != (side == 0 ? 0 : space_.n_elements(d) - 1)) continue;
+          space_.evaluate(ei, space_.face_rule(ei, d, side, n_gauss()), eb);
+          integrate([&](int q, const PointState& s, PointTangent* t) {
+            const Vec3 vw = wall_velocity(d, side, eb.x[q], lv.t);
+            for (int i = 0; i < 3; ++i) np.v_wall[i] = vw[i];
+            np.nu = nu_at(q);
+            np.beta = beta_per_nu * np.nu;
+            if (t) *t = dc_nitsche_tangent(np);
+            return dc_nitsche_residual(s, np);
+          });
+        }
+      }
+    }
+  }
+  CELLFSI_PETSC(VecAssemblyBegin(F));
+  CELLFSI_PETSC(VecAssemblyEnd(F));
+  if (J) {
+    CELLFSI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+    CELLFSI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+  }
+}
+
+DcSolveStats DivConformingFluid::newton(std::vector<double>& U,
+                                        const std::function<Levels(const std::vector<double>&)>& levels) {
+  const int n = space_.n_dofs();
+  DcSolveStats st;
+  double f0 = -1;
+  for (int it = 0; it <= opt_.newton_max_it; ++it) {
+    const Levels lv = levels(U);
+    const bool last = it == opt_.newton_max_it;
+    assemble(lv, F_, last ? nullptr : J_);
+    PetscScalar* f;
+    CELLFSI_PETSC(VecGetArray(F_, &f));
+    for (PetscInt r : owned_fixed_) f[r - row_begin_] = 0.0;
+    CELLFSI_PETSC(VecRestoreArray(F_, &f));
+    PetscReal fn = 0;
+    CELLFSI_PETSC(VecNorm(F_, NORM_2, &fn));
+    st.residual_norm = fn;
+    if (f0 < 0) f0 = fn;
+    if (fn == 0.0 || (it > 0 && fn <= opt_.newton_rtol * f0)) {
+      st.converged = true;
+      break;
+    }
+    if (last) break;
+    CELLFSI_PETSC(MatZeroRows(J_, static_cast<PetscInt>(owned_fixed_.size()), owned_fixed_.data(), 1.0,
+                              nullptr, nullptr));
+    CELLFSI_PETSC(VecScale(F_, -1.0));
+    CELLFSI_PETSC(KSPSetOperators(ksp_, J_, J_));
+    CELLFSI_PETSC(KSPSolve(ksp_, F_, x_));
+    KSPConvergedReason reason;
+    CELLFSI_PETSC(KSPGetConvergedReason(ksp_, &reason));
+    if (reason < 0) break;
+    CELLFSI_PETSC(VecScatterBegin(to_all_, x_, x_all_, INSERT_VALUES, SCATTER_FORWARD));
+    CELLFSI_PETSC(VecScatterEnd(to_all_, x_, x_all_, INSERT_VALUES, SCATTER_FORWARD));
+    const PetscScalar* xp;
+    CELLFSI_PETSC(VecGetArrayRead(x_all_, &xp));
+    double dmax = 0, umax = 0;
+    for (int i = 0; i < n; ++i) {
+      const double dx = xp[petsc_index_[i]];
+      U[i] += dx;
+      dmax = std::max(dmax, std::abs(dx));
+      umax = std::max(umax, std::abs(U[i]));
+    }
+    CELLFSI_PETSC(VecRestoreArrayRead(x_all_, &xp));
+    st.newton_iterations = it + 1;
+    if (dmax <= opt_.newton_stol * umax) {  // the update is round-off: U is the solution
+      st.converged = true;
+      break;
+    }
+  }
+  return st;
+}
+
+void DivConformingFluid::shift_pressure_to_zero_mean(std::vector<double>& U) const {
+  const int off = space_.offset(space_.dim());
+  double area = 0, integral = 0;
+  for (size_t a = 0; a < pressure_mass_.size(); ++a) {
+    area += pressure_mass_[a];
+    integral += pressure_mass_[a] * U[off + a];
+  }
+  const double mean = integral / area;  // partition of unity: sum_A q_A = 1
+  for (size_t a = 0; a < pressure_mass_.size(); ++a) U[off + a] -= mean;
+}
+
+void DivConformingFluid::set_state(const std::vector<double>& u) {
+  if (static_cast<int>(u.size()) != space_.n_dofs())
+    throw std::invalid_argument(
+        "DivConformingFluid::set_state: u must have n_dofs() = " + std::to_string(space_.n_dofs()) +
+        " entries, got " + std::to_string(u.size()));
+  U_ = u;
+  std::fill(Udot_.begin(), Udot_.end(), 0.0);
+}
+
+void DivConformingFluid::project_initial_state(const std::function<Vec3(const Vec3&)>& v0,
+                                               const std::function<Vec3(const Vec3&)>& vdot0) {
+  const int D = space_.dim();
+  auto project = [&](const std::function<Vec3(const Vec3&)>& f) {
+    std::vector<double> X(space_.n_dofs(), 0.0);
+    // (v, w) - (p, div w) - (f, w) + (q, div v): the interior kernel with a = v, nu = 0, no convection, g =
+    // f.
+    auto levels = [&](const std::vector<double>& U) {
+      Levels lv;
+      lv.v = U;
+      lv.a = U;
+      lv.dv_dU = 1;  // with nu = 0 and no convection v enters only through div v; a carries the mass term
+      lv.da_dU = 1;
+      lv.nu = 0;
+      lv.convection = 0;
+      lv.nitsche = false;
+      lv.viscosity_field = false;
+      lv.g = f;
+      return lv;
+    };
+    const DcSolveStats st = newton(X, levels);
+    if (!st.converged)
+      throw std::runtime_error("DivConformingFluid::project_initial_state: the projection's solve failed");
+    for (int i = space_.offset(D); i < space_.n_dofs(); ++i) X[i] = 0.0;
+    return X;
+  };
+  U_ = project(v0);
+  Udot_ = project(vdot0);
+  time_ = 0;
+  steps_ = 0;
+  div_history_.clear();
+}
+
+DivConformingFluid::Levels DivConformingFluid::steady_levels(const std::vector<double>& U) const {
+  Levels lv;
+  lv.v = U;
+  lv.a.assign(U.size(), 0.0);
+  lv.dv_dU = 1;
+  lv.da_dU = 0;
+  lv.nu = opt_.viscosity / opt_.density;
+  lv.convection = opt_.stokes ? 0.0 : 1.0;
+  lv.t = time_;
+  lv.g = body_force_per_mass(time_);
+  return lv;
+}
+
+DivConformingFluid::Levels DivConformingFluid::step_levels(const std::vector<double>& U,
+                                                           const std::vector<double>& Un,
+                                                           const std::vector<double>& Udotn) const {
+  const int n = space_.n_dofs(), nv = space_.n_velocity();
+  Levels lv;
+  lv.v.resize(n);
+  lv.a.assign(n, 0.0);
+  for (int i = 0; i < nv; ++i) {
+    lv.v[i] = alpha_.value_alpha_f(U[i], Un[i]);
+    lv.a[i] = alpha_.rate_alpha_m(U[i], Un[i], Udotn[i]);
+  }
+  for (int i = nv; i < n; ++i) lv.v[i] = U[i];  // pressure at t_{n+1}
+  lv.dv_dU = alpha_.alpha_f;
+  lv.da_dU = alpha_.rate_alpha_m_scale();
+  lv.nu = opt_.viscosity / opt_.density;
+  lv.convection = opt_.stokes ? 0.0 : 1.0;
+  lv.t = time_ + alpha_.alpha_f * opt_.dt;
+  lv.g = body_force_per_mass(lv.t);
+  return lv;
+}
+
+std::function<Vec3(const Vec3&)> DivConformingFluid::body_force_per_mass(double t) const {
+  return [this, t](const Vec3& x) {
+    Vec3 f = opt_.body_force;
+    if (opt_.body_force_field) f += opt_.body_force_field(x, t);
+    return Vec3(f / opt_.density);
+  };
+}
+
+DcSolveStats DivConformingFluid::solve_steady() {
+  bool any_wall = false;
+  for (int d = 0; d < space_.dim(); ++d) any_wall = any_wall || !space_.periodic(d);
+  if (!any_wall)
+    throw std::invalid_argument(
+        "DivConformingFluid::solve_steady: on a box periodic in every direction the steady problem is "
+        "singular "
+        "(any constant velocity can be added); give a direction walls, or advance in time with step()");
+  const DcSolveStats st = newton(U_, [this](const std::vector<double>& U) { return steady_levels(U); });
+  shift_pressure_to_zero_mean(U_);
+  return st;
+}
+
+DcSolveStats DivConformingFluid::step() {
+  const int nv = space_.n_velocity();
+  const std::vector<double> Un = U_, Udotn = Udot_;
+  std::vector<double> X = U_;  // predictor: the same state
+  const DcSolveStats st = newton(X, [&](const std::vector<double>& U) { return step_levels(U, Un, Udotn); });
+  if (!st.converged) return st;
+  for (int i = 0; i < nv; ++i) Udot_[i] = alpha_.rate(X[i], Un[i], Udotn[i]);
+  U_ = X;
+  shift_pressure_to_zero_mean(U_);
+  ++steps_;
+  time_ = steps_ * opt_.dt;
+  div_history_.push_back(divergence_ratio());
+  return st;
+}
+
+Mat DivConformingFluid::jacobian(bool time_step, bool pin_pressure) {
+  const Levels lv = time_step ? step_levels(U_, U_, Udot_) : steady_levels(U_);
+  assemble(lv, F_, J_);
+  std::vector<PetscInt> rows;
+  const PetscInt pin = petsc_index_[space_.offset(space_.dim())];
+  for (PetscInt r : owned_fixed_)
+    if (pin_pressure || r != pin) rows.push_back(r);
+  CELLFSI_PETSC(MatZeroRows(J_, static_cast<PetscInt>(rows.size()), rows.data(), 1.0, nullptr, nullptr));
+  return J_;
+}
+
+DivConformingFluid::Errors DivConformingFluid::errors(
+    const std::function<Vec3(const Vec3&)>& v, const std::function<geometry::Mat3(const Vec3&)>& grad_v,
+    const std::function<double(const Vec3&)>& p) const {
+  const int D = space_.dim();
+  const int ng = space_.degree() + 4;
+  // Means of the two pressures first.
+  double means[3] = {0, 0, 0};  // volume, int p_h, int p
+  for_owned_elements(ng, [&](const ElementBasis& eb) {
+    for (int q = 0; q < eb.n_points; ++q) {
+      const auto pv = DivConformingSpace::interpolate(eb, q, D, U_.data());
+      means[0] += eb.weight[q];
+      means[1] += eb.weight[q] * pv.p;
+      means[2] += eb.weight[q] * p(eb.x[q]);
+    }
+  });
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, means, 3, MPI_DOUBLE, MPI_SUM, comm_));
+  const double mean_h = means[1] / means[0], mean_ex = means[2] / means[0];
+  double sums[6] = {0, 0, 0, 0, 0, 0};  // squares: v L2, v H1, p L2 errors, then the exact norms
+  for_owned_elements(ng, [&](const ElementBasis& eb) {
+    for (int q = 0; q < eb.n_points; ++q) {
+      const auto pv = DivConformingSpace::interpolate(eb, q, D, U_.data());
+      const Vec3 ve = v(eb.x[q]);
+      const geometry::Mat3 ge = grad_v(eb.x[q]);
+      const double pe = p(eb.x[q]) - mean_ex, w = eb.weight[q];
+      for (int i = 0; i < D; ++i) {
+        sums[0] += w * std::pow(pv.v[i] - ve[i], 2);
+        sums[3] += w * ve[i] * ve[i];
+        for (int j = 0; j < D; ++j) {
+          sums[1] += w * std::pow(pv.grad[i][j] - ge(i, j), 2);
+          sums[4] += w * ge(i, j) * ge(i, j);
+        }
+      }
+      sums[2] += w * std::pow(pv.p - mean_h - pe, 2);
+      sums[5] += w * pe * pe;
+    }
+  });
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, sums, 6, MPI_DOUBLE, MPI_SUM, comm_));
+  Errors er;
+  er.v_l2 = std::sqrt(sums[0]);
+  er.v_h1 = std::sqrt(sums[1]);
+  er.p_l2 = std::sqrt(sums[2]);
+  er.v_l2_norm = std::sqrt(sums[3]);
+  er.v_h1_norm = std::sqrt(sums[4]);
+  er.p_l2_norm = std::sqrt(sums[5]);
+  return er;
+}
+
+double DivConformingFluid::divergence_ratio() const {
+  const int D = space_.dim();
+  double m[2] = {0, 0};  // max |div v_h|, max |grad v_h|
+  for_owned_elements(n_gauss(), [&](const ElementBasis& eb) {
+    for (int q = 0; q < eb.n_points; ++q) {
+      const auto pv = DivConformingSpace::interpolate(eb, q, D, U_.data());
+      double div = 0, g2 = 0;
+      for (int i = 0; i < D; ++i) {
+        div += pv.grad[i][i];
+        for (int j = 0; j < D; ++j) g2 += pv.grad[i][j] * pv.grad[i][j];
+      }
+      m[0] = std::max(m[0], std::abs(div));
+      m[1] = std::max(m[1], std::sqrt(g2));
+    }
+  });
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, m, 2, MPI_DOUBLE, MPI_MAX, comm_));
+  return m[1] > 0 ? m[0] / m[1] : 0.0;
+}
+
+double DivConformingFluid::max_velocity() const {
+  const int D = space_.dim();
+  double vmax = 0;
+  for_owned_elements(n_gauss(), [&](const ElementBasis& eb) {
+    for (int q = 0; q < eb.n_points; ++q) {
+      const auto pv = DivConformingSpace::interpolate(eb, q, D, U_.data());
+      double v2 = 0;
+      for (int i = 0; i < D; ++i) v2 += pv.v[i] * pv.v[i];
+      vmax = std::max(vmax, std::sqrt(v2));
+    }
+  });
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &vmax, 1, MPI_DOUBLE, MPI_MAX, comm_));
+  return vmax;
+}
+
+void DivConformingFluid::restore(const std::vector<double>& u, const std::vector<double>& udot, int steps) {
+  if (steps < 0) throw std::invalid_argument("DivConformingFluid::restore: steps must be >= 0");
+  set_state(u);
+  if (udot.size() != u.size())
+    throw std::invalid_argument("DivConformingFluid::restore: udot must have as many entries as u");
+  Udot_ = udot;
+  steps_ = steps;
+  time_ = steps_ * opt_.dt;
+}
+
+std::vector<DivConformingFluid::Sample> DivConformingFluid::sample(const std::vector<Vec3>& points) const {
+  const int D = space_.dim();
+  std::vector<Sample> out(points.size());
+  ElementBasis eb;
+  for (size_t i = 0; i < points.size(); ++i) {
+    space_.evaluate(space_.find_element(points[i]), space_.point_rule(points[i]), eb);
+    const auto pv = DivConformingSpace::interpolate(eb, 0, D, U_.data());
+    for (int a = 0; a < D; ++a) {
+      out[i].v[a] = pv.v[a];
+      for (int b = 0; b < D; ++b) out[i].grad_v(a, b) = pv.grad[a][b];
+    }
+    out[i].p = pv.p;
+  }
+  return out;
+}
+
+void DivConformingFluid::write_vtk(const std::string& path, int samples_per_element) const {
+  if (samples_per_element < 1)
+    throw std::invalid_argument("DivConformingFluid::write_vtk: samples_per_element must be >= 1, got " +
+                                std::to_string(samples_per_element));
+  int rank = 0;
+  CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
+  const int D = space_.dim(), s = samples_per_element;
+  int n[3] = {1, 1, 1};
+  for (int d = 0; d < D; ++d) n[d] = space_.n_elements(d) * s + 1;
+  // Rank 0 writes; the others wait for it so that the file exists when the call returns everywhere, and learn
+  // whether it failed.
+  int failed = 0;
+  std::string message;
+  if (rank == 0) {
+    try {
+      std::vector<Vec3> pts;
+      pts.reserve(static_cast<size_t>(n[0]) * n[1] * n[2]);
+      for (int m2 = 0; m2 < n[2]; ++m2)
+        for (int m1 = 0; m1 < n[1]; ++m1)
+          for (int m0 = 0; m0 < n[0]; ++m0) {
+            const int m[3] = {m0, m1, m2};
+            Vec3 x = Vec3::Zero();
+            for (int d = 0; d < D; ++d)
+              x[d] = space_.lo(d) + (space_.hi(d) - space_.lo(d)) * m[d] / (n[d] - 1);
+            pts.push_back(x);
+          }
+      // A periodic direction's last sample, at the period's end, is wrapped to its start: the same value.
+      const std::vector<Sample> smp = sample(pts);
+      vtkNew<vtkStructuredGrid> grid;
+      grid->SetDimensions(n[0], n[1], n[2]);
+      vtkNew<vtkPoints> points;
+      points->SetDataTypeToDouble();
+      vtkNew<vtkDoubleArray> vel, pre, dvg;
+      vel->SetName("velocity");
+      vel->SetNumberOfComponents(3);
+      pre->SetName("pressure");
+      dvg->SetName("divergence");
+      for (size_t i = 0; i < pts.size(); ++i) {
+        points->InsertNextPoint(pts[i][0], pts[i][1], pts[i][2]);
+        vel->InsertNextTuple3(smp[i].v[0], smp[i].v[1], smp[i].v[2]);
+        pre->InsertNextValue(smp[i].p);
+        dvg->InsertNextValue(smp[i].grad_v.trace());
+      }
+      grid->SetPoints(points);
+      grid->GetPointData()->AddArray(vel);
+      grid->GetPointData()->AddArray(pre);
+      grid->GetPointData()->AddArray(dvg);
+      vtkNew<vtkXMLStructuredGridWriter> writer;
+      writer->SetInputData(grid);
+      geometry::write_vtk_atomically(writer, path);
+    } catch (const std::exception& e) {
+      failed = 1;
+      message = e.what();
+    }
+  }
+  CELLFSI_PETSC(MPI_Bcast(&failed, 1, MPI_INT, 0, comm_));
+  if (failed)
+    throw std::runtime_error("DivConformingFluid::write_vtk: " +
+                             (rank == 0 ? message : std::string("rank 0 failed")));
+}
+
+void DivConformingFluid::set_viscosity(const std::vector<double>& mu) {
+  if (static_cast<int>(mu.size()) != space_.n_pressure())
+    throw std::invalid_argument("DivConformingFluid::set_viscosity: mu must have n_pressure() = " +
+                                std::to_string(space_.n_pressure()) + " entries, got " +
+                                std::to_string(mu.size()));
+  for (double m : mu)
+    if (!(m > 0))
+      throw std::invalid_argument(
+          "DivConformingFluid::set_viscosity: every viscosity must be > 0 g/(cm s), got " +
+          std::to_string(m));
+  nu_field_.resize(mu.size());
+  for (size_t a = 0; a < mu.size(); ++a) nu_field_[a] = mu[a] / opt_.density;
+}
+
+void DivConformingFluid::project_viscosity(const std::function<double(const Vec3&)>& mu) {
+  // The pressure-space mass matrix and load over every element on every rank (the field, like the state, is
+  // on every rank), solved by sparse Cholesky.
+  const int D = space_.dim(), np = space_.n_pressure(), off = space_.offset(D);
+  std::vector<Eigen::Triplet<double>> entries;
+  Eigen::VectorXd load = Eigen::VectorXd::Zero(np);
+  ElementBasis eb;
+  for (int e = 0; e < space_.n_elements(); ++e) {
+    const Index3 ei = space_.element_multi_index(e);
+    space_.evaluate(ei, space_.element_rule(ei, n_gauss()), eb);
+    const ComponentBasis& cb = eb.comp[D];
+    for (int q = 0; q < eb.n_points; ++q) {
+      const double m = mu(eb.x[q]);
+      for (int a = 0; a < cb.n; ++a) {
+        const double wa = eb.weight[q] * cb.value[q * cb.n + a];
+        load[cb.index[a] - off] += wa * m;
+        for (int b = 0; b < cb.n; ++b)
+          entries.emplace_back(cb.index[a] - off, cb.index[b] - off, wa * cb.value[q * cb.n + b]);
+      }
+    }
+  }
+  Eigen::SparseMatrix<double> M(np, np);
+  M.setFromTriplets(entries.begin(), entries.end());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(M);
+  if (ldlt.info() != Eigen::Success)
+    throw std::runtime_error("DivConformingFluid::project_viscosity: the mass matrix's factorisation failed");
+  const Eigen::VectorXd coeffs = ldlt.solve(load);
+  nu_field_.resize(np);
+  for (int a = 0; a < np; ++a) nu_field_[a] = coeffs[a] / opt_.density;
+}
+
+}  // namespace cellfsi::fluid::dc

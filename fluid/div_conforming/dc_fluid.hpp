@@ -1,0 +1,226 @@
+#pragma once
+// Incompressible Navier-Stokes on the divergence-conforming B-spline space (dc_space.hpp), Galerkin, without
+// stabilisation: the Evans-Hughes discretisation on an axis-aligned box, alone (no immersed cells yet; issue
+// 44, part 1).
+//
+// What it solves (kinematic pressure, nu = mu / rho, g = f / rho; CGS as fluid/fluid_solver.hpp):
+//   dv/dt + c (v.grad)v - div(2 nu eps(v)) + grad p = g,   div v = 0,
+// c = 0 in Stokes mode. The weak form is in dc_kernel.hpp. Boundaries: a periodic direction is periodic; both
+// ends of every other direction are walls moving tangentially with a prescribed velocity. On a wall the
+// normal velocity is imposed strongly (its unknowns are the coefficients of the one velocity function nonzero
+// there) and the tangential velocity weakly, by symmetric Nitsche with penalty
+//   beta = C_pen nu (k + 1)^2 / h,   C_pen = 4 by default (-fluid_dc_penalty),
+// h the element size normal to the wall. Why 4: on a wall w.n = 0, so eps(w) n . w involves only d_n w_t, of
+// degree k - 1 in the normal direction; the polynomial trace inequality ||u||^2_face <= k^2 / h ||u||^2_K for
+// degree k - 1 and Young's inequality make the Nitsche form coercive for beta > 2 nu k^2 / h. C_pen (k + 1)^2
+// with C_pen = 4 is more than twice that bound for every k, and any larger value keeps the optimal rates.
+//
+// The pressure is defined up to a constant: one pressure unknown is held fixed during each solve (a unit row)
+// and afterwards the pressure is shifted to zero mean over the box.
+//
+// Time: generalized-alpha for first-order systems as common/generalized_alpha.hpp and FluidSolver: unknown
+// U_{n+1} = (v, p)_{n+1}; momentum at v_{n+alpha_f} and vdot_{n+alpha_m}, pressure at t_{n+1}; continuity
+// div v_{n+alpha_f} = 0. Since div is exact in this space and the initial velocity is divergence-free
+// (project_initial_state), every v_n and vdot_n is divergence-free to the linear solver's round-off.
+// Nonlinear solver: Newton with the exact tangent; linear solver: PETSc KSP with prefix "fluid_" (default:
+// preonly with MUMPS LU, relative pivot threshold 0.5), set from options last.
+//
+// Viscosity: uniform (options().viscosity) or a field nu^h on the pressure space (set_viscosity,
+// project_viscosity), used at each point by the viscous and the Nitsche terms, the penalty included.
+//
+// Parallelism: the elements are split into contiguous ranges of their lexicographic index, one per rank; an
+// unknown belongs to the lowest rank whose elements it touches, and the unknowns are renumbered so that each
+// rank's are contiguous (PETSc's MPIAIJ rows). Each rank assembles its elements (entries for other ranks'
+// rows travel through PETSc's stash) and MUMPS solves in parallel. The state (U, its rate) is replicated on
+// every rank: after each linear solve the update is gathered to all (VecScatterCreateToAll). Simple and exact
+// (1 and 2 ranks agree to 7e-15, tested), but O(unknowns) memory and communication per rank: a partition of
+// the element grid with ghost width k + 1 (the velocity's stencil half-width) is the next step for large
+// runs.
+#include <petscksp.h>
+
+#include <array>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "common/generalized_alpha.hpp"
+#include "fluid/div_conforming/dc_space.hpp"
+
+namespace cellfsi::fluid::dc {
+
+/// Physical and numerical settings; the defaults are the paper's plasma (CGS), as fluid::FluidOptions.
+struct DcFluidOptions {
+  double density = 1.025;          // rho [g/cm^3]
+  double viscosity = 0.012;        // mu [g/(cm s)]
+  Vec3 body_force = Vec3::Zero();  // f [dyn/cm^3], uniform
+  /// An additional body force per unit volume f(x, t) [dyn/cm^3] (manufactured solutions); none if empty.
+  std::function<Vec3(const Vec3&, double)> body_force_field;
+  bool stokes = false;   // drop convection
+  double rho_inf = 0.5;  // generalized-alpha spectral radius at infinity
+  double dt = 5e-4;      // time step [s]
+  double penalty = 4.0;  // C_pen of the Nitsche penalty C_pen nu (k + 1)^2 / h
+  /// Velocity of the wall at side s (0: x_d = lo, 1: x_d = hi) of non-periodic direction d; its normal
+  /// component must be 0.
+  std::array<std::array<Vec3, 2>, 3> wall_velocity{
+      {{Vec3::Zero(), Vec3::Zero()}, {Vec3::Zero(), Vec3::Zero()}, {Vec3::Zero(), Vec3::Zero()}}};
+  /// A wall velocity that varies along the walls, v_w(x, t) (its tangential part is imposed; the normal part
+  /// must vanish); replaces wall_velocity if set.
+  std::function<Vec3(const Vec3&, double)> wall_velocity_field;
+  int newton_max_it = 20;
+  double newton_rtol = 1e-12;  // on the residual's 2-norm, relative to the first
+  /// On the update's max-norm, relative to the solution's: Newton's error after such an update is of its
+  /// square, below round-off.
+  double newton_stol = 1e-10;
+  /// Reads -fluid_density, -fluid_viscosity, -fluid_stokes, -fluid_rho_inf, -fluid_dt, -fluid_dc_penalty.
+  void set_from_options();
+  /// Throws std::invalid_argument naming the value and its range.
+  void validate() const;
+};
+
+/// What a solve (one time step or a steady solve) cost.
+struct DcSolveStats {
+  int newton_iterations = 0;
+  bool converged = false;
+  double residual_norm = 0;  // last residual's 2-norm
+};
+
+class DivConformingFluid {
+ public:
+  /// Collective on comm.
+  DivConformingFluid(MPI_Comm comm, const DivConformingSpace& space, const DcFluidOptions& options);
+  ~DivConformingFluid();
+  DivConformingFluid(const DivConformingFluid&) = delete;
+  DivConformingFluid& operator=(const DivConformingFluid&) = delete;
+
+  /// Divergence-free L2 projections of v0 and vdot0 (v0 . n and vdot0 . n must vanish on the walls): each
+  /// is the velocity of the saddle-point problem (v, w) - (p, div w) = (v0, w), (q, div v) = 0, so it is
+  /// pointwise divergence-free and of optimal order for divergence-free data. Pressure 0.
+  void project_initial_state(const std::function<Vec3(const Vec3&)>& v0,
+                             const std::function<Vec3(const Vec3&)>& vdot0);
+  /// Sets the unknowns directly (velocity then pressure, dc_space.hpp's numbering); velocity rate 0.
+  void set_state(const std::vector<double>& u);
+
+  /// Restores a state saved from state() and state_rate() after `steps` steps (a restart); time = steps dt.
+  void restore(const std::vector<double>& u, const std::vector<double>& udot, int steps);
+
+  /// The tangent at the current state, of a time step (time_step: the state as the first iterate of the next
+  /// step) or of the steady problem, with unit rows for the walls' normal velocities and, if pin_pressure,
+  /// the pressure pin; in the PETSc numbering (on one rank the natural one of dc_space.hpp). The matrix
+  /// belongs to the solver and changes with the next solve. For the tests of a solver of this operator
+  /// (dc_fourier.hpp). Collective.
+  Mat jacobian(bool time_step, bool pin_pressure);
+
+  /// The steady problem (no time derivative) at the current time, from the current state as first guess.
+  /// Throws std::invalid_argument on a box without walls (its steady problem is singular).
+  DcSolveStats solve_steady();
+  /// One generalized-alpha step. The state advances only if Newton converged.
+  DcSolveStats step();
+  double time() const { return time_; }
+  int steps_taken() const { return steps_; }
+
+  const std::vector<double>& state() const { return U_; }          // velocity then pressure
+  const std::vector<double>& state_rate() const { return Udot_; }  // velocity rate (pressure entries 0)
+  const DivConformingSpace& space() const { return space_; }
+  const DcFluidOptions& options() const { return opt_; }
+  KSP ksp() const { return ksp_; }
+  MPI_Comm comm() const { return comm_; }
+  /// The PETSc numbering (rows of jacobian(), the linear solver's vectors) of each natural unknown.
+  const std::vector<PetscInt>& petsc_numbering() const { return petsc_index_; }
+  /// The elements this rank assembles: linear indices [begin, end) (DivConformingSpace::element_multi_index).
+  std::array<int, 2> owned_elements() const { return {elem_begin_, elem_end_}; }
+
+  /// Errors against an exact solution over the box (n_gauss = k + 4 per direction): velocity L2, velocity
+  /// H1 seminorm, pressure L2 after both pressures are shifted to zero mean; and the exact norms.
+  struct Errors {
+    double v_l2 = 0, v_h1 = 0, p_l2 = 0;
+    double v_l2_norm = 0, v_h1_norm = 0, p_l2_norm = 0;
+  };
+  Errors errors(const std::function<Vec3(const Vec3&)>& v,
+                const std::function<geometry::Mat3(const Vec3&)>& grad_v,
+                const std::function<double(const Vec3&)>& p) const;
+  /// max |div v_h| / max |grad v_h| (Frobenius) over the Gauss points of every element (0 for v_h = 0).
+  double divergence_ratio() const;
+  /// max |v_h| over the same points.
+  double max_velocity() const;
+  // --- A viscosity that varies in space (as FluidSolver's; docs/fluid.md, "The viscosity field") ---
+  /// Sets the viscosity field by control value of the pressure space (degree k): mu[A] is the dynamic
+  /// viscosity [g/(cm s)] of pressure function A, so that nu^h = sum_A (mu_A / rho) q_A. The viscous term and
+  /// the Nitsche terms (their penalty included) then use nu^h at each point; the weak form needs no grad nu
+  /// (Galerkin).
+  void set_viscosity(const std::vector<double>& mu);
+  /// The L2 projection of mu(x) [g/(cm s)] onto the pressure space, as the field (order k + 1 for a smooth
+  /// mu).
+  void project_viscosity(const std::function<double(const Vec3&)>& mu);
+  void clear_viscosity() { nu_field_.clear(); }
+  bool has_viscosity_field() const { return !nu_field_.empty(); }
+  /// The field's kinematic viscosity nu_A per pressure function (empty without a field).
+  const std::vector<double>& viscosity_field() const { return nu_field_; }
+
+  /// Velocity, its gradient (grad_v(i, j) = d v_i / d x_j) and the pressure at points anywhere in the box
+  /// (periodic coordinates wrapped). Local: the state is on every rank.
+  struct Sample {
+    Vec3 v = Vec3::Zero();
+    geometry::Mat3 grad_v = geometry::Mat3::Zero();
+    double p = 0;
+  };
+  std::vector<Sample> sample(const std::vector<Vec3>& points) const;
+  /// Writes the fields as a VTK structured grid (.vts) sampled at samples_per_element + 1 points per element
+  /// and direction (element ends shared): arrays velocity, pressure, divergence. Rank 0 writes; collective.
+  void write_vtk(const std::string& path, int samples_per_element = 2) const;
+
+  /// divergence_ratio() after each step() (the issue's "at every step").
+  const std::vector<double>& divergence_history() const { return div_history_; }
+
+ private:
+  /// The fields and their derivatives with respect to the unknowns that assemble() needs.
+  struct Levels {
+    std::vector<double> v;  // coefficients of the velocity at which momentum is evaluated (pressure: U's)
+    std::vector<double> a;  // coefficients of the acceleration
+    double dv_dU = 1, da_dU = 0;
+    double nu = 0, convection = 0, t = 0;
+    bool nitsche = true;
+    bool viscosity_field = true;  // use nu^h where there is a field (false: lv.nu, as a projection's 0)
+    std::function<Vec3(const Vec3&)> g;  // body force per unit mass (or the data of a projection)
+  };
+  Levels steady_levels(const std::vector<double>& U) const;
+  /// A generalized-alpha step from (Un, Udotn) with iterate U.
+  Levels step_levels(const std::vector<double>& U, const std::vector<double>& Un,
+                     const std::vector<double>& Udotn) const;
+  std::function<Vec3(const Vec3&)> body_force_per_mass(double t) const;
+  /// Residual F and, if J is not null, the tangent (PETSc numbering), both without the fixed rows.
+  /// Collective.
+  void assemble(const Levels& lv, Vec F, Mat J) const;
+  /// Newton on R(U) = 0 with levels(U) describing the fields; fixed rows (wall normals, the pressure pin)
+  /// keep U's values.
+  DcSolveStats newton(std::vector<double>& U,
+                      const std::function<Levels(const std::vector<double>&)>& levels);
+  void create_matrix();
+  /// Calls f(eb) for each of this rank's elements with its basis at the element's Gauss points.
+  template <class F>
+  void for_owned_elements(int n_gauss, F&& f) const;
+  void shift_pressure_to_zero_mean(std::vector<double>& U) const;
+  Vec3 wall_velocity(int d, int side, const Vec3& x, double t) const;
+  int n_gauss() const { return space_.degree() + 2; }  // exact for the mass matrix (degree 2k + 2)
+
+  MPI_Comm comm_;
+  const DivConformingSpace& space_;
+  DcFluidOptions opt_;
+  int elem_begin_ = 0, elem_end_ = 0;
+  std::vector<PetscInt> petsc_index_;     // natural (dc_space.hpp) -> PETSc numbering
+  PetscInt row_begin_ = 0, row_end_ = 0;  // this rank's rows in PETSc numbering
+  std::vector<PetscInt> owned_fixed_;     // this rank's fixed rows, PETSc numbering
+  GeneralizedAlpha alpha_;
+  std::vector<double> U_, Udot_;
+  std::vector<int> fixed_rows_;        // wall normal velocities and the pressure pin (natural numbering)
+  std::vector<double> pressure_mass_;  // int q_A over the box
+  std::vector<double> div_history_;
+  std::vector<double> nu_field_;  // kinematic viscosity per pressure function; empty: uniform
+  double time_ = 0;
+  int steps_ = 0;
+  Mat J_ = nullptr;
+  KSP ksp_ = nullptr;
+  Vec F_ = nullptr, x_ = nullptr, x_all_ = nullptr;  // residual, update, update on every rank
+  VecScatter to_all_ = nullptr;
+};
+
+}  // namespace cellfsi::fluid::dc

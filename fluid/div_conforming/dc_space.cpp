@@ -1,0 +1,268 @@
+#include "fluid/div_conforming/dc_space.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "geometry/basis.hpp"
+#include "geometry/quadrature.hpp"
+
+namespace cellfsi::fluid::dc {
+
+namespace {
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument("DivConformingSpace: " + what);
+}
+
+}  // namespace
+
+DivConformingSpace::DivConformingSpace(int dim, int k, const Index3& n_elements, const Vec3& lo,
+                                       const Vec3& hi, const std::array<bool, 3>& periodic)
+    : dim_(dim), k_(k) {
+  require(dim == 2 || dim == 3, "dim must be 2 or 3, got " + std::to_string(dim));
+  require(k >= 1 && k + 1 <= geometry::kMaxDegree, "the pressure degree k must be in [1, " +
+                                                       std::to_string(geometry::kMaxDegree - 1) + "], got " +
+                                                       std::to_string(k));
+  for (int d = 0; d < dim; ++d) {
+    const std::string dir = "direction " + std::to_string(d);
+    require(n_elements[d] >= 1, dir + ": n_elements must be >= 1, got " + std::to_string(n_elements[d]));
+    require(hi[d] > lo[d], dir + ": the box needs hi > lo");
+    periodic_[d] = periodic[d];
+    lo_[d] = lo[d];
+    hi_[d] = hi[d];
+    if (periodic[d]) {
+      require(n_elements[d] >= k + 1,
+              dir + ": a periodic direction needs n_elements >= k + 1 = " + std::to_string(k + 1) +
+                  " (the velocity's degree), got " + std::to_string(n_elements[d]));
+      high_[d] = KnotVector::periodic_uniform(k + 1, n_elements[d], lo[d], hi[d]);
+      low_[d] = KnotVector::periodic_uniform(k, n_elements[d], lo[d], hi[d]);
+    } else {
+      high_[d] = KnotVector::open_uniform(k + 1, n_elements[d], lo[d], hi[d]);
+      low_[d] = KnotVector::open_uniform(k, n_elements[d], lo[d], hi[d]);
+    }
+  }
+  int off = 0;
+  for (int c = 0; c <= dim_; ++c) {
+    offset_[c] = off;
+    off += n_basis(c);
+  }
+}
+
+DivConformingSpace DivConformingSpace::from_patch(const geometry::Patch& patch, int k) {
+  const auto map = geometry::affine_map(patch);
+  require(map.has_value(),
+          "the patch is not an axis-aligned affine box (geometry::rectangle or geometry::box); curved "
+          "geometry needs the contravariant Piola map, not implemented yet");
+  const int dim = patch.param_dim();
+  require(patch.physical_dim() == dim, "the patch's parametric and physical dimensions must agree");
+  Index3 n{1, 1, 1};
+  Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
+  std::array<bool, 3> periodic{false, false, false};
+  for (int d = 0; d < dim; ++d) {
+    const KnotVector& kv = patch.knots(d);
+    const std::vector<double> breaks = kv.breakpoints();
+    n[d] = kv.n_elements();
+    periodic[d] = kv.periodic();
+    lo[d] = map->offset[d] + map->scale[d] * kv.a();
+    hi[d] = map->offset[d] + map->scale[d] * kv.b();
+    const double h = (kv.b() - kv.a()) / n[d];
+    for (int e = 0; e <= n[d]; ++e)
+      require(std::abs(breaks[e] - (kv.a() + e * h)) <= 1e-12 * (kv.b() - kv.a()),
+              "direction " + std::to_string(d) + ": the elements must be uniform");
+  }
+  return DivConformingSpace(dim, k, n, lo, hi, periodic);
+}
+
+Index3 DivConformingSpace::element_multi_index(int e) const {
+  const int n0 = n_elements(0), n1 = n_elements(1);
+  return {e % n0, (e / n0) % n1, e / (n0 * n1)};
+}
+
+Index3 DivConformingSpace::multi_index(int c, int global) const {
+  const int local = global - offset_[c];
+  const int n0 = n_basis(c, 0), n1 = n_basis(c, 1);
+  return {local % n0, (local / n0) % n1, local / (n0 * n1)};
+}
+
+std::vector<int> DivConformingSpace::wall_normal_dofs() const {
+  std::vector<int> dofs;
+  for (int d = 0; d < dim_; ++d) {
+    if (periodic_[d]) continue;
+    const int last = n_basis(d, d) - 1;
+    for (int i2 = 0; i2 < n_basis(d, 2); ++i2)
+      for (int i1 = 0; i1 < n_basis(d, 1); ++i1)
+        for (int i0 = 0; i0 < n_basis(d, 0); ++i0) {
+          const Index3 i{i0, i1, i2};
+          if (i[d] == 0 || i[d] == last) dofs.push_back(index(d, i));
+        }
+  }
+  return dofs;
+}
+
+TensorRule DivConformingSpace::element_rule(const Index3& e, int n_gauss) const {
+  TensorRule r;
+  const geometry::GaussRule& g = geometry::gauss_legendre(n_gauss);
+  for (int d = 0; d < 3; ++d) {
+    if (d >= dim_) {
+      r.points[d] = {0.0};
+      r.weights[d] = {1.0};
+      continue;
+    }
+    const double a = low_[d].element_begin(e[d]), b = low_[d].element_end(e[d]);
+    for (int q = 0; q < n_gauss; ++q) {
+      r.points[d].push_back(a + 0.5 * (b - a) * (g.points[q] + 1.0));
+      r.weights[d].push_back(0.5 * (b - a) * g.weights[q]);
+    }
+  }
+  return r;
+}
+
+Index3 DivConformingSpace::find_element(const Vec3& x) const {
+  Index3 e{0, 0, 0};
+  for (int d = 0; d < dim_; ++d) e[d] = low_[d].find_element(x[d]);
+  return e;
+}
+
+TensorRule DivConformingSpace::point_rule(const Vec3& x) const {
+  TensorRule r;
+  for (int d = 0; d < 3; ++d) {
+    r.points[d] = {d < dim_ ? low_[d].normalize(x[d]) : 0.0};
+    r.weights[d] = {1.0};
+  }
+  return r;
+}
+
+TensorRule DivConformingSpace::face_rule(const Index3& e, int d, int side, int n_gauss) const {
+  TensorRule r = element_rule(e, n_gauss);
+  r.points[d] = {side == 0 ? low_[d].element_begin(e[d]) : low_[d].element_end(e[d])};
+  r.weights[d] = {1.0};
+  return r;
+}
+
+void DivConformingSpace::evaluate(const Index3& e, const TensorRule& rule, ElementBasis& out) const {
+  const int nq[3] = {static_cast<int>(rule.points[0].size()), static_cast<int>(rule.points[1].size()),
+                     static_cast<int>(rule.points[2].size())};
+  const int n_points = nq[0] * nq[1] * nq[2];
+  out.n_points = n_points;
+  out.x.resize(n_points);
+  out.weight.resize(n_points);
+  for (int q2 = 0; q2 < nq[2]; ++q2)
+    for (int q1 = 0; q1 < nq[1]; ++q1)
+      for (int q0 = 0; q0 < nq[0]; ++q0) {
+        const int q = q0 + nq[0] * (q1 + nq[1] * q2);
+        out.x[q] = Vec3(rule.points[0][q0], dim_ > 1 ? rule.points[1][q1] : 0.0,
+                        dim_ > 2 ? rule.points[2][q2] : 0.0);
+        out.weight[q] = rule.weights[0][q0] * rule.weights[1][q1] * rule.weights[2][q2];
+      }
+
+  // Univariate values uni[d][(q * (p + 1) + j) * 2 + m] (m = 0 value, 1 derivative) of the two spaces.
+  constexpr int kMax = geometry::kMaxDegree + 1;
+  std::vector<double> uni[2][3];  // [space: 0 low, 1 high][direction]
+  int first[2][3] = {{0, 0, 0}, {0, 0, 0}};
+  for (int s = 0; s < 2; ++s)
+    for (int d = 0; d < 3; ++d) {
+      if (d >= dim_) {
+        uni[s][d] = {1.0, 0.0};
+        continue;
+      }
+      const KnotVector& kv = s ? high_[d] : low_[d];
+      const int p = kv.degree(), span = kv.element_span(e[d]);
+      first[s][d] = span - p;
+      uni[s][d].resize(nq[d] * (p + 1) * 2);
+      double ders[2 * kMax];
+      for (int q = 0; q < nq[d]; ++q) {
+        geometry::bspline_basis(kv, span, rule.points[d][q], 1, ders);
+        for (int j = 0; j <= p; ++j) {
+          uni[s][d][(q * (p + 1) + j) * 2] = ders[j];
+          uni[s][d][(q * (p + 1) + j) * 2 + 1] = ders[(p + 1) + j];
+        }
+      }
+    }
+
+  for (int c = 0; c <= dim_; ++c) {
+    ComponentBasis& cb = out.comp[c];
+    int np[3], sp[3];
+    for (int d = 0; d < 3; ++d) {
+      sp[d] = (c == d) ? 1 : 0;
+      np[d] = d < dim_ ? knots(c, d).degree() + 1 : 1;
+    }
+    cb.n = np[0] * np[1] * np[2];
+    cb.index.resize(cb.n);
+    cb.value.resize(static_cast<size_t>(n_points) * cb.n);
+    cb.grad.resize(static_cast<size_t>(n_points) * cb.n * 3);
+    for (int j2 = 0; j2 < np[2]; ++j2)
+      for (int j1 = 0; j1 < np[1]; ++j1)
+        for (int j0 = 0; j0 < np[0]; ++j0) {
+          const int a = j0 + np[0] * (j1 + np[1] * j2);
+          const int j[3] = {j0, j1, j2};
+          Index3 folded{0, 0, 0};
+          for (int d = 0; d < dim_; ++d) folded[d] = knots(c, d).fold(first[sp[d]][d] + j[d]);
+          cb.index[a] = index(c, folded);
+        }
+    for (int q2 = 0; q2 < nq[2]; ++q2)
+      for (int q1 = 0; q1 < nq[1]; ++q1)
+        for (int q0 = 0; q0 < nq[0]; ++q0) {
+          const int q = q0 + nq[0] * (q1 + nq[1] * q2);
+          const int qd[3] = {q0, q1, q2};
+          for (int j2 = 0; j2 < np[2]; ++j2)
+            for (int j1 = 0; j1 < np[1]; ++j1)
+              for (int j0 = 0; j0 < np[0]; ++j0) {
+                const int a = j0 + np[0] * (j1 + np[1] * j2);
+                const int j[3] = {j0, j1, j2};
+                double f[3][2];
+                for (int d = 0; d < 3; ++d)
+                  for (int m = 0; m < 2; ++m) f[d][m] = uni[sp[d]][d][(qd[d] * np[d] + j[d]) * 2 + m];
+                const size_t qa = static_cast<size_t>(q) * cb.n + a;
+                cb.value[qa] = f[0][0] * f[1][0] * f[2][0];
+                cb.grad[qa * 3 + 0] = f[0][1] * f[1][0] * f[2][0];
+                cb.grad[qa * 3 + 1] = f[0][0] * f[1][1] * f[2][0];
+                cb.grad[qa * 3 + 2] = f[0][0] * f[1][0] * f[2][1];
+              }
+        }
+  }
+}
+
+DivConformingSpace::PointValues DivConformingSpace::interpolate(const ElementBasis& eb, int q, int dim,
+                                                                const double* coeffs) {
+  PointValues pv;
+  for (int c = 0; c <= dim; ++c) {
+    const ComponentBasis& cb = eb.comp[c];
+    for (int a = 0; a < cb.n; ++a) {
+      const size_t qa = static_cast<size_t>(q) * cb.n + a;
+      const double u = coeffs[cb.index[a]];
+      if (c < dim) {
+        pv.v[c] += u * cb.value[qa];
+        for (int j = 0; j < dim; ++j) pv.grad[c][j] += u * cb.grad[qa * 3 + j];
+      } else {
+        pv.p += u * cb.value[qa];
+      }
+    }
+  }
+  return pv;
+}
+
+std::vector<double> DivConformingSpace::divergence(const std::vector<double>& u) const {
+  require(static_cast<int>(u.size()) == n_velocity(), "divergence: u must have n_velocity() entries");
+  std::vector<double> div(n_pressure(), 0.0);
+  for (int i = 0; i < dim_; ++i) {
+    // d/dx_i of high(i) function j: p / (U_{j+p} - U_j) N_{j-1}^low - p / (U_{j+p+1} - U_{j+1}) N_j^low, so
+    // the coefficient of low function m is p / (U_{m+1+p} - U_{m+1}) (u_{m+1} - u_m) (indices folded).
+    const KnotVector& U = high_[i];
+    const int p = U.degree();
+    for (int m2 = 0; m2 < n_basis(dim_, 2); ++m2)
+      for (int m1 = 0; m1 < n_basis(dim_, 1); ++m1)
+        for (int m0 = 0; m0 < n_basis(dim_, 0); ++m0) {
+          const Index3 m{m0, m1, m2};
+          const int mi = m[i];
+          const double c = p / (U.knot(mi + 1 + p) - U.knot(mi + 1));
+          Index3 plus = m, minus = m;
+          plus[i] = U.fold(mi + 1);
+          minus[i] = U.fold(mi);
+          div[index(dim_, m) - offset_[dim_]] += c * (u[index(i, plus)] - u[index(i, minus)]);
+        }
+  }
+  return div;
+}
+
+}  // namespace cellfsi::fluid::dc

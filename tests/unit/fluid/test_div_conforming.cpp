@@ -1,0 +1,829 @@
+// The divergence-conforming B-spline space (fluid/div_conforming/dc_space.hpp) and its Galerkin Navier-Stokes
+// solver (dc_fluid.hpp), issue 44 part 1.
+//
+// The space: partition of unity; div of any velocity lies in the pressure space (pointwise, and as its own L2
+// projection); the de Rham property (d/dx maps the degree-(k+1) spline space onto the degree-k one; div maps
+// the velocities with zero normal wall values onto the zero-mean pressures). The kernels: tangents against
+// central differences. The solver: Couette and Poiseuille flows (in the space: linear and quadratic in y
+// along x, the velocity's x component has degree k >= 2 in y) exact to 1e-12, steady and over time steps; a
+// body force that is a gradient leaves the velocity at round-off (pressure robustness); divergence-free to
+// 1e-9 of the velocity gradient at every time step. The manufactured-solution rates are in
+// tests/convergence/test_div_conforming_convergence.cpp.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <random>
+
+#include <petscsys.h>
+#include <vtkDataArray.h>
+#include <vtkNew.h>
+#include <vtkPointData.h>
+#include <vtkStructuredGrid.h>
+#include <vtkXMLStructuredGridReader.h>
+
+#include "../../support/print_rank0.hpp"
+#include "fluid/div_conforming/dc_fluid.hpp"
+#include "fluid/div_conforming/dc_fourier.hpp"
+#include "fluid/div_conforming/dc_kernel.hpp"
+#include "fluid/div_conforming/dc_space.hpp"
+#include "geometry/builders.hpp"
+
+using namespace cellfsi;
+using namespace cellfsi::fluid::dc;
+using cellfsi::test_support::print0;
+using geometry::Mat3;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+/// The 2D channel [0, lx] x [0, ly], periodic in x, walls at y = 0 and ly.
+DivConformingSpace channel_2d(int k, int nx, int ny, double lx = 1.0, double ly = 1.0) {
+  return DivConformingSpace(2, k, {nx, ny, 1}, Vec3(0, 0, 0), Vec3(lx, ly, 0), {true, false, false});
+}
+
+/// div v_h and the pressure-space function with coefficients (D u) at every Gauss point; returns the largest
+/// difference relative to the largest |grad v_h|.
+double divergence_mismatch(const DivConformingSpace& sp, const std::vector<double>& u) {
+  const std::vector<double> du = sp.divergence(u);
+  std::vector<double> coeffs(u);
+  coeffs.resize(sp.n_dofs(), 0.0);
+  for (int a = 0; a < sp.n_pressure(); ++a) coeffs[sp.offset(sp.dim()) + a] = du[a];
+  double worst = 0, grad_max = 0;
+  ElementBasis eb;
+  for (int e = 0; e < sp.n_elements(); ++e) {
+    const Index3 ei = sp.element_multi_index(e);
+    sp.evaluate(ei, sp.element_rule(ei, sp.degree() + 3), eb);
+    for (int q = 0; q < eb.n_points; ++q) {
+      const auto pv = DivConformingSpace::interpolate(eb, q, sp.dim(), coeffs.data());
+      double div = 0;
+      for (int i = 0; i < sp.dim(); ++i) {
+        div += pv.grad[i][i];
+        for (int j = 0; j < sp.dim(); ++j) grad_max = std::max(grad_max, std::abs(pv.grad[i][j]));
+      }
+      worst = std::max(worst, std::abs(div - pv.p));
+    }
+  }
+  return worst / grad_max;
+}
+
+std::vector<double> random_velocity(const DivConformingSpace& sp, unsigned seed) {
+  std::mt19937 gen(seed);
+  std::uniform_real_distribution<double> dist(-1.0, 1.0);
+  std::vector<double> u(sp.n_velocity());
+  for (double& x : u) x = dist(gen);
+  return u;
+}
+
+}  // namespace
+
+// --- The space
+// ----------------------------------------------------------------------------------------------
+
+TEST(DivConformingSpace, EveryComponentIsAPartitionOfUnity) {
+  for (int k : {2, 3}) {
+    const DivConformingSpace sp(3, k, {4, 3, 5}, Vec3(0, 0, 0), Vec3(1, 2, 0.5), {true, false, false});
+    ElementBasis eb;
+    for (int e = 0; e < sp.n_elements(); ++e) {
+      const Index3 ei = sp.element_multi_index(e);
+      sp.evaluate(ei, sp.element_rule(ei, k + 2), eb);
+      for (int c = 0; c <= 3; ++c)
+        for (int q = 0; q < eb.n_points; ++q) {
+          const ComponentBasis& cb = eb.comp[c];
+          double sum = 0, dsum[3] = {0, 0, 0};
+          for (int a = 0; a < cb.n; ++a) {
+            sum += cb.value[q * cb.n + a];
+            for (int j = 0; j < 3; ++j) dsum[j] += cb.grad[(q * cb.n + a) * 3 + j];
+          }
+          // Sums of at most 5^3 terms of size <= 1 (derivatives <= (k+1) / h ~ 20): round-off 1e-14.
+          EXPECT_NEAR(sum, 1.0, 1e-14) << "k=" << k << " component " << c;
+          for (int j = 0; j < 3; ++j) EXPECT_NEAR(dsum[j], 0.0, 1e-12) << "k=" << k << " component " << c;
+        }
+    }
+  }
+}
+
+TEST(DivConformingSpace, DivergenceOfAnyVelocityIsInThePressureSpace) {
+  // Pointwise: div v_h equals the pressure-space function with coefficients divergence(u), for random u, in
+  // 2D (channel) and 3D (periodic x, walls y and z), k = 2 and 3. Both sides are sums of O(10^2) products of
+  // size ~ (k+1)/h: a difference of 1e-13 relative to |grad v_h| is round-off.
+  for (int k : {2, 3}) {
+    const DivConformingSpace sp2 = channel_2d(k, 6, 5, 1.0, 0.7);
+    EXPECT_LT(divergence_mismatch(sp2, random_velocity(sp2, 1)), 1e-13) << "2D k=" << k;
+    const DivConformingSpace sp3(3, k, {4, 3, 5}, Vec3(0, 0, 0), Vec3(1, 2, 0.5), {true, false, false});
+    EXPECT_LT(divergence_mismatch(sp3, random_velocity(sp3, 2)), 1e-13) << "3D k=" << k;
+    const DivConformingSpace box(2, k, {5, 4, 1}, Vec3(-1, 2, 0), Vec3(0.5, 3, 0), {false, false, false});
+    EXPECT_LT(divergence_mismatch(box, random_velocity(box, 3)), 1e-13) << "2D walls k=" << k;
+  }
+}
+
+TEST(DivConformingSpace, DivergenceEqualsItsL2Projection) {
+  // The L2 projection of div v_h onto the pressure space (dense mass matrix, exact Gauss quadrature) gives
+  // back div v_h's coefficients: div v_h is in the space. Mass-matrix condition ~1e2 at k = 2: 1e-12.
+  const int k = 2;
+  const DivConformingSpace sp = channel_2d(k, 5, 4);
+  const std::vector<double> u = random_velocity(sp, 7);
+  const int np = sp.n_pressure(), off = sp.offset(2);
+  Eigen::MatrixXd M = Eigen::MatrixXd::Zero(np, np);
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(np);
+  std::vector<double> coeffs(u);
+  coeffs.resize(sp.n_dofs(), 0.0);
+  ElementBasis eb;
+  for (int e = 0; e < sp.n_elements(); ++e) {
+    const Index3 ei = sp.element_multi_index(e);
+    sp.evaluate(ei, sp.element_rule(ei, k + 2), eb);
+    const ComponentBasis& cb = eb.comp[2];
+    for (int q = 0; q < eb.n_points; ++q) {
+      const auto pv = DivConformingSpace::interpolate(eb, q, 2, coeffs.data());
+      const double div = pv.grad[0][0] + pv.grad[1][1];
+      for (int a = 0; a < cb.n; ++a) {
+        b[cb.index[a] - off] += eb.weight[q] * cb.value[q * cb.n + a] * div;
+        for (int c = 0; c < cb.n; ++c)
+          M(cb.index[a] - off, cb.index[c] - off) +=
+              eb.weight[q] * cb.value[q * cb.n + a] * cb.value[q * cb.n + c];
+      }
+    }
+  }
+  const Eigen::VectorXd proj = M.ldlt().solve(b);
+  const std::vector<double> du = sp.divergence(u);
+  double worst = 0, scale = 0;
+  for (int a = 0; a < np; ++a) {
+    worst = std::max(worst, std::abs(proj[a] - du[a]));
+    scale = std::max(scale, std::abs(du[a]));
+  }
+  EXPECT_LT(worst / scale, 1e-12);
+}
+
+TEST(DivConformingSpace, DeRhamPropertyDivergenceIsOntoTheZeroMeanPressures) {
+  // Exactness at the end of the sequence: with the normal wall values fixed at 0 (and periodic directions),
+  // the range of div is the pressure space minus the constants: rank = n_pressure - 1. Also per direction,
+  // d/dx maps the degree-(k+1) space onto the degree-k one (open: rank n_low; periodic: n_low - 1).
+  for (int k : {2, 3}) {
+    for (const auto& sp :
+         {channel_2d(k, 5, 4),
+          DivConformingSpace(2, k, {4, 5, 1}, Vec3(0, 0, 0), Vec3(1, 1, 0), {false, false, false}),
+          DivConformingSpace(3, k, {4, 3, 3}, Vec3(0, 0, 0), Vec3(1, 1, 1), {true, false, false})}) {
+      const std::vector<int> fixed = sp.wall_normal_dofs();
+      std::vector<char> is_fixed(sp.n_velocity(), 0);
+      for (int f : fixed) is_fixed[f] = 1;
+      std::vector<int> free;
+      for (int i = 0; i < sp.n_velocity(); ++i)
+        if (!is_fixed[i]) free.push_back(i);
+      Eigen::MatrixXd B(sp.n_pressure(), free.size());
+      std::vector<double> u(sp.n_velocity(), 0.0);
+      for (size_t j = 0; j < free.size(); ++j) {
+        u[free[j]] = 1.0;
+        const std::vector<double> du = sp.divergence(u);
+        for (int a = 0; a < sp.n_pressure(); ++a) B(a, j) = du[a];
+        u[free[j]] = 0.0;
+      }
+      Eigen::FullPivLU<Eigen::MatrixXd> lu(B);
+      lu.setThreshold(1e-10);
+      EXPECT_EQ(lu.rank(), sp.n_pressure() - 1) << "dim " << sp.dim() << " k=" << k;
+      for (int d = 0; d < sp.dim(); ++d) {
+        // The derivative matrix of direction d from the component-d knot vector (high) to the pressure's
+        // (low).
+        const int nh = sp.high(d).n_basis(), nl = sp.low(d).n_basis();
+        Eigen::MatrixXd Dd = Eigen::MatrixXd::Zero(nl, nh);
+        for (int m = 0; m < nl; ++m) {
+          const int p = sp.high(d).degree();
+          const double c = p / (sp.high(d).knot(m + 1 + p) - sp.high(d).knot(m + 1));
+          Dd(m, sp.high(d).fold(m + 1)) += c;
+          Dd(m, sp.high(d).fold(m)) -= c;
+        }
+        Eigen::FullPivLU<Eigen::MatrixXd> lud(Dd);
+        lud.setThreshold(1e-10);
+        EXPECT_EQ(lud.rank(), sp.periodic(d) ? nl - 1 : nl) << "direction " << d;
+      }
+    }
+  }
+}
+
+TEST(DivConformingSpace, RejectsBadInputWithAMessage) {
+  EXPECT_THROW(DivConformingSpace(2, 2, {2, 4, 1}, Vec3(0, 0, 0), Vec3(1, 1, 0), {true, false, false}),
+               std::invalid_argument);  // periodic with fewer than k + 1 elements
+  EXPECT_THROW(DivConformingSpace(4, 2, {4, 4, 4}, Vec3(0, 0, 0), Vec3(1, 1, 1), {false, false, false}),
+               std::invalid_argument);
+  const geometry::Patch rect = geometry::rectangle(2.0, 1.0, 6, 3, 2, {true, false});
+  const DivConformingSpace sp = DivConformingSpace::from_patch(rect, 3);
+  EXPECT_EQ(sp.n_elements(0), 6);
+  EXPECT_TRUE(sp.periodic(0));
+  EXPECT_FALSE(sp.periodic(1));
+  EXPECT_DOUBLE_EQ(sp.hi(0), 2.0);
+  // v_x: 6 periodic x 6 open degree-3 functions; v_y: 6 x 7 (degree 4 in y); pressure: 6 x 6.
+  EXPECT_EQ(sp.n_dofs(), 6 * 6 + 6 * 7 + 6 * 6);
+  // Curved geometry needs the Piola map: refused.
+  EXPECT_THROW(DivConformingSpace::from_patch(geometry::narrowing_channel({}, 12, 4, 2), 2),
+               std::invalid_argument);
+}
+
+TEST(DivConformingFluid, OptionsAreReadAndChecked) {
+  DcFluidOptions opt;
+  PetscOptionsSetValue(nullptr, "-fluid_viscosity", "0.02");
+  PetscOptionsSetValue(nullptr, "-fluid_stokes", "true");
+  opt.set_from_options();
+  EXPECT_DOUBLE_EQ(opt.viscosity, 0.02);
+  EXPECT_TRUE(opt.stokes);
+  PetscOptionsSetValue(nullptr, "-fluid_dc_penalty", "1.5");  // below the coercivity bound 2
+  EXPECT_THROW(opt.set_from_options(), std::invalid_argument);
+  for (const char* k : {"-fluid_viscosity", "-fluid_stokes", "-fluid_dc_penalty"})
+    PetscOptionsClearValue(nullptr, k);
+  const DivConformingSpace all_periodic(2, 2, {4, 4, 1}, Vec3(0, 0, 0), Vec3(1, 1, 0), {true, true, false});
+  DivConformingFluid no_walls(PETSC_COMM_WORLD, all_periodic, DcFluidOptions{});
+  EXPECT_THROW(no_walls.solve_steady(), std::invalid_argument);  // singular: constant velocities
+  DcFluidOptions moving_normal;
+  moving_normal.wall_velocity[1][0] = Vec3(0, 0.1, 0);  // a wall y = const moving along y
+  EXPECT_THROW(moving_normal.validate(), std::invalid_argument);
+}
+
+// --- The kernels
+// ----------------------------------------------------------------------------------------------
+
+namespace {
+
+/// Largest difference between a kernel's tangent and central differences of its residual, relative to the
+/// tangent's largest entry (differences with step 1e-6 of quadratic residuals: round-off ~1e-10).
+template <class Residual>
+double tangent_mismatch(const PointState& s0, const PointTangent& t, int D, Residual&& residual) {
+  const double h = 1e-6;
+  double worst = 0, scale = 1e-300;
+  auto compare = [&](const std::function<void(PointState&, double)>& perturb,
+                     const std::function<double(const PointResidual&, int, int)>& comp, auto&& exact) {
+    PointState sp = s0, sm = s0;
+    perturb(sp, h);
+    perturb(sm, -h);
+    const PointResidual rp = residual(sp), rm = residual(sm);
+    for (int i = 0; i < D; ++i)
+      for (int j = -1; j < D; ++j) {  // j = -1: r0_i; j >= 0: r1_ij; (i, j) = (0, -2) never
+        const double fd = (comp(rp, i, j) - comp(rm, i, j)) / (2 * h);
+        const double ex = exact(i, j);
+        worst = std::max(worst, std::abs(fd - ex));
+        scale = std::max(scale, std::abs(ex));
+      }
+    const double fdq = (rp.rq - rm.rq) / (2 * h);
+    return fdq;
+  };
+  auto comp = [](const PointResidual& r, int i, int j) { return j < 0 ? r.r0[i] : r.r1[i][j]; };
+  for (int k = 0; k < D; ++k) {
+    compare([&](PointState& s, double e) { s.v[k] += e; }, comp,
+            [&](int i, int j) { return j < 0 ? t.dr0_dv[i][k] : t.dr1_dv[i][j][k]; });
+    compare([&](PointState& s, double e) { s.a[k] += e; }, comp,
+            [&](int i, int j) { return j < 0 ? t.dr0_da[i][k] : 0.0; });
+    for (int l = 0; l < D; ++l) {
+      const double fdq =
+          compare([&](PointState& s, double e) { s.dv[k][l] += e; }, comp,
+                  [&](int i, int j) { return j < 0 ? t.dr0_ddv[i][k][l] : t.dr1_ddv[i][j][k][l]; });
+      worst = std::max(worst, std::abs(fdq - t.drq_ddv[k][l]));
+    }
+  }
+  compare([&](PointState& s, double e) { s.p += e; }, comp,
+          [&](int i, int j) { return j < 0 ? 0.0 : t.dr1_dp[i][j]; });
+  return worst / scale;
+}
+
+PointState random_state(unsigned seed) {
+  std::mt19937 gen(seed);
+  std::uniform_real_distribution<double> dist(-1.0, 1.0);
+  PointState s;
+  for (int i = 0; i < 3; ++i) {
+    s.v[i] = dist(gen);
+    s.a[i] = dist(gen);
+    for (int j = 0; j < 3; ++j) s.dv[i][j] = dist(gen);
+  }
+  s.p = dist(gen);
+  return s;
+}
+
+}  // namespace
+
+TEST(DivConformingKernel, TangentsMatchCentralDifferences) {
+  for (int D : {2, 3}) {
+    const PointState s = random_state(11 + D);
+    InteriorParameters ip;
+    ip.dim = D;
+    ip.nu = 0.37;
+    ip.g = {0.3, -0.2, 0.1};
+    for (double c : {0.0, 1.0}) {
+      ip.convection = c;
+      EXPECT_LT(tangent_mismatch(s, dc_interior_tangent(s, ip), D,
+                                 [&](const PointState& x) { return dc_interior_residual(x, ip); }),
+                1e-8)
+          << "interior D=" << D << " convection " << c;
+    }
+    NitscheParameters np;
+    np.dim = D;
+    np.nu = 0.37;
+    np.beta = 12.5;
+    np.n = {0, -1, 0};
+    np.v_wall = {0.4, 0, -0.3};
+    EXPECT_LT(tangent_mismatch(s, dc_nitsche_tangent(np), D,
+                               [&](const PointState& x) { return dc_nitsche_residual(x, np); }),
+              1e-8)
+        << "Nitsche D=" << D;
+  }
+}
+
+// --- Exact flows
+// ---------------------------------------------------------------------------------------------------
+
+namespace {
+
+/// The paper's plasma in a 0.003 x 0.001 cm channel (periodic in x), k and ny elements across.
+struct ChannelCase {
+  double lx = 0.003, ly = 0.001, mu = 0.012, rho = 1.025;
+};
+
+double relative_velocity_error(const DivConformingFluid& fs, const std::function<Vec3(const Vec3&)>& v,
+                               const std::function<Mat3(const Vec3&)>& g) {
+  const auto er = fs.errors(v, g, [](const Vec3&) { return 0.0; });
+  return er.v_l2 / er.v_l2_norm;
+}
+
+/// The flow v(y) of a 12 x 4 channel (with options opt) for k = 2, 3, Stokes and Navier-Stokes: the relative
+/// L2 velocity errors of the steady solve and of three time steps from the exact state's divergence-free
+/// projection, each below 1e-12.
+void expect_exact_channel_flow(const char* name, DcFluidOptions opt,
+                               const std::function<Vec3(const Vec3&)>& v,
+                               const std::function<Mat3(const Vec3&)>& grad) {
+  const ChannelCase c;
+  opt.density = c.rho;
+  opt.viscosity = c.mu;
+  opt.newton_rtol = 0;  // stop on the update alone: the last update is applied, the state is round-off exact
+  for (int k : {2, 3})
+    for (bool stokes : {true, false}) {
+      const DivConformingSpace sp = channel_2d(k, 12, 4, c.lx, c.ly);
+      opt.stokes = stokes;
+      DivConformingFluid fs(PETSC_COMM_WORLD, sp, opt);
+      ASSERT_TRUE(fs.solve_steady().converged);
+      const double e_steady = relative_velocity_error(fs, v, grad);
+      EXPECT_LT(e_steady, 1e-12) << name << " k=" << k << (stokes ? " Stokes" : " Navier-Stokes");
+      fs.project_initial_state(v, [](const Vec3&) { return Vec3(Vec3::Zero()); });
+      for (int s = 0; s < 3; ++s) ASSERT_TRUE(fs.step().converged);
+      const double e_steps = relative_velocity_error(fs, v, grad);
+      EXPECT_LT(e_steps, 1e-12) << name << " k=" << k << (stokes ? " Stokes" : " Navier-Stokes");
+      print0("  %s k=%d %s: rel L2 error steady %.2e, after 3 steps %.2e\n", name, k,
+             stokes ? "Stokes" : "NS", e_steady, e_steps);
+    }
+}
+
+}  // namespace
+
+TEST(DivConformingFluid, CouetteFlowIsExactSteadyAndOverTimeSteps) {
+  // v = (U y / H, 0), p = const: v_x is linear in y and constant in x, in the space for every k >= 1; Nitsche
+  // is consistent, so the discrete solution is the exact one up to the LU's round-off.
+  const ChannelCase c;
+  const double U = 0.05;  // cm/s, the top wall's speed
+  DcFluidOptions opt;
+  opt.wall_velocity[1][1] = Vec3(U, 0, 0);
+  expect_exact_channel_flow(
+      "Couette", opt, [&](const Vec3& x) { return Vec3(U * x[1] / c.ly, 0, 0); },
+      [&](const Vec3&) {
+        Mat3 m = Mat3::Zero();
+        m(0, 1) = U / c.ly;
+        return m;
+      });
+}
+
+TEST(DivConformingFluid, PoiseuilleFlowIsExactSteadyAndOverTimeSteps) {
+  // A body force G along x between walls at rest: v = (G / (2 mu) y (H - y), 0), p = const. v_x is quadratic
+  // in y and constant in x: in the space for k >= 2 (its degree along y is k).
+  const ChannelCase c;
+  const double G = 4800;  // dyn/cm^3: v_max = G H^2 / (8 mu) = 0.05 cm/s
+  DcFluidOptions opt;
+  opt.body_force = Vec3(G, 0, 0);
+  expect_exact_channel_flow(
+      "Poiseuille", opt, [&](const Vec3& x) { return Vec3(G / (2 * c.mu) * x[1] * (c.ly - x[1]), 0, 0); },
+      [&](const Vec3& x) {
+        Mat3 m = Mat3::Zero();
+        m(0, 1) = G / (2 * c.mu) * (c.ly - 2 * x[1]);
+        return m;
+      });
+}
+
+TEST(DivConformingFluid, ShearFlowWithAViscosityFieldIsExact) {
+  // A viscosity that varies across the unit channel, mu = 1 + y / 2 (rho = 1; linear: the projection onto the
+  // pressure space is exact), walls at rest, v = (y (1 - y), 0): -(mu v_x')' = 1.5 + 2 y is the body force
+  // along x, p = const. v_x is quadratic in y: the discrete solution is the exact one (k = 2, 3; Stokes and
+  // Navier-Stokes).
+  const auto v = [](const Vec3& x) { return Vec3(x[1] * (1 - x[1]), 0, 0); };
+  const auto grad = [](const Vec3& x) {
+    Mat3 m = Mat3::Zero();
+    m(0, 1) = 1 - 2 * x[1];
+    return m;
+  };
+  for (int k : {2, 3})
+    for (bool stokes : {true, false}) {
+      const DivConformingSpace sp = channel_2d(k, 8, 6);
+      DcFluidOptions opt;
+      opt.density = 1.0;
+      opt.viscosity = 5.0;  // replaced by the field
+      opt.stokes = stokes;
+      opt.newton_rtol = 0;
+      opt.body_force_field = [](const Vec3& x, double) { return Vec3(1.5 + 2 * x[1], 0, 0); };
+      DivConformingFluid fs(PETSC_COMM_WORLD, sp, opt);
+      fs.project_viscosity([](const Vec3& x) { return 1 + 0.5 * x[1]; });
+      ASSERT_TRUE(fs.has_viscosity_field());
+      ASSERT_TRUE(fs.solve_steady().converged);
+      const double e = relative_velocity_error(fs, v, grad);
+      print0("  viscosity field mu = 1 + y/2, k=%d %s: rel L2 error %.2e\n", k, stokes ? "Stokes" : "NS", e);
+      EXPECT_LT(e, 1e-12) << "k=" << k;
+      fs.clear_viscosity();  // back to the uniform 5: the same force gives another flow
+      ASSERT_TRUE(fs.solve_steady().converged);
+      EXPECT_GT(relative_velocity_error(fs, v, grad), 0.1);
+    }
+  EXPECT_THROW(
+      DivConformingFluid(PETSC_COMM_WORLD, channel_2d(2, 4, 4), DcFluidOptions{}).set_viscosity({1.0}),
+      std::invalid_argument);
+}
+
+TEST(DivConformingFluid, AGradientBodyForceLeavesTheVelocityAtRest) {
+  // Pressure robustness: f = rho grad phi is balanced by the pressure alone, v_h = 0 exactly, because
+  // (w, grad phi) = -(div w, phi) with w.n = 0 on walls and div w in the pressure space (the integrals are
+  // exact: phi is a polynomial). The VMS equal-order space gives a velocity error ~ h^k |phi| / nu instead.
+  // nu = 1, |grad phi| ~ 1 on the unit square: any velocity above round-off would be a failure.
+  struct Case {
+    std::array<bool, 3> periodic;
+    std::function<Vec3(const Vec3&)> grad_phi;
+    const char* name;
+  };
+  const Case cases[] = {
+      {{false, false, false},
+       [](const Vec3& x) { return Vec3(3 * x[0] * x[0] * x[1] * x[1], 2 * std::pow(x[0], 3) * x[1], 0); },
+       "cavity, phi = x^3 y^2"},
+      {{true, false, false},
+       [](const Vec3& x) { return Vec3(0, 3 * x[1] * x[1] - 1, 0); },
+       "channel, phi = y^3 - y"}};
+  for (const Case& cs : cases)
+    for (int k : {2, 3})
+      for (bool stokes : {true, false}) {
+        const DivConformingSpace sp(2, k, {8, 8, 1}, Vec3(0, 0, 0), Vec3(1, 1, 0), cs.periodic);
+        DcFluidOptions opt;
+        opt.density = 1.0;
+        opt.viscosity = 1.0;
+        opt.stokes = stokes;
+        opt.dt = 0.1;
+        opt.body_force_field = [&](const Vec3& x, double) { return cs.grad_phi(x); };
+        DivConformingFluid fs(PETSC_COMM_WORLD, sp, opt);
+        ASSERT_TRUE(fs.solve_steady().converged);
+        const double v_steady = fs.max_velocity();
+        EXPECT_LT(v_steady, 1e-12) << cs.name << " k=" << k;
+        // From rest, over time steps.
+        fs.set_state(std::vector<double>(sp.n_dofs(), 0.0));
+        for (int s = 0; s < 3; ++s) ASSERT_TRUE(fs.step().converged);
+        EXPECT_LT(fs.max_velocity(), 1e-12) << cs.name << " k=" << k << " (time steps)";
+        print0("  gradient force, %s, k=%d %s: max|v_h| steady %.2e, after 3 steps %.2e\n", cs.name, k,
+               stokes ? "Stokes" : "NS", v_steady, fs.max_velocity());
+      }
+}
+
+TEST(DivConformingFluid, In3dPoiseuilleIsExactAndAGradientForceLeavesTheVelocityAtRest) {
+  // The 3D path (dimension-generic code). (1) A body force G along x between walls y = 0, H at rest, periodic
+  // in x and z: Poiseuille's v = (G / (2 mu) y (H - y), 0, 0), in the space for k = 2 (steady, Stokes and
+  // Navier-Stokes), and the start-up from rest over 3 steps divergence-free to 1e-9 at every step.
+  // (2) A cavity (walls in x, y, z) with f = grad phi, phi = x^2 y z^3: v_h = 0 to round-off.
+  const double G = 2.0, mu = 0.5, H = 1.0;
+  const DivConformingSpace sp(3, 2, {3, 2, 3}, Vec3(0, 0, 0), Vec3(2, H, 1), {true, false, true});
+  const auto v = [&](const Vec3& x) { return Vec3(G / (2 * mu) * x[1] * (H - x[1]), 0, 0); };
+  const auto grad = [&](const Vec3& x) {
+    Mat3 m = Mat3::Zero();
+    m(0, 1) = G / (2 * mu) * (H - 2 * x[1]);
+    return m;
+  };
+  for (bool stokes : {true, false}) {
+    DcFluidOptions opt;
+    opt.density = 1.0;
+    opt.viscosity = mu;
+    opt.stokes = stokes;
+    opt.newton_rtol = 0;
+    opt.dt = 0.05;
+    opt.body_force = Vec3(G, 0, 0);
+    DivConformingFluid fs(PETSC_COMM_WORLD, sp, opt);
+    ASSERT_TRUE(fs.solve_steady().converged);
+    const double e = relative_velocity_error(fs, v, grad);
+    EXPECT_LT(e, 1e-12) << (stokes ? "Stokes" : "Navier-Stokes");
+    print0("  3D Poiseuille k=2 %s: rel L2 error %.2e\n", stokes ? "Stokes" : "NS", e);
+    if (stokes) continue;
+    fs.set_state(std::vector<double>(sp.n_dofs(), 0.0));
+    for (int s = 0; s < 3; ++s) ASSERT_TRUE(fs.step().converged);
+    double worst = 0;
+    for (double r : fs.divergence_history()) worst = std::max(worst, r);
+    EXPECT_LE(worst, 1e-9);
+    print0("  3D Poiseuille k=2 NS start-up: worst div ratio over 3 steps %.2e\n", worst);
+  }
+  const DivConformingSpace cavity(3, 2, {2, 3, 2}, Vec3(0, 0, 0), Vec3(1, 1, 1), {false, false, false});
+  DcFluidOptions opt;
+  opt.density = 1.0;
+  opt.viscosity = 1.0;
+  opt.body_force_field = [](const Vec3& x, double) {
+    return Vec3(2 * x[0] * x[1] * std::pow(x[2], 3), x[0] * x[0] * std::pow(x[2], 3),
+                3 * x[0] * x[0] * x[1] * x[2] * x[2]);
+  };
+  DivConformingFluid fs(PETSC_COMM_WORLD, cavity, opt);
+  ASSERT_TRUE(fs.solve_steady().converged);
+  print0("  3D cavity, gradient force: max|v_h| %.2e\n", fs.max_velocity());
+  EXPECT_LT(fs.max_velocity(), 1e-12);
+}
+
+// --- Time stepping: divergence at every step
+// -------------------------------------------------------------------
+
+TEST(DivConformingFluid, TaylorGreenStaysDivergenceFreeAtEveryStep) {
+  // The Taylor-Green vortex on the 2 pi-periodic square (Navier-Stokes, nu = 0.1), k = 2 on 12 x 12, 10 steps
+  // of dt = 0.05 from the divergence-free projection of the exact field: max|div v_h| / max|grad v_h| <= 1e-9
+  // at every step (observed ~1e-14), and the velocity close to the exact decay.
+  const double nu = 0.1, two_pi = 2 * kPi;
+  const auto v = [&](const Vec3& x, double t) {
+    const double F = std::exp(-2 * nu * t);
+    return Vec3(std::sin(x[0]) * std::cos(x[1]) * F, -std::cos(x[0]) * std::sin(x[1]) * F, 0);
+  };
+  const DivConformingSpace sp(2, 2, {12, 12, 1}, Vec3(0, 0, 0), Vec3(two_pi, two_pi, 0), {true, true, false});
+  DcFluidOptions opt;
+  opt.density = 1.0;
+  opt.viscosity = nu;
+  opt.dt = 0.05;
+  DivConformingFluid fs(PETSC_COMM_WORLD, sp, opt);
+  fs.project_initial_state([&](const Vec3& x) { return v(x, 0); },
+                           [&](const Vec3& x) { return Vec3(-2 * nu * v(x, 0)); });
+  const double div0 = fs.divergence_ratio();
+  EXPECT_LE(div0, 1e-9);
+  const auto grad = [&](const Vec3& x) {
+    const double F = std::exp(-2 * nu * fs.time());
+    Mat3 m = Mat3::Zero();
+    m(0, 0) = std::cos(x[0]) * std::cos(x[1]) * F;
+    m(0, 1) = -std::sin(x[0]) * std::sin(x[1]) * F;
+    m(1, 0) = std::sin(x[0]) * std::sin(x[1]) * F;
+    m(1, 1) = -std::cos(x[0]) * std::cos(x[1]) * F;
+    return m;
+  };
+  const double e0 = relative_velocity_error(
+      fs, [&](const Vec3& x) { return v(x, 0); }, grad);
+  for (int s = 0; s < 10; ++s) ASSERT_TRUE(fs.step().converged) << "step " << s;
+  ASSERT_EQ(fs.divergence_history().size(), 10u);
+  double worst = 0;
+  for (double r : fs.divergence_history()) {
+    EXPECT_LE(r, 1e-9);
+    worst = std::max(worst, r);
+  }
+  const double e = relative_velocity_error(
+      fs, [&](const Vec3& x) { return v(x, fs.time()); }, grad);
+  print0(
+      "  Taylor-Green k=2 12x12, 10 steps: div ratio initial %.2e, worst step %.2e; rel L2 error initial "
+      "%.3e, final %.3e\n",
+      div0, worst, e0, e);
+  // The error is the initial projection's (spatial, ~h^3); ten steps (time error ~(nu dt)^2) add little to
+  // it.
+  EXPECT_LT(e, 1.1 * e0);
+}
+
+// --- Sampling, restart, output
+// ---------------------------------------------------------------------------------
+
+TEST(DivConformingFluid, SamplesRestartsAndWritesVtk) {
+  // Poiseuille (exact in the space): samples at points anywhere (periodic x beyond the period too) give the
+  // exact v and grad v to 1e-12 of their scale. A restart (restore of state, rate and step count into a new
+  // solver) then three steps equals six steps of one solver: the same operations in the same order, so equal
+  // to the last bit up to BLAS threading (asserted 1e-15 of max|U|). The VTK file has the sampled velocity at
+  // its points.
+  const ChannelCase c;
+  const double G = 4800;
+  DcFluidOptions opt;
+  opt.density = c.rho;
+  opt.viscosity = c.mu;
+  opt.body_force = Vec3(G, 0, 0);
+  opt.dt = 1e-3;
+  const DivConformingSpace sp = channel_2d(2, 12, 4, c.lx, c.ly);
+  DivConformingFluid fs(PETSC_COMM_WORLD, sp, opt);
+  ASSERT_TRUE(fs.solve_steady().converged);
+  const std::vector<Vec3> pts{Vec3(0.0011, 0.0003, 0), Vec3(-0.002, 0.0009, 0), Vec3(0.0075, 0.0005, 0),
+                              Vec3(0.003, 0.001, 0)};
+  const auto smp = fs.sample(pts);
+  const double vmax = G * c.ly * c.ly / (8 * c.mu), gmax = G * c.ly / (2 * c.mu);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const double y = pts[i][1];
+    EXPECT_NEAR(smp[i].v[0], G / (2 * c.mu) * y * (c.ly - y), 1e-12 * vmax) << "point " << i;
+    EXPECT_NEAR(smp[i].v[1], 0.0, 1e-12 * vmax) << "point " << i;
+    EXPECT_NEAR(smp[i].grad_v(0, 1), G / (2 * c.mu) * (c.ly - 2 * y), 1e-12 * gmax) << "point " << i;
+    EXPECT_NEAR(smp[i].grad_v(0, 0), 0.0, 1e-12 * gmax) << "point " << i;
+  }
+
+  // Restart: from rest, 6 steps in one go, or 3 steps, a restore into a new solver and 3 more.
+  DivConformingFluid one(PETSC_COMM_WORLD, sp, opt), first(PETSC_COMM_WORLD, sp, opt);
+  for (int s = 0; s < 6; ++s) ASSERT_TRUE(one.step().converged);
+  for (int s = 0; s < 3; ++s) ASSERT_TRUE(first.step().converged);
+  DivConformingFluid second(PETSC_COMM_WORLD, sp, opt);
+  second.restore(first.state(), first.state_rate(), first.steps_taken());
+  for (int s = 0; s < 3; ++s) ASSERT_TRUE(second.step().converged);
+  EXPECT_EQ(second.steps_taken(), 6);
+  EXPECT_DOUBLE_EQ(second.time(), one.time());
+  double diff = 0, scale = 0;
+  for (size_t i = 0; i < one.state().size(); ++i) {
+    diff = std::max(diff, std::abs(one.state()[i] - second.state()[i]));
+    scale = std::max(scale, std::abs(one.state()[i]));
+  }
+  print0("  restart after 3 of 6 steps: max|U_restarted - U| / max|U| = %.2e\n", diff / scale);
+  EXPECT_LE(diff, 1e-15 * scale);
+
+  // VTK: 2 samples per element -> 25 x 9 points; the file's velocity equals sample() at its points.
+  const std::string path = ::testing::TempDir() + "dc_poiseuille.vts";
+  fs.write_vtk(path, 2);
+  vtkNew<vtkXMLStructuredGridReader> reader;
+  reader->SetFileName(path.c_str());
+  reader->Update();
+  vtkStructuredGrid* grid = reader->GetOutput();
+  int dims[3];
+  grid->GetDimensions(dims);
+  EXPECT_EQ(dims[0], 25);
+  EXPECT_EQ(dims[1], 9);
+  vtkDataArray* vel = grid->GetPointData()->GetArray("velocity");
+  ASSERT_NE(vel, nullptr);
+  ASSERT_NE(grid->GetPointData()->GetArray("divergence"), nullptr);
+  for (vtkIdType id : {vtkIdType(0), vtkIdType(30), vtkIdType(25 * 9 - 1)}) {
+    double x[3];
+    grid->GetPoint(id, x);
+    const auto s = fs.sample({Vec3(x[0], x[1], x[2])});
+    EXPECT_NEAR(vel->GetComponent(id, 0), s[0].v[0], 1e-14 * vmax) << "point " << id;
+  }
+}
+
+// --- The Fourier solver
+// ------------------------------------------------------------------------------------------
+
+namespace {
+
+struct FourierCase {
+  int k, nx, ny;
+  bool periodic_y, time_step;
+  const char* name;
+};
+
+/// The tangent of `cs` (fluid on `comm`) solved by DcFourierSolver on `comm` and by MUMPS on one rank (the
+/// fluid on PETSC_COMM_SELF, the operator with its pressure pin) for a consistent random right-hand side:
+/// max|x_F - x_D| / max|x_D| after both pressures are shifted to zero mean. deviation: the Fourier solver's.
+double fourier_vs_direct(const FourierCase& cs, MPI_Comm comm, double& deviation) {
+  const DivConformingSpace sp(2, cs.k, {cs.nx, cs.ny, 1}, Vec3(0, 0, 0), Vec3(1, 0.5, 0),
+                              {true, cs.periodic_y, false});
+  DcFluidOptions opt;
+  opt.density = 1.0;
+  opt.viscosity = 0.1;
+  opt.dt = 0.01;
+  opt.stokes = !cs.time_step;
+  opt.newton_rtol = 0;  // both fluids end on the update criterion: the same state to round-off
+  if (!cs.periodic_y) opt.wall_velocity[1][1] = Vec3(1.0, 0, 0);
+
+  // b: random, 0 on the wall-normal rows (unit rows, 0 as in a Newton update), pressure rows summing to 0:
+  // then b is consistent (the continuity rows' sum is int div w = the flux through the walls, 0 for these w).
+  std::vector<double> b = random_velocity(sp, 5);
+  b.resize(sp.n_dofs());
+  std::mt19937 gen(9);
+  std::uniform_real_distribution<double> dist(-1.0, 1.0);
+  double mean_p = 0;
+  for (int a = sp.offset(2); a < sp.n_dofs(); ++a) mean_p += (b[a] = dist(gen)) / sp.n_pressure();
+  for (int a = sp.offset(2); a < sp.n_dofs(); ++a) b[a] -= mean_p;
+  for (int r : sp.wall_normal_dofs()) b[r] = 0.0;
+
+  std::vector<double> xf, xd(sp.n_dofs());
+  {
+    DivConformingFluid fs(comm, sp, opt);
+    if (!cs.periodic_y) {
+      EXPECT_TRUE(fs.solve_steady().converged);  // Couette: uniform in x
+    }
+    DcFourierSolver fourier(sp, comm, fs.petsc_numbering());
+    fourier.build(fs.jacobian(cs.time_step, false), true);
+    fourier.solve(b, xf);
+    deviation = fourier.deviation();
+  }
+  DivConformingFluid fs(PETSC_COMM_SELF, sp, opt);
+  if (!cs.periodic_y) {
+    EXPECT_TRUE(fs.solve_steady().converged);
+  }
+  Mat J = fs.jacobian(cs.time_step, true);
+  Vec bv, xv;
+  MatCreateVecs(J, &xv, &bv);
+  for (int a = 0; a < sp.n_dofs(); ++a)  // the pin's unit row gets 0: its continuity equation is implied
+    VecSetValue(bv, a, a == sp.offset(2) ? 0.0 : b[a], INSERT_VALUES);
+  VecAssemblyBegin(bv);
+  VecAssemblyEnd(bv);
+  KSP ksp;
+  KSPCreate(PETSC_COMM_SELF, &ksp);
+  KSPSetOperators(ksp, J, J);
+  KSPSetType(ksp, KSPPREONLY);
+  PC pc;
+  KSPGetPC(ksp, &pc);
+  PCSetType(pc, PCLU);
+  PCFactorSetMatSolverType(pc, MATSOLVERMUMPS);
+  PCFactorSetUpMatSolverType(pc);
+  Mat factor;
+  PCFactorGetMatrix(pc, &factor);
+  MatMumpsSetCntl(factor, 1, 0.5);  // as DivConformingFluid: little pivot growth on this saddle-point matrix
+  KSPSolve(ksp, bv, xv);
+  const PetscScalar* xp;
+  VecGetArrayRead(xv, &xp);
+  std::copy(xp, xp + sp.n_dofs(), xd.begin());
+  VecRestoreArrayRead(xv, &xp);
+  KSPDestroy(&ksp);
+  VecDestroy(&bv);
+  VecDestroy(&xv);
+
+  double mf = 0, md = 0;
+  for (int a = sp.offset(2); a < sp.n_dofs(); ++a) {
+    mf += xf[a] / sp.n_pressure();
+    md += xd[a] / sp.n_pressure();
+  }
+  double diff = 0, scale = 0;
+  for (int a = 0; a < sp.n_dofs(); ++a) {
+    const double shift = a >= sp.offset(2) ? mf - md : 0.0;
+    diff = std::max(diff, std::abs(xf[a] - xd[a] - shift));
+    scale = std::max(scale, std::abs(xd[a]));
+  }
+  return diff / scale;
+}
+
+}  // namespace
+
+TEST(DcFourierSolver, EqualsTheDirectSolve) {
+  // Tangents that are translation-invariant in x: a Navier-Stokes time step at a Couette state (moving top
+  // wall) in the channel, the steady Stokes operator there, and a time step on the all-periodic square at
+  // rest; k = 2 and 3. The Fourier solve (mode 0 pinned) against MUMPS on the same operator with its pressure
+  // pin: velocities and zero-mean pressures agree to 1e-12 of max|x| (measured 4e-15 .. 1.1e-14; with MUMPS's
+  // default pivot threshold 0.01 instead of 0.5 its own solve was off by 4e-12). The stencil is circulant to
+  // 1e-13.
+  const FourierCase cases[] = {{2, 16, 8, false, true, "channel, NS step at Couette"},
+                               {3, 12, 6, false, true, "channel, NS step at Couette"},
+                               {2, 16, 8, false, false, "channel, steady Stokes"},
+                               {2, 12, 12, true, true, "periodic square, NS step at rest"}};
+  for (const FourierCase& cs : cases) {
+    double deviation = 0;
+    const double diff = fourier_vs_direct(cs, PETSC_COMM_SELF, deviation);
+    print0("  Fourier vs MUMPS, %s, k=%d %dx%d: stencil deviation %.1e, max|x_F - x_D| / max|x| = %.1e\n",
+           cs.name, cs.k, cs.nx, cs.ny, deviation, diff);
+    EXPECT_LE(deviation, 1e-13) << cs.name;
+    EXPECT_LE(diff, 1e-12) << cs.name << " k=" << cs.k;
+  }
+  const DivConformingSpace not_periodic_in_x(2, 2, {4, 4, 1}, Vec3(0, 0, 0), Vec3(1, 1, 0),
+                                             {false, true, false});
+  EXPECT_THROW(DcFourierSolver{not_periodic_in_x}, std::invalid_argument);
+}
+
+// --- MPI
+// -------------------------------------------------------------------------------------------------------
+
+TEST(DivConformingParallel, OneAndTwoRanksGiveTheSameState) {
+  // Inside a 2-rank job (ctest div_conforming_parallel_2ranks): a steady Navier-Stokes flow in the channel (a
+  // body force that varies in x and y, a moving top wall), then three time steps, on all ranks of
+  // PETSC_COMM_WORLD and on each rank alone (PETSC_COMM_SELF). Both end on Newton's update criterion (rtol
+  // 0), so they differ only by the round-off of two LU orderings amplified by the matrix's condition number:
+  // measured 7e-15 of max|U|; asserted 1e-10 (eps times a condition number up to 1e6, for other MUMPS/BLAS
+  // builds).
+  const DivConformingSpace sp = channel_2d(2, 12, 8);
+  DcFluidOptions opt;
+  opt.density = 1.0;
+  opt.viscosity = 0.1;
+  opt.dt = 0.05;
+  opt.newton_rtol = 0;
+  opt.wall_velocity[1][1] = Vec3(1.0, 0, 0);
+  opt.body_force_field = [](const Vec3& x, double) {
+    return Vec3(std::cos(2 * kPi * x[0]) * std::sin(kPi * x[1]), std::sin(2 * kPi * x[0]), 0);
+  };
+  std::vector<double> states[2];
+  int steps[2] = {0, 0};
+  const MPI_Comm comms[2] = {PETSC_COMM_SELF, PETSC_COMM_WORLD};
+  for (int c = 0; c < 2; ++c) {
+    DivConformingFluid fs(comms[c], sp, opt);
+    const DcSolveStats st = fs.solve_steady();
+    ASSERT_TRUE(st.converged);
+    steps[c] = st.newton_iterations;
+    for (int s = 0; s < 3; ++s) ASSERT_TRUE(fs.step().converged);
+    for (double r : fs.divergence_history()) EXPECT_LE(r, 1e-9);
+    states[c] = fs.state();
+  }
+  double diff = 0, scale = 0;
+  for (size_t i = 0; i < states[0].size(); ++i) {
+    diff = std::max(diff, std::abs(states[0][i] - states[1][i]));
+    scale = std::max(scale, std::abs(states[0][i]));
+  }
+  int size = 1;
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
+  print0("  1 rank vs %d ranks: max|U_1 - U_%d| / max|U| = %.2e (steady Newton iterations %d, %d)\n", size,
+         size, diff / scale, steps[0], steps[1]);
+  EXPECT_LE(diff / scale, 1e-10);
+}
+
+TEST(DivConformingParallel, TheFourierSolverOnAllRanksEqualsTheDirectSolve) {
+  // As DcFourierSolver.EqualsTheDirectSolve, with the operator assembled and the wave numbers solved on all
+  // ranks of PETSC_COMM_WORLD (inside div_conforming_parallel_2ranks: 2), MUMPS on one: 1e-12 of max|x|.
+  int size = 1;
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
+  for (const FourierCase& cs : {FourierCase{2, 16, 8, false, true, "channel, NS step at Couette"},
+                                FourierCase{2, 12, 12, true, true, "periodic square, NS step at rest"}}) {
+    double deviation = 0;
+    const double diff = fourier_vs_direct(cs, PETSC_COMM_WORLD, deviation);
+    print0(
+        "  Fourier on %d rank(s) vs MUMPS on 1, %s: stencil deviation %.1e, max|x_F - x_D| / max|x| = %.1e\n",
+        size, cs.name, deviation, diff);
+    EXPECT_LE(deviation, 1e-13) << cs.name;
+    EXPECT_LE(diff, 1e-12) << cs.name;
+  }
+}
