@@ -274,35 +274,33 @@ void check_body_memory(const SceneSettings& s, const BodySettings& b, int count,
   bad_option(pre + "elements", given.str(), w.str());
 }
 
-/// One body's options (-solid_NAME_*), and its copies when -solid_NAME_count > 1.
-void read_body(SceneSettings& s, const std::string& name) {
-  const int D = s.dim;
-  BodySettings b;
-  b.name = name;
-  const std::string pre = "solid_" + name + "_";
-  std::vector<double> axes = b.semi_axes, center, axis{b.axis[0], b.axis[1], b.axis[2]},
-                      stretch_axis{b.stretch_axis[0], b.stretch_axis[1], b.stretch_axis[2]};
-  std::vector<int> elements(b.elements.begin(), b.elements.begin() + D);
+/// A body's options that are not BodySettings' own fields as read (lists before their checks, and the row).
+struct BodyOptionValues {
+  std::vector<double> axes, center, axis, stretch_axis;
+  std::vector<int> elements;
   int count = 1, seed = 1;
   double spread = 0;
   std::string arrangement = kArrangements[0];
-  OptionTable t("cellfsi body '" + name + "'", pre);
+};
+
+/// The table of one body's options (-solid_NAME_*): every option, its default, help and range.
+void declare_body_options(OptionTable& t, BodySettings& b, BodyOptionValues& v, int D) {
   const auto dim = [D] { return D; };
   t.text("shape", b.shape,
          "Body shape (the first three 2D, the last three 3D; rbc_3d: the Evans-Fung RBC, its axis of "
          "symmetry along z before -angle, docs/geometry.md)",
          kShapes)
-      .reals("semi_axes", axes, "Semi-axes a,b[,c] [cm] (membranes: of the mid-surface)", nullptr,
+      .reals("semi_axes", v.axes, "Semi-axes a,b[,c] [cm] (membranes: of the mid-surface)", nullptr,
              positive("[cm]"))
-      .reals("center", center, "Centre x,y[,z] [cm] (default: the domain's centre)", dim, finite("[cm]"))
+      .reals("center", v.center, "Centre x,y[,z] [cm] (default: the domain's centre)", dim, finite("[cm]"))
       .real("angle", b.angle_deg,
             "Rotation [degrees]: 2D, of the first semi-axis from +x; 3D, of the body about -axis "
             "(right-handed)",
             finite("[degrees]"))
-      .reals("axis", axis, "3D: rotation axis x,y,z of -angle", nullptr, finite())
+      .reals("axis", v.axis, "3D: rotation axis x,y,z of -angle", nullptr, finite())
       .real("area", b.area, "rbc: area enclosed by the mid-line [cm^2] (0: the default RBC, docs/design.md §3)")
       .real("thickness", b.thickness, "Membrane thickness h [cm]")
-      .integers("elements", elements,
+      .integers("elements", v.elements,
                 "Lagrangian elements per direction (through/around; radial,around; 0: slightly smaller than "
                 "the fluid's)",
                 dim, at_least(0, "(0: automatic)"))
@@ -338,41 +336,48 @@ void read_body(SceneSettings& s, const std::string& name) {
             "Contact diameter d of each bead [cm]: the force acts on the material (both faces) within d/2 of "
             "the end of the mid-surface",
             positive("[cm]"))
-      .reals("stretch_axis", stretch_axis, "Direction x,y,z of the stretch (normalised)", nullptr, finite())
-      .integer("count", count,
+      .reals("stretch_axis", v.stretch_axis, "Direction x,y,z of the stretch (normalised)", nullptr, finite())
+      .integer("count", v.count,
                "Copies of the body (NAME_1 ... NAME_N) spread evenly along x, the periodic flow direction; "
                "-center gives the row's y (and z)",
                int_between(1, 64))
       .text(
-          "arrangement", arrangement,
+          "arrangement", v.arrangement,
           "Copies across the flow: even (all at the row), staggered (+-spread alternately), random (uniform "
           "in +-spread, -seed)",
           kArrangements)
-      .real("spread", spread, "Offset across the flow of staggered or random copies [cm]",
+      .real("spread", v.spread, "Offset across the flow of staggered or random copies [cm]",
             non_negative("[cm]"))
-      .integer("seed", seed, "Seed of the random arrangement");
-  t.read();
+      .integer("seed", v.seed, "Seed of the random arrangement");
+}
 
+/// The shape, its semi-axes, centre and rotation axis.
+void check_body_geometry(OptionTable& t, BodySettings& b, BodyOptionValues& v, int D) {
   const bool is2d = b.shape == "hollow_ellipse" || b.shape == "ellipse" || b.shape == "rbc";
   if ((D == 2) != is2d) t.bad("shape", b.shape, D == 2 ? "a 2D shape (-dim 2)" : "a 3D shape (-dim 3)");
   if (!b.biconcave()) {
-    if (!t.given("semi_axes") && D == 3 && axes.size() == 2) axes.push_back(axes[1]);  // c = b
-    if (static_cast<int>(axes.size()) != D)
-      t.bad("semi_axes", std::to_string(axes.size()) + " values", std::to_string(D) + " values");
-    b.semi_axes = axes;
+    if (!t.given("semi_axes") && D == 3 && v.axes.size() == 2) v.axes.push_back(v.axes[1]);  // c = b
+    if (static_cast<int>(v.axes.size()) != D)
+      t.bad("semi_axes", std::to_string(v.axes.size()) + " values", std::to_string(D) + " values");
+    b.semi_axes = v.axes;
   } else {
     b.semi_axes.clear();
   }
-  b.center = t.given("center") ? Vec3(center[0], center[1], D == 3 ? center[2] : 0.0) : Vec3(NAN, NAN, NAN);
+  const std::vector<double>& c = v.center;
+  b.center = t.given("center") ? Vec3(c[0], c[1], D == 3 ? c[2] : 0.0) : Vec3(NAN, NAN, NAN);
   if (t.given("axis") && D != 3)
-    t.bad("axis", std::to_string(axis.size()) + " values", "only in 3D (-dim 3)");
-  if (axis.size() != 3) t.bad("axis", std::to_string(axis.size()) + " values", "3 values x,y,z");
-  const Vec3 ax(axis[0], axis[1], axis[2]);
+    t.bad("axis", std::to_string(v.axis.size()) + " values", "only in 3D (-dim 3)");
+  if (v.axis.size() != 3) t.bad("axis", std::to_string(v.axis.size()) + " values", "3 values x,y,z");
+  const Vec3 ax(v.axis[0], v.axis[1], v.axis[2]);
   if (!(ax.norm() > 0)) t.bad("axis", "0,0,0", "a nonzero direction");
   b.axis = ax.normalized();
   if (b.shape != "rbc" && b.area != 0) t.bad("area", option_value_text(b.area), "only for shape rbc");
   if (b.shape == "rbc" && !(b.area >= 0))
     t.bad("area", option_value_text(b.area), "> 0 [cm^2] (0: the default RBC)");
+}
+
+/// A membrane's thickness and the inner viscosity, which only a membrane encloses.
+void check_membrane(OptionTable& t, const BodySettings& b) {
   if (b.membrane()) {
     if (!(b.thickness > 0)) t.bad("thickness", option_value_text(b.thickness), "> 0 [cm]");
     for (double a : b.semi_axes)
@@ -393,7 +398,10 @@ void read_body(SceneSettings& s, const std::string& name) {
             "only for a membrane (shape hollow_ellipse, rbc or hollow_ellipsoid): a bulky " + b.shape +
                 " (e.g. a nucleus) is solid throughout and encloses no fluid");
   }
-  // The stretching test: a membrane's ends; its other options only with the force.
+}
+
+/// The stretching test: a membrane's ends; its other options only with the force.
+void check_stretching(OptionTable& t, BodySettings& b, const BodyOptionValues& v, int D, const std::string& pre) {
   b.stretched = t.given("stretch_force");
   if (b.stretched && !b.membrane())
     t.bad(
@@ -401,20 +409,24 @@ void read_body(SceneSettings& s, const std::string& name) {
         "only for a membrane (shape hollow_ellipse, rbc, hollow_ellipsoid or rbc_3d): its ends are those of "
         "its mid-surface");
   std::string axis_text;
-  for (std::size_t k = 0; k < stretch_axis.size(); ++k) {
+  for (std::size_t k = 0; k < v.stretch_axis.size(); ++k) {
     if (k) axis_text += ',';  // not (k ? "," : "") + ...: GCC 12 warns falsely (-Wrestrict) on that
-    axis_text += option_value_text(stretch_axis[k]);
+    axis_text += option_value_text(v.stretch_axis[k]);
   }
   const std::string only_stretched = "only with -" + pre + "stretch_force (the stretching test)";
   if (t.given("stretch_patch") && !b.stretched)
     t.bad("stretch_patch", option_value_text(b.stretch_patch), only_stretched);
   if (t.given("stretch_axis") && !b.stretched) t.bad("stretch_axis", axis_text, only_stretched);
-  if (stretch_axis.size() != 3) t.bad("stretch_axis", axis_text, "3 values x,y,z");
-  const Vec3 sa(stretch_axis[0], stretch_axis[1], stretch_axis[2]);
+  if (v.stretch_axis.size() != 3) t.bad("stretch_axis", axis_text, "3 values x,y,z");
+  const Vec3 sa(v.stretch_axis[0], v.stretch_axis[1], v.stretch_axis[2]);
   if (!(sa.norm() > 0)) t.bad("stretch_axis", axis_text, "a nonzero direction");
   if (D == 2 && sa[2] != 0) t.bad("stretch_axis", axis_text, "a direction in the plane (z = 0) in 2D");
   b.stretch_axis = sa.normalized();
-  // A law's constant given to another law would do nothing.
+}
+
+/// The material law's constants (a law's constant given to another law would do nothing) and the elements.
+void check_law_and_elements(OptionTable& t, BodySettings& b, const BodyOptionValues& v, int D,
+                            const std::string& pre) {
   const std::string law_now = " (the material is " + b.material + ")";
   if (t.given("mooney_rivlin_fraction") && b.material != "mooney_rivlin")
     t.bad("mooney_rivlin_fraction", option_value_text(b.mooney_rivlin_fraction),
@@ -422,6 +434,7 @@ void read_body(SceneSettings& s, const std::string& name) {
   if (t.given("hardening_c3") && b.material != "strain_hardening")
     t.bad("hardening_c3", option_value_text(b.hardening_c3),
           "only with -" + pre + "material strain_hardening" + law_now);
+  const std::vector<int>& elements = v.elements;
   if (b.membrane() && elements[0] > 1)
     t.bad("elements", std::to_string(elements[0]), "1 element through a membrane's thickness");
   const int around = D == 2 ? 1 : 2;  // every builder needs a multiple of 4 elements around
@@ -430,7 +443,14 @@ void read_body(SceneSettings& s, const std::string& name) {
   if (D == 3 && elements[1] % 2)
     t.bad("elements", std::to_string(elements[1]), "an even number of polar elements");
   for (int d = 0; d < 3; ++d) b.elements[d] = d < D ? elements[d] : 1;
-  check_body_memory(s, b, count, pre);
+}
+
+/// The body, or with -solid_NAME_count > 1 its copies (NAME_1 ... NAME_N), added to the scene's bodies.
+void add_body_or_copies(SceneSettings& s, const BodySettings& b, const BodyOptionValues& v, OptionTable& t,
+                        const std::string& pre) {
+  const int D = s.dim, count = v.count;
+  const double spread = v.spread;
+  const std::string& arrangement = v.arrangement;
   if (count == 1) {
     // A row's options without a row would do nothing.
     if (arrangement != kArrangements[0])
@@ -451,7 +471,7 @@ void read_body(SceneSettings& s, const std::string& name) {
   Vec3 row = b.center;
   for (int d = 0; d < 3; ++d)
     if (!std::isfinite(row[d])) row[d] = d < D ? s.origin[d] + 0.5 * s.size[d] : 0.0;
-  std::mt19937 rng(static_cast<unsigned>(seed));
+  std::mt19937 rng(static_cast<unsigned>(v.seed));
   std::uniform_real_distribution<double> uni(-1.0, 1.0);
   int across = 1;  // across the flow: the wall direction (the last non-periodic one), else y
   for (int d = D - 1; d >= 1; --d)
@@ -461,15 +481,38 @@ void read_body(SceneSettings& s, const std::string& name) {
     }
   for (int i = 0; i < count; ++i) {
     BodySettings c = b;
-    c.name = name + "_" + std::to_string(i + 1);
+    c.name = b.name + "_" + std::to_string(i + 1);
     for (const BodySettings& other : s.bodies)
-      if (other.name == c.name) bad_option("solid_bodies", c.name, "distinct names (a copy of " + name + ")");
+      if (other.name == c.name) bad_option("solid_bodies", c.name, "distinct names (a copy of " + b.name + ")");
     c.center = row;
     c.center[0] = s.origin[0] + (i + 0.5) * s.size[0] / count;
     if (arrangement == "staggered") c.center[across] += (i % 2 == 0 ? spread : -spread);
     if (arrangement == "random") c.center[across] += spread * uni(rng);
     s.bodies.push_back(c);
   }
+}
+
+/// One body's options (-solid_NAME_*), checked in the order the user reads them, and its copies when
+/// -solid_NAME_count > 1.
+void read_body(SceneSettings& s, const std::string& name) {
+  const int D = s.dim;
+  BodySettings b;
+  b.name = name;
+  const std::string pre = "solid_" + name + "_";
+  BodyOptionValues v;
+  v.axes = b.semi_axes;
+  v.axis = {b.axis[0], b.axis[1], b.axis[2]};
+  v.stretch_axis = {b.stretch_axis[0], b.stretch_axis[1], b.stretch_axis[2]};
+  v.elements.assign(b.elements.begin(), b.elements.begin() + D);
+  OptionTable t("cellfsi body '" + name + "'", pre);
+  declare_body_options(t, b, v, D);
+  t.read();
+  check_body_geometry(t, b, v, D);
+  check_membrane(t, b);
+  check_stretching(t, b, v, D, pre);
+  check_law_and_elements(t, b, v, D, pre);
+  check_body_memory(s, b, v.count, pre);
+  add_body_or_copies(s, b, v, t, pre);
 }
 
 /// A mesh the machine cannot hold is refused now, with the estimate, instead of allocating for minutes: the
