@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "common/petsc_error.hpp"
+#include "coupling/solver_policy.hpp"
 
 namespace cellfsi::app {
 
@@ -61,21 +62,14 @@ void reject_unknown_options(OptionCheck when) {
                "a PETSc PC such as asm (with -coupling_ksp_*, -coupling_sub_* options), auto is the default "
                "(no option)"
              : ""));
-  // In 3D the region's LU is cellfsi_lu_single (unless -coupling_fourier_region_pc_type says otherwise),
-  // which reads no factorisation options.
+  // The region's LU of its dimension may read no factorisation options (coupling::region_option_unread).
   PetscInt dim = 2;
   PetscBool region_pc_given = PETSC_FALSE;
   CELLFSI_PETSC(PetscOptionsGetInt(nullptr, nullptr, "-dim", &dim, nullptr));
   CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-coupling_fourier_region_pc_type", &region_pc_given));
-  const bool region_factor_option =
-      dim == 3 && !region_pc_given && first.rfind("coupling_fourier_region_", 0) == 0 &&
-      (first.find("mat_mumps_") != std::string::npos || first.find("pc_factor_") != std::string::npos);
-  if (region_factor_option && when >= OptionCheck::after_first_step)
-    throw std::invalid_argument("option -" + first +
-                                " was not read: in 3D the region's LU is in single precision "
-                                "(cellfsi_lu_single), which takes no factorisation options; add "
-                                "-coupling_fourier_region_pc_type lu for MUMPS in double precision "
-                                "(docs/performance.md §13)");
+  const std::string unread = coupling::region_option_unread(first, static_cast<int>(dim), region_pc_given);
+  if (!unread.empty() && when >= OptionCheck::after_first_step)
+    throw std::invalid_argument("option -" + first + " was not read: " + unread);
   if (!first.empty())
     throw std::invalid_argument("unknown option -" + first +
                                 " (misspelt? run with -help for the valid options)" +
