@@ -23,13 +23,9 @@ bool maybe_unread(const std::string& name, OptionCheck when) {
   if (when == OptionCheck::after_first_step) return false;
   // The first step replaced the automatic choice of preconditioner (reported on the console); the options of
   // the one it replaced were checked against it before the first step and never read.
-  if (when == OptionCheck::after_fallback)
-    return starts("coupling_band_") || starts("coupling_fourier_") || starts("coupling_pc_") ||
-           starts("coupling_sub_") || starts("coupling_mat_");
+  if (when == OptionCheck::after_fallback) return coupling::option_of_replaced_solver(name);
   if (when == OptionCheck::before_coupling && starts("coupling_")) return true;
-  if (when == OptionCheck::before_first_step &&
-      (starts("coupling_fourier_region_") || starts("coupling_band_") || starts("coupling_sub_")))
-    return true;
+  if (when == OptionCheck::before_first_step && coupling::read_at_first_solve(name)) return true;
   for (const char* late : {"mat_mumps_", "mat_superlu", "mat_strumpack", "converged_reason", "ksp_view"})
     if (name.find(late) != std::string::npos) return true;
   return false;

@@ -217,6 +217,19 @@ std::string option_inapplicable(const std::string& name, const std::string& pc_t
   return "";
 }
 
+bool read_at_first_solve(const std::string& name) {
+  for (const char* p : {"coupling_fourier_region_", "coupling_band_", "coupling_sub_"})
+    if (starts_with(name, p)) return true;
+  return false;
+}
+
+bool option_of_replaced_solver(const std::string& name) {
+  for (const char* p :
+       {"coupling_band_", "coupling_fourier_", "coupling_pc_", "coupling_sub_", "coupling_mat_"})
+    if (starts_with(name, p)) return true;
+  return false;
+}
+
 std::string region_option_unread(const std::string& name, int dim, bool region_pc_given) {
   // Unless -coupling_fourier_region_pc_type says otherwise, the region's LU is the default of its dimension,
   // which in 3D (cellfsi_lu_single) reads no factorisation options.

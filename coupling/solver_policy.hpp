@@ -141,6 +141,13 @@ void add_solver_options(OptionTable& t, LinearSolverOptions& options, PCTypeOpti
 std::string option_inapplicable(const std::string& name, const std::string& pc_type);
 /// The new name of an option this release renamed ("" if `name` was not renamed).
 std::string renamed_option(const std::string& name);
+/// Whether the coupled solve reads option `name` (without the dash) only at its first solve: its subdomain
+/// solvers' (-coupling_sub_), cellfsi_band's factors' (-coupling_band_), cellfsi_fourier's region LU's
+/// (-coupling_fourier_region_).
+bool read_at_first_solve(const std::string& name);
+/// Whether option `name` may be one the PC type a fallback replaced would have read (then never read):
+/// -coupling_pc_*, the cellfsi types' factors' and the PETSc PCs' inner solvers' options.
+bool option_of_replaced_solver(const std::string& name);
 /// Why option `name` of cellfsi_fourier's region LU (-coupling_fourier_region_*) is not read in a
 /// dim-dimensional run (region_pc_given: -coupling_fourier_region_pc_type was given), or "" if it may be.
 std::string region_option_unread(const std::string& name, int dim, bool region_pc_given);

@@ -144,6 +144,20 @@ TEST(SolverPolicy, WhichOptionsApplyToWhichPCType) {
   EXPECT_EQ(coupling::renamed_option("coupling_pc_type"), "");
 }
 
+TEST(SolverPolicy, WhenTheSolveReadsItsOptions) {
+  // At the first solve: the inner solvers' and factorisations' options; not the KSP's or the PC type's.
+  for (const char* name :
+       {"coupling_fourier_region_pc_type", "coupling_band_mat_mumps_icntl_14", "coupling_sub_pc_type"})
+    EXPECT_TRUE(coupling::read_at_first_solve(name)) << name;
+  for (const char* name : {"coupling_ksp_rtol", "coupling_pc_fourier_threshold", "coupling_region_margin"})
+    EXPECT_FALSE(coupling::read_at_first_solve(name)) << name;
+  // What a replaced PC type would have read; the KSP's own options are read by every type.
+  for (const char* name : {"coupling_pc_band_fused", "coupling_fourier_region_pc_type",
+                           "coupling_sub_pc_type", "coupling_mat_mumps_icntl_24"})
+    EXPECT_TRUE(coupling::option_of_replaced_solver(name)) << name;
+  EXPECT_FALSE(coupling::option_of_replaced_solver("coupling_ksp_rtol"));
+}
+
 TEST(SolverPolicy, TheRegionLUReadsNoFactorisationOptionsIn3dByDefault) {
   const std::string mumps = "coupling_fourier_region_mat_mumps_icntl_14",
                     ordering =
