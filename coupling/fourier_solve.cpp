@@ -16,7 +16,11 @@
 namespace cellfsi::coupling {
 
 FourierSolve::~FourierSolve() {
-  if (Mat J = c_.fluid.jacobian_matrix()) solvers::pc_fourier_compose_bulk(J, nullptr);
+  try {  // the Jacobian lets the bulk solver go (PETSc errors are exceptions, and a destructor does not
+         // throw)
+    if (Mat J = c_.fluid.jacobian_matrix()) solvers::pc_fourier_compose_bulk(J, nullptr);
+  } catch (...) {
+  }
   MatDestroy(&J_fixed_);
   MatDestroy(&near_op_);
   MatDestroy(&near_);
