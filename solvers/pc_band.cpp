@@ -35,8 +35,8 @@ PetscErrorCode set_up(PC pc) {
     if (!fixed || !band)
       throw std::logic_error(
           "cellfsi_band: set up on an operator without its kept part and band "
-          "(solvers::pc_band_compose_split; in "
-          "cellfsi the coupling loop gives them)");
+          "(solvers::pc_band_compose_split; "
+          "in cellfsi the coupling loop gives them)");
     PetscObjectState state = 0;
     CELLFSI_PETSC(PetscObjectStateGet(fixed, &state));
     if (!c.band) c.band = std::make_unique<BandSchurSolver>();
