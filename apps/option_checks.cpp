@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "common/petsc_error.hpp"
+#include "coupling/solver_policy.hpp"
 
 namespace cellfsi::app {
 
@@ -22,13 +23,9 @@ bool maybe_unread(const std::string& name, OptionCheck when) {
   if (when == OptionCheck::after_first_step) return false;
   // The first step replaced the automatic choice of preconditioner (reported on the console); the options of
   // the one it replaced were checked against it before the first step and never read.
-  if (when == OptionCheck::after_fallback)
-    return starts("coupling_band_") || starts("coupling_fourier_") || starts("coupling_pc_") ||
-           starts("coupling_sub_") || starts("coupling_mat_");
+  if (when == OptionCheck::after_fallback) return coupling::option_of_replaced_solver(name);
   if (when == OptionCheck::before_coupling && starts("coupling_")) return true;
-  if (when == OptionCheck::before_first_step &&
-      (starts("coupling_fourier_region_") || starts("coupling_band_") || starts("coupling_sub_")))
-    return true;
+  if (when == OptionCheck::before_first_step && coupling::read_at_first_solve(name)) return true;
   for (const char* late : {"mat_mumps_", "mat_superlu", "mat_strumpack", "converged_reason", "ksp_view"})
     if (name.find(late) != std::string::npos) return true;
   return false;
@@ -61,21 +58,14 @@ void reject_unknown_options(OptionCheck when) {
                "a PETSc PC such as asm (with -coupling_ksp_*, -coupling_sub_* options), auto is the default "
                "(no option)"
              : ""));
-  // In 3D the region's LU is cellfsi_lu_single (unless -coupling_fourier_region_pc_type says otherwise),
-  // which reads no factorisation options.
+  // The region's LU of its dimension may read no factorisation options (coupling::region_option_unread).
   PetscInt dim = 2;
   PetscBool region_pc_given = PETSC_FALSE;
   CELLFSI_PETSC(PetscOptionsGetInt(nullptr, nullptr, "-dim", &dim, nullptr));
   CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-coupling_fourier_region_pc_type", &region_pc_given));
-  const bool region_factor_option =
-      dim == 3 && !region_pc_given && first.rfind("coupling_fourier_region_", 0) == 0 &&
-      (first.find("mat_mumps_") != std::string::npos || first.find("pc_factor_") != std::string::npos);
-  if (region_factor_option && when >= OptionCheck::after_first_step)
-    throw std::invalid_argument("option -" + first +
-                                " was not read: in 3D the region's LU is in single precision "
-                                "(cellfsi_lu_single), which takes no factorisation options; add "
-                                "-coupling_fourier_region_pc_type lu for MUMPS in double precision "
-                                "(docs/performance.md §13)");
+  const std::string unread = coupling::region_option_unread(first, static_cast<int>(dim), region_pc_given);
+  if (!unread.empty() && when >= OptionCheck::after_first_step)
+    throw std::invalid_argument("option -" + first + " was not read: " + unread);
   if (!first.empty())
     throw std::invalid_argument("unknown option -" + first +
                                 " (misspelt? run with -help for the valid options)" +

@@ -13,9 +13,8 @@
 
 #include "apps/scene.hpp"
 #include "common/option_table.hpp"
-#include "coupling/coupled_linear_solver.hpp"
 #include "coupling/interface_marking.hpp"
-#include "solvers/pc_types.hpp"
+#include "coupling/solver_policy.hpp"
 
 namespace cellfsi::app {
 
@@ -106,22 +105,10 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
         "solid_bodies", "(empty)",
         "one or more comma-separated names, e.g. membrane,nucleus (for a run without cells use a scene "
         "without bodies, e.g. scenes/shear.yaml)");
-  // The re-assembled region's margin: 4 elements in 2D (measured with cellfsi_band at 256 x 128: margins 2 and
-  // 6 were slower), 1 in 3D (cellfsi_fourier at 32^3, 12 steps: the Jacobian 1.43 s per step against 2.18 with
-  // 4, the whole step 6 % faster; docs/performance.md §8).
-  if (s.dim == 3) l.region_margin = 1;
-  // No whole Jacobian after the first step in 3D (cellfsi_fourier): at the paper's 64^3 on one rank, peak
-  // memory 7.2 GB against 14.8 and the Jacobian's refreshes 7x cheaper, the metrics the same to 4e-10
-  // (docs/performance.md §11). 2D keeps the assembled Jacobian (small there).
-  if (s.dim == 3) l.bulk_stencil = true;
-  // The coupled FGMRES to rtol 1e-2 in 3D: the coupling iterations are those of 1e-5 and the FGMRES
-  // iterations half (the compound capsule at 32^3 and 64^3, metrics the same to 3e-6 relative;
-  // docs/performance.md §14). 2D keeps 1e-5: there 1e-2 costs coupling iterations (4 -> 5-6 per step).
-  if (s.dim == 3) l.rtol = 1e-2;
-  // Defaults of the cellfsi PC types (solvers/pc_types.cpp), for -help.
-  double pc_threshold = 1e-3, pc_blr = 1e-10;
-  int pc_overlap = 0, pc_region_solves = 1;
-  bool pc_fused = true;
+  // The coupled solve's defaults for this dimension, and the PC types' own (coupling/solver_policy.hpp):
+  // listed for -help and range-checked with the rest (the PC types read theirs themselves).
+  l = coupling::linear_solver_defaults(s.dim);
+  coupling::PCTypeOptions pc;
   OptionTable t("cellfsi immersed bodies and coupling");
   t.texts("solid_bodies", names, "Names of the immersed bodies, e.g. membrane,nucleus", 64)
       .text("s_interface", s_interface,
@@ -141,15 +128,12 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
       .real("coupling_tolerance", c.tolerance, "Drop of every residual's L2 norm per step",
             {[](const double& v) { return v > 0 && v < 1; }, "0 < tolerance < 1"})
       .integer("coupling_max_iterations", c.max_iterations, "Block-iterative iterations per step",
-               at_least(1))
-      .integer("coupling_pc_lag", l.preconditioner_lag,
-               "Linear solves between rebuilds of a PETSc PC (not the cellfsi types, which -coupling_refresh_steps "
-               "paces)",
-               at_least(1))
-      .text("coupling_acceleration", acceleration,
-            "Iterates of the coupling loop: none (x - dx, the paper's) or anderson (Anderson acceleration of "
-            "that map; the same stopping test)",
-            kAccelerations)
+               at_least(1));
+  coupling::add_pc_lag_option(t, l);
+  t.text("coupling_acceleration", acceleration,
+         "Iterates of the coupling loop: none (x - dx, the paper's) or anderson (Anderson acceleration of "
+         "that map; the same stopping test)",
+         kAccelerations)
       .integer("coupling_acceleration_columns", c.acceleration_columns,
                "Difference pairs kept by the Anderson acceleration", int_between(1, 50))
       .integer("coupling_acceleration_reuse", c.acceleration_reuse,
@@ -160,54 +144,10 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
             "The solids' stiffness in the fluid's Jacobian: isotropic (a viscosity from each material's "
             "small-strain shear modulus) or consistent (the material's tangent at the point's deformation, "
             "and its stress); the solution does not depend on it, the coupling iterations do",
-            kSolidTangents)
-      .text("coupling_pc_type", l.pc_type,
-            "Preconditioner of the coupled solve, the KSP -coupling_ (FGMRES with the cellfsi types, else "
-            "GMRES): cellfsi_fourier (the Jacobian without the cells inverted by FFT, corrected by an LU of the "
-            "region around them; a box periodic and uniform in all directions but one, any number of ranks), "
-            "cellfsi_band (the Jacobian away from the cells factorised once, the band around them re-solved "
-            "exactly; one fluid rank) or any PETSc PC (asm, lu, ...). Not given: cellfsi_fourier where it "
-            "applies, else cellfsi_band on one rank, else asm")
-      // The cellfsi PC types read their own options (solvers/pc_types.cpp, PCSetFromOptions); they are listed
-      // and range-checked here too, so that -help and docs/options.md show them with the rest.
-      .real("coupling_pc_fourier_threshold", pc_threshold,
-            "cellfsi_fourier: relative deviation of a node's Jacobian rows from the bulk operator that puts it "
-            "in the LU-corrected region",
-            positive())
-      .integer("coupling_pc_fourier_overlap", pc_overlap,
-               "cellfsi_fourier: node layers the LU-corrected region is grown by", int_between(0, 20))
-      .integer("coupling_pc_fourier_region_solves", pc_region_solves,
-               "cellfsi_fourier: region LU solves per application: 2 (region, bulk, region) or 1 (bulk, region)",
-               int_between(1, 2))
-      .flag("coupling_pc_band_fused", pc_fused,
-            "cellfsi_band: one MUMPS solve with the Schur complement's inside it (false: two interior solves)")
-      .real("coupling_pc_band_blr_tolerance", pc_blr,
-            "cellfsi_band: block low-rank threshold of the kept part's MUMPS factors (0: full rank)",
-            {[](const double& v) { return v >= 0 && v < 1; }, "0 <= tolerance < 1"})
-      .flag("coupling_partial_jacobian", l.partial_jacobian,
-            "cellfsi_fourier: re-assemble only the Jacobian around the cells, keeping the rest in a second copy "
-            "(false: one copy, the whole Jacobian at every refresh)")
-      .flag("coupling_bulk_stencil", l.bulk_stencil,
-            "cellfsi_fourier: no whole Jacobian after the first step: the Krylov products apply the bulk "
-            "operator's stencil away from the cells and an assembled matrix of the rows near them (saves the "
-            "Jacobian's memory and most of its assembly; an inexact Newton iteration; default true in 3D)")
-      .integer("coupling_region_margin", l.region_margin,
-               "cellfsi types: elements around the s^h band and immersed points in the re-assembled region "
-               "(default 4 in 2D, 1 in 3D)",
-               at_least(0))
-      .integer("coupling_refactor_every", l.refactor_every,
-               "cellfsi_band: steps between factorisations of the kept part (0: when the cells leave its "
-               "region)",
-               at_least(0, "(0: only when needed)"))
-      .integer("coupling_refresh_steps", l.refresh_steps,
-               "cellfsi types: steps between refreshes of the Jacobian and the preconditioner while the s^h "
-               "marking stays (it is refreshed whenever the marking moves)",
-               at_least(1, "(1: every step)"))
-      .integer("coupling_refresh_lag", l.refresh_lag,
-               "cellfsi types: coupling iterations between refreshes inside a step (0: none)",
-               at_least(0, "(0: none inside a step)"))
-      .real("coupling_max_mesh_ratio", s.max_mesh_ratio,
-            "Largest Lagrangian / smallest Eulerian element size (paper Remark 3)", positive())
+            kSolidTangents);
+  coupling::add_solver_options(t, l, pc);
+  t.real("coupling_max_mesh_ratio", s.max_mesh_ratio,
+         "Largest Lagrangian / smallest Eulerian element size (paper Remark 3)", positive())
       .real("metrics_average_from", s.metrics_average_from,
             "Start of the metrics' averaging window [s] (default: half the final time)");
   t.read();
@@ -530,8 +470,8 @@ void check_memory(SceneSettings& s) {
   MPI_Comm_free(&node);
   int leader = node_rank == 0 ? 1 : 0;
   MPI_Allreduce(&leader, &leaders, 1, MPI_INT, MPI_SUM, comm);
-  // The preconditioner the run will use (coupling/coupled_linear_solver.hpp decides) and the copies of the
-  // Jacobian it keeps.
+  // The preconditioner the run will use and the copies of the Jacobian it keeps (coupling/solver_policy.hpp
+  // decides).
   char type[16] = "baij";  // -fluid_mat_type_jacobian: both cellfsi types need BAIJ
   CELLFSI_PETSC(
       PetscOptionsGetString(nullptr, nullptr, "-fluid_mat_type_jacobian", type, sizeof type, nullptr));
@@ -548,21 +488,20 @@ void check_memory(SceneSettings& s) {
                          : l.pc_type.empty()            ? coupling::default_pc_type(situation)
                                                         : l.pc_type;
   // cellfsi_fourier's second copy of the Jacobian (-coupling_partial_jacobian) is dropped unless asked for
-  // when memory is short. Measured at 64^3 on one rank since coupled runs no longer set up the fluid's own
-  // KSP: a peak of 14.9 GB (3.4 Jacobians of 4.33 GB) with it and 10.7 GB (2.5) without; on two ranks 8.5 +
-  // 8.7 GB (4.0 Jacobians) with it. It is kept while 4.5 Jacobians fit.
+  // when memory is short (coupling::plan_memory).
   PetscBool partial_given = PETSC_FALSE;
   CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-coupling_partial_jacobian", &partial_given));
-  if (pc == solvers::kPCFourier && l.partial_jacobian && !l.bulk_stencil && !partial_given &&
-      4.5 * fluid_jacobian_bytes(s) / std::max(1, leaders) > available) {
-    l.partial_jacobian = false;
+  const coupling::MemoryPlan plan = coupling::plan_memory(
+      pc, l, partial_given == PETSC_TRUE, fluid_jacobian_bytes(s) / std::max(1, leaders), available);
+  if (plan.partial_jacobian != l.partial_jacobian) {
+    l.partial_jacobian = plan.partial_jacobian;
     CELLFSI_PETSC(
         PetscPrintf(comm,
                     "cellfsi: note: %.3g GB available: cellfsi_fourier keeps one copy of the %.3g GB Jacobian "
                     "(-coupling_partial_jacobian false)\n",
                     available / 1e9, fluid_jacobian_bytes(s) / 1e9));
   }
-  const int copies = coupling::jacobian_copies(pc, l.partial_jacobian, l.bulk_stencil);
+  const int copies = plan.jacobian_copies;
   const double need = copies * fluid_jacobian_bytes(s) / std::max(1, leaders);
   if (need <= available) return;
   std::ostringstream v, w;

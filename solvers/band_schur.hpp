@@ -36,6 +36,15 @@
 
 namespace cellfsi::solvers {
 
+/// The solver's options (cellfsi_band's -pc_band_fused and -pc_band_blr_tolerance, solvers/pc_band.hpp): the
+/// defaults and the valid range, stated once.
+struct BandSchurOptions {
+  bool fused_solve = true;       // see set_fused_solve
+  double blr_tolerance = 1e-10;  // see set_blr_tolerance
+  static bool valid_blr_tolerance(const double& v) { return v >= 0 && v < 1; }
+  static constexpr const char* kBlrToleranceRange = "in [0, 1)";
+};
+
 class BandSchurSolver {
  public:
   BandSchurSolver() = default;
@@ -47,18 +56,18 @@ class BandSchurSolver {
   /// Schur complement. `prefix` is the options prefix of the MUMPS factor (its -<prefix>mat_mumps_* options
   /// apply). Replaces any previous factorisation.
   void factor(Mat fixed, IS band, const std::string& prefix = "");
-  /// Fused solve (see above; default true). Takes effect at the next factor().
+  /// Fused solve (see above; default: BandSchurOptions). Takes effect at the next factor().
   void set_fused_solve(bool fused) { fused_ = fused; }
   /// Block low-rank compression of K_fixed's factors (MUMPS BLR, CNTL(7)): entries dropped below this
-  /// relative size; 0: full-rank LU. Default 1e-10, which keeps the solve exact far below any linear
-  /// tolerance. Takes effect at the next factor().
+  /// relative size; 0: full-rank LU. The default (BandSchurOptions) keeps the solve exact far below any
+  /// linear tolerance. Takes effect at the next factor().
   void set_blr_tolerance(double tol) { blr_tolerance_ = tol; }
   /// Sets K_band (a matrix of K_fixed's size and layout whose entries lie in band x band; entries outside are
   /// ignored) and factorises the band's Schur complement.
   void set_band(Mat band);
   /// The same from the whole operator K = K_fixed + K_band (K_fixed's layout; only K's band x band block is
   /// read): K_band,BB = K_BB - K_fixed,BB. For a caller that keeps K and K_fixed but not K_band (the
-  /// cellfsi_band preconditioner, solvers/pc_types.hpp); agrees with set_band to round-off in K_fixed,BB.
+  /// cellfsi_band preconditioner, solvers/pc_band.hpp); agrees with set_band to round-off in K_fixed,BB.
   void set_operator(Mat K);
   /// x = (K_fixed + K_band)^{-1} r.
   void solve(Vec r, Vec x);
@@ -79,8 +88,8 @@ class BandSchurSolver {
   void solve_schur(Vec g, Vec y);            // y = S^{-1} g
   /// S = base + sub's band x band block (in S_'s layout), and its LU.
   void factor_schur(Mat sub, const std::vector<double>& base, const char* what);
-  bool fused_ = true, fused_active_ = true;  // asked for; in use since factor()
-  double blr_tolerance_ = 1e-10;
+  bool fused_ = BandSchurOptions{}.fused_solve, fused_active_ = fused_;  // asked for; in use since factor()
+  double blr_tolerance_ = BandSchurOptions{}.blr_tolerance;
   PetscInt bs_ = 1, n_band_ = 0, n_total_ = 0, schur_nonzeros_ = 0;
   Mat F_ = nullptr;  // MUMPS factors of K_fixed (inner band nodes: identity) keeping the edge for the Schur
   Mat K_ = nullptr;  // that matrix: MUMPS reads its entries in place

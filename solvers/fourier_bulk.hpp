@@ -74,6 +74,13 @@ class FourierBulkSolver {
     return to_natural_.empty() ? global_node : to_natural_[global_node];
   }
   int n_nodes() const { return n_nodes_; }
+  /// The box: control points, periodicity and stencil half-width per direction, unknowns per node, the
+  /// communicator.
+  const std::array<int, 3>& shape() const { return n_; }
+  const std::array<bool, 3>& periodic() const { return periodic_; }
+  const std::array<int, 3>& degree() const { return degree_; }
+  int dof() const { return dof_; }
+  MPI_Comm comm() const { return comm_; }
   /// Whether build() has completed (a failed build leaves it false).
   bool built() const { return built_; }
   /// Bytes held by this rank's factors.

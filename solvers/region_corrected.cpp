@@ -6,22 +6,28 @@
 #include "common/petsc_error.hpp"
 #include "solvers/near_operator.hpp"
 #include "solvers/nested_dissection.hpp"
-#include "solvers/pc_types.hpp"
+#include "solvers/pc_lu_single.hpp"
 
 namespace cellfsi::solvers {
 
 RegionCorrectedSolver::RegionCorrectedSolver(std::array<int, 3> n, std::array<bool, 3> periodic,
                                              std::array<int, 3> degree, int dof, std::string prefix,
                                              MPI_Comm comm, AO natural)
-    : bulk_(n, periodic, degree, dof, comm, natural),
-      n_(n),
-      degree_(degree),
-      periodic_(periodic),
-      dof_(dof),
+    : RegionCorrectedSolver(std::make_shared<FourierBulkSolver>(n, periodic, degree, dof, comm, natural),
+                            std::move(prefix)) {}
+
+RegionCorrectedSolver::RegionCorrectedSolver(std::shared_ptr<FourierBulkSolver> bulk, std::string prefix)
+    : bulk_(std::move(bulk)),
+      n_(bulk_->shape()),
+      degree_(bulk_->degree()),
+      periodic_(bulk_->periodic()),
+      dof_(bulk_->dof()),
       prefix_(std::move(prefix)),
-      comm_(comm) {
-  register_pc_types();  // the region's default solver in 3D (cellfsi_lu_single) and ordering (cellfsi_nd)
+      comm_(bulk_->comm()) {
+  register_pc_lu_single();  // the region's default solver in 3D and its ordering (cellfsi_nd)
 }
+
+const char* default_region_pc_type(bool three_d) { return three_d ? kPCLUSingle : PCLU; }
 
 RegionCorrectedSolver::~RegionCorrectedSolver() {
   release_region();
@@ -52,8 +58,8 @@ void RegionCorrectedSolver::set_operator(Mat J) {
   // the region is read from its assembled near rows.
   const NearOperator* near = near_operator(J);
   const Mat rows_of = near ? near->near : J;
-  // The nodes where J is not the bulk operator, grown by overlap_ layers (periodic directions wrap).
-  std::vector<double> dev = bulk_.node_deviation(rows_of);
+  // The nodes where J is not the bulk operator, grown by options_.overlap layers (periodic directions wrap).
+  std::vector<double> dev = bulk_->node_deviation(rows_of);
   const int n_nodes = static_cast<int>(dev.size());
   if (near)
     for (int i = 0; i < n_nodes; ++i)
@@ -61,7 +67,7 @@ void RegionCorrectedSolver::set_operator(Mat J) {
   std::vector<char> in(n_nodes, 0), grown(n_nodes, 0);
   n_differing_ = 0;
   for (int i = 0; i < n_nodes; ++i)
-    if (dev[i] > threshold_) {
+    if (dev[i] > options_.threshold) {
       in[i] = 1;
       ++n_differing_;
     }
@@ -70,7 +76,7 @@ void RegionCorrectedSolver::set_operator(Mat J) {
     const std::array<int, 3> c{i % n_[0], (i / n_[0]) % n_[1], i / (n_[0] * n_[1])};
     std::array<int, 3> lo{}, hi{};
     for (int d = 0; d < 3; ++d) {
-      const int g = n_[d] > 1 ? overlap_ : 0;
+      const int g = n_[d] > 1 ? options_.overlap : 0;
       lo[d] = c[d] - g;
       hi[d] = c[d] + g;
       if (!periodic_[d]) {
@@ -107,7 +113,7 @@ void RegionCorrectedSolver::set_operator(Mat J) {
     CELLFSI_PETSC(MatGetOwnershipRange(rows_of, &row_begin, &row_end));
     std::vector<PetscInt> rows;
     for (int node : region) {
-      const PetscInt g = static_cast<PetscInt>(bulk_.global_node(node)) * dof_;
+      const PetscInt g = static_cast<PetscInt>(bulk_->global_node(node)) * dof_;
       if (g >= row_begin && g < row_end)
         for (int c = 0; c < dof_; ++c) rows.push_back(g + c);
     }
@@ -156,7 +162,9 @@ void RegionCorrectedSolver::set_operator(Mat J) {
     // The LU in single precision failed (MUMPS' error on every rank, so every rank is here): a region
     // singular to single precision but not to double. From now on the region is factorised in double
     // precision.
-    if (!pc_is(pc, kPCLUSingle)) throw;
+    PetscBool single = PETSC_FALSE;
+    CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(pc), kPCLUSingle, &single));
+    if (!single) throw;
     single_failure_ = e.what();
     PetscMPIInt size = 1;
     CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
@@ -192,10 +200,11 @@ void RegionCorrectedSolver::create_region_ksp(int size) {
   // FGMRES makes up the precision (docs/performance.md §13). In 2D the region is small: MUMPS in double
   // precision with its own ordering (SCOTCH's ordering and the AIJ copy cost 3 % of the default scene, §12).
   // After a failure of the single-precision LU (set_operator), double precision whatever the options say.
-  const bool single = n_[2] > 1 && single_failure_.empty();
-  CELLFSI_PETSC(PCSetType(pc, single ? kPCLUSingle : PCLU));
+  CELLFSI_PETSC(PCSetType(pc, single_failure_.empty() ? default_region_pc_type(n_[2] > 1) : PCLU));
   CELLFSI_PETSC(KSPSetFromOptions(region_ksp_));
-  if (!single_failure_.empty() && pc_is(pc, kPCLUSingle)) CELLFSI_PETSC(PCSetType(pc, PCLU));
+  PetscBool single = PETSC_FALSE;
+  CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(pc), kPCLUSingle, &single));
+  if (!single_failure_.empty() && single) CELLFSI_PETSC(PCSetType(pc, PCLU));
   PetscBool factor = PETSC_FALSE;
   CELLFSI_PETSC(PetscObjectTypeCompareAny(reinterpret_cast<PetscObject>(pc), &factor, PCLU, PCCHOLESKY, ""));
   if (factor) {
@@ -251,14 +260,14 @@ void RegionCorrectedSolver::apply(Vec r, Vec x) {
   if (!J_) throw std::logic_error("RegionCorrectedSolver: apply before set_operator");
   // (Region,) bulk, region; the residual r - J x between the pieces.
   CELLFSI_PETSC(VecSet(x, 0.0));
-  if (region_solves_ == 2) {
+  if (options_.region_solves == 2) {
     region_solve(r, x);
     CELLFSI_PETSC(MatMult(J_, x, res_));
     CELLFSI_PETSC(VecAYPX(res_, -1.0, r));
-    bulk_.solve(res_, t_);
+    bulk_->solve(res_, t_);
     CELLFSI_PETSC(VecAXPY(x, 1.0, t_));
   } else {
-    bulk_.solve(r, x);
+    bulk_->solve(r, x);
   }
   if (n_region_ == 0) return;
   // The region's solve needs the residual on the region's rows only: R (r - J x) = R r - (R J) x, a product

@@ -40,27 +40,48 @@
 
 namespace cellfsi::solvers {
 
+/// How the region is found and used (cellfsi_fourier's -pc_fourier_* options, solvers/pc_fourier.hpp): the
+/// defaults and the valid ranges, stated once.
+struct RegionOptions {
+  double threshold = 1e-3;  // relative deviation from the bulk operator that puts a node in the region (> 0)
+  int overlap = 0;          // node layers the region is grown by (0 ... kMaxOverlap)
+  int region_solves = 1;    // region solves per application: 1 (bulk, region) or 2 (region, bulk, region)
+  static constexpr int kMaxOverlap = 20;
+};
+
+/// The region's factorisation unless -<prefix>region_pc_type says otherwise: cellfsi_lu_single in 3D (see
+/// above), lu in 2D.
+const char* default_region_pc_type(bool three_d);
+
 class RegionCorrectedSolver {
  public:
   /// n, periodic, degree, dof: the box mesh (see FourierBulkSolver).
-  /// comm, natural: see FourierBulkSolver.
+  /// comm, natural: see FourierBulkSolver. The solver makes its own bulk solver (set_bulk builds it).
   RegionCorrectedSolver(std::array<int, 3> n, std::array<bool, 3> periodic, std::array<int, 3> degree,
                         int dof, std::string prefix, MPI_Comm comm = PETSC_COMM_SELF, AO natural = nullptr);
+  /// With a bulk solver built by its owner (shared: cellfsi_fourier finds it on its operator).
+  RegionCorrectedSolver(std::shared_ptr<FourierBulkSolver> bulk, std::string prefix);
   ~RegionCorrectedSolver();
   RegionCorrectedSolver(const RegionCorrectedSolver&) = delete;
   RegionCorrectedSolver& operator=(const RegionCorrectedSolver&) = delete;
 
   /// Builds the bulk solver from the bulk operator A (J without the cells).
-  void set_bulk(Mat A, bool pin_pressure) { bulk_.build(A, pin_pressure); }
-  /// Region thresholds: relative deviation from A and growth in node layers (defaults 1e-3 and 0).
-  void set_region(double threshold, int overlap) {
-    threshold_ = threshold;
-    overlap_ = overlap;
+  void set_bulk(Mat A, bool pin_pressure) { bulk_->build(A, pin_pressure); }
+  /// All of the options at once (defaults: RegionOptions).
+  void set_options(const RegionOptions& o) {
+    set_region(o.threshold, o.overlap);
+    set_region_solves(o.region_solves);
   }
-  /// Region solves per application: 2 (region, bulk, region) or 1 (bulk, region; the default).
+  const RegionOptions& options() const { return options_; }
+  /// Region thresholds: relative deviation from A and growth in node layers.
+  void set_region(double threshold, int overlap) {
+    options_.threshold = threshold;
+    options_.overlap = overlap;
+  }
+  /// Region solves per application: 2 (region, bulk, region) or 1 (bulk, region).
   void set_region_solves(int n) {
     if (n != 1 && n != 2) throw std::invalid_argument("RegionCorrectedSolver: 1 or 2 region solves");
-    region_solves_ = n;
+    options_.region_solves = n;
   }
   /// Sets J (kept by reference: J's entries must not change until the next call), finds the region and
   /// factorises J on it. Collective.
@@ -68,7 +89,7 @@ class RegionCorrectedSolver {
   /// x = P^{-1} r (see above). Collective.
   void apply(Vec r, Vec x);
 
-  const FourierBulkSolver& bulk() const { return bulk_; }
+  const FourierBulkSolver& bulk() const { return *bulk_; }
   PetscInt n_region() const { return n_region_; }  // unknowns in the region
   /// The region's solver (null before the first set_operator): its view is part of the PC's.
   KSP region_ksp() const { return region_ksp_; }
@@ -87,15 +108,13 @@ class RegionCorrectedSolver {
   // (SuperLU_DIST), or MUMPS on one rank with an ordering from PETSc, which it reads from AIJ only.
   bool needs_aij(PC pc, int size) const;
   void release_region();
-  FourierBulkSolver bulk_;
+  std::shared_ptr<FourierBulkSolver> bulk_;
   std::array<int, 3> n_{}, degree_{};
   std::array<bool, 3> periodic_{};
   int dof_ = 1;
   std::string prefix_;
   MPI_Comm comm_ = PETSC_COMM_SELF;
-  double threshold_ = 1e-3;
-  int overlap_ = 0;
-  int region_solves_ = 1;
+  RegionOptions options_;
   Mat J_ = nullptr;
   std::vector<int> region_;  // the region's nodes (natural numbering, sorted; the same on every rank)
   PetscInt n_region_ = 0;

@@ -1,7 +1,7 @@
 #pragma once
 // A sparse LU in single precision (MUMPS' smumps) of a double-precision PETSc matrix, for use as a
-// preconditioner: the registered PC type "cellfsi_lu_single" (solvers/pc_types.hpp), in 3D the default for
-// the region of cellfsi_fourier (-coupling_fourier_region_pc_type).
+// preconditioner: the registered PC type "cellfsi_lu_single" (solvers/pc_lu_single.hpp), in 3D the default
+// for the region of cellfsi_fourier (-coupling_fourier_region_pc_type).
 //
 // Why: the region's LU (solvers/region_corrected.hpp) is redone at every step in 3D, and at the paper's 64^3
 // it is half the step (docs/performance.md §12): 1.6e12 operations at the cores' dense speed, whatever the

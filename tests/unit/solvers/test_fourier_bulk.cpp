@@ -12,11 +12,12 @@
 
 #include "common/petsc_error.hpp"
 #include "fluid/fluid_solver.hpp"
+#include "geometry/builders.hpp"
 #include "solvers/fourier_bulk.hpp"
 #include "solvers/near_operator.hpp"
 #include "solvers/nested_dissection.hpp"
+#include "solvers/pc_fourier.hpp"
 #include "solvers/region_corrected.hpp"
-#include "geometry/builders.hpp"
 #include "test_operators.hpp"
 
 #include <petscdmda.h>
@@ -541,6 +542,81 @@ TEST(NearOperator, IsTheAssembledRowsNearTheCellsAndTheStencilElsewhere) {
   VecDestroy(&z);
   MatDestroy(&op);
   MatDestroy(&near);
+  MatDestroy(&J);
+  MatDestroy(&A);
+}
+
+TEST(FourierPCType, FindsItsBulkSolverOnTheOperatorAndSolvesAsTheSolverItHolds) {
+  // cellfsi_fourier (solvers/pc_fourier.hpp) on J = a bulk operator A changed on a 3 x 3 patch of nodes: set
+  // up without a bulk solver on J it says what is missing; with A's composed on J (pc_fourier_compose_bulk)
+  // it finds the same region as a RegionCorrectedSolver of that bulk solver and FGMRES takes the same
+  // iterations (the same operations in the same order: exactly).
+  cellfsi::test::set_up_pc_types_once();
+  const std::array<int, 3> n{10, 7, 1};
+  const int dof = 3;
+  Mat A = invariant_operator(n, {true, false, false}, 2, dof, 5), J;
+  CELLFSI_PETSC(MatDuplicate(A, MAT_COPY_VALUES, &J));
+  for (int j = 2; j <= 4; ++j)
+    for (int i = 3; i <= 5; ++i)
+      for (int c = 0; c < dof; ++c) {
+        const PetscInt row = (i + n[0] * j) * dof + c;
+        CELLFSI_PETSC(MatSetValue(J, row, row, 40.0, ADD_VALUES));
+      }
+  CELLFSI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+  auto bulk = std::make_shared<FourierBulkSolver>(n, std::array<bool, 3>{true, false, false},
+                                                  std::array<int, 3>{2, 2, 0}, dof);
+  bulk->build(A, false);
+  Vec x = random_vector(A, 9), b, reference;
+  CELLFSI_PETSC(VecDuplicate(x, &b));
+  CELLFSI_PETSC(VecDuplicate(x, &reference));
+  CELLFSI_PETSC(MatMult(J, x, b));
+  RegionCorrectedSolver rc(bulk, "test_pc_fourier_");
+  rc.set_operator(J);
+  const FgmresResult expected = fgmres_with(rc, J, b, reference, 100);
+
+  KSP ksp;
+  CELLFSI_PETSC(KSPCreate(PETSC_COMM_SELF, &ksp));
+  CELLFSI_PETSC(KSPSetOptionsPrefix(ksp, "test_pc_"));
+  CELLFSI_PETSC(KSPSetType(ksp, KSPFGMRES));
+  CELLFSI_PETSC(KSPSetTolerances(ksp, 1e-10, 1e-50, PETSC_DEFAULT, 100));
+  CELLFSI_PETSC(KSPGMRESSetRestart(ksp, 100));
+  PC pc;
+  CELLFSI_PETSC(KSPGetPC(ksp, &pc));
+  CELLFSI_PETSC(PCSetType(pc, solvers::kPCFourier));
+  CELLFSI_PETSC(KSPSetOperators(ksp, J, J));
+  try {
+    CELLFSI_PETSC(KSPSetUp(ksp));
+    ADD_FAILURE() << "no error";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("pc_fourier_compose_bulk"), std::string::npos) << e.what();
+  }
+  KSPDestroy(&ksp);  // (a new KSP: this one is left as its set-up failed)
+  CELLFSI_PETSC(KSPCreate(PETSC_COMM_SELF, &ksp));
+  CELLFSI_PETSC(KSPSetOptionsPrefix(ksp, "test_pc_"));
+  CELLFSI_PETSC(KSPSetType(ksp, KSPFGMRES));
+  CELLFSI_PETSC(KSPSetTolerances(ksp, 1e-10, 1e-50, PETSC_DEFAULT, 100));
+  CELLFSI_PETSC(KSPGMRESSetRestart(ksp, 100));
+  CELLFSI_PETSC(KSPGetPC(ksp, &pc));
+  CELLFSI_PETSC(PCSetType(pc, solvers::kPCFourier));
+  CELLFSI_PETSC(KSPSetOperators(ksp, J, J));
+  solvers::pc_fourier_compose_bulk(J, bulk);
+  CELLFSI_PETSC(KSPSolve(ksp, b, x));
+  PetscInt its = 0;
+  CELLFSI_PETSC(KSPGetIterationNumber(ksp, &its));
+  EXPECT_EQ(static_cast<int>(its), expected.iterations);
+  const solvers::RegionCorrectedSolver* held = solvers::pc_fourier_solver(pc);
+  ASSERT_NE(held, nullptr);
+  EXPECT_EQ(&held->bulk(), bulk.get());
+  EXPECT_EQ(held->n_region(), 9 * dof);  // the changed patch
+  EXPECT_EQ(held->n_region(), rc.n_region());
+  EXPECT_EQ(relative_difference(x, reference), 0.0);
+  EXPECT_LT(relative_residual(J, x, b), 1e-9);
+  solvers::pc_fourier_compose_bulk(J, nullptr);
+  KSPDestroy(&ksp);
+  VecDestroy(&x);
+  VecDestroy(&b);
+  VecDestroy(&reference);
   MatDestroy(&J);
   MatDestroy(&A);
 }

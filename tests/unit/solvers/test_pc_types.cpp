@@ -1,5 +1,6 @@
-// The coupled solvers as PETSc PC types (solvers/pc_types.hpp): chosen by -<prefix>pc_type, configured by
-// their options, shown by KSPView, and solving like the solver objects they hold.
+// The coupled solvers as PETSc PC types (solvers/pc_types.hpp, one file per type): chosen by
+// -<prefix>pc_type, configured by their options, shown by KSPView, finding what they need on their operator,
+// and solving like the solver objects they hold.
 #include <gtest/gtest.h>
 
 #include <petscksp.h>
@@ -80,7 +81,7 @@ TEST(PCTypes, BandTypeIsChosenByOptionsAndSolvesExactlyInOneIteration) {
   PC pc;
   CELLFSI_PETSC(KSPGetPC(ksp, &pc));
   ASSERT_TRUE(solvers::pc_is(pc, solvers::kPCBand));
-  solvers::pc_band_set_split(pc, p.fixed, p.band);
+  solvers::pc_band_compose_split(p.K, p.fixed, p.band);  // what the PC finds on its operator
   CELLFSI_PETSC(KSPSetOperators(ksp, p.K, p.K));
   CELLFSI_PETSC(KSPSetTolerances(ksp, 1e-10, 1e-50, PETSC_DEFAULT, 10));
   CELLFSI_PETSC(KSPSolve(ksp, p.r, p.x));
@@ -93,6 +94,21 @@ TEST(PCTypes, BandTypeIsChosenByOptionsAndSolvesExactlyInOneIteration) {
   EXPECT_NE(text.find("type: cellfsi_band"), std::string::npos) << text;
   EXPECT_NE(text.find("block low-rank tolerance of the kept part 0"), std::string::npos) << text;
   EXPECT_NE(text.find("band: 150 of 420 unknowns, edge 60"), std::string::npos) << text;
+  // A second set-up on the same split keeps the kept part's factors; new entries of the kept part (its state
+  // rises) factorise it again: the same answer either way.
+  const solvers::BandSchurSolver* band = solvers::pc_band_solver(pc);
+  ASSERT_NE(band, nullptr);
+  CELLFSI_PETSC(MatAssemblyBegin(p.K, MAT_FINAL_ASSEMBLY));  // (K's state rises: KSP sets the PC up again)
+  CELLFSI_PETSC(MatAssemblyEnd(p.K, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(KSPSolve(ksp, p.r, p.x));
+  EXPECT_EQ(solvers::pc_band_solver(pc), band);
+  EXPECT_LT(p.relative_residual(), 1e-10);
+  CELLFSI_PETSC(MatAssemblyBegin(p.fixed, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(p.fixed, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyBegin(p.K, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(p.K, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(KSPSolve(ksp, p.r, p.x));
+  EXPECT_LT(p.relative_residual(), 1e-10);
   KSPDestroy(&ksp);
 }
 
@@ -126,7 +142,7 @@ TEST(PCTypes, SetUpWithoutTheOwnersDataSaysWhatIsMissing) {
     CELLFSI_PETSC(KSPSetUp(ksp));
     ADD_FAILURE() << "no error";
   } catch (const std::exception& e) {
-    EXPECT_NE(std::string(e.what()).find("pc_band_set_split"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("pc_band_compose_split"), std::string::npos) << e.what();
   }
   // Another type afterwards: the PC is a plain PETSc PC again.
   CELLFSI_PETSC(PCSetType(pc, PCJACOBI));

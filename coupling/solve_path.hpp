@@ -1,0 +1,159 @@
+#pragma once
+// The paths of the coupled linear solve (coupling/coupled_linear_solver.hpp), one class per PC type family:
+//   FourierSolve   cellfsi_fourier (coupling/fourier_solve.cpp): the bulk solver built once, the Jacobian
+//                  re-assembled around the cells at each refresh (or, with the bulk stencil, only the rows
+//                  near them), FGMRES;
+//   BandSolve      cellfsi_band (coupling/band_solve.cpp): the kept part re-split when the cells leave its
+//                  region, the Jacobian refreshed as for cellfsi_fourier, FGMRES;
+//   PetscPCSolve   any PETSc PC (coupling/petsc_pc_solve.cpp): the whole Jacobian at every solve, the
+//                  preconditioner rebuilt every -coupling_pc_lag solves and when the marking moves, GMRES.
+// CoupledLinearSolver owns the KSP and picks the path (make_solve_path); a path that cannot go on asks it for
+// a fallback, which replaces the path. Only CoupledLinearSolver uses these classes.
+#include <petscksp.h>
+
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/petsc_error.hpp"
+#include "coupling/solver_policy.hpp"
+#include "fluid/immersed_fluid.hpp"
+
+namespace cellfsi::coupling {
+
+struct SolveCounts;
+
+/// What every path works with (CoupledLinearSolver's; the paths may turn options.bulk_stencil off).
+struct SolveContext {
+  fluid::ImmersedFluid& fluid;
+  LinearSolverOptions& options;
+  std::function<std::vector<char>()> active_elements;  // the elements with s^h != 1 or an immersed point
+  KSP ksp = nullptr;
+};
+
+/// A path's request to be replaced by another PC type (even_if_asked: also when the user asked for this one;
+/// otherwise that is refused with the reason).
+struct FallBack {
+  std::string pc_type, why;
+  bool even_if_asked = false;
+};
+
+class SolvePath {
+ public:
+  explicit SolvePath(SolveContext& c) : c_(c) {}
+  virtual ~SolvePath() = default;
+  SolvePath(const SolvePath&) = delete;
+  SolvePath& operator=(const SolvePath&) = delete;
+
+  /// The checks and set-up of the path the solver starts with (not of one it falls back to), after the KSP
+  /// read its options. Throws std::invalid_argument for a PC type that cannot run here.
+  virtual void start(const SolverSituation& s, bool seq_baij) = 0;
+  /// The s^h marking moved.
+  virtual void marking_changed() = 0;
+  /// See CoupledLinearSolver::may_assemble.
+  virtual bool may_assemble(bool first_iteration) const = 0;
+  /// What a solve needs before the KSP's (the bulk solver, the band's split); a fallback if the path cannot
+  /// go on.
+  virtual std::optional<FallBack> prepare(Vec X, bool first_iteration, SolveCounts& counts) = 0;
+  /// dX = K_MC(X)^{-1} F, after prepare. Returns the KSP's iterations.
+  virtual int solve(Vec X, Vec F, Vec dX, bool first_iteration, SolveCounts& counts) = 0;
+  /// See CoupledLinearSolver::corrected_unknowns.
+  virtual PetscInt corrected_unknowns() const { return 0; }
+
+ protected:
+  PC pc() const;
+  SolveContext& c_;
+};
+
+/// The cellfsi types' common part: the Jacobian kept between refreshes (a chord iteration), refreshed at
+/// the first iteration of a step in which the marking moved, every refresh_steps steps, and every
+/// refresh_lag solves if set.
+class CellfsiSolve : public SolvePath {
+ public:
+  using SolvePath::SolvePath;
+  void marking_changed() override { marking_changed_ = true; }
+  int solve(Vec X, Vec F, Vec dX, bool first_iteration, SolveCounts& counts) final;
+  /// FGMRES at options.rtol, and the PC type `type`, before the options are read.
+  static void configure_ksp(KSP ksp, const LinearSolverOptions& options, const std::string& type);
+
+ protected:
+  /// Whether prepare() re-split the operator (then the Jacobian is refreshed whatever the counters say).
+  bool resplit_ = false;
+  int solves_since_refresh_ = 0;
+
+ private:
+  virtual void refresh_jacobian(Vec X) = 0;  // the Jacobian (or the near rows) at X
+  virtual Mat operator_matrix() const = 0;   // the KSP's operator
+  virtual void set_up_pc() { CELLFSI_PETSC(KSPSetUp(c_.ksp)); }
+  virtual void after_refresh() {}  // reports, after the preconditioner's set-up
+  bool marking_changed_ = true;
+  int steps_since_refresh_ = 0;
+};
+
+class FourierSolve final : public CellfsiSolve {
+ public:
+  using CellfsiSolve::CellfsiSolve;
+  ~FourierSolve() override;
+  void start(const SolverSituation& s, bool seq_baij) override;
+  bool may_assemble(bool first_iteration) const override;
+  std::optional<FallBack> prepare(Vec X, bool first_iteration, SolveCounts& counts) override;
+  PetscInt corrected_unknowns() const override;
+
+ private:
+  std::optional<FallBack> build_bulk(Vec X);  // once
+  void refresh_jacobian(Vec X) override;      // the region re-assembled, the rest kept
+  void refresh_near_operator(Vec X);          // bulk_stencil: the near rows re-assembled
+  /// bulk_stencil: the matrix of the rows of nodes on region_'s elements (the others hold one diagonal
+  /// block), the operator made of it and the bulk stencil, and the nodes whose rows it holds in full.
+  void make_near_operator();
+  Mat operator_matrix() const override;
+  void after_refresh() override;
+  std::shared_ptr<solvers::FourierBulkSolver> bulk_;  // made by start(), built by the first prepare()
+  bool bulk_built_ = false;
+  std::vector<char> region_;                // elements re-assembled at every refresh
+  Mat J_fixed_ = nullptr;                   // the Jacobian of the other elements
+  Mat near_ = nullptr, near_op_ = nullptr;  // bulk_stencil: the near rows, and the operator
+  MatNullSpace null_space_ = nullptr, transpose_null_space_ = nullptr;  // the fluid Jacobian's, for near_op_
+  bool single_failure_reported_ = false;  // the region's single-precision LU failed, and the console was told
+};
+
+class BandSolve final : public CellfsiSolve {
+ public:
+  using CellfsiSolve::CellfsiSolve;
+  ~BandSolve() override;
+  void start(const SolverSituation& s, bool seq_baij) override;
+  bool may_assemble(bool) const override { return true; }  // it re-splits whenever the cells leave its region
+  std::optional<FallBack> prepare(Vec X, bool first_iteration, SolveCounts& counts) override;
+  PetscInt corrected_unknowns() const override;
+
+ private:
+  void refresh_jacobian(Vec X) override;  // the kept part plus the band's
+  Mat operator_matrix() const override { return c_.fluid.jacobian_matrix(); }
+  void set_up_pc() override;  // the kept part's LU when re-split, the Schur complement
+  void after_refresh() override;
+  std::vector<char> region_;  // the band's elements
+  Mat J_fixed_ = nullptr;     // the Jacobian of the other elements
+  long in_region_ = 0;        // elements in region_
+  int steps_since_factor_ = 0;
+};
+
+class PetscPCSolve final : public SolvePath {
+ public:
+  using SolvePath::SolvePath;
+  void start(const SolverSituation& s, bool seq_baij) override;
+  void marking_changed() override { pc_stale_ = true; }
+  bool may_assemble(bool) const override { return true; }  // the Jacobian at every solve
+  std::optional<FallBack> prepare(Vec, bool, SolveCounts&) override { return std::nullopt; }
+  int solve(Vec X, Vec F, Vec dX, bool first_iteration, SolveCounts& counts) override;
+  /// GMRES at kFluidRtol, and the PC type `pc_type` (ASM with PetscPCDefaults' overlap), before the options
+  /// are read.
+  static void configure_ksp(KSP ksp, const std::string& pc_type);
+
+ private:
+  bool pc_stale_ = true;
+  int solves_since_pc_ = 1 << 30;
+};
+
+}  // namespace cellfsi::coupling
