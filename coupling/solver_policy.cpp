@@ -16,22 +16,23 @@ LinearSolverOptions linear_solver_defaults(int dim) {
   if (dim != 3) return o;
   // The re-assembled region's margin: 4 elements in 2D (measured with cellfsi_band at 256 x 128: margins 2
   // and 6 were slower), 1 in 3D (cellfsi_fourier at 32^3, 12 steps: the Jacobian 1.43 s per step against 2.18
-  // with 4, the whole step 6 % faster; docs/performance.md §8).
+  // with 4, the whole step 6 % faster; docs/design.md §8).
   o.region_margin = 1;
   // No whole Jacobian after the first step in 3D (cellfsi_fourier): at the paper's 64^3 on one rank, peak
   // memory 7.2 GB against 14.8 and the Jacobian's refreshes 7x cheaper, the metrics the same to 4e-10
-  // (docs/performance.md §11). 2D keeps the assembled Jacobian (small there).
+  // (docs/design.md §8). 2D keeps the assembled Jacobian (small there).
   o.bulk_stencil = true;
   // The coupled FGMRES to rtol 1e-2 in 3D: the coupling iterations are those of 1e-5 and the FGMRES
   // iterations half (the compound capsule at 32^3 and 64^3, metrics the same to 3e-6 relative;
-  // docs/performance.md §14). 2D keeps 1e-5: there 1e-2 costs coupling iterations (4 -> 5-6 per step).
+  // docs/design.md §8). 2D keeps 1e-5: there 1e-2 costs coupling iterations (4 -> 5-6 per step).
   o.rtol = 1e-2;
   return o;
 }
 
 std::vector<std::pair<std::string, std::string>> PetscPCDefaults::options(bool pressure_null_space) {
   std::vector<std::pair<std::string, std::string>> defaults{
-      {"-coupling_sub_pc_type", "lu"}, {"-coupling_sub_pc_factor_mat_solver_type", "mumps"}};
+      {"-coupling_sub_pc_type", fluid::KrylovDefaults::sub_pc_type},
+      {"-coupling_sub_pc_factor_mat_solver_type", fluid::KrylovDefaults::sub_solver}};
   if (pressure_null_space) {
     defaults.emplace_back("-coupling_sub_mat_mumps_icntl_24", "1");
     defaults.emplace_back("-coupling_mat_mumps_icntl_24", "1");
@@ -241,7 +242,7 @@ std::string region_option_unread(const std::string& name, int dim, bool region_p
   return "in " + std::to_string(dim) + "D the region's LU is in single precision (" + region_pc +
          "), which takes no factorisation options; add -coupling_fourier_region_pc_type lu for MUMPS in "
          "double "
-         "precision (docs/performance.md §13)";
+         "precision (docs/design.md §8)";
 }
 
 }  // namespace cellfsi::coupling

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "common/option_table.hpp"
+#include "fluid/fluid_options.hpp"
 #include "geometry/patch.hpp"
 #include "solvers/band_schur.hpp"
 #include "solvers/pc_band.hpp"
@@ -30,7 +31,7 @@ inline constexpr const char* kCouplingPrefix = "coupling_";
 
 /// The fluid's relative tolerance of a linear solve (its own default, fluid/fluid_solver.cpp): the coupled
 /// solve's with a PETSc PC, and with the cellfsi types in 2D.
-inline constexpr double kFluidRtol = 1e-5;
+inline constexpr double kFluidRtol = fluid::KrylovDefaults::rtol;
 
 /// The coupled solve's options. The initialisers are the 2D defaults; linear_solver_defaults(3) those of 3D.
 struct LinearSolverOptions {
@@ -76,7 +77,7 @@ struct CellfsiKrylov {
 /// What the coupled solve with a PETSc PC starts from: the fluid's own defaults (fluid/fluid_solver.cpp):
 /// GMRES at kFluidRtol, ASM with an overlap of 4 and MUMPS LU on each subdomain.
 struct PetscPCDefaults {
-  static constexpr int asm_overlap = 4;
+  static constexpr int asm_overlap = fluid::KrylovDefaults::asm_overlap;
   /// Options set in the database unless given (the user's values win): the subdomain solves, and MUMPS'
   /// null-pivot detection for the constant pressure when it is the Jacobian's null space.
   static std::vector<std::pair<std::string, std::string>> options(bool pressure_null_space);

@@ -10,6 +10,16 @@ namespace cellfsi::fluid {
 
 using geometry::Vec3;
 
+/// The fluid's own linear solver (the paper's: GMRES, restricted additive Schwarz, LU subdomain solves, here by
+/// MUMPS), stated once: fluid_solver.cpp sets them as defaults under -fluid_, and a coupled run's PETSc PC starts
+/// from them under -coupling_ (coupling/solver_policy.hpp).
+struct KrylovDefaults {
+  static constexpr double rtol = 1e-5;
+  static constexpr int asm_overlap = 4;  // (PETSc's: 1) measured: fluid_solver.cpp
+  static constexpr const char* sub_pc_type = "lu";
+  static constexpr const char* sub_solver = "mumps";
+};
+
 /// Physical and numerical settings; the defaults are the paper's plasma (CGS).
 struct FluidOptions {
   double density = 1.025;    // rho_1 [g/cm^3]

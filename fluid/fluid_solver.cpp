@@ -118,7 +118,7 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
   PC pc;
   CELLFSI_PETSC(SNESGetKSP(snes_, &ksp));
   CELLFSI_PETSC(KSPSetType(ksp, KSPGMRES));
-  CELLFSI_PETSC(KSPSetTolerances(ksp, 1e-5, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
+  CELLFSI_PETSC(KSPSetTolerances(ksp, KrylovDefaults::rtol, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
   CELLFSI_PETSC(KSPGetPC(ksp, &pc));
   CELLFSI_PETSC(PCSetType(pc, PCASM));
   // Defaults beyond the paper, measured in docs/performance.md (bench/run_fluid_solvers.sh): MUMPS for the
@@ -140,9 +140,10 @@ FluidSolver::FluidSolver(MPI_Comm comm, const geometry::Patch& patch, const Flui
       if (!set) CELLFSI_PETSC(PetscOptionsSetValue(nullptr, name, "1"));
       CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, name, &set));  // a default: not the user's
     }
-  const char* defaults[][2] = {{"-fluid_pc_asm_overlap", "4"},
-                               {"-fluid_sub_pc_type", "lu"},
-                               {"-fluid_sub_pc_factor_mat_solver_type", "mumps"},
+  const std::string overlap = std::to_string(KrylovDefaults::asm_overlap);
+  const char* defaults[][2] = {{"-fluid_pc_asm_overlap", overlap.c_str()},
+                               {"-fluid_sub_pc_type", KrylovDefaults::sub_pc_type},
+                               {"-fluid_sub_pc_factor_mat_solver_type", KrylovDefaults::sub_solver},
                                {"-fluid_snes_lag_preconditioner", "10"},
                                {"-fluid_snes_lag_preconditioner_persists", "true"}};
   for (auto& kv : defaults) {
