@@ -107,10 +107,13 @@ def number(v):
     return v[:-1] if re.fullmatch(r"-?\d+\.", v) else v
 
 
-def probe(cmd_of, name, dim, cwd):
-    """The valid values the program names for option `name`, or '' when it refuses neither bad value."""
+def probe(cmd_of, name, dim, cwd, kind="real"):
+    """The valid values the program names for option `name`, or '' when it refuses neither bad value.
+    The order of the bad values only saves runs: an integer's range refuses -1000000000 at once (nan is a parse
+    error), and a flag refuses both alike (a parse error), so one run of nan says it."""
     parse_message = ""
-    for bad in BAD_VALUES:
+    order = {"integer": BAD_VALUES[::-1], "flag": BAD_VALUES[:1]}.get(kind, BAD_VALUES)
+    for bad in order:
         r = run(cmd_of(name, ",".join([bad] * dim)), cwd)
         for line in (r.stderr + r.stdout).splitlines():
             m = INVALID.search(line)
@@ -222,7 +225,7 @@ def main():
         # The probes are independent runs, mostly waiting on MPI's start-up: one per core at a time.
         def valid(job):
             row, program, name, count = job
-            return probe(lambda n, v: program + [f"-{n}", v, "-help"], name, count, tmp)
+            return probe(lambda n, v: program + [f"-{n}", v, "-help"], name, count, tmp, row["kind"])
         with concurrent.futures.ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
             for job, text in zip(probes, pool.map(valid, probes)):
                 job[0]["valid"] = text
