@@ -341,7 +341,7 @@ void RunOutput::summary(const std::string& status, int steps, long newton, long 
 namespace {
 
 /// The BLAS the run used, for comparing timings: OpenBLAS's kernels ("Haswell", "SkylakeX", ...) and whether
-/// OPENBLAS_CORETYPE chose them. Its kernels set the speed of the region's LU (docs/performance.md §19).
+/// OPENBLAS_CORETYPE chose them. Its kernels set the speed of the region's LU (docs/design.md §5).
 std::string blas_description() {
   using Text = char* (*)();
   const auto core = reinterpret_cast<Text>(dlsym(RTLD_DEFAULT, "openblas_get_corename"));

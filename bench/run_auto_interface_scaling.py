@@ -39,7 +39,7 @@ VARIANTS = {"auto": ["-s_interface", "auto"], "raise": ["-s_interface", "auto", 
 # hand-chosen s_I, central marking. (what, where it is documented, domain width / elements along x [cm], degree,
 # s_I, |r_A|.) The capsule in shear: r_A(0.3 s) of the Table 1 runs (validation/capsule_table1_central.md);
 # the migrating capsule: r_A(0.1 s) of validation/area_error_study.md and the largest of the long runs
-# (validation.md, Sec. 4.2); six RBCs: the largest |r_A| of a cell (validation/channel_si_sweep*.md).
+# (docs/notes/2026-11-24-val-channel-migration.md); six RBCs: the largest |r_A| of a cell (validation/channel_si_sweep*.md).
 MIGRATION, RBC = 0.002, 0.003  # the channels' lengths [cm]
 MEASURED = [(f"capsule in shear {n}x{n // 2}, p {p}, 0.3 s", "capsule_table1_central.md", 0.0024 / n, p, 1e10, r)
             for n, p, r in [(96, 2, 1.11e-3), (96, 3, 1.51e-4), (128, 2, 1.27e-3), (128, 3, 8.12e-4),

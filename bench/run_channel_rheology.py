@@ -121,7 +121,7 @@ def write_rheology_table(args, rows, command):
                      f" {fmt(s.get('wall_time_s'), '.0f')} | {s.get('status')} | {s.get('recorded', '-')} |")
     lines.append("")
     lines.append(f"Plasma alone: v_P = f H^2 / (12 mu) = {FORCE * HEIGHT ** 2 / (12 * VISCOSITY):.5f} cm/s "
-                 "(analytic; the code reproduces it to 2.2e-7, docs/performance.md).")
+                 "(analytic; the code reproduces it to 2.2e-7, docs/validation.md, 'Plasma flows').")
     write_table(args.table, lines)
 
 

@@ -52,7 +52,7 @@ struct CouplerOptions {
   int acceleration_reuse = 0;    // previous steps whose pairs are kept (0: only this step's)
   // Consistent: the same coupling iterations where the cells barely deform (the 3D compound capsule at
   // 16^3, 537 in 120 steps either way), fewer where they deform much (the optical-tweezers test: 98 instead
-  // of 123); docs/performance.md §17.
+  // of 123); docs/design.md §8.
   SolidTangent solid_tangent = SolidTangent::consistent;
   // Per body (in the order of the bodies; missing or 0: none): the dynamic viscosity mu_in [g/(cm s)] of the
   // fluid inside a membrane (coupling/inner_viscosity.hpp). Only membranes take one. A value equal to the

@@ -1,7 +1,7 @@
 #pragma once
 // SeqBaijInserter: the one-rank Jacobian's element blocks added straight into PETSc's SeqBAIJ value array
 // (fluid_assembly.cpp). Measured against PETSc's public insertion (MatSetValuesBlockedLocal) and COO
-// assembly in docs/performance.md section 1; it is kept because it is the fastest. Internal to fluid/.
+// assembly in docs/performance.md, "Assembly per element"; it is kept because it is the fastest. Internal to fluid/.
 #include <petscmat.h>
 
 #include <algorithm>

@@ -2,7 +2,7 @@
 // vms_kernel.hpp): the pointwise tangent of vms_kernel.cpp summed over an element's quadrature points as
 // small matrix products, with hand-vectorised register tiles (SSE2, and AVX2 + FMA chosen at run time) and
 // sum factorisation for tensor-product elements. Checked against the pointwise tangent in
-// tests/unit/fluid/test_vms_kernel.cpp; timings in docs/performance.md section 1.
+// tests/unit/fluid/test_vms_kernel.cpp; timings in docs/performance.md, "Assembly per element".
 //
 // Why this file is longer than 600 lines: the products, their register tiles and the sum-factorised variant
 // are one family of templates instantiated for two instruction sets and two layouts; they share the tile

@@ -5,7 +5,7 @@
 // Why: the region of cellfsi_fourier (solvers/region_corrected.hpp) is a closed shell of 4-6 node layers
 // around each cell. Its LU costs what its nested dissection's top fronts cost, and the orderings MUMPS has in
 // Debian's build (PORD, AMD, QAMD; no METIS or SCOTCH) leave wider fronts than SCOTCH on this graph.
-// Measured on the region of the paper's 64^3 (62 680 unknowns, one rank; docs/performance.md §12): PORD 2.08e12
+// Measured on the region of the paper's 64^3 (62 680 unknowns, one rank; docs/design.md §8): PORD 2.08e12
 // operations and a 52 s set-up, this ordering 1.61e12 and 42 s; SuperLU_DIST with (Par)METIS 1.5e12.
 //
 // The graph is that of nodes (rows grouped by the matrix's block size, e.g. 4 unknowns per node of the

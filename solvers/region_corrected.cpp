@@ -197,7 +197,7 @@ void RegionCorrectedSolver::create_region_ksp(int size) {
   CELLFSI_PETSC(KSPGetPC(region_ksp_, &pc));
   // In 3D the region's LU is half of a step at 64^3, redone every step: in single precision it costs half
   // (solvers/single_precision_lu.hpp, SCOTCH's nested dissection on any number of ranks), and the outer
-  // FGMRES makes up the precision (docs/performance.md §13). In 2D the region is small: MUMPS in double
+  // FGMRES makes up the precision (docs/design.md §8). In 2D the region is small: MUMPS in double
   // precision with its own ordering (SCOTCH's ordering and the AIJ copy cost 3 % of the default scene, §12).
   // After a failure of the single-precision LU (set_operator), double precision whatever the options say.
   CELLFSI_PETSC(PCSetType(pc, single_failure_.empty() ? default_region_pc_type(n_[2] > 1) : PCLU));

@@ -18,7 +18,7 @@
 // more than `threshold` of the row's largest entry of A, grown by `overlap` node layers in every direction)
 // and factorises J_R (options prefix given at construction + "region_"): in 3D by MUMPS in single precision
 // (cellfsi_lu_single, solvers/single_precision_lu.hpp; the FGMRES around this preconditioner makes up the
-// precision, with the same iterations: docs/performance.md §13; should it fail, in double precision from then
+// precision, with the same iterations: docs/design.md §8; should it fail, in double precision from then
 // on), in 2D by MUMPS in double precision.
 //
 // Measured on the 3D compound capsule at 32^3 quadratic (3 steps, one rank; docs/performance.md): the

@@ -4,7 +4,7 @@
 // for the region of cellfsi_fourier (-coupling_fourier_region_pc_type).
 //
 // Why: the region's LU (solvers/region_corrected.hpp) is redone at every step in 3D, and at the paper's 64^3
-// it is half the step (docs/performance.md §12): 1.6e12 operations at the cores' dense speed, whatever the
+// it is half the step (docs/design.md §8): 1.6e12 operations at the cores' dense speed, whatever the
 // ordering. In single precision the same fronts run at twice the speed (twice the SIMD lanes) and the factors
 // take half the memory and half the time to read in each triangular solve. The factors are then a
 // preconditioner, not an exact inverse: the region's solve is correct to about single precision times the

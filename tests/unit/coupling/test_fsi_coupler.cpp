@@ -312,7 +312,7 @@ TEST(FsiCoupler, InnerViscosityEqualToTheFluidsChangesNoBit) {
 // with the field 5x inside and the fluid's far away. The cell's inside joins the solver's corrected region
 // (its rows differ from the bulk operator's); at this mesh (48 x 24, the capsule's inside 4 x 8 elements) the
 // s^h band and its margin already cover it, so the region does not grow (measured: 549 unknowns against 597
-// for lambda = 1, the capsules a little apart after 4 steps; the growth at 160 x 80 is in docs/validation.md).
+// for lambda = 1, the capsules a little apart after 4 steps; the growth at 160 x 80 is in docs/notes/2026-11-26-val-viscosity.md).
 TEST(FsiCoupler, CapsuleWithViscosityRatioFiveHasFiveTimesTheViscosityInside) {
   const double mu = fluid::FluidOptions{}.viscosity, nu = mu / fluid::FluidOptions{}.density;
   const int steps = 4;

@@ -216,7 +216,7 @@ TEST(MotionRegime, DecidedFromTheAxisAndTheMaterial) {
   EXPECT_EQ(solid::motion_regime(false, true, fixed, still), "steady");
   // A membrane whose material turns 4 times faster than its axis, caught across one passage of the vertical
   // (axis from -60 to -130 deg: 70 deg, less than half the material's turn), is tumbling; the same axis
-  // range on the near side of the vertical (-10 to -80 deg) is not. Lambda = 6 in docs/validation.md was
+  // range on the near side of the vertical (-10 to -80 deg) is not. Lambda = 6 in docs/notes/2026-11-26-val-viscosity.md was
   // called swinging over such a window before this rule.
   std::vector<double> across, near, fast;
   for (int k = 0; k <= 100; ++k) {
