@@ -37,10 +37,10 @@ PAGES = ["docs/validation.md", "docs/performance.md"]
 N = "docs/notes/"
 REGISTRY = {
     "default_scene": dict(
-        commit="70dd658", note=N + "2026-11-21-perf03-scene-costs.md",
-        mesh="160x80", p=3, dt="2e-3", steps=125, wall_s=62.4, memory="0.29 GB",
-        theta=25.44, omega=3.73, theta_ref=26.09, omega_ref=3.90,
-        load="two other jobs on the 2 cores"),
+        commit="0017e01", note=N + "2026-11-28-default-scene-fresh-clone.md",
+        mesh="160x80", p=3, dt="2e-3", steps=125, wall_s=62.58, memory="-",
+        theta=25.3965, omega=3.7207, theta_ref=26.09, omega_ref=3.90,
+        load="alone on the 2 cores, from a fresh clone"),
     "stiff_disk": dict(
         commit="d61f5db", note=N + "2026-11-23-val-stiff-disk.md",
         rows=[("64x32", 0.9971), ("128x64", 0.9911), ("256x128", 0.9901)]),

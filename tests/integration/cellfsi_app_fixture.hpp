@@ -70,7 +70,7 @@ inline RunResult run_process(const std::vector<std::string>& argv, double timeou
   setenv("OPENBLAS_NUM_THREADS", "1", 1);
   // A process started without mpiexec is an MPI singleton; Open MPI then starts a daemon for it unless the
   // singleton is isolated. The runs here spawn nothing, and the daemon cost a quarter of each short run's CPU
-  // (0.94 against 0.69 s for `cellfsi -help` on one core): the suite's largest saving (tests/README.md, "Time").
+  // (0.94 against 0.69 s for `cellfsi -help` on one core; tests/README.md, "Time").
   setenv("OMPI_MCA_ess_singleton_isolated", "1", 0);
   RunResult r;
   int fd[2];
