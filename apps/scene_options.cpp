@@ -65,6 +65,20 @@ void read_interface_scaling(SceneSettings& s, const OptionTable& t, const std::s
       " (the studies use 1e6 ... 1e11; a larger s_I outweighs the rest of the Jacobian by more than its LU "
       "resolves in double precision: 1e300 failed the factorisation)";
   s.s_interface_auto = text == "auto";
+  // The divergence-conforming space keeps a cell's volume without s_I (fluid/dc_immersed_fluid.hpp): a
+  // value for it means nothing there. "auto", the scene files' value, means none.
+  char space[32] = "equal_order";
+  CELLFSI_PETSC(PetscOptionsGetString(nullptr, nullptr, "-fluid_space", space, sizeof space, nullptr));
+  if (std::string(space) == "div_conforming") {
+    const std::string why = "not with -fluid_space div_conforming, whose velocity is divergence-free pointwise "
+                            "and needs no interface scaling (leave it out, or auto)";
+    if (!s.s_interface_auto) t.bad("s_interface", text, why);
+    if (t.given("s_interface_target")) t.bad("s_interface_target", option_value_text(s.s_interface_target), why);
+    if (s.s_interface_raise) t.bad("s_interface_raise", "true", why);
+    s.s_interface_auto = false;
+    s_i = 1;
+    return;
+  }
   if (!s.s_interface_auto) {
     if (t.given("s_interface_target"))
       t.bad("s_interface_target", option_value_text(s.s_interface_target),
@@ -477,6 +491,9 @@ void check_memory(SceneSettings& s) {
       PetscOptionsGetString(nullptr, nullptr, "-fluid_mat_type_jacobian", type, sizeof type, nullptr));
   coupling::SolverSituation situation;
   situation.baij = std::string(type) == "baij";
+  char space[32] = "equal_order";
+  CELLFSI_PETSC(PetscOptionsGetString(nullptr, nullptr, "-fluid_space", space, sizeof space, nullptr));
+  situation.own_bulk_inverse = std::string(space) == "div_conforming" && s.dim == 2 && s.periodic[0];
   situation.fluid_ranks = size;
   coupling::LinearSolverOptions& l = s.coupling.linear;
   // The domain is built only for the choice between several copies: a mesh that cannot hold one is refused

@@ -11,7 +11,9 @@ namespace cellfsi::coupling {
 
 namespace {
 
-bool is_cellfsi_type(const std::string& type) { return type == solvers::kPCFourier || type == solvers::kPCBand; }
+bool is_cellfsi_type(const std::string& type) {
+  return type == solvers::kPCFourier || type == solvers::kPCBand || type == solvers::kPCBulk;
+}
 
 /// The KSP's and PC's types and defaults of the path for `type`, before the options are read.
 void configure_ksp(KSP ksp, const std::string& type, const LinearSolverOptions& options) {
@@ -25,6 +27,7 @@ void configure_ksp(KSP ksp, const std::string& type, const LinearSolverOptions& 
 std::unique_ptr<SolvePath> make_solve_path(const std::string& type, SolveContext& context) {
   if (type == solvers::kPCFourier) return std::make_unique<FourierSolve>(context);
   if (type == solvers::kPCBand) return std::make_unique<BandSolve>(context);
+  if (type == solvers::kPCBulk) return std::make_unique<BulkSolve>(context);
   return std::make_unique<PetscPCSolve>(context);
 }
 
@@ -55,8 +58,8 @@ void CellfsiSolve::configure_ksp(KSP ksp, const LinearSolverOptions& options, co
   // 492 FGMRES iterations, while the loop iterated for the solid's residual). cellfsi_band is the exact
   // inverse of the operator: one FGMRES iteration, one application and one product.
   CELLFSI_PETSC(KSPSetType(ksp, KSPFGMRES));
-  CELLFSI_PETSC(
-      KSPSetTolerances(ksp, options.rtol, options.fluid_atol, PETSC_DEFAULT, CellfsiKrylov::max_iterations));
+  const double rtol = type == solvers::kPCBulk ? kBulkRtol : options.rtol;
+  CELLFSI_PETSC(KSPSetTolerances(ksp, rtol, options.fluid_atol, PETSC_DEFAULT, CellfsiKrylov::max_iterations));
   CELLFSI_PETSC(KSPGMRESSetRestart(ksp, CellfsiKrylov::restart));
   PC pc;
   CELLFSI_PETSC(KSPGetPC(ksp, &pc));
@@ -108,6 +111,7 @@ CoupledLinearSolver::CoupledLinearSolver(fluid::ImmersedFluid& fluid, LinearSolv
   s.baij = seq_baij || mpi_baij;
   CELLFSI_PETSC(MPI_Comm_size(fluid.comm(), &s.fluid_ranks));
   s.fourier_inapplicable = fourier_inapplicable(fluid.patch());
+  s.own_bulk_inverse = fluid.has_bulk_inverse();
   CELLFSI_PETSC(KSPCreate(fluid.comm(), &ksp_));
   context_.ksp = ksp_;
   CELLFSI_PETSC(KSPSetOptionsPrefix(ksp_, kCouplingPrefix));

@@ -5,6 +5,9 @@
 //                  near them), FGMRES;
 //   BandSolve      cellfsi_band (coupling/band_solve.cpp): the kept part re-split when the cells leave its
 //                  region, the Jacobian refreshed as for cellfsi_fourier, FGMRES;
+//   BulkSolve      cellfsi_bulk (coupling/bulk_solve.cpp): the fluid's own bulk inverse built once
+//                  (fluid::ImmersedFluid::bulk_inverse), the whole Jacobian re-assembled at each refresh,
+//                  FGMRES; nothing factorised in a step;
 //   PetscPCSolve   any PETSc PC (coupling/petsc_pc_solve.cpp): the whole Jacobian at every solve, the
 //                  preconditioner rebuilt every -coupling_pc_lag solves and when the marking moves, GMRES.
 // CoupledLinearSolver owns the KSP and picks the path (make_solve_path); a path that cannot go on asks it for
@@ -137,6 +140,20 @@ class BandSolve final : public CellfsiSolve {
   Mat J_fixed_ = nullptr;     // the Jacobian of the other elements
   long in_region_ = 0;        // elements in region_
   int steps_since_factor_ = 0;
+};
+
+class BulkSolve final : public CellfsiSolve {
+ public:
+  using CellfsiSolve::CellfsiSolve;
+  ~BulkSolve() override;
+  void start(const SolverSituation& s, bool seq_baij) override;
+  bool may_assemble(bool first_iteration) const override;
+  std::optional<FallBack> prepare(Vec X, bool first_iteration, SolveCounts& counts) override;
+
+ private:
+  void refresh_jacobian(Vec X) override;
+  Mat operator_matrix() const override { return c_.fluid.jacobian_matrix(); }
+  bool built_ = false;
 };
 
 class PetscPCSolve final : public SolvePath {

@@ -52,13 +52,14 @@ std::string fourier_inapplicable(const geometry::Patch& patch) {
 }
 
 std::string default_pc_type(const SolverSituation& s) {
+  if (s.own_bulk_inverse) return solvers::kPCBulk;
   if (s.baij && s.fourier_inapplicable.empty()) return solvers::kPCFourier;
   if (s.baij && s.fluid_ranks == 1) return solvers::kPCBand;
   return PCASM;
 }
 
 std::string fallback_pc_type(bool baij, int fluid_ranks) {
-  return default_pc_type({baij, fluid_ranks, "(fell back)"});
+  return default_pc_type({baij, fluid_ranks, "(fell back)", false});
 }
 
 int jacobian_copies(const std::string& pc_type, bool partial_jacobian, bool bulk_stencil) {
@@ -177,7 +178,7 @@ std::string option_inapplicable(const std::string& name, const std::string& pc_t
         return "a coupled run solves with the KSP -coupling_ (e.g. -" + std::string(kCouplingPrefix) +
                name.substr(6) + "): -fluid_ solver options act on runs without cells";
   // Which PC types read which options: a name, or a prefix (ending in _), and the types.
-  enum class Reader { fourier, band, cellfsi_types, petsc_pcs };
+  enum class Reader { fourier, band, region_types, cellfsi_types, petsc_pcs };
   struct Scope {
     const char* name;
     Reader reader;
@@ -189,11 +190,12 @@ std::string option_inapplicable(const std::string& name, const std::string& pc_t
                                   {"coupling_pc_band_", Reader::band},
                                   {"coupling_band_", Reader::band},
                                   {"coupling_refactor_every", Reader::band},
-                                  {"coupling_region_margin", Reader::cellfsi_types},
+                                  {"coupling_region_margin", Reader::region_types},
                                   {"coupling_refresh_steps", Reader::cellfsi_types},
                                   {"coupling_refresh_lag", Reader::cellfsi_types},
                                   {"coupling_pc_lag", Reader::petsc_pcs}};
-  const bool fourier = pc_type == solvers::kPCFourier, band = pc_type == solvers::kPCBand;
+  const bool fourier = pc_type == solvers::kPCFourier, band = pc_type == solvers::kPCBand,
+             bulk = pc_type == solvers::kPCBulk;
   const std::string in_use = "this coupled run solves with -coupling_pc_type " + pc_type;
   for (const Scope& s : kScopes) {
     const std::string n = s.name;
@@ -205,12 +207,17 @@ std::string option_inapplicable(const std::string& name, const std::string& pc_t
       case Reader::band:
         if (!band) return in_use;
         break;
-      case Reader::cellfsi_types:
+      case Reader::region_types:
+        if (bulk) return in_use + ", which re-assembles the whole Jacobian and has no region around the cells";
         if (!fourier && !band)
           return in_use + ", which refreshes its preconditioner every -coupling_pc_lag solves";
         break;
+      case Reader::cellfsi_types:
+        if (!fourier && !band && !bulk)
+          return in_use + ", which refreshes its preconditioner every -coupling_pc_lag solves";
+        break;
       case Reader::petsc_pcs:
-        if (fourier || band)
+        if (fourier || band || bulk)
           return in_use + ", which is refreshed by the motion of the cells (-coupling_refresh_steps)";
         break;
     }

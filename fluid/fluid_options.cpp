@@ -24,7 +24,16 @@ void declare(OptionTable& t, FluidOptions& o, int dim, std::vector<double>& forc
       .reals("body_force", force, "Body force per volume fx,fy[,fz] [dyn/cm^3]", count, finite("[dyn/cm^3]"))
       .flag("stokes", o.stokes, "Drop convection (Stokes flow)")
       .real("rho_inf", o.rho_inf, "Generalized-alpha spectral radius at infinity, [0, 1]", between(0, 1))
-      .real("c_i", o.c_i, "C_I of tau_M", positive())
+      .real("c_i", o.c_i, "C_I of tau_M (equal_order)", positive())
+      .text("space", o.space,
+            "The velocity-pressure space: equal_order (the paper's VMS, with s_I) or div_conforming "
+            "(divergence-free velocity pointwise, no s_I; docs/fluid.md)",
+            {"equal_order", "div_conforming"})
+      .integer("dc_degree", o.dc_degree, "div_conforming: the pressure degree k' (velocity k' + 1 along its own axis)",
+               int_between(2, 3))
+      .real("dc_penalty", o.dc_penalty,
+            "div_conforming: Nitsche penalty constant C_pen of C_pen nu (k'+1)^2/h",
+            {[](const double& v) { return v > 2 && v <= 1e6; }, "> 2 ... 1e6 (coercivity: above 2)"})
       .text(
           "mat_type_jacobian", o.jacobian_type,
           "PETSc matrix type of the Jacobian: baij (one block per control point, the fast insertion) or aij",

@@ -30,6 +30,11 @@ struct FluidOptions {
   double rho_inf = 0.5;  // generalized-alpha spectral radius at infinity, in [0, 1]
   double dt = 5e-4;      // time step [s]
   double c_i = 36.0;     // C_I of tau_M (the VMS discretisation's; others ignore it)
+  /// The discretisation (create_fluid): "equal_order" (the paper's VMS on the patch's own splines) or
+  /// "div_conforming" (fluid/div_conforming/: Evans-Hughes divergence-conforming B-splines, Galerkin, no s_I).
+  std::string space = "equal_order";
+  int dc_degree = 2;       // div_conforming: the pressure degree k' (velocity component i: k' + 1 along x_i)
+  double dc_penalty = 4.0;  // div_conforming: C_pen of the Nitsche penalty C_pen nu (k' + 1)^2 / h
   std::string jacobian_type = "baij";  // PETSc matrix type of the Jacobian: baij (node blocks) or aij
   bool pressure_null_space = true;  // the constant pressure as MatNullSpace (false: one control value pinned)
   /// Velocity of the wall at side s (0: xi = a, 1: xi = b) of non-periodic direction d. (Eigen vectors are

@@ -1,4 +1,5 @@
 #include "fluid/fluid_solver.hpp"
+#include "fluid/state_file.hpp"
 
 #ifdef __GLIBC__
 #include <malloc.h>  // malloc_trim
@@ -482,7 +483,7 @@ std::vector<PetscInt> FluidSolver::region_unknowns(const std::vector<char>& in_r
   return unknowns;
 }
 
-namespace {
+// State files (state_file.hpp).
 
 /// A vector as a PETSc binary file holds it (VecLoad reads it back): the class id and the length as
 /// big-endian 32-bit integers, then the values as big-endian doubles, in the DMDA's natural ordering (any
@@ -526,6 +527,16 @@ std::string vec_binary_on_rank_zero(Vec v) {
 }
 
 
+StateRead read_state_pair(PetscViewer viewer, Vec u, Vec udot) {
+  // A file of another size is the caller's input error, reported by it once (no PETSc traceback).
+  PetscPushErrorHandler(PetscReturnErrorHandler, nullptr);
+  const PetscErrorCode e1 = VecLoad(u, viewer);
+  const PetscErrorCode e2 = e1 ? e1 : VecLoad(udot, viewer);
+  PetscPopErrorHandler();
+  if (e1 || e2) return StateRead::does_not_fit;
+  return all_finite(u) && all_finite(udot) ? StateRead::ok : StateRead::not_finite;
+}
+
 /// Whether every entry of v is finite (collective).
 bool all_finite(Vec v) {
   const PetscScalar* a = nullptr;
@@ -539,7 +550,7 @@ bool all_finite(Vec v) {
   return finite == 1;
 }
 
-}  // namespace
+
 
 std::string FluidSolver::state_bytes() const { return vec_binary_on_rank_zero(U_) + vec_binary_on_rank_zero(Udot_); }
 
@@ -547,18 +558,11 @@ ImmersedFluid::LoadedState FluidSolver::load_state(PetscViewer viewer, int steps
   Vec U = nullptr, Udot = nullptr;
   CELLFSI_PETSC(VecDuplicate(U_, &U));
   CELLFSI_PETSC(VecDuplicate(U_, &Udot));
-  // A file of another size is the caller's input error, reported by it once (no PETSc traceback).
-  PetscPushErrorHandler(PetscReturnErrorHandler, nullptr);
-  const PetscErrorCode e1 = VecLoad(U, viewer);
-  const PetscErrorCode e2 = e1 ? e1 : VecLoad(Udot, viewer);
-  PetscPopErrorHandler();
-  LoadedState r = LoadedState::ok;
-  if (e1 || e2)
-    r = LoadedState::does_not_fit;
-  else if (!all_finite(U) || !all_finite(Udot))
-    r = LoadedState::not_finite;
-  else
-    restore(U, Udot, steps);
+  const StateRead read = read_state_pair(viewer, U, Udot);
+  const LoadedState r = read == StateRead::ok             ? LoadedState::ok
+                        : read == StateRead::does_not_fit ? LoadedState::does_not_fit
+                                                          : LoadedState::not_finite;
+  if (r == LoadedState::ok) restore(U, Udot, steps);
   VecDestroy(&U);
   VecDestroy(&Udot);
   return r;

@@ -165,6 +165,23 @@ class ImmersedFluid {
   /// (-coupling_bulk_stencil); jacobian_matrix(), step() and setup() make it again.
   virtual void release_jacobian_matrix() = 0;
 
+  /// This discretisation's own exact inverse of the bulk operator (bulk_jacobian at X), built now and kept:
+  /// apply(b, x) on vectors like solution(), a line that describes it, and the operator's largest deviation
+  /// from the structure the inverse assumes (relative to a row's largest entry); or nothing if it has none
+  /// (the VMS fluid: its bulk inverse is solvers/fourier_bulk.hpp, made from block_layout()). The coupled
+  /// solve's PC type cellfsi_bulk applies it. Collective.
+  struct OwnBulkInverse {
+    std::function<void(Vec b, Vec x)> apply;
+    std::string description;
+    double deviation = 0;
+  };
+  virtual std::optional<OwnBulkInverse> bulk_inverse(Vec /*X*/) { return std::nullopt; }
+  /// Whether bulk_inverse gives one here.
+  virtual bool has_bulk_inverse() const { return false; }
+  /// Whether the discretisation uses the interface scaling s^h at all (set_scaling): false for one whose
+  /// velocity is divergence-free pointwise.
+  virtual bool uses_interface_scaling() const { return true; }
+
   // --- Output and checkpoints ---
   /// Writes the fields at the current time, sampled at samples_per_element + 1 points per element and
   /// direction (ends shared), as DIR/STEM.vts (on several ranks a piece per rank, STEM_pRRRR.vts, and the
@@ -184,8 +201,8 @@ class ImmersedFluid {
   virtual LoadedState load_state(PetscViewer viewer, int steps) = 0;
 };
 
-/// The fluid of a run: the VMS discretisation (fluid/fluid_solver.hpp), the only one so far. `patch` must
-/// outlive it. Collective.
+/// The fluid of a run: options.space "equal_order", the VMS discretisation (fluid/fluid_solver.hpp), or
+/// "div_conforming" (fluid/dc_immersed_fluid.hpp). `patch` must outlive it. Collective.
 std::unique_ptr<ImmersedFluid> create_fluid(MPI_Comm comm, const geometry::Patch& patch,
                                             const FluidOptions& options);
 

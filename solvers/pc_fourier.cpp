@@ -19,26 +19,10 @@ struct PCFourier {
 
 PCFourier& context(PC pc) { return *static_cast<PCFourier*>(pc->data); }
 
-PetscErrorCode destroy_bulk_pointer(void* p) {
-  delete static_cast<std::shared_ptr<FourierBulkSolver>*>(p);
-  return 0;
-}
-
-/// The bulk solver composed on A (null if none).
-std::shared_ptr<FourierBulkSolver> composed_bulk(Mat A) {
-  PetscContainer c = nullptr;
-  CELLFSI_PETSC(
-      PetscObjectQuery(reinterpret_cast<PetscObject>(A), kBulkKey, reinterpret_cast<PetscObject*>(&c)));
-  if (!c) return nullptr;
-  void* p = nullptr;
-  CELLFSI_PETSC(PetscContainerGetPointer(c, &p));
-  return *static_cast<std::shared_ptr<FourierBulkSolver>*>(p);
-}
-
 PetscErrorCode set_up(PC pc) {
   return pc_impl::guarded(pc, [&] {
     PCFourier& c = context(pc);
-    std::shared_ptr<FourierBulkSolver> bulk = composed_bulk(pc->pmat);
+    std::shared_ptr<FourierBulkSolver> bulk = pc_impl::composed_shared<FourierBulkSolver>(pc->pmat, kBulkKey);
     if (!bulk || !bulk->built())
       throw std::logic_error(
           "cellfsi_fourier: set up on an operator without its built bulk solver "
@@ -126,15 +110,7 @@ PetscErrorCode pc_create_fourier(PC pc) {
 }
 
 void pc_fourier_compose_bulk(Mat A, std::shared_ptr<FourierBulkSolver> bulk) {
-  PetscContainer c = nullptr;
-  if (bulk) {
-    CELLFSI_PETSC(PetscContainerCreate(PetscObjectComm(reinterpret_cast<PetscObject>(A)), &c));
-    CELLFSI_PETSC(PetscContainerSetPointer(c, new std::shared_ptr<FourierBulkSolver>(std::move(bulk))));
-    CELLFSI_PETSC(PetscContainerSetUserDestroy(c, destroy_bulk_pointer));
-  }
-  CELLFSI_PETSC(
-      PetscObjectCompose(reinterpret_cast<PetscObject>(A), kBulkKey, reinterpret_cast<PetscObject>(c)));
-  if (c) CELLFSI_PETSC(PetscContainerDestroy(&c));
+  pc_impl::compose_shared(A, kBulkKey, std::move(bulk));
 }
 
 const RegionCorrectedSolver* pc_fourier_solver(PC pc) {

@@ -5,6 +5,7 @@
 // C++ code called from PETSc.
 #include <petsc/private/pcimpl.h>
 
+#include <memory>
 #include <stdexcept>
 #include <string>
 
@@ -75,6 +76,34 @@ PetscErrorCode create(PC pc, PetscErrorCode (*set_up)(PC), PetscErrorCode (*appl
     return 0;
   };
   return 0;
+}
+
+/// Puts `data` (shared: A keeps it alive) on A under `key`, where the PC type finds it at set-up
+/// (composed_shared); null removes it.
+template <class T>
+void compose_shared(Mat A, const char* key, std::shared_ptr<T> data) {
+  PetscContainer c = nullptr;
+  if (data) {
+    CELLFSI_PETSC(PetscContainerCreate(PetscObjectComm(reinterpret_cast<PetscObject>(A)), &c));
+    CELLFSI_PETSC(PetscContainerSetPointer(c, new std::shared_ptr<T>(std::move(data))));
+    CELLFSI_PETSC(PetscContainerSetUserDestroy(c, [](void* p) -> PetscErrorCode {
+      delete static_cast<std::shared_ptr<T>*>(p);
+      return 0;
+    }));
+  }
+  CELLFSI_PETSC(PetscObjectCompose(reinterpret_cast<PetscObject>(A), key, reinterpret_cast<PetscObject>(c)));
+  if (c) CELLFSI_PETSC(PetscContainerDestroy(&c));
+}
+
+/// What compose_shared put on A under `key` (null if nothing).
+template <class T>
+std::shared_ptr<T> composed_shared(Mat A, const char* key) {
+  PetscContainer c = nullptr;
+  CELLFSI_PETSC(PetscObjectQuery(reinterpret_cast<PetscObject>(A), key, reinterpret_cast<PetscObject*>(&c)));
+  if (!c) return nullptr;
+  void* p = nullptr;
+  CELLFSI_PETSC(PetscContainerGetPointer(c, &p));
+  return *static_cast<std::shared_ptr<T>*>(p);
 }
 
 }  // namespace cellfsi::solvers::pc_impl

@@ -1,6 +1,8 @@
 // See pc_types.hpp.
 #include "solvers/pc_types.hpp"
 
+#include "solvers/pc_bulk.hpp"
+
 #include "common/petsc_error.hpp"
 
 namespace cellfsi::solvers {
@@ -10,6 +12,7 @@ void register_pc_types() {
   if (done) return;
   CELLFSI_PETSC(PCRegister(kPCFourier, pc_create_fourier));
   CELLFSI_PETSC(PCRegister(kPCBand, pc_create_band));
+  CELLFSI_PETSC(PCRegister(kPCBulk, pc_create_bulk));
   register_pc_lu_single();  // (and the ordering cellfsi_nd)
   done = true;
 }

@@ -172,6 +172,13 @@ DivConformingFluid::DivConformingFluid(MPI_Comm comm, const DivConformingSpace& 
   for (int g : fixed_rows_)
     if (owner[g] == rank) owned_fixed_.push_back(petsc_index_[g]);
 
+  for (int e = elem_begin_; e < elem_end_; ++e) {
+    const Index3 ei = space_.element_multi_index(e);
+    space_.evaluate(ei, space_.element_rule(ei, 1), eb);  // indices only
+    const std::vector<PetscInt> idx = local_indices(eb, D);
+    n_local_ = static_cast<int>(idx.size());
+    element_unknowns_.insert(element_unknowns_.end(), idx.begin(), idx.end());
+  }
   pressure_mass_.assign(space_.n_pressure(), 0.0);
   for_owned_elements(n_gauss(), [&](const ElementBasis& b) {
     const ComponentBasis& cb = b.comp[D];
@@ -225,10 +232,53 @@ template <class F>
 void DivConformingFluid::for_owned_elements(int n_gauss, F&& f) const {
   ElementBasis eb;
   for (int e = elem_begin_; e < elem_end_; ++e) {
+    if (n_gauss == this->n_gauss()) {
+      f(element_basis(e));
+      continue;
+    }
     const Index3 ei = space_.element_multi_index(e);
     space_.evaluate(ei, space_.element_rule(ei, n_gauss), eb);
     f(eb);
   }
+}
+
+const ElementBasis& DivConformingFluid::element_basis(int e) const {
+  const int D = space_.dim(), k = space_.degree(), classes = 2 * k + 5;
+  const Index3 ei = space_.element_multi_index(e);
+  // Per direction: 0 for an element far from the walls (every element of a periodic direction), else
+  // 1 + its distance from the near wall, counted from each end apart.
+  int key = 0;
+  for (int d = D - 1; d >= 0; --d) {
+    int c = 0;
+    const int n = space_.n_elements(d);
+    if (!space_.periodic(d)) {
+      if (ei[d] <= k + 1)
+        c = 1 + ei[d];
+      else if (n - 1 - ei[d] <= k + 1)
+        c = k + 3 + (n - 1 - ei[d]);
+    }
+    key = key * classes + c;
+  }
+  if (basis_cache_.empty()) basis_cache_.resize(static_cast<size_t>(std::pow(classes, D)));
+  std::unique_ptr<CachedBasis>& slot = basis_cache_[static_cast<size_t>(key)];
+  if (!slot) {
+    slot = std::make_unique<CachedBasis>();
+    slot->element = ei;
+    space_.evaluate(ei, space_.element_rule(ei, n_gauss()), slot->basis);
+  }
+  ElementBasis& eb = slot->basis;
+  if (slot->element != ei) {
+    Vec3 shift = Vec3::Zero();
+    for (int d = 0; d < D; ++d) shift[d] = (ei[d] - slot->element[d]) * space_.element_size(d);
+    for (Vec3& x : eb.x) x += shift;
+    slot->element = ei;
+  }
+  const int* idx = element_unknowns_.data() + static_cast<size_t>(e - elem_begin_) * n_local_;
+  for (int c = 0, a0 = 0; c <= D; ++c) {
+    for (int a = 0; a < eb.comp[c].n; ++a) eb.comp[c].index[a] = idx[a0 + a];
+    a0 += eb.comp[c].n;
+  }
+  return eb;
 }
 
 void DivConformingFluid::create_matrix() {
@@ -285,14 +335,16 @@ Vec3 DivConformingFluid::wall_velocity(int d, int side, const Vec3& x, double t)
   return v;
 }
 
-void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J) const {
+void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J, bool with_immersed) const {
   const int D = space_.dim();
   CELLFSI_PETSC(VecZeroEntries(F));
   if (J) CELLFSI_PETSC(MatZeroEntries(J));
-  ElementBasis eb;
+  ElementBasis face_basis;
+  const ElementBasis* current = &face_basis;  // the element's basis (cached) or a face's
   std::vector<double> Fe, Ke;
 
   auto point_state = [&](int q) {
+    const ElementBasis& eb = *current;
     PointState s;
     const auto pv = DivConformingSpace::interpolate(eb, q, D, lv.v.data());
     const auto pa = DivConformingSpace::interpolate(eb, q, D, lv.a.data());
@@ -307,6 +359,7 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J) const {
   // Integrates a kernel (residual at point q; tangent into t if t is not null) over the points of eb and adds
   // the element's residual and tangent to F and J.
   auto integrate = [&](const std::function<PointResidual(int, const PointState&, PointTangent*)>& kernel) {
+    const ElementBasis& eb = *current;
     int n_loc = 0;
     for (int c = 0; c <= D; ++c) n_loc += eb.comp[c].n;
     Fe.assign(n_loc, 0.0);
@@ -327,7 +380,7 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J) const {
   const bool field = lv.viscosity_field && !nu_field_.empty();
   auto nu_at = [&](int q) {
     if (!field) return lv.nu;
-    const ComponentBasis& cb = eb.comp[D];
+    const ComponentBasis& cb = current->comp[D];
     double nu = 0;
     for (int a = 0; a < cb.n; ++a) nu += nu_field_[cb.index[a] - space_.offset(D)] * cb.value[q * cb.n + a];
     return nu;
@@ -338,10 +391,9 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J) const {
   ip.nu = lv.nu;
   ip.convection = lv.convection;
   for (int e = elem_begin_; e < elem_end_; ++e) {
-    const Index3 ei = space_.element_multi_index(e);
-    space_.evaluate(ei, space_.element_rule(ei, n_gauss()), eb);
+    current = &element_basis(e);
     integrate([&](int q, const PointState& s, PointTangent* t) {
-      const Vec3 g = lv.g ? lv.g(eb.x[q]) : Vec3(Vec3::Zero());
+      const Vec3 g = lv.g ? lv.g(current->x[q]) : Vec3(Vec3::Zero());
       for (int i = 0; i < 3; ++i) ip.g[i] = g[i];
       ip.nu = nu_at(q);
       if (t) *t = dc_interior_tangent(s, ip);
@@ -362,9 +414,10 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J) const {
         for (int e = elem_begin_; e < elem_end_; ++e) {
           const Index3 ei = space_.element_multi_index(e);
           if (ei[d] != (side == 0 ? 0 : space_.n_elements(d) - 1)) continue;
-          space_.evaluate(ei, space_.face_rule(ei, d, side, n_gauss()), eb);
+          space_.evaluate(ei, space_.face_rule(ei, d, side, n_gauss()), face_basis);
+          current = &face_basis;
           integrate([&](int q, const PointState& s, PointTangent* t) {
-            const Vec3 vw = wall_velocity(d, side, eb.x[q], lv.t);
+            const Vec3 vw = wall_velocity(d, side, face_basis.x[q], lv.t);
             for (int i = 0; i < 3; ++i) np.v_wall[i] = vw[i];
             np.nu = nu_at(q);
             np.beta = beta_per_nu * np.nu;
@@ -375,12 +428,177 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J) const {
       }
     }
   }
+  if (with_immersed) assemble_immersed(lv, F, J);
   CELLFSI_PETSC(VecAssemblyBegin(F));
   CELLFSI_PETSC(VecAssemblyEnd(F));
   if (J) {
     CELLFSI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
     CELLFSI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
   }
+}
+
+void DivConformingFluid::assemble_immersed(const Levels& lv, Vec F, Mat J) const {
+  const int D = space_.dim();
+  ElementBasis eb;
+  std::vector<double> Fe, Ke;
+  std::vector<PetscInt> idx;
+  int n_loc = 0;
+  auto flush = [&] {
+    if (idx.empty()) return;
+    CELLFSI_PETSC(VecSetValues(F, n_loc, idx.data(), Fe.data(), ADD_VALUES));
+    if (J) CELLFSI_PETSC(MatSetValues(J, n_loc, idx.data(), n_loc, idx.data(), Ke.data(), ADD_VALUES));
+    idx.clear();
+  };
+  const bool field = lv.viscosity_field && !nu_field_.empty();
+  ImmersedParameters prm;
+  prm.dim = D;
+  prm.convection = lv.convection;
+  int current = -1;
+  for (const ImmersedAt& p : immersed_) {
+    const Index3 ei = space_.element_multi_index(p.element);
+    TensorRule rule;
+    for (int d = 0; d < 3; ++d) {
+      rule.points[d] = {d < D ? p.x[d] : 0.0};
+      rule.weights[d] = {1.0};
+    }
+    space_.evaluate(ei, rule, eb);
+    if (p.element != current) {
+      flush();
+      current = p.element;
+      n_loc = 0;
+      for (int c = 0; c <= D; ++c) n_loc += eb.comp[c].n;
+      Fe.assign(n_loc, 0.0);
+      if (J) Ke.assign(static_cast<size_t>(n_loc) * n_loc, 0.0);
+      idx = local_indices(eb, D);
+      for (PetscInt& g : idx) g = petsc_index_[g];
+    }
+    PointState st;
+    const auto pv = DivConformingSpace::interpolate(eb, 0, D, lv.v.data());
+    const auto pa = DivConformingSpace::interpolate(eb, 0, D, lv.a.data());
+    for (int i = 0; i < D; ++i) {
+      st.v[i] = pv.v[i];
+      st.a[i] = pa.v[i];
+      for (int j = 0; j < D; ++j) st.dv[i][j] = pv.grad[i][j];
+    }
+    prm.nu = lv.nu;
+    if (field) {
+      const ComponentBasis& cb = eb.comp[D];
+      prm.nu = 0;
+      for (int a = 0; a < cb.n; ++a) prm.nu += nu_field_[cb.index[a] - space_.offset(D)] * cb.value[a];
+    }
+    const Vec3 g = lv.g ? lv.g(p.x) : Vec3(Vec3::Zero());
+    for (int i = 0; i < 3; ++i) prm.g[i] = g[i];
+    const PointResidual r = dc_immersed_residual(st, prm, p.data);
+    PointTangent t;
+    if (J) t = dc_immersed_tangent(st, prm, p.data);
+    add_point(eb, 0, D, p.data.weight, r, J ? &t : nullptr, lv.dv_dU, lv.da_dU, Fe, J ? &Ke : nullptr, n_loc);
+  }
+  flush();
+}
+
+void DivConformingFluid::set_immersed_points(std::vector<ImmersedAt> points) {
+  std::vector<ImmersedAt> mine;
+  mine.reserve(points.size());
+  for (ImmersedAt& p : points)
+    if (p.element >= elem_begin_ && p.element < elem_end_) mine.push_back(std::move(p));
+  std::stable_sort(mine.begin(), mine.end(),
+                   [](const ImmersedAt& a, const ImmersedAt& b) { return a.element < b.element; });
+  immersed_ = std::move(mine);
+}
+
+void DivConformingFluid::begin_step() {
+  Un_ = U_;
+  Udotn_ = Udot_;
+}
+
+void DivConformingFluid::step_residual(const std::vector<double>& U, Vec F, bool pin_pressure) {
+  if (Un_.empty()) throw std::logic_error("DivConformingFluid::step_residual before begin_step");
+  assemble(step_levels(U, Un_, Udotn_), F, nullptr);
+  PetscScalar* f;
+  CELLFSI_PETSC(VecGetArray(F, &f));
+  const PetscInt pin = petsc_index_[space_.offset(space_.dim())];
+  for (PetscInt r : owned_fixed_)
+    if (pin_pressure || r != pin) f[r - row_begin_] = 0.0;
+  CELLFSI_PETSC(VecRestoreArray(F, &f));
+}
+
+void DivConformingFluid::step_tangent(const std::vector<double>& U, Mat J, bool with_immersed,
+                                      bool pin_pressure) {
+  const bool started = !Un_.empty();
+  Levels lv = step_levels(U, started ? Un_ : U_, started ? Udotn_ : Udot_);
+  if (!with_immersed) lv.viscosity_field = false;
+  assemble(lv, F_, J, with_immersed);
+  std::vector<PetscInt> rows;
+  const PetscInt pin = petsc_index_[space_.offset(space_.dim())];
+  for (PetscInt r : owned_fixed_)
+    if (pin_pressure || r != pin) rows.push_back(r);
+  CELLFSI_PETSC(MatZeroRows(J, static_cast<PetscInt>(rows.size()), rows.data(), 1.0, nullptr, nullptr));
+}
+
+void DivConformingFluid::end_step(const std::vector<double>& U) {
+  if (Un_.empty()) throw std::logic_error("DivConformingFluid::end_step before begin_step");
+  const int nv = space_.n_velocity();
+  for (int i = 0; i < nv; ++i) Udot_[i] = alpha_.rate(U[i], Un_[i], Udotn_[i]);
+  U_ = U;
+  shift_pressure_to_zero_mean(U_);
+  ++steps_;
+  time_ = steps_ * opt_.dt;
+  div_history_.push_back(divergence_ratio());
+  Un_.clear();
+  Udotn_.clear();
+}
+
+std::vector<DivConformingFluid::StepSample> DivConformingFluid::sample_step(
+    const std::vector<double>& U, const std::vector<int>& elements, const std::vector<Vec3>& x) const {
+  const int D = space_.dim();
+  const std::vector<double>& Un = Un_.empty() ? U_ : Un_;
+  const std::vector<double>& Udotn = Un_.empty() ? Udot_ : Udotn_;
+  const Levels lv = step_levels(U, Un, Udotn);
+  std::vector<StepSample> out(x.size());
+  ElementBasis eb;
+  for (size_t i = 0; i < x.size(); ++i) {
+    TensorRule rule;
+    for (int d = 0; d < 3; ++d) {
+      rule.points[d] = {d < D ? x[i][d] : 0.0};
+      rule.weights[d] = {1.0};
+    }
+    space_.evaluate(space_.element_multi_index(elements[i]), rule, eb);
+    const auto pv = DivConformingSpace::interpolate(eb, 0, D, lv.v.data());
+    const auto pa = DivConformingSpace::interpolate(eb, 0, D, lv.a.data());
+    for (int a = 0; a < D; ++a) {
+      out[i].v[a] = pv.v[a];
+      out[i].a[a] = pa.v[a];
+      for (int b = 0; b < D; ++b) out[i].grad_v(a, b) = pv.grad[a][b];
+    }
+  }
+  return out;
+}
+
+Vec DivConformingFluid::create_vector() const {
+  Vec v;
+  CELLFSI_PETSC(VecDuplicate(F_, &v));
+  return v;
+}
+
+void DivConformingFluid::gather(Vec X, std::vector<double>& U) const {
+  const int n = space_.n_dofs();
+  CELLFSI_PETSC(VecScatterBegin(to_all_, X, x_all_, INSERT_VALUES, SCATTER_FORWARD));
+  CELLFSI_PETSC(VecScatterEnd(to_all_, X, x_all_, INSERT_VALUES, SCATTER_FORWARD));
+  const PetscScalar* xp;
+  CELLFSI_PETSC(VecGetArrayRead(x_all_, &xp));
+  U.resize(n);
+  for (int i = 0; i < n; ++i) U[i] = xp[petsc_index_[i]];
+  CELLFSI_PETSC(VecRestoreArrayRead(x_all_, &xp));
+}
+
+void DivConformingFluid::scatter(const std::vector<double>& U, Vec X) const {
+  PetscScalar* xp;
+  CELLFSI_PETSC(VecGetArray(X, &xp));
+  for (size_t i = 0; i < U.size(); ++i) {
+    const PetscInt r = petsc_index_[i];
+    if (r >= row_begin_ && r < row_end_) xp[r - row_begin_] = U[i];
+  }
+  CELLFSI_PETSC(VecRestoreArray(X, &xp));
 }
 
 DcSolveStats DivConformingFluid::newton(std::vector<double>& U,

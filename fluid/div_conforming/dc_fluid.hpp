@@ -40,11 +40,13 @@
 
 #include <array>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "common/generalized_alpha.hpp"
 #include "fluid/div_conforming/dc_space.hpp"
+#include "fluid/immersed_point.hpp"
 
 namespace cellfsi::fluid::dc {
 
@@ -168,7 +170,48 @@ class DivConformingFluid {
   /// and direction (element ends shared): arrays velocity, pressure, divergence. Rank 0 writes; collective.
   void write_vtk(const std::string& path, int samples_per_element = 2) const;
 
-  /// divergence_ratio() after each step() (the "at every step").
+  // --- Immersed solids and a step driven from outside (the coupling loop of paper Sec. 2.3) ---
+  /// One immersed solid point in element `element` (linear index, DivConformingSpace::element_multi_index)
+  /// at the physical point x.
+  struct ImmersedAt {
+    int element = 0;
+    Vec3 x = Vec3::Zero();
+    ImmersedPoint data;
+  };
+  /// The immersed points this rank assembles (those in its elements; the others' are ignored). Their terms
+  /// (dc_kernel.hpp, dc_immersed_residual) enter every residual and tangent of a step until replaced.
+  void set_immersed_points(std::vector<ImmersedAt> points);
+  std::size_t n_immersed_points() const { return immersed_.size(); }
+  /// Starts a step driven from outside: keeps (U_n, Udot_n); the iterate's first value is state().
+  void begin_step();
+  /// The residual of the step's iterate U (natural numbering, on every rank) into F (PETSc numbering), the
+  /// fixed rows (walls' normal velocities, the pressure pin) zero. Collective.
+  /// pin_pressure false: the pin's row keeps its continuity residual (a solver that handles the constant
+  /// pressure itself, as the coupled solve with the bulk inverse).
+  void step_residual(const std::vector<double>& U, Vec F, bool pin_pressure = true);
+  /// Its exact tangent into J (a matrix like jacobian()'s), the fixed rows unit rows. with_immersed false:
+  /// the bulk operator (no immersed points, the uniform viscosity). Collective.
+  /// pin_pressure false: the pressure pin's row is left as assembled (a translation-invariant operator for
+  /// DcFourierSolver::build).
+  void step_tangent(const std::vector<double>& U, Mat J, bool with_immersed = true, bool pin_pressure = true);
+  /// Accepts U as U_{n+1}: the rate, the time, the pressure's zero mean, divergence_history().
+  void end_step(const std::vector<double>& U);
+  /// v and grad v at t_{n+alpha_f} and the acceleration at t_{n+alpha_m} of the step's iterate U at points
+  /// (element, x) (local: U is on every rank).
+  struct StepSample {
+    Vec3 v = Vec3::Zero(), a = Vec3::Zero();
+    geometry::Mat3 grad_v = geometry::Mat3::Zero();
+  };
+  std::vector<StepSample> sample_step(const std::vector<double>& U, const std::vector<int>& elements,
+                                      const std::vector<Vec3>& x) const;
+  /// A global vector in the PETSc numbering (the linear solver's), and the moves between it and the
+  /// natural numbering on every rank. Collective.
+  Vec create_vector() const;
+  void gather(Vec X, std::vector<double>& U) const;
+  void scatter(const std::vector<double>& U, Vec X) const;
+  /// The matrix the tangents are assembled into (jacobian(), step_tangent).
+  Mat matrix() const { return J_; }
+  /// divergence_history() after each step() (the "at every step").
   const std::vector<double>& divergence_history() const { return div_history_; }
 
  private:
@@ -183,18 +226,25 @@ class DivConformingFluid {
     std::function<Vec3(const Vec3&)> g;  // body force per unit mass (or the data of a projection)
   };
   Levels steady_levels(const std::vector<double>& U) const;
+  /// Adds the immersed points' terms to F and J (no assembly calls).
+  void assemble_immersed(const Levels& lv, Vec F, Mat J) const;
   /// A generalized-alpha step from (Un, Udotn) with iterate U.
   Levels step_levels(const std::vector<double>& U, const std::vector<double>& Un,
                      const std::vector<double>& Udotn) const;
   std::function<Vec3(const Vec3&)> body_force_per_mass(double t) const;
   /// Residual F and, if J is not null, the tangent (PETSc numbering), both without the fixed rows.
   /// Collective.
-  void assemble(const Levels& lv, Vec F, Mat J) const;
+  void assemble(const Levels& lv, Vec F, Mat J, bool with_immersed = true) const;
   /// Newton on R(U) = 0 with levels(U) describing the fields; fixed rows (wall normals, the pressure pin)
   /// keep U's values.
   DcSolveStats newton(std::vector<double>& U,
                       const std::function<Levels(const std::vector<double>&)>& levels);
   void create_matrix();
+  /// The basis of element e (linear index, one of this rank's) at its n_gauss()^dim Gauss points. The space's
+  /// knots are uniform, so elements at the same distance from the walls (all, along a periodic direction)
+  /// share values and derivatives: one evaluation per such class, cached; the element's unknowns and points
+  /// are set in the returned object, which the next call overwrites.
+  const ElementBasis& element_basis(int e) const;
   /// Calls f(eb) for each of this rank's elements with its basis at the element's Gauss points.
   template <class F>
   void for_owned_elements(int n_gauss, F&& f) const;
@@ -215,6 +265,15 @@ class DivConformingFluid {
   std::vector<double> pressure_mass_;  // int q_A over the box
   std::vector<double> div_history_;
   std::vector<double> nu_field_;  // kinematic viscosity per pressure function; empty: uniform
+  std::vector<ImmersedAt> immersed_;     // this rank's, sorted by element
+  struct CachedBasis {
+    Index3 element;  // the element it was evaluated on
+    ElementBasis basis;
+  };
+  mutable std::vector<std::unique_ptr<CachedBasis>> basis_cache_;  // by class (element_basis)
+  std::vector<int> element_unknowns_;  // natural unknowns of each owned element, n_local_ per element
+  int n_local_ = 0;
+  std::vector<double> Un_, Udotn_;       // the state at t_n of a step driven from outside
   double time_ = 0;
   int steps_ = 0;
   Mat J_ = nullptr;

@@ -22,6 +22,8 @@
 // caller multiplies by d(field)/d(unknown) (the generalized-alpha factors).
 #include <array>
 
+#include "fluid/immersed_point.hpp"
+
 namespace cellfsi::fluid::dc {
 
 using PointVec = std::array<double, 3>;
@@ -66,6 +68,23 @@ struct PointTangent {
   PointMat dr1_dp{};                                 // [i][j]
   PointMat drq_ddv{};                                // [k][l]
 };
+
+/// An immersed solid's quadrature point (paper Eq. (10), the same terms as fluid/vms_kernel.hpp's
+/// immersed_residual, written in this file's r0 / r1 form and per unit weight; the caller multiplies by the
+/// point's reference weight):
+///   r0 = -beta (a + c (v.grad)v - g) - force,   r1 = stress - nu (grad v + grad v^T),   rq = 0
+/// (nu the local fluid viscosity the solid replaces; c = prm.convection). The tangent holds the stress fixed
+/// but adds the solid's stiffness seen over one step, as the VMS one: the isotropic nu_s of
+/// ImmersedPoint::stiffness_viscosity, or with stiffness_time > 0 the consistent
+///   d r1_ij / d(d_l v_k) += stiffness_time (stress_il delta_jk + delta_ik stress_lj + c_ijkl).
+struct ImmersedParameters {
+  int dim = 2;
+  double nu = 0;          // the fluid's kinematic viscosity at the point
+  double convection = 1;  // 1: Navier-Stokes, 0: Stokes
+  PointVec g{};           // body force per unit mass
+};
+PointResidual dc_immersed_residual(const PointState& s, const ImmersedParameters& prm, const ImmersedPoint& ip);
+PointTangent dc_immersed_tangent(const PointState& s, const ImmersedParameters& prm, const ImmersedPoint& ip);
 
 PointResidual dc_interior_residual(const PointState& s, const InteriorParameters& prm);
 PointTangent dc_interior_tangent(const PointState& s, const InteriorParameters& prm);

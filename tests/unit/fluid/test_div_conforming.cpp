@@ -323,6 +323,65 @@ TEST(DivConformingKernel, TangentsMatchCentralDifferences) {
                                [&](const PointState& x) { return dc_nitsche_residual(x, np); }),
               1e-8)
         << "Nitsche D=" << D;
+    // An immersed point: with the isotropic stiffness (a viscosity nu_s) the tangent is the residual's
+    // derivative with nu - nu_s; with the consistent one the stress's change c : sym(L) + L S + S L^T. The
+    // residual holds the stress fixed, so both are checked against a residual that moves it as the tangent
+    // says: stress + stiffness_time (c : grad dv + grad dv S + S grad dv^T) for the perturbed gradient.
+    fluid::ImmersedPoint pt;
+    pt.beta = -0.07;
+    pt.force = {0.5, -0.25, 0.125};
+    for (int r = 0; r < 3; ++r)
+      for (int q = 0; q < 3; ++q) pt.stress[r][q] = 0.1 * (r + 1) * (q + 1) + (r == q ? 0.3 : 0.0);
+    ImmersedParameters mp;
+    mp.dim = D;
+    mp.nu = 0.37;
+    mp.g = {0.3, -0.2, 0.1};
+    for (double c : {0.0, 1.0}) {
+      mp.convection = c;
+      pt.stiffness_viscosity = 0;
+      pt.stiffness_time = 0;
+      EXPECT_LT(tangent_mismatch(s, dc_immersed_tangent(s, mp, pt), D,
+                                 [&](const PointState& x) { return dc_immersed_residual(x, mp, pt); }),
+                1e-8)
+          << "immersed D=" << D << " convection " << c;
+      pt.stiffness_viscosity = 0.11;  // the tangent's nu is then nu - nu_s
+      ImmersedParameters lower = mp;
+      lower.nu = mp.nu - pt.stiffness_viscosity;
+      fluid::ImmersedPoint plain = pt;
+      plain.stiffness_viscosity = 0;
+      EXPECT_LT(tangent_mismatch(s, dc_immersed_tangent(s, mp, pt), D,
+                                 [&](const PointState& x) { return dc_immersed_residual(x, lower, plain); }),
+                1e-8)
+          << "immersed, isotropic stiffness, D=" << D;
+      // Consistent: an isotropic c (lambda, mu) in Voigt form.
+      pt.stiffness_time = 0.02;
+      const double lam = 2.0, mu = 1.5;
+      pt.stiffness.fill(0.0);
+      for (int r = 0, t = 0; r < 6; ++r)
+        for (int q = r; q < 6; ++q, ++t)
+          pt.stiffness[t] = (r < 3 && q < 3 ? lam : 0.0) + (r == q ? (r < 3 ? 2 * mu : mu) : 0.0);
+      const PointState s0 = s;
+      auto moved = [&](const PointState& x) {
+        fluid::ImmersedPoint m = pt;
+        double L[3][3] = {};  // stiffness_time times the gradient's change
+        for (int i = 0; i < D; ++i)
+          for (int j = 0; j < D; ++j) L[i][j] = pt.stiffness_time * (x.dv[i][j] - s0.dv[i][j]);
+        double tr = 0;
+        for (int i = 0; i < D; ++i) tr += L[i][i];
+        for (int i = 0; i < D; ++i)
+          for (int j = 0; j < D; ++j) {
+            double ds = lam * tr * (i == j) + mu * (L[i][j] + L[j][i]);
+            for (int l = 0; l < D; ++l) ds += L[i][l] * pt.stress[l][j] + pt.stress[i][l] * L[j][l];
+            m.stress[i][j] += ds;
+          }
+        m.stiffness_time = 0;
+        m.stiffness_viscosity = 0;
+        return dc_immersed_residual(x, mp, m);
+      };
+      EXPECT_LT(tangent_mismatch(s, dc_immersed_tangent(s, mp, pt), D, moved), 1e-8)
+          << "immersed, consistent stiffness, D=" << D;
+      pt.stiffness_time = 0;
+    }
   }
 }
 

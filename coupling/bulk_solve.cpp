@@ -1,0 +1,61 @@
+// BulkSolve (see solve_path.hpp): the coupled solve with cellfsi_bulk, the fluid's own bulk inverse.
+#include <cstdio>
+#include <memory>
+#include <stdexcept>
+
+#include "coupling/coupled_linear_solver.hpp"
+#include "coupling/coupling_events.hpp"
+#include "coupling/solve_path.hpp"
+#include "solvers/pc_bulk.hpp"
+
+namespace cellfsi::coupling {
+
+BulkSolve::~BulkSolve() {
+  try {  // the Jacobian lets the inverse go (a destructor does not throw)
+    if (Mat J = c_.fluid.jacobian_matrix()) solvers::pc_bulk_compose(J, nullptr);
+  } catch (...) {
+  }
+}
+
+void BulkSolve::start(const SolverSituation& s, bool) {
+  if (!s.own_bulk_inverse)
+    throw std::invalid_argument(
+        "-coupling_pc_type cellfsi_bulk needs a fluid with its own bulk inverse: -fluid_space div_conforming "
+        "on a 2D box periodic in x");
+}
+
+bool BulkSolve::may_assemble(bool first_iteration) const {
+  return first_iteration || (c_.options.refresh_lag > 0 && solves_since_refresh_ + 1 >= c_.options.refresh_lag);
+}
+
+std::optional<FallBack> BulkSolve::prepare(Vec X, bool, SolveCounts& counts) {
+  if (built_) return std::nullopt;
+  // Once per run, at the first iterate (the initial state: the undisturbed flow, uniform along x), as
+  // cellfsi_fourier's bulk solver; counted as a factorisation (its per-wave-number LUs), the run's only one.
+  EventScope ev(coupling_events().factor);
+  std::optional<fluid::ImmersedFluid::OwnBulkInverse> inv = c_.fluid.bulk_inverse(X);
+  if (!inv) throw std::logic_error("cellfsi_bulk: the fluid gave no bulk inverse");
+  ++counts.factorizations;
+  built_ = true;
+  if (!(inv->deviation <= c_.options.uniformity)) {
+    char amount[32];
+    std::snprintf(amount, sizeof amount, "%.2e", inv->deviation);
+    throw std::invalid_argument(std::string("-coupling_pc_type cellfsi_bulk: the fluid operator without the cells "
+                                            "differs by ") +
+                                amount + " of a row's largest entry between periodic positions");
+  }
+  auto bulk = std::make_shared<solvers::BulkInverse>();
+  bulk->apply = std::move(inv->apply);
+  bulk->description = inv->description;
+  solvers::pc_bulk_compose(c_.fluid.jacobian_matrix(), std::move(bulk));
+  CELLFSI_PETSC(PetscPrintf(c_.fluid.comm(), "cellfsi: %s\n", inv->description.c_str()));
+  marking_changed();  // the first solve assembles the coupled Jacobian
+  return std::nullopt;
+}
+
+void BulkSolve::refresh_jacobian(Vec X) {
+  EventScope ev(coupling_events().jacobian);
+  c_.fluid.jacobian(X, c_.fluid.jacobian_matrix());
+}
+
+}  // namespace cellfsi::coupling

@@ -1,0 +1,421 @@
+// See dc_immersed_fluid.hpp.
+#include "fluid/dc_immersed_fluid.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <stdexcept>
+
+#include <vtkDoubleArray.h>
+#include <vtkNew.h>
+#include <vtkPointData.h>
+#include <vtkPoints.h>
+#include <vtkStructuredGrid.h>
+#include <vtkXMLStructuredGridWriter.h>
+
+#include "common/option_table.hpp"
+#include "common/petsc_error.hpp"
+#include "fluid/state_file.hpp"
+#include "geometry/quadrature.hpp"
+#include "geometry/patch_vtk.hpp"
+
+namespace cellfsi::fluid {
+
+namespace {
+
+dc::DcFluidOptions dc_options(const FluidOptions& o) {
+  dc::DcFluidOptions d;
+  d.density = o.density;
+  d.viscosity = o.viscosity;
+  d.body_force = o.body_force;
+  d.stokes = o.stokes;
+  d.rho_inf = o.rho_inf;
+  d.dt = o.dt;
+  d.penalty = o.dc_penalty;
+  d.wall_velocity = o.wall_velocity;
+  return d;
+}
+
+/// A vector of the natural numbering (n entries, PETSc's default layout) holding u (on every rank).
+Vec natural_vector(MPI_Comm comm, const std::vector<double>& u) {
+  Vec v;
+  CELLFSI_PETSC(VecCreateMPI(comm, PETSC_DECIDE, static_cast<PetscInt>(u.size()), &v));
+  PetscInt lo = 0, hi = 0;
+  CELLFSI_PETSC(VecGetOwnershipRange(v, &lo, &hi));
+  PetscScalar* a;
+  CELLFSI_PETSC(VecGetArray(v, &a));
+  for (PetscInt i = lo; i < hi; ++i) a[i - lo] = u[static_cast<std::size_t>(i)];
+  CELLFSI_PETSC(VecRestoreArray(v, &a));
+  return v;
+}
+
+/// All entries of v on every rank.
+std::vector<double> all_entries(Vec v) {
+  VecScatter to_all;
+  Vec all;
+  CELLFSI_PETSC(VecScatterCreateToAll(v, &to_all, &all));
+  CELLFSI_PETSC(VecScatterBegin(to_all, v, all, INSERT_VALUES, SCATTER_FORWARD));
+  CELLFSI_PETSC(VecScatterEnd(to_all, v, all, INSERT_VALUES, SCATTER_FORWARD));
+  PetscInt n = 0;
+  CELLFSI_PETSC(VecGetSize(all, &n));
+  const PetscScalar* a;
+  CELLFSI_PETSC(VecGetArrayRead(all, &a));
+  std::vector<double> out(a, a + n);
+  CELLFSI_PETSC(VecRestoreArrayRead(all, &a));
+  VecScatterDestroy(&to_all);
+  VecDestroy(&all);
+  return out;
+}
+
+}  // namespace
+
+DcImmersedFluid::DcImmersedFluid(MPI_Comm comm, const geometry::Patch& patch, const FluidOptions& options)
+    : comm_(comm), patch_(patch), options_(options) {
+  options_.validate();
+  const std::optional<geometry::AffineMap> map = geometry::affine_map(patch);
+  if (!map)
+    bad_option("fluid_space", "div_conforming",
+               "equal_order on this domain: the divergence-conforming space needs an axis-aligned box "
+               "(curved walls need the contravariant Piola map, not written yet)");
+  offset_ = map->offset;
+  scale_ = map->scale;
+  try {
+    space_ = std::make_unique<dc::DivConformingSpace>(dc::DivConformingSpace::from_patch(patch, options_.dc_degree));
+  } catch (const std::invalid_argument& e) {
+    bad_option("fluid_space", "div_conforming", std::string("equal_order on this domain (") + e.what() + ")");
+  }
+  options_.pressure_null_space = false;  // one pressure unknown pinned per step, then zero mean
+  fluid_ = std::make_unique<dc::DivConformingFluid>(comm, *space_, dc_options(options_));
+  U_ = fluid_->create_vector();
+  sync_solution();
+}
+
+DcImmersedFluid::~DcImmersedFluid() { VecDestroy(&U_); }
+
+void DcImmersedFluid::sync_solution() { fluid_->scatter(fluid_->state(), U_); }
+
+Vec3 DcImmersedFluid::physical(const geometry::Param& xi) const {
+  return offset_ + scale_.cwiseProduct(Vec3(xi[0], xi[1], xi[2]));
+}
+
+std::vector<int> DcImmersedFluid::unknown_kinds() const {
+  PetscInt lo = 0, hi = 0;
+  CELLFSI_PETSC(VecGetOwnershipRange(U_, &lo, &hi));
+  std::vector<int> kinds(static_cast<std::size_t>(hi - lo), 0);
+  const std::vector<PetscInt>& idx = fluid_->petsc_numbering();
+  const int D = dim();
+  for (int g = 0; g < space_->n_dofs(); ++g) {
+    if (idx[g] < lo || idx[g] >= hi) continue;
+    int c = D;
+    for (int k = 0; k < D; ++k)
+      if (g >= space_->offset(k) && g < space_->offset(k + 1)) c = k;
+    kinds[static_cast<std::size_t>(idx[g] - lo)] = c;
+  }
+  return kinds;
+}
+
+void DcImmersedFluid::set_initial_velocity(const std::function<Vec3(const Vec3&)>& v0) {
+  fluid_->project_initial_state(v0, [](const Vec3&) { return Vec3(Vec3::Zero()); });
+  sync_solution();
+}
+
+StepStats DcImmersedFluid::step() {
+  const dc::DcSolveStats s = fluid_->step();
+  StepStats st;
+  st.newton_iterations = s.newton_iterations;
+  st.linear_iterations = s.newton_iterations;  // one direct solve per Newton iteration
+  st.converged = s.converged;
+  st.reason = s.converged ? "CONVERGED" : "DIVERGED (Newton on the divergence-conforming fluid)";
+  if (s.converged) sync_solution();
+  return st;
+}
+
+std::vector<PointSample> DcImmersedFluid::evaluate(const std::vector<double>& c, const std::vector<double>* rate,
+                                                   const std::vector<Vec3>& points) const {
+  const int D = dim();
+  std::vector<PointSample> out(points.size());
+  dc::ElementBasis eb;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    bool inside = true;
+    for (int d = 0; d < D; ++d)
+      if (!space_->periodic(d)) {
+        const double tol = 1e-12 * (space_->hi(d) - space_->lo(d));
+        inside = inside && points[i][d] >= space_->lo(d) - tol && points[i][d] <= space_->hi(d) + tol;
+      }
+    if (!inside) continue;
+    space_->evaluate(space_->find_element(points[i]), space_->point_rule(points[i]), eb);
+    const auto pv = dc::DivConformingSpace::interpolate(eb, 0, D, c.data());
+    PointSample& s = out[i];
+    s.found = true;
+    for (int a = 0; a < D; ++a) {
+      s.v[a] = pv.v[a];
+      for (int b = 0; b < D; ++b) s.grad_v(a, b) = pv.grad[a][b];
+    }
+    s.p = pv.p;
+    if (rate) {
+      const auto pr = dc::DivConformingSpace::interpolate(eb, 0, D, rate->data());
+      for (int a = 0; a < D; ++a) s.vdot[a] = pr.v[a];
+    }
+  }
+  return out;
+}
+
+std::vector<PointSample> DcImmersedFluid::sample(const std::vector<Vec3>& points) const {
+  return evaluate(fluid_->state(), &fluid_->state_rate(), points);
+}
+
+std::vector<PointSample> DcImmersedFluid::sample_alpha(Vec X, const std::vector<geometry::Index3>& elements,
+                                                       const std::vector<geometry::Param>& xi) const {
+  fluid_->gather(X, work_);
+  std::vector<int> el(elements.size());
+  std::vector<Vec3> x(xi.size());
+  for (std::size_t i = 0; i < xi.size(); ++i) {
+    el[i] = patch_.element_index(elements[i]);
+    x[i] = physical(xi[i]);
+  }
+  const std::vector<dc::DivConformingFluid::StepSample> s = fluid_->sample_step(work_, el, x);
+  std::vector<PointSample> out(s.size());
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    out[i].found = true;
+    out[i].v = s[i].v;
+    out[i].grad_v = s[i].grad_v;
+    out[i].vdot = s[i].a;
+  }
+  return out;
+}
+
+SectionData DcImmersedFluid::section(double u, int n_profile) const {
+  // The section x_0 = const of the box; its normal is e_0. Gauss points of the velocity's degree + 1 on the
+  // space's elements along the other directions (local: the state is on every rank).
+  const int D = dim(), k = space_->degree();
+  const double x0 = physical({u, 0, 0})[0];
+  const geometry::GaussRule& g = geometry::gauss_legendre(k + 3);
+  SectionData out;
+  const int n1 = space_->n_elements(1), n2 = D == 3 ? space_->n_elements(2) : 1;
+  std::vector<Vec3> pts;
+  std::vector<double> w;
+  for (int e1 = 0; e1 < n1; ++e1)
+    for (int e2 = 0; e2 < n2; ++e2)
+      for (std::size_t q1 = 0; q1 < g.points.size(); ++q1)
+        for (std::size_t q2 = 0; q2 < (D == 3 ? g.points.size() : 1); ++q2) {
+          const double h1 = space_->element_size(1);
+          Vec3 x(x0, space_->lo(1) + h1 * (e1 + 0.5 * (g.points[q1] + 1)), 0);
+          double wq = 0.5 * h1 * g.weights[q1];
+          if (D == 3) {
+            const double h2 = space_->element_size(2);
+            x[2] = space_->lo(2) + h2 * (e2 + 0.5 * (g.points[q2] + 1));
+            wq *= 0.5 * h2 * g.weights[q2];
+          }
+          pts.push_back(x);
+          w.push_back(wq);
+        }
+  const std::vector<PointSample> s = evaluate(fluid_->state(), nullptr, pts);
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    out.flow_rate += w[i] * s[i].v[0];
+    out.area += w[i];
+  }
+  std::vector<Vec3> prof(static_cast<std::size_t>(n_profile));
+  for (int i = 0; i < n_profile; ++i) {
+    Vec3 x(x0, space_->lo(1) + (space_->hi(1) - space_->lo(1)) * i / std::max(1, n_profile - 1), 0);
+    if (D == 3) x[2] = 0.5 * (space_->lo(2) + space_->hi(2));
+    prof[static_cast<std::size_t>(i)] = x;
+  }
+  const std::vector<PointSample> p = evaluate(fluid_->state(), nullptr, prof);
+  for (int i = 0; i < n_profile; ++i) {
+    out.points.push_back(prof[static_cast<std::size_t>(i)]);
+    out.velocity.push_back(p[static_cast<std::size_t>(i)].v);
+  }
+  return out;
+}
+
+bool DcImmersedFluid::owns_element(const geometry::Index3& e) const {
+  const int i = patch_.element_index(e);
+  const std::array<int, 2> r = fluid_->owned_elements();
+  return i >= r[0] && i < r[1];
+}
+
+void DcImmersedFluid::set_immersed_points(const std::vector<geometry::Index3>& elements,
+                                          const std::vector<geometry::Param>& xi,
+                                          const std::vector<ImmersedPoint>& data) {
+  if (elements.size() != xi.size() || xi.size() != data.size())
+    throw std::invalid_argument("set_immersed_points: elements, xi and data differ in size");
+  std::vector<dc::DivConformingFluid::ImmersedAt> pts;
+  pts.reserve(data.size());
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    if (!owns_element(elements[i])) continue;
+    pts.push_back({patch_.element_index(elements[i]), physical(xi[i]), data[i]});
+  }
+  fluid_->set_immersed_points(std::move(pts));
+}
+
+void DcImmersedFluid::set_viscosity(const std::function<double(int node)>& mu) {
+  // The pressure space is the patch's own spline space when the degrees and function counts agree.
+  const int D = dim(), P = D;
+  for (int d = 0; d < D; ++d)
+    if (patch_.degree(d) != space_->degree() || patch_.n_control(d) != space_->n_basis(P, d))
+      bad_option("fluid_degree", std::to_string(patch_.degree(d)),
+                 "-fluid_dc_degree (" + std::to_string(space_->degree()) +
+                     ") with -fluid_space div_conforming and a viscosity contrast: the viscosity field is "
+                     "given on the patch's splines, which must then be the pressure space");
+  std::vector<double> values(static_cast<std::size_t>(space_->n_pressure()));
+  for (int a = 0; a < space_->n_pressure(); ++a) values[static_cast<std::size_t>(a)] = mu(a);
+  fluid_->set_viscosity(values);
+}
+
+void DcImmersedFluid::begin_step(Vec X) {
+  fluid_->begin_step();
+  fluid_->scatter(fluid_->state(), X);
+}
+
+void DcImmersedFluid::residual(Vec X, Vec F) {
+  fluid_->gather(X, work_);
+  fluid_->step_residual(work_, F, false);
+}
+
+void DcImmersedFluid::jacobian(Vec X, Mat J) {
+  fluid_->gather(X, work_);
+  fluid_->step_tangent(work_, J, true, false);
+}
+
+void DcImmersedFluid::bulk_jacobian(Vec X, Mat J) {
+  fluid_->gather(X, work_);
+  fluid_->step_tangent(work_, J, false, false);
+}
+
+void DcImmersedFluid::end_step(Vec X) {
+  fluid_->gather(X, work_);
+  fluid_->end_step(work_);
+  sync_solution();
+}
+
+void DcImmersedFluid::jacobian_part(Vec, Mat, const std::vector<char>&, bool) {
+  throw std::logic_error("jacobian_part: the divergence-conforming fluid has no region split (-fluid_space)");
+}
+void DcImmersedFluid::jacobian_add_part(Vec, Mat, const std::vector<char>&) {
+  throw std::logic_error("jacobian_add_part: the divergence-conforming fluid has no region split (-fluid_space)");
+}
+std::vector<PetscInt> DcImmersedFluid::region_unknowns(const std::vector<char>&) const {
+  throw std::logic_error("region_unknowns: the divergence-conforming fluid has no region split (-fluid_space)");
+}
+
+std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X) {
+  if (!has_bulk_inverse()) return std::nullopt;
+  // The operator without the cells and without the pressure pin (not translation-invariant); the solver pins
+  // wave 0's constant pressure itself.
+  fluid_->gather(X, work_);
+  Mat J = fluid_->matrix();
+  fluid_->step_tangent(work_, J, false, false);
+  bulk_ = std::make_unique<dc::DcFourierSolver>(*space_, comm_, fluid_->petsc_numbering());
+  bulk_->build(J, true);
+  OwnBulkInverse inv;
+  inv.deviation = bulk_->deviation();
+  char line[160];
+  std::snprintf(line, sizeof line,
+                "divergence-conforming bulk inverse: DFT along x, one LU per wave number (%d in x), operator "
+                "circulant to %.2e",
+                space_->n_elements(0), inv.deviation);
+  inv.description = line;
+  inv.apply = [this, b = std::vector<double>(), x = std::vector<double>()](Vec r, Vec out) mutable {
+    fluid_->gather(r, b);
+    bulk_->solve(b, x);
+    fluid_->scatter(x, out);
+  };
+  return inv;
+}
+
+std::string DcImmersedFluid::write_fields(const std::string& dir, const std::string& stem, int samples_per_element,
+                                          const std::function<Vec3(const Vec3&)>& undisturbed) const {
+  if (samples_per_element < 1)
+    throw std::invalid_argument("write_fields: samples_per_element must be >= 1, got " +
+                                std::to_string(samples_per_element));
+  int rank = 0;
+  CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
+  const int D = dim(), s = samples_per_element;
+  const std::string name = stem + ".vts";
+  int failed = 0;
+  std::string message;
+  if (rank == 0) {  // the state is on every rank: rank 0 writes the whole grid
+    try {
+      int n[3] = {1, 1, 1};
+      for (int d = 0; d < D; ++d) n[d] = space_->n_elements(d) * s + 1;
+      std::vector<Vec3> pts;
+      pts.reserve(static_cast<std::size_t>(n[0]) * n[1] * n[2]);
+      for (int m2 = 0; m2 < n[2]; ++m2)
+        for (int m1 = 0; m1 < n[1]; ++m1)
+          for (int m0 = 0; m0 < n[0]; ++m0) {
+            const int m[3] = {m0, m1, m2};
+            Vec3 x = Vec3::Zero();
+            for (int d = 0; d < D; ++d) x[d] = space_->lo(d) + (space_->hi(d) - space_->lo(d)) * m[d] / (n[d] - 1);
+            pts.push_back(x);
+          }
+      const std::vector<PointSample> smp = evaluate(fluid_->state(), nullptr, pts);
+      vtkNew<vtkStructuredGrid> grid;
+      grid->SetDimensions(n[0], n[1], n[2]);
+      vtkNew<vtkPoints> points;
+      points->SetDataTypeToDouble();
+      vtkNew<vtkDoubleArray> vel, pre, vor, dvg, dis;
+      vel->SetName("velocity");
+      vel->SetNumberOfComponents(3);
+      pre->SetName("pressure");
+      vor->SetName("vorticity");
+      vor->SetNumberOfComponents(3);
+      dvg->SetName("divergence");
+      dis->SetName("velocity_disturbance");
+      dis->SetNumberOfComponents(3);
+      for (std::size_t i = 0; i < pts.size(); ++i) {
+        const PointSample& q = smp[i];
+        const geometry::Mat3& g = q.grad_v;
+        points->InsertNextPoint(pts[i][0], pts[i][1], pts[i][2]);
+        vel->InsertNextTuple3(q.v[0], q.v[1], q.v[2]);
+        pre->InsertNextValue(options_.density * q.p);
+        vor->InsertNextTuple3(g(2, 1) - g(1, 2), g(0, 2) - g(2, 0), g(1, 0) - g(0, 1));
+        dvg->InsertNextValue(g.trace());
+        if (undisturbed) {
+          const Vec3 d = q.v - undisturbed(pts[i]);
+          dis->InsertNextTuple3(d[0], d[1], d[2]);
+        }
+      }
+      grid->SetPoints(points);
+      grid->GetPointData()->AddArray(vel);
+      grid->GetPointData()->AddArray(pre);
+      grid->GetPointData()->AddArray(vor);
+      grid->GetPointData()->AddArray(dvg);
+      if (undisturbed) grid->GetPointData()->AddArray(dis);
+      vtkNew<vtkXMLStructuredGridWriter> writer;
+      writer->SetInputData(grid);
+      geometry::write_vtk_atomically(writer, (std::filesystem::path(dir) / name).string());
+    } catch (const std::exception& e) {
+      failed = 1;
+      message = e.what();
+    }
+  }
+  CELLFSI_PETSC(MPI_Bcast(&failed, 1, MPI_INT, 0, comm_));
+  if (failed) throw std::runtime_error("write_fields: " + (rank == 0 ? message : std::string("rank 0 failed")));
+  return name;
+}
+
+std::string DcImmersedFluid::state_bytes() const {
+  Vec u = natural_vector(comm_, fluid_->state()), udot = natural_vector(comm_, fluid_->state_rate());
+  std::string bytes = vec_binary_on_rank_zero(u) + vec_binary_on_rank_zero(udot);
+  VecDestroy(&u);
+  VecDestroy(&udot);
+  return bytes;
+}
+
+ImmersedFluid::LoadedState DcImmersedFluid::load_state(PetscViewer viewer, int steps) {
+  const std::vector<double> zeros(static_cast<std::size_t>(space_->n_dofs()), 0.0);
+  Vec u = natural_vector(comm_, zeros), udot = natural_vector(comm_, zeros);
+  const StateRead read = read_state_pair(viewer, u, udot);
+  const LoadedState r = read == StateRead::ok             ? LoadedState::ok
+                        : read == StateRead::does_not_fit ? LoadedState::does_not_fit
+                                                          : LoadedState::not_finite;
+  if (r == LoadedState::ok) {
+    fluid_->restore(all_entries(u), all_entries(udot), steps);
+    sync_solution();
+  }
+  VecDestroy(&u);
+  VecDestroy(&udot);
+  return r;
+}
+
+}  // namespace cellfsi::fluid

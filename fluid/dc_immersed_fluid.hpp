@@ -1,0 +1,103 @@
+#pragma once
+// The divergence-conforming fluid (fluid/div_conforming/: Evans-Hughes B-splines, Galerkin, pointwise
+// divergence-free velocity) behind the fluid interface (fluid/immersed_fluid.hpp): what create_fluid makes for
+// -fluid_space div_conforming.
+//
+// What it maps, and how:
+//   * the patch: an axis-aligned box (geometry::affine_map; the narrowing channel's curved walls need the
+//     contravariant Piola map, not written: refused with a message). Its elements are the space's, numbered
+//     alike; the coupler's parametric points become physical ones through the affine map.
+//   * the unknowns: the space's (velocity components, then pressure), in DivConformingFluid's PETSc
+//     numbering; no node blocks (block_layout() is empty, so cellfsi_fourier and cellfsi_band do not apply).
+//     The coupled solve uses PC type cellfsi_bulk with bulk_inverse(): the DFT inverse of the operator
+//     without the cells (2D, periodic in x).
+//   * s^h: none. The velocity is divergence-free pointwise, so a cell keeps its volume without the interface
+//     scaling; set_scaling is ignored and uses_interface_scaling() is false (the app refuses -s_interface).
+//   * the viscosity field by the patch's control points: the pressure space (degree k', C^(k'-1)) is the
+//     patch's own spline space when the patch has degree k' (-fluid_degree = -fluid_dc_degree), and the
+//     field's values are then its coefficients; other degrees are refused where a field is set.
+//   * the pressure: one pressure unknown is pinned during a step (a unit row) and the pressure is shifted to
+//     zero mean after it, so options().pressure_null_space is false.
+//   * the region hooks of the equal-order solvers (jacobian_part, jacobian_add_part, region_unknowns) do
+//     not apply: they throw std::logic_error.
+// State: replicated on every rank (DivConformingFluid's; fluid/div_conforming/README.md says what a real
+// partition needs). Output: one .vts per time written by rank 0.
+#include <memory>
+
+#include "fluid/div_conforming/dc_fluid.hpp"
+#include "fluid/div_conforming/dc_fourier.hpp"
+#include "fluid/immersed_fluid.hpp"
+
+namespace cellfsi::fluid {
+
+class DcImmersedFluid final : public ImmersedFluid {
+ public:
+  /// Throws std::invalid_argument (naming -fluid_space) for a patch that is not an axis-aligned box.
+  DcImmersedFluid(MPI_Comm comm, const geometry::Patch& patch, const FluidOptions& options);
+  ~DcImmersedFluid() override;
+
+  MPI_Comm comm() const override { return comm_; }
+  int dim() const override { return space_->dim(); }
+  const geometry::Patch& patch() const override { return patch_; }
+  const FluidOptions& options() const override { return options_; }
+  std::optional<BlockLayout> block_layout() const override { return std::nullopt; }
+  std::vector<int> unknown_kinds() const override;
+
+  void set_initial_velocity(const std::function<Vec3(const Vec3&)>& v0) override;
+  void setup() override {}
+  StepStats step() override;
+  double time() const override { return fluid_->time(); }
+  int steps_taken() const override { return fluid_->steps_taken(); }
+  Vec solution() const override { return U_; }
+
+  std::vector<PointSample> sample(const std::vector<Vec3>& points) const override;
+  std::vector<PointSample> sample_alpha(Vec X, const std::vector<geometry::Index3>& elements,
+                                        const std::vector<geometry::Param>& xi) const override;
+  SectionData section(double u, int n_profile = 33) const override;
+
+  bool owns_element(const geometry::Index3& e) const override;
+  void set_immersed_points(const std::vector<geometry::Index3>& elements, const std::vector<geometry::Param>& xi,
+                           const std::vector<ImmersedPoint>& data) override;
+  void set_scaling(const std::function<double(int node)>&) override {}  // no s^h on this space
+  void set_viscosity(const std::function<double(int node)>& mu) override;
+  void begin_step(Vec X) override;
+  void residual(Vec X, Vec F) override;
+  void jacobian(Vec X, Mat J) override;
+  void jacobian_part(Vec, Mat, const std::vector<char>&, bool) override;
+  void jacobian_add_part(Vec, Mat, const std::vector<char>&) override;
+  void bulk_jacobian(Vec X, Mat J) override;
+  void end_step(Vec X) override;
+  std::vector<PetscInt> region_unknowns(const std::vector<char>&) const override;
+  Mat jacobian_matrix() const override { return fluid_->matrix(); }
+  void release_jacobian_matrix() override {}  // the matrix is the fluid's own solver's too
+  std::optional<OwnBulkInverse> bulk_inverse(Vec X) override;
+  bool has_bulk_inverse() const override { return dim() == 2 && space_->periodic(0); }
+  bool uses_interface_scaling() const override { return false; }
+
+  std::string write_fields(const std::string& dir, const std::string& stem, int samples_per_element,
+                           const std::function<Vec3(const Vec3&)>& undisturbed) const override;
+  std::string state_bytes() const override;
+  LoadedState load_state(PetscViewer viewer, int steps) override;
+
+  /// The discretisation behind the face (tests, the divergence history for summary.json).
+  const dc::DivConformingFluid& discretisation() const { return *fluid_; }
+
+ private:
+  Vec3 physical(const geometry::Param& xi) const;
+  /// The fields of coefficients c (natural numbering) at physical points (found false outside the box).
+  std::vector<PointSample> evaluate(const std::vector<double>& c, const std::vector<double>* rate,
+                                    const std::vector<Vec3>& points) const;
+  void sync_solution();  // U_ from the discretisation's state
+
+  MPI_Comm comm_;
+  const geometry::Patch& patch_;
+  FluidOptions options_;
+  Vec3 offset_ = Vec3::Zero(), scale_ = Vec3::Zero();  // the patch's affine map x = offset + scale xi
+  std::unique_ptr<dc::DivConformingSpace> space_;
+  std::unique_ptr<dc::DivConformingFluid> fluid_;
+  Vec U_ = nullptr;
+  mutable std::vector<double> work_;  // an iterate in the natural numbering
+  std::unique_ptr<dc::DcFourierSolver> bulk_;
+};
+
+}  // namespace cellfsi::fluid
