@@ -427,6 +427,9 @@ std::vector<std::pair<std::string, double>> Scene::flow_metrics() {
       err = std::max(err, (samp[i].v - Vec3(s_.shear_rate * (pts[i][wall_dir_] - mid), 0, 0)).norm());
     m.emplace_back("shear_profile_rel_error", err / std::abs(s_.shear_rate * H / 2));
   }
+  // A space whose velocity is divergence-free pointwise records how far it is from that after every step.
+  if (const std::optional<double> d = fluid_->max_divergence_ratio())
+    m.emplace_back("fluid_max_divergence_ratio", *d);
   return m;
 }
 

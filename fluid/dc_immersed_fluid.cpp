@@ -1,6 +1,7 @@
 // See dc_immersed_fluid.hpp.
 #include "fluid/dc_immersed_fluid.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -392,6 +393,11 @@ std::string DcImmersedFluid::write_fields(const std::string& dir, const std::str
   CELLFSI_PETSC(MPI_Bcast(&failed, 1, MPI_INT, 0, comm_));
   if (failed) throw std::runtime_error("write_fields: " + (rank == 0 ? message : std::string("rank 0 failed")));
   return name;
+}
+
+std::optional<double> DcImmersedFluid::max_divergence_ratio() const {
+  const std::vector<double>& h = fluid_->divergence_history();
+  return h.empty() ? 0.0 : *std::max_element(h.begin(), h.end());
 }
 
 std::string DcImmersedFluid::state_bytes() const {

@@ -73,6 +73,7 @@ class DcImmersedFluid final : public ImmersedFluid {
   std::optional<OwnBulkInverse> bulk_inverse(Vec X) override;
   bool has_bulk_inverse() const override { return dim() == 2 && space_->periodic(0); }
   bool uses_interface_scaling() const override { return false; }
+  std::optional<double> max_divergence_ratio() const override;
 
   std::string write_fields(const std::string& dir, const std::string& stem, int samples_per_element,
                            const std::function<Vec3(const Vec3&)>& undisturbed) const override;

@@ -176,6 +176,9 @@ class ImmersedFluid {
     double deviation = 0;
   };
   virtual std::optional<OwnBulkInverse> bulk_inverse(Vec /*X*/) { return std::nullopt; }
+  /// For a space whose velocity is divergence-free pointwise: the largest max|div v| / max|grad v| after any
+  /// step so far (summary.json's fluid_max_divergence_ratio); nothing for one that is not.
+  virtual std::optional<double> max_divergence_ratio() const { return std::nullopt; }
   /// Whether bulk_inverse gives one here.
   virtual bool has_bulk_inverse() const { return false; }
   /// Whether the discretisation uses the interface scaling s^h at all (set_scaling): false for one whose
