@@ -1,12 +1,29 @@
 #include "fluid/div_conforming/dc_fourier.hpp"
 
+#include <unsupported/Eigen/FFT>
+
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
 #include <string>
-#include <unordered_map>
+#include <tuple>
+#include <utility>
 
 #include "common/petsc_error.hpp"
+
+extern "C" {
+// LAPACK's banded LU (Fortran calling convention; the trailing length is that of the character argument), as
+// solvers/fourier_bulk.cpp declares it: PETSc's petscblaslapack.h has no banded LU. PETSc's BLAS integer for
+// the integer arguments (64 bits when PETSc is configured for a 64-bit-integer BLAS/LAPACK; CMake's
+// find_package(LAPACK) must then find that same library).
+void zgbtrf_(const PetscBLASInt* m, const PetscBLASInt* n, const PetscBLASInt* kl, const PetscBLASInt* ku,
+             std::complex<double>* ab, const PetscBLASInt* ldab, PetscBLASInt* ipiv, PetscBLASInt* info);
+void zgbtrs_(const char* trans, const PetscBLASInt* n, const PetscBLASInt* kl, const PetscBLASInt* ku,
+             const PetscBLASInt* nrhs, const std::complex<double>* ab, const PetscBLASInt* ldab,
+             const PetscBLASInt* ipiv, std::complex<double>* b, const PetscBLASInt* ldb, PetscBLASInt* info,
+             std::size_t trans_len);
+}
 
 namespace cellfsi::fluid::dc {
 
@@ -18,14 +35,33 @@ DcFourierSolver::DcFourierSolver(const DivConformingSpace& space, MPI_Comm comm,
                                 std::to_string(space.dim()) + (space.periodic(0) ? "" : ", x not periodic") +
                                 ")");
   nx_ = space.n_elements(0);
+  n_half_ = nx_ / 2 + 1;
   int off = 0;
   for (int c = 0; c <= 2; ++c) {
     if (space.n_basis(c, 0) != nx_)
       throw std::logic_error("DcFourierSolver: a periodic component without n_x functions");
     line_offset_.push_back(off);
+    for (int j = 0; j < space.n_basis(c, 1); ++j) {
+      line_component_.push_back(c);
+      line_y_.push_back(j);
+    }
     off += space.n_basis(c, 1);
   }
   n_line_ = off;
+  // The banded order: by (y position, component); in y periodic the y position is folded so that the
+  // neighbours across the period's end (j = 0 and n - 1) are neighbours in the order too.
+  const bool periodic_y = space.periodic(1);
+  auto y_position = [&](int c, int j) {
+    const int ny = space.n_basis(c, 1);
+    if (!periodic_y) return j;
+    return j < (ny + 1) / 2 ? 2 * j : 2 * (ny - 1 - j) + 1;
+  };
+  std::vector<std::pair<std::pair<int, int>, int>> order(n_line_);
+  for (int l = 0; l < n_line_; ++l)
+    order[l] = {{y_position(line_component_[l], line_y_[l]), line_component_[l]}, l};
+  std::sort(order.begin(), order.end());
+  position_.assign(n_line_, 0);
+  for (int p = 0; p < n_line_; ++p) position_[order[p].second] = p;
   if (!petsc_index_.empty()) {
     if (static_cast<int>(petsc_index_.size()) != space.n_dofs())
       throw std::invalid_argument("DcFourierSolver: petsc_index must have n_dofs() entries");
@@ -36,132 +72,219 @@ DcFourierSolver::DcFourierSolver(const DivConformingSpace& space, MPI_Comm comm,
   int rank = 0, size = 1;
   CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
   CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
-  for (int m = rank; m < nx_; m += size) modes_.push_back(m);
+  for (int m = rank; m < n_half_; m += size) modes_.push_back(m);
 }
 
-void DcFourierSolver::build(Mat A_in, bool pin_pressure) {
-  const int n_comp = 3, n = space_.n_dofs();
-  int rank = 0, size = 1;
-  CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
-  CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
-  // A whole copy of the operator on every rank (the matrix itself on one rank).
-  Mat A = A_in;
-  Mat* copies = nullptr;
-  if (size > 1) {
-    IS all;
-    CELLFSI_PETSC(ISCreateStride(PETSC_COMM_SELF, n, 0, 1, &all));
-    CELLFSI_PETSC(MatCreateSubMatrices(A_in, 1, &all, &all, MAT_INITIAL_MATRIX, &copies));
-    CELLFSI_PETSC(ISDestroy(&all));
-    A = copies[0];
-  }
+void DcFourierSolver::build(Mat A, bool pin_pressure) {
+  built_ = false;
+  const int n = space_.n_dofs();
   auto to_petsc = [&](int g) { return petsc_index_.empty() ? static_cast<PetscInt>(g) : petsc_index_[g]; };
   auto to_natural = [&](PetscInt p) {
     return natural_index_.empty() ? static_cast<int>(p) : static_cast<int>(natural_index_[p]);
   };
   // Decodes a natural index into (component, x index, line index).
-  auto decode = [&](int g, int& i, int& line) {
-    int c = n_comp - 1;
+  auto decode = [&](int g, int& c, int& i, int& line) {
+    c = 2;
     while (g < space_.offset(c)) --c;
     const int local = g - space_.offset(c);
     i = local % nx_;
     line = line_offset_[c] + local / nx_;
   };
-  // The stencil S_s (s: x shift, 0 .. n_x - 1) from the rows at x index 0.
-  std::vector<Eigen::MatrixXd> S(nx_, Eigen::MatrixXd::Zero(n_line_, n_line_));
-  for (int c = 0; c < n_comp; ++c)
-    for (int j = 0; j < space_.n_basis(c, 1); ++j) {
-      const PetscInt row = to_petsc(space_.offset(c) + nx_ * j);
-      PetscInt ncols;
-      const PetscInt* cols;
-      const PetscScalar* vals;
-      CELLFSI_PETSC(MatGetRow(A, row, &ncols, &cols, &vals));
-      for (PetscInt k = 0; k < ncols; ++k) {
-        int i, line;
-        decode(to_natural(cols[k]), i, line);
-        S[i](line_offset_[c] + j, line) += vals[k];
-      }
-      CELLFSI_PETSC(MatRestoreRow(A, row, &ncols, &cols, &vals));
-    }
-  // How far A is from the circulant matrix of S, row by row.
-  deviation_ = 0;
-  for (int g = rank; g < n; g += size) {
-    int i, line;
-    decode(g, i, line);
+
+  // 1. The stencil from the rows at x index 0, copied to every rank (sorted rows, as MatCreateSubMatrices
+  // wants them; all columns, so that the copy keeps the matrix's column numbering).
+  std::vector<std::pair<PetscInt, int>> stencil_rows(n_line_);  // (PETSc row, line)
+  for (int l = 0; l < n_line_; ++l)
+    stencil_rows[l] = {to_petsc(space_.offset(line_component_[l]) + nx_ * line_y_[l]), l};
+  std::sort(stencil_rows.begin(), stencil_rows.end());
+  std::vector<PetscInt> rows(n_line_);
+  for (int q = 0; q < n_line_; ++q) rows[q] = stencil_rows[q].first;
+  IS row_is, col_is;
+  Mat* sub = nullptr;
+  CELLFSI_PETSC(ISCreateGeneral(PETSC_COMM_SELF, n_line_, rows.data(), PETSC_COPY_VALUES, &row_is));
+  CELLFSI_PETSC(ISCreateStride(PETSC_COMM_SELF, n, 0, 1, &col_is));
+  CELLFSI_PETSC(MatCreateSubMatrices(A, 1, &row_is, &col_is, MAT_INITIAL_MATRIX, &sub));
+  CELLFSI_PETSC(ISDestroy(&row_is));
+  CELLFSI_PETSC(ISDestroy(&col_is));
+  std::vector<StencilEntry> stencil;
+  for (int q = 0; q < n_line_; ++q) {
+    const int row_line = stencil_rows[q].second;
     PetscInt ncols;
     const PetscInt* cols;
     const PetscScalar* vals;
-    CELLFSI_PETSC(MatGetRow(A, to_petsc(g), &ncols, &cols, &vals));
-    std::unordered_map<int, double> row;
+    CELLFSI_PETSC(MatGetRow(sub[0], q, &ncols, &cols, &vals));
+    for (PetscInt k = 0; k < ncols; ++k) {
+      int c, i, line;
+      decode(to_natural(cols[k]), c, i, line);
+      stencil.push_back({row_line, line, i, vals[k]});
+    }
+    CELLFSI_PETSC(MatRestoreRow(sub[0], q, &ncols, &cols, &vals));
+  }
+  CELLFSI_PETSC(MatDestroySubMatrices(1, &sub));
+  // Entries sorted by (row, column line, shift), duplicates (a short period folding shifts) summed, zeros
+  // dropped; row_start: each row line's first entry.
+  std::sort(stencil.begin(), stencil.end(), [](const StencilEntry& a, const StencilEntry& b) {
+    return std::tie(a.row, a.col, a.shift) < std::tie(b.row, b.col, b.shift);
+  });
+  {
+    std::vector<StencilEntry> merged;
+    for (const StencilEntry& e : stencil)
+      if (!merged.empty() && merged.back().row == e.row && merged.back().col == e.col &&
+          merged.back().shift == e.shift)
+        merged.back().value += e.value;
+      else
+        merged.push_back(e);
+    stencil.clear();
+    for (const StencilEntry& e : merged)
+      if (e.value != 0.0) stencil.push_back(e);
+  }
+  std::vector<int> row_start(n_line_ + 1, 0);
+  for (const StencilEntry& e : stencil) ++row_start[e.row + 1];
+  for (int l = 0; l < n_line_; ++l) row_start[l + 1] += row_start[l];
+
+  // 2. How far A is from the circulant matrix of the stencil: each rank its own rows, row by row (the
+  // differences of the row's entries and the stencil's, both by natural column).
+  deviation_ = 0;
+  PetscInt row_begin = 0, row_end = 0;
+  CELLFSI_PETSC(MatGetOwnershipRange(A, &row_begin, &row_end));
+  std::vector<std::pair<int, double>> diff;
+  for (PetscInt p = row_begin; p < row_end; ++p) {
+    int c, i, line;
+    decode(to_natural(p), c, i, line);
+    PetscInt ncols;
+    const PetscInt* cols;
+    const PetscScalar* vals;
+    CELLFSI_PETSC(MatGetRow(A, p, &ncols, &cols, &vals));
+    diff.clear();
     double row_max = 0;
     for (PetscInt k = 0; k < ncols; ++k) {
-      row[to_natural(cols[k])] += vals[k];
+      diff.emplace_back(to_natural(cols[k]), vals[k]);
       row_max = std::max(row_max, std::abs(vals[k]));
     }
-    CELLFSI_PETSC(MatRestoreRow(A, to_petsc(g), &ncols, &cols, &vals));
+    CELLFSI_PETSC(MatRestoreRow(A, p, &ncols, &cols, &vals));
+    for (int e = row_start[line]; e < row_start[line + 1]; ++e) {
+      const StencilEntry& s = stencil[e];
+      const int col = space_.offset(line_component_[s.col]) + (i + s.shift) % nx_ + nx_ * line_y_[s.col];
+      diff.emplace_back(col, -s.value);
+    }
+    std::sort(diff.begin(), diff.end());
     double worst = 0;
-    for (int s = 0; s < nx_; ++s)
-      for (int c = 0; c < n_comp; ++c)
-        for (int jj = 0; jj < space_.n_basis(c, 1); ++jj) {
-          const double expected = S[s](line, line_offset_[c] + jj);
-          const int col = space_.offset(c) + (i + s) % nx_ + nx_ * jj;
-          const auto it = row.find(col);
-          const double actual = it == row.end() ? 0.0 : it->second;
-          worst = std::max(worst, std::abs(actual - expected));
-          if (it != row.end()) row.erase(it);
-        }
-    for (const auto& [col, value] : row) worst = std::max(worst, std::abs(value));  // outside the stencil
+    for (size_t a = 0; a < diff.size();) {
+      double sum = 0;
+      const int col = diff[a].first;
+      for (; a < diff.size() && diff[a].first == col; ++a) sum += diff[a].second;
+      worst = std::max(worst, std::abs(sum));
+    }
     if (row_max > 0) deviation_ = std::max(deviation_, worst / row_max);
   }
   CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &deviation_, 1, MPI_DOUBLE, MPI_MAX, comm_));
-  if (copies) CELLFSI_PETSC(MatDestroySubMatrices(1, &copies));
-  // A_m = sum_s S_s e^{2 pi i m s / n}, factorised for this rank's m.
-  lu_.clear();
-  pinned_ = pin_pressure;
-  const double two_pi = 2 * std::numbers::pi;
-  for (int m : modes_) {
-    Eigen::MatrixXcd Am = Eigen::MatrixXcd::Zero(n_line_, n_line_);
-    for (int s = 0; s < nx_; ++s) {
-      if (S[s].isZero(0.0)) continue;
-      Am += S[s].cast<Complex>() * std::polar(1.0, two_pi * m * s / nx_);
-    }
-    if (m == 0 && pin_pressure) {
-      const int pin = line_offset_[2];
-      Am.row(pin).setZero();
-      Am(pin, pin) = 1.0;
-    }
-    lu_.emplace_back(Am);
+
+  // 3. The half-bandwidths in the banded order, from the stencil's nonzeros.
+  kl_ = ku_ = 0;
+  for (const StencilEntry& e : stencil) {
+    kl_ = std::max(kl_, position_[e.row] - position_[e.col]);
+    ku_ = std::max(ku_, position_[e.col] - position_[e.row]);
   }
+  ldab_ = 2 * kl_ + ku_ + 1;  // zgbtrf: kl rows of fill above the ku + kl + 1 of the band
+
+  // 4. A_m = sum_s S_s e^{2 pi i m s / n} in LAPACK's band storage (A(r, l) at ab[kl + ku + r - l + l ldab]),
+  // factorised for this rank's m.
+  pinned_ = pin_pressure;
+  const std::size_t slice = static_cast<std::size_t>(ldab_) * n_line_;
+  ab_.assign(modes_.size() * slice, Complex(0.0));
+  ipiv_.assign(modes_.size() * n_line_, 0);
+  std::vector<Complex> phase(nx_);
+  for (int t = 0; t < nx_; ++t) phase[t] = std::polar(1.0, 2 * std::numbers::pi * t / nx_);
+  PetscBLASInt m_blas = 0, kl = 0, ku = 0, ldab = 0;
+  CELLFSI_PETSC(PetscBLASIntCast(n_line_, &m_blas));
+  CELLFSI_PETSC(PetscBLASIntCast(kl_, &kl));
+  CELLFSI_PETSC(PetscBLASIntCast(ku_, &ku));
+  CELLFSI_PETSC(PetscBLASIntCast(ldab_, &ldab));
+  const int pin = position_[line_offset_[2]];  // the first pressure unknown (x index 0, y index 0)
+  int singular = -1, singular_info = 0;        // a wave number whose A_m is singular, and zgbtrf's info
+  for (size_t k = 0; k < modes_.size(); ++k) {
+    const int m = modes_[k];
+    Complex* ab = &ab_[k * slice];
+    for (const StencilEntry& e : stencil) {
+      const int r = position_[e.row], l = position_[e.col];
+      ab[(kl_ + ku_ + r - l) + static_cast<std::size_t>(l) * ldab_] +=
+          e.value * phase[(static_cast<long>(m) * e.shift) % nx_];
+    }
+    if (m == 0 && pin_pressure) {  // a unit row for the pin
+      for (int l = std::max(0, pin - kl_); l <= std::min(n_line_ - 1, pin + ku_); ++l)
+        ab[(kl_ + ku_ + pin - l) + static_cast<std::size_t>(l) * ldab_] = 0.0;
+      ab[(kl_ + ku_) + static_cast<std::size_t>(pin) * ldab_] = 1.0;
+    }
+    PetscBLASInt info = 0;
+    zgbtrf_(&m_blas, &m_blas, &kl, &ku, ab, &ldab, &ipiv_[k * n_line_], &info);
+    if (info < 0)
+      throw std::logic_error("DcFourierSolver: zgbtrf rejected argument " + std::to_string(-info));
+    if (info > 0 && singular < 0) {
+      singular = m;
+      singular_info = static_cast<int>(info);
+    }
+  }
+  int worst[2] = {singular, singular_info};
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, worst, 1, MPI_2INT, MPI_MAXLOC, comm_));
+  if (worst[0] >= 0)
+    throw std::runtime_error(
+        "DcFourierSolver: the system of wave number " + std::to_string(worst[0]) +
+        " is singular (LAPACK zgbtrf: zero pivot in column " + std::to_string(worst[1]) + " of " +
+        std::to_string(n_line_) + ")" +
+        (worst[0] == 0 && !pin_pressure
+             ? "; wave 0 of a box without outflow has the constant pressure as null vector: build with "
+               "pin_pressure = true"
+             : "; is the operator invertible?"));
   built_ = true;
 }
 
 void DcFourierSolver::solve(const std::vector<double>& b, std::vector<double>& x) const {
   if (!built_) throw std::logic_error("DcFourierSolver::solve before build");
-  const double two_pi = 2 * std::numbers::pi;
-  // b_hat_m(line) = sum_i b(i, line) e^{-2 pi i m i / n}; x(i, line) = 1/n sum_m x_hat_m(line) e^{2 pi i m i
-  // / n}.
-  std::vector<Complex> twiddle(nx_);
-  for (int t = 0; t < nx_; ++t) twiddle[t] = std::polar(1.0, two_pi * t / nx_);
-  auto index = [&](int c, int i, int j) { return space_.offset(c) + i + nx_ * j; };
-  x.assign(space_.n_dofs(), 0.0);
+  if (static_cast<int>(b.size()) != space_.n_dofs())
+    throw std::invalid_argument("DcFourierSolver::solve: b has " + std::to_string(b.size()) +
+                                " entries, not n_dofs() = " + std::to_string(space_.n_dofs()));
+  int size = 1;
+  CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
+  // 1. Each line's half spectrum, b_hat_m = sum_i b_i e^{-2 pi i m i / n}, m = 0 .. n/2, by banded position:
+  // spectrum[p * n_half + m].
+  Eigen::FFT<double> fft;
+  fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
+  const std::size_t nh = n_half_;
+  std::vector<Complex> spectrum(nh * n_line_);
+  auto first = [&](int line) { return space_.offset(line_component_[line]) + nx_ * line_y_[line]; };
+  for (int l = 0; l < n_line_; ++l) fft.fwd(&spectrum[position_[l] * nh], &b[first(l)], nx_);
+  // 2. This rank's wave numbers, each solution in place of its right-hand side.
+  PetscBLASInt m_blas = 0, kl = 0, ku = 0, ldab = 0, info = 0;
+  const PetscBLASInt one = 1;
+  CELLFSI_PETSC(PetscBLASIntCast(n_line_, &m_blas));
+  CELLFSI_PETSC(PetscBLASIntCast(kl_, &kl));
+  CELLFSI_PETSC(PetscBLASIntCast(ku_, &ku));
+  CELLFSI_PETSC(PetscBLASIntCast(ldab_, &ldab));
+  std::vector<Complex> rhs(n_line_);
+  const std::size_t slice = static_cast<std::size_t>(ldab_) * n_line_;
   for (size_t k = 0; k < modes_.size(); ++k) {
     const int m = modes_[k];
-    Eigen::VectorXcd bhat = Eigen::VectorXcd::Zero(n_line_);
-    for (int c = 0; c < 3; ++c)
-      for (int j = 0; j < space_.n_basis(c, 1); ++j) {
-        Complex sum = 0;
-        for (int i = 0; i < nx_; ++i) sum += b[index(c, i, j)] * std::conj(twiddle[(m * i) % nx_]);
-        bhat[line_offset_[c] + j] = sum;
-      }
-    if (m == 0 && pinned_) bhat[line_offset_[2]] = 0.0;  // the pinned unit row fixes the pressure constant
-    const Eigen::VectorXcd xhat = lu_[k].solve(bhat);
-    // This mode's part of the inverse transform; the ranks' parts are summed below.
-    for (int c = 0; c < 3; ++c)
-      for (int j = 0; j < space_.n_basis(c, 1); ++j)
-        for (int i = 0; i < nx_; ++i)
-          x[index(c, i, j)] += (xhat[line_offset_[c] + j] * twiddle[(m * i) % nx_]).real() / nx_;
+    for (int p = 0; p < n_line_; ++p) rhs[p] = spectrum[p * nh + m];
+    if (m == 0 && pinned_) rhs[position_[line_offset_[2]]] = 0.0;  // the pinned unit row fixes the constant
+    zgbtrs_("N", &m_blas, &kl, &ku, &one, &ab_[k * slice], &ldab, &ipiv_[k * n_line_], rhs.data(), &m_blas,
+            &info, 1);
+    if (info != 0)
+      throw std::logic_error("DcFourierSolver::solve: zgbtrs rejected argument " + std::to_string(-info));
+    for (int p = 0; p < n_line_; ++p) spectrum[p * nh + m] = rhs[p];
   }
-  CELLFSI_PETSC(
-      MPI_Allreduce(MPI_IN_PLACE, x.data(), static_cast<int>(x.size()), MPI_DOUBLE, MPI_SUM, comm_));
+  // 3. The ranks' wave numbers together, then each line's inverse transform (scaled by 1/n; from the half
+  // spectrum, the other half being its conjugate since x is real).
+  if (size > 1) {
+    std::vector<char> mine(nh, 0);
+    for (int m : modes_) mine[m] = 1;
+    for (int p = 0; p < n_line_; ++p)
+      for (std::size_t m = 0; m < nh; ++m)
+        if (!mine[m]) spectrum[p * nh + m] = 0.0;
+    CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, spectrum.data(), static_cast<int>(2 * spectrum.size()),
+                                MPI_DOUBLE, MPI_SUM, comm_));
+  }
+  x.resize(space_.n_dofs());
+  for (int l = 0; l < n_line_; ++l) fft.inv(&x[first(l)], &spectrum[position_[l] * nh], nx_);
 }
 
 }  // namespace cellfsi::fluid::dc

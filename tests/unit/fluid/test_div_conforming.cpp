@@ -824,6 +824,15 @@ TEST(DcFourierSolver, EqualsTheDirectSolve) {
   const DivConformingSpace not_periodic_in_x(2, 2, {4, 4, 1}, Vec3(0, 0, 0), Vec3(1, 1, 0),
                                              {false, true, false});
   EXPECT_THROW(DcFourierSolver{not_periodic_in_x}, std::invalid_argument);
+  // A singular wave-number system (LAPACK's zgbtrf finds an exactly zero pivot: here the operator's entries
+  // are all zero, the pin's unit row apart) is refused, not solved.
+  const DivConformingSpace square(2, 2, {6, 6, 1}, Vec3(0, 0, 0), Vec3(1, 1, 0), {true, true, false});
+  DcFluidOptions opt;
+  DivConformingFluid fs(PETSC_COMM_SELF, square, opt);
+  Mat zero = fs.jacobian(true, false);
+  MatZeroEntries(zero);
+  DcFourierSolver singular(square, PETSC_COMM_SELF, fs.petsc_numbering());
+  EXPECT_THROW(singular.build(zero, true), std::runtime_error);
 }
 
 // --- MPI
