@@ -78,6 +78,7 @@ struct SceneSettings {
   double s_interface_target = 1e-3;   // -s_interface_target: the area error the choice aims at
   bool s_interface_raise = false;     // -s_interface_raise: s_I raised during the run as r_A drifts
   double max_mesh_ratio = 1.0;       // largest Lagrangian / smallest Eulerian element size (paper Remark 3)
+  std::string fluid_space = "equal_order";  // -fluid_space (read and checked by fluid::FluidOptions)
   double metrics_average_from = -1;  // start of the averaging window [s]; < 0: half the final time
   // Stretched bodies: equilibrium when neither diameter changed by more than the tolerance (relative) over
   // the window [s]; with equilibrium_stop the run ends there.

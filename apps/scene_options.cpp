@@ -67,9 +67,7 @@ void read_interface_scaling(SceneSettings& s, const OptionTable& t, const std::s
   s.s_interface_auto = text == "auto";
   // The divergence-conforming space keeps a cell's volume without s_I (fluid/dc_immersed_fluid.hpp): a
   // value for it means nothing there. "auto", the scene files' value, means none.
-  char space[32] = "equal_order";
-  CELLFSI_PETSC(PetscOptionsGetString(nullptr, nullptr, "-fluid_space", space, sizeof space, nullptr));
-  if (std::string(space) == "div_conforming") {
+  if (s.fluid_space == "div_conforming") {
     const std::string why = "not with -fluid_space div_conforming, whose velocity is divergence-free pointwise "
                             "and needs no interface scaling (leave it out, or auto)";
     if (!s.s_interface_auto) t.bad("s_interface", text, why);
@@ -491,9 +489,7 @@ void check_memory(SceneSettings& s) {
       PetscOptionsGetString(nullptr, nullptr, "-fluid_mat_type_jacobian", type, sizeof type, nullptr));
   coupling::SolverSituation situation;
   situation.baij = std::string(type) == "baij";
-  char space[32] = "equal_order";
-  CELLFSI_PETSC(PetscOptionsGetString(nullptr, nullptr, "-fluid_space", space, sizeof space, nullptr));
-  situation.own_bulk_inverse = std::string(space) == "div_conforming" && s.dim == 2 && s.periodic[0];
+  situation.own_bulk_inverse = s.fluid_space == "div_conforming" && s.dim == 2 && s.periodic[0];
   situation.fluid_ranks = size;
   coupling::LinearSolverOptions& l = s.coupling.linear;
   // The domain is built only for the choice between several copies: a mesh that cannot hold one is refused
@@ -556,6 +552,9 @@ double available_memory_bytes() {
 SceneSettings SceneSettings::from_options(const std::string& default_name, bool fluid_side) {
   SceneSettings s;
   s.name = default_name;
+  char space[32] = "equal_order";  // (its value is checked with the fluid's options)
+  CELLFSI_PETSC(PetscOptionsGetString(nullptr, nullptr, "-fluid_space", space, sizeof space, nullptr));
+  s.fluid_space = space;
   // Lists as the table reads them; where a 3D default is not in SceneSettings, z repeats y (extent,
   // elements) and only the last direction is bounded by walls.
   std::vector<double> size = s.size, origin{s.origin[0], s.origin[1], s.origin[2]};

@@ -91,7 +91,10 @@ DcImmersedFluid::DcImmersedFluid(MPI_Comm comm, const geometry::Patch& patch, co
   sync_solution();
 }
 
-DcImmersedFluid::~DcImmersedFluid() { VecDestroy(&U_); }
+DcImmersedFluid::~DcImmersedFluid() {
+  VecDestroy(&U_);
+  MatDestroy(&bulk_matrix_);
+}
 
 void DcImmersedFluid::sync_solution() { fluid_->scatter(fluid_->state(), U_); }
 
@@ -275,7 +278,15 @@ void DcImmersedFluid::residual(Vec X, Vec F) {
 
 void DcImmersedFluid::jacobian(Vec X, Mat J) {
   fluid_->gather(X, work_);
-  fluid_->step_tangent(work_, J, true, false);
+  if (fluid_->has_viscosity_field()) {  // the field moves with the cells: everything re-assembled
+    fluid_->step_tangent(work_, J, true, false);
+    return;
+  }
+  if (!bulk_matrix_) {  // the bulk part at the first iterate asked for, kept
+    CELLFSI_PETSC(MatDuplicate(J, MAT_DO_NOT_COPY_VALUES, &bulk_matrix_));
+    fluid_->step_tangent(work_, bulk_matrix_, false, false);
+  }
+  fluid_->step_tangent_from(bulk_matrix_, work_, J, false);
 }
 
 void DcImmersedFluid::bulk_jacobian(Vec X, Mat J) {

@@ -18,6 +18,8 @@
 //     field's values are then its coefficients; other degrees are refused where a field is set.
 //   * the pressure: one pressure unknown is pinned during a step (a unit row) and the pressure is shifted to
 //     zero mean after it, so options().pressure_null_space is false.
+//   * the coupled Jacobian: its bulk part kept from the first iterate, the immersed points' tangent added at
+//     each refresh (bulk_matrix_ below).
 //   * the region hooks of the equal-order solvers (jacobian_part, jacobian_add_part, region_unknowns) do
 //     not apply: they throw std::logic_error.
 // State: replicated on every rank (DivConformingFluid's; fluid/div_conforming/README.md says what a real
@@ -99,6 +101,12 @@ class DcImmersedFluid final : public ImmersedFluid {
   Vec U_ = nullptr;
   mutable std::vector<double> work_;  // an iterate in the natural numbering
   std::unique_ptr<dc::DcFourierSolver> bulk_;
+  /// The coupled Jacobian's bulk part (no immersed points), assembled at the first jacobian() and kept: each
+  /// jacobian() copies it and adds the immersed points' tangent (DivConformingFluid::step_tangent_from).
+  /// Newton's direction then misses the bulk's change with the flow (terms of the order of Re ~ 1e-4 in the
+  /// paper's flows); the residual, and so the solution, is exact. With a viscosity field (a contrast, which
+  /// moves with the cells) the whole tangent is assembled instead.
+  Mat bulk_matrix_ = nullptr;
 };
 
 }  // namespace cellfsi::fluid

@@ -364,8 +364,8 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J, bool with_imme
     for (int c = 0; c <= D; ++c) n_loc += eb.comp[c].n;
     Fe.assign(n_loc, 0.0);
     if (J) Ke.assign(static_cast<size_t>(n_loc) * n_loc, 0.0);
+    PointTangent t;  // (zeroed once per element; the kernels assign it whole)
     for (int q = 0; q < eb.n_points; ++q) {
-      PointTangent t;
       const PointResidual r = kernel(q, point_state(q), J ? &t : nullptr);
       add_point(eb, q, D, eb.weight[q], r, J ? &t : nullptr, lv.dv_dU, lv.da_dU, Fe, J ? &Ke : nullptr,
                 n_loc);
@@ -445,7 +445,7 @@ void DivConformingFluid::assemble_immersed(const Levels& lv, Vec F, Mat J) const
   int n_loc = 0;
   auto flush = [&] {
     if (idx.empty()) return;
-    CELLFSI_PETSC(VecSetValues(F, n_loc, idx.data(), Fe.data(), ADD_VALUES));
+    if (F) CELLFSI_PETSC(VecSetValues(F, n_loc, idx.data(), Fe.data(), ADD_VALUES));
     if (J) CELLFSI_PETSC(MatSetValues(J, n_loc, idx.data(), n_loc, idx.data(), Ke.data(), ADD_VALUES));
     idx.clear();
   };
@@ -528,6 +528,20 @@ void DivConformingFluid::step_tangent(const std::vector<double>& U, Mat J, bool 
   Levels lv = step_levels(U, started ? Un_ : U_, started ? Udotn_ : Udot_);
   if (!with_immersed) lv.viscosity_field = false;
   assemble(lv, F_, J, with_immersed);
+  std::vector<PetscInt> rows;
+  const PetscInt pin = petsc_index_[space_.offset(space_.dim())];
+  for (PetscInt r : owned_fixed_)
+    if (pin_pressure || r != pin) rows.push_back(r);
+  CELLFSI_PETSC(MatZeroRows(J, static_cast<PetscInt>(rows.size()), rows.data(), 1.0, nullptr, nullptr));
+}
+
+void DivConformingFluid::step_tangent_from(Mat bulk, const std::vector<double>& U, Mat J, bool pin_pressure) {
+  const bool started = !Un_.empty();
+  const Levels lv = step_levels(U, started ? Un_ : U_, started ? Udotn_ : Udot_);
+  CELLFSI_PETSC(MatCopy(bulk, J, SAME_NONZERO_PATTERN));
+  assemble_immersed(lv, nullptr, J);
+  CELLFSI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
   std::vector<PetscInt> rows;
   const PetscInt pin = petsc_index_[space_.offset(space_.dim())];
   for (PetscInt r : owned_fixed_)

@@ -194,6 +194,11 @@ class DivConformingFluid {
   /// pin_pressure false: the pressure pin's row is left as assembled (a translation-invariant operator for
   /// DcFourierSolver::build).
   void step_tangent(const std::vector<double>& U, Mat J, bool with_immersed = true, bool pin_pressure = true);
+  /// J := bulk (a matrix of matrix()'s pattern holding step_tangent(..., with_immersed = false)) plus the
+  /// immersed points' tangent at U, the fixed rows unit rows: the tangent with its bulk part kept from
+  /// another state (the coupling loop's Jacobian: the bulk changes with the flow only through terms of the
+  /// order of the Reynolds number). Collective.
+  void step_tangent_from(Mat bulk, const std::vector<double>& U, Mat J, bool pin_pressure = true);
   /// Accepts U as U_{n+1}: the rate, the time, the pressure's zero mean, divergence_history().
   void end_step(const std::vector<double>& U);
   /// v and grad v at t_{n+alpha_f} and the acceleration at t_{n+alpha_m} of the step's iterate U at points

@@ -1,0 +1,194 @@
+// The divergence-conforming fluid behind the fluid interface (fluid/dc_immersed_fluid.hpp): what the coupling
+// loop reads of it (samples at points, at t_{n+alpha} of an iterate, the unknowns' kinds), a step driven from
+// outside against the fluid's own, its bulk inverse against the Jacobian, checkpoints and refused input.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <stdexcept>
+
+#include "common/petsc_error.hpp"
+#include "fluid/dc_immersed_fluid.hpp"
+#include "geometry/builders.hpp"
+
+using namespace cellfsi;
+using geometry::Vec3;
+
+namespace {
+
+/// The paper's shear box (0.0024 x 0.0012 cm, periodic in x) at nx x ny, walls at +-gammadot H / 2.
+struct ShearBox {
+  double lx = 0.0024, ly = 0.0012, rate = 70;
+  geometry::Patch patch;
+  fluid::FluidOptions options;
+  ShearBox(int nx, int ny, int degree = 2) : patch(geometry::rectangle(lx, ly, nx, ny, degree, {true, false})) {
+    options.space = "div_conforming";
+    options.dc_degree = 2;
+    options.dt = 1e-3;
+    options.wall_velocity[1][0] = Vec3(-rate * ly / 2, 0, 0);
+    options.wall_velocity[1][1] = Vec3(rate * ly / 2, 0, 0);
+  }
+  Vec3 shear(const Vec3& x) const { return Vec3(rate * (x[1] - ly / 2), 0, 0); }
+};
+
+std::vector<Vec3> random_points(int n, double lx, double ly, unsigned seed) {
+  std::mt19937 gen(seed);
+  std::uniform_real_distribution<double> ux(0, lx), uy(0, ly);
+  std::vector<Vec3> p;
+  for (int i = 0; i < n; ++i) p.emplace_back(ux(gen), uy(gen), 0);
+  return p;
+}
+
+}  // namespace
+
+TEST(DcImmersedFluid, SamplesTheShearFlowAtPointsAndAtTheIterateAlike) {
+  ShearBox box(16, 8);
+  std::unique_ptr<fluid::ImmersedFluid> f = fluid::create_fluid(PETSC_COMM_WORLD, box.patch, box.options);
+  EXPECT_FALSE(f->block_layout().has_value());
+  EXPECT_FALSE(f->uses_interface_scaling());
+  f->set_initial_velocity([&](const Vec3& x) { return box.shear(x); });
+  const std::vector<Vec3> pts = random_points(40, box.lx, box.ly, 7);
+  const std::vector<fluid::PointSample> s = f->sample(pts);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    ASSERT_TRUE(s[i].found);
+    EXPECT_LT((s[i].v - box.shear(pts[i])).norm(), 1e-12 * box.rate * box.ly);  // the shear is in the space
+  }
+  // A flow that varies along x too (a divergence-free swirl over the shear), so that a point evaluated in
+  // the wrong element would show.
+  f->set_initial_velocity([&](const Vec3& x) {
+    const double kx = 2 * M_PI / box.lx, ky = M_PI / box.ly;
+    return Vec3(box.shear(x)[0] + 0.01 * std::sin(kx * x[0]) * std::cos(ky * x[1]) / kx,
+                -0.01 * std::cos(kx * x[0]) * std::sin(ky * x[1]) / ky, 0);
+  });
+  const std::vector<fluid::PointSample> s2 = f->sample(pts);
+  // The patch's parametric points of the same physical points, located as the coupler does.
+  std::vector<geometry::Index3> elements;
+  std::vector<geometry::Param> xi;
+  const std::optional<geometry::AffineMap> map = geometry::affine_map(box.patch);
+  ASSERT_TRUE(map);
+  for (const Vec3& x : pts) {
+    const geometry::Param p{(x[0] - map->offset[0]) / map->scale[0], (x[1] - map->offset[1]) / map->scale[1], 0};
+    xi.push_back(p);
+    elements.push_back(box.patch.find_element(p));
+  }
+  Vec X;
+  CELLFSI_PETSC(VecDuplicate(f->solution(), &X));
+  f->begin_step(X);
+  const std::vector<fluid::PointSample> a = f->sample_alpha(X, elements, xi);
+  double worst_alpha = 0;
+  for (size_t i = 0; i < pts.size(); ++i)
+    worst_alpha = std::max(worst_alpha, (a[i].v - s2[i].v).norm() + (a[i].grad_v - s2[i].grad_v).norm() * box.ly);
+  EXPECT_LT(worst_alpha, 1e-12 * box.rate * box.ly);  // X = U_n: the alpha level is U_n
+  CELLFSI_PETSC(VecDestroy(&X));
+}
+
+TEST(DcImmersedFluid, AStepDrivenFromOutsideEqualsItsOwnStep) {
+  // A disturbed start (a divergence-free swirl over the shear), three steps either way: the fluid's own
+  // Newton with MUMPS, or begin_step / residual / jacobian / a direct solve / end_step, as the coupling loop.
+  ShearBox box(16, 8);
+  auto v0 = [&](const Vec3& x) {
+    const double kx = 2 * M_PI / box.lx, ky = M_PI / box.ly;
+    return Vec3(box.shear(x)[0] + 0.01 * std::sin(kx * x[0]) * std::cos(ky * x[1]) / kx,
+                -0.01 * std::cos(kx * x[0]) * std::sin(ky * x[1]) / ky, 0);
+  };
+  std::unique_ptr<fluid::ImmersedFluid> own = fluid::create_fluid(PETSC_COMM_WORLD, box.patch, box.options);
+  std::unique_ptr<fluid::ImmersedFluid> driven = fluid::create_fluid(PETSC_COMM_WORLD, box.patch, box.options);
+  own->set_initial_velocity(v0);
+  driven->set_initial_velocity(v0);
+  Vec X, F, dX;
+  CELLFSI_PETSC(VecDuplicate(driven->solution(), &X));
+  CELLFSI_PETSC(VecDuplicate(X, &F));
+  CELLFSI_PETSC(VecDuplicate(X, &dX));
+  KSP ksp;
+  CELLFSI_PETSC(KSPCreate(PETSC_COMM_WORLD, &ksp));
+  CELLFSI_PETSC(KSPSetType(ksp, KSPGMRES));
+  CELLFSI_PETSC(KSPSetTolerances(ksp, 1e-13, 1e-30, PETSC_DEFAULT, 200));
+  PC pc;
+  CELLFSI_PETSC(KSPGetPC(ksp, &pc));
+  CELLFSI_PETSC(PCSetType(pc, PCLU));
+  CELLFSI_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+  for (int s = 0; s < 3; ++s) {
+    ASSERT_TRUE(own->step().converged);
+    driven->begin_step(X);
+    for (int it = 0; it < 4; ++it) {
+      driven->residual(X, F);
+      driven->jacobian(X, driven->jacobian_matrix());
+      CELLFSI_PETSC(KSPSetOperators(ksp, driven->jacobian_matrix(), driven->jacobian_matrix()));
+      CELLFSI_PETSC(KSPSolve(ksp, F, dX));
+      CELLFSI_PETSC(VecAXPY(X, -1.0, dX));
+    }
+    driven->end_step(X);
+  }
+  const std::vector<Vec3> pts = random_points(30, box.lx, box.ly, 3);
+  const auto a = own->sample(pts), b = driven->sample(pts);
+  double worst = 0, vmax = 0;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    worst = std::max(worst, (a[i].v - b[i].v).norm());
+    vmax = std::max(vmax, a[i].v.norm());
+  }
+  // Both solve the same equations; the fluid's own Newton stops when its update is 1e-10 of the state
+  // (DcFluidOptions::newton_stol), so three steps agree to about 1e-9.
+  EXPECT_LT(worst, 1e-8 * vmax);
+  EXPECT_NEAR(own->time(), driven->time(), 1e-15);
+  ASSERT_TRUE(driven->max_divergence_ratio().has_value());
+  EXPECT_LT(*driven->max_divergence_ratio(), 1e-12);
+  KSPDestroy(&ksp);
+  VecDestroy(&X);
+  VecDestroy(&F);
+  VecDestroy(&dX);
+}
+
+TEST(DcImmersedFluid, ItsBulkInverseInvertsTheJacobianWithoutCells) {
+  ShearBox box(32, 16);
+  std::unique_ptr<fluid::ImmersedFluid> f = fluid::create_fluid(PETSC_COMM_WORLD, box.patch, box.options);
+  f->set_initial_velocity([&](const Vec3& x) { return box.shear(x); });
+  ASSERT_TRUE(f->has_bulk_inverse());
+  Vec X, b, x, r;
+  CELLFSI_PETSC(VecDuplicate(f->solution(), &X));
+  CELLFSI_PETSC(VecDuplicate(X, &b));
+  CELLFSI_PETSC(VecDuplicate(X, &x));
+  CELLFSI_PETSC(VecDuplicate(X, &r));
+  f->begin_step(X);
+  std::optional<fluid::ImmersedFluid::OwnBulkInverse> inv = f->bulk_inverse(X);
+  ASSERT_TRUE(inv);
+  EXPECT_LT(inv->deviation, 1e-12);
+  // A right-hand side as the coupled solve sees one: the residual of an iterate off the solution. Only v_x
+  // is disturbed (x is periodic: no wall-normal unknown moves), so the continuity rows sum to zero, as every
+  // residual of the coupling loop does.
+  const std::vector<int> kinds = f->unknown_kinds();
+  Vec X0;  // the state the inverse was built at (its operator; the disturbed one differs by Re ~ 1e-4 terms)
+  CELLFSI_PETSC(VecDuplicate(X, &X0));
+  CELLFSI_PETSC(VecCopy(X, X0));
+  PetscScalar* px;
+  CELLFSI_PETSC(VecGetArray(X, &px));
+  for (size_t i = 0; i < kinds.size(); ++i)
+    if (kinds[i] == 0) px[i] += 0.01 * std::sin(0.37 * static_cast<double>(i));
+  CELLFSI_PETSC(VecRestoreArray(X, &px));
+  f->residual(X, b);
+  inv->apply(b, x);
+  f->bulk_jacobian(X0, f->jacobian_matrix());
+  CELLFSI_PETSC(MatMult(f->jacobian_matrix(), x, r));
+  CELLFSI_PETSC(VecAXPY(r, -1.0, b));
+  // The fixed rows (walls' normal velocities) are unit rows in both; compare the rest.
+  PetscReal rn = 0, bn = 0;
+  CELLFSI_PETSC(VecNorm(r, NORM_INFINITY, &rn));
+  CELLFSI_PETSC(VecNorm(b, NORM_INFINITY, &bn));
+  EXPECT_LT(rn, 1e-10 * bn);
+  VecDestroy(&X);
+  VecDestroy(&X0);
+  VecDestroy(&b);
+  VecDestroy(&x);
+  VecDestroy(&r);
+}
+
+TEST(DcImmersedFluid, RefusesADomainThatIsNotABox) {
+  const geometry::Patch channel = geometry::narrowing_channel(geometry::NarrowingChannel{}, 32, 16, 2);
+  fluid::FluidOptions o;
+  o.space = "div_conforming";
+  try {
+    fluid::create_fluid(PETSC_COMM_WORLD, channel, o);
+    FAIL() << "a curved domain was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("-fluid_space"), std::string::npos) << e.what();
+  }
+}
