@@ -73,7 +73,7 @@ std::array<int, 3> body_element_counts(const SceneSettings& s, const BodySetting
   // velocity is only C^(k'-1) across element boundaries along some directions, and a membrane of elements as
   // large as the fluid's loses its own area through that (measured on the capsule at 64 x 32, k' = 2, to
   // t = 0.1 s: r_A -7.1e-3 at 0.9 with 6 coupling iterations per step, +1.8e-4 at 0.45 and -1.4e-4 at 0.225
-  // with 4; 128 x 64 at 0.225: -1.6e-4; docs/validation/two_spaces.md).
+  // with 4; 128 x 64 at 0.225: -1.6e-4; docs/validation.md, "The divergence-conforming space").
   const double factor = s.fluid_space == "div_conforming" ? 0.45 : 0.9;
   const double target = factor * std::min(1.0, s.max_mesh_ratio) * fluid_element_size(s);
   std::array<int, 3> n = b.elements;

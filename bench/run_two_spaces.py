@@ -10,6 +10,7 @@ divergence-conforming space without s_I (-fluid_space div_conforming, k' = 2 or 
 
     python3 bench/run_two_spaces.py                  # table: 64x32, 128x64, 256x128 at dt 1e-3 to 0.3 s
     python3 bench/run_two_spaces.py --area           # and the area runs to 1 s
+    python3 bench/run_two_spaces.py --meshes none --area --jobs 2   # only the area runs, two at a time
     python3 bench/run_two_spaces.py --report         # only the tables, from the runs in --runs
 
 Options: --meshes NXxNY,... (64x32,128x64,256x128) --spaces S,... (equal_order:3,div_conforming:2) --dt S (1e-3)
@@ -140,7 +141,7 @@ def main():
     ap.add_argument("--area-table", default=os.path.join(ROOT, "docs", "validation", "two_spaces_area.md"))
     ap.add_argument("--report", action="store_true")
     args = ap.parse_args()
-    args.meshes = [m for m in args.meshes.split(",") if mesh_of(m)]
+    args.meshes = [] if args.meshes == "none" else [m for m in args.meshes.split(",") if mesh_of(m)]
     args.area_meshes = [m for m in args.area_meshes.split(",") if mesh_of(m)]
     args.spaces = [space_of(s) for s in args.spaces.split(",")]
     args.area_spaces = [space_of(s) for s in args.area_spaces.split(",")]
@@ -157,7 +158,8 @@ def main():
                 if result not in ("kept", "exit 0"):
                     failed.append(tag)
     command = "python3 bench/" + TOOL + " " + " ".join(sys.argv[1:])
-    write_table(args.table, [provenance(args, command.strip()), ""] + table_lines(args))
+    if args.meshes:
+        write_table(args.table, [provenance(args, command.strip()), ""] + table_lines(args))
     if args.area:
         write_table(args.area_table, [provenance(args, command.strip()), ""] + area_lines(args))
     if failed:

@@ -390,7 +390,8 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J, bool with_imme
   ip.dim = D;
   ip.nu = lv.nu;
   ip.convection = lv.convection;
-  for (int e = elem_begin_; e < elem_end_; ++e) {
+  if (!J) interior_residual(lv, F);  // the same sums, without the kernels' generality
+  for (int e = elem_begin_; e < elem_end_ && J; ++e) {
     current = &element_basis(e);
     integrate([&](int q, const PointState& s, PointTangent* t) {
       const Vec3 g = lv.g ? lv.g(current->x[q]) : Vec3(Vec3::Zero());
@@ -434,6 +435,72 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J, bool with_imme
   if (J) {
     CELLFSI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
     CELLFSI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+  }
+}
+
+void DivConformingFluid::interior_residual(const Levels& lv, Vec F) const {
+  // dc_interior_residual at every Gauss point, written out: r0 = a + c (v.grad)v - g, r1 = nu (grad v +
+  // grad v^T) - p I, rq = div v, integrated against the element's functions. The tests compare it with the
+  // generic assembly (tests/unit/fluid/test_div_conforming.cpp).
+  const int D = space_.dim();
+  const bool field = lv.viscosity_field && !nu_field_.empty();
+  const bool uniform_g = !opt_.body_force_field;
+  const Vec3 g_uniform = uniform_g && lv.g ? lv.g(Vec3::Zero()) : Vec3(Vec3::Zero());
+  std::vector<double> Fe;
+  std::vector<PetscInt> idx;
+  for (int e = elem_begin_; e < elem_end_; ++e) {
+    const ElementBasis& eb = element_basis(e);
+    int off[5] = {0, 0, 0, 0, 0};
+    for (int c = 0; c <= D; ++c) off[c + 1] = off[c] + eb.comp[c].n;
+    const int n_loc = off[D + 1];
+    Fe.assign(n_loc, 0.0);
+    for (int q = 0; q < eb.n_points; ++q) {
+      double v[3] = {0, 0, 0}, a[3] = {0, 0, 0}, dv[3][3] = {}, p = 0, nu = lv.nu;
+      for (int c = 0; c < D; ++c) {
+        const ComponentBasis& cb = eb.comp[c];
+        const double* N = &cb.value[static_cast<size_t>(q) * cb.n];
+        const double* dN = &cb.grad[static_cast<size_t>(q) * cb.n * 3];
+        for (int f = 0; f < cb.n; ++f) {
+          const double cv = lv.v[cb.index[f]], ca = lv.a[cb.index[f]];
+          v[c] += N[f] * cv;
+          a[c] += N[f] * ca;
+          for (int j = 0; j < D; ++j) dv[c][j] += dN[3 * f + j] * cv;
+        }
+      }
+      const ComponentBasis& pb = eb.comp[D];
+      const double* Np = &pb.value[static_cast<size_t>(q) * pb.n];
+      if (field) nu = 0;
+      for (int f = 0; f < pb.n; ++f) {
+        p += Np[f] * lv.v[pb.index[f]];
+        if (field) nu += Np[f] * nu_field_[pb.index[f] - space_.offset(D)];
+      }
+      const Vec3 g = uniform_g ? g_uniform : (lv.g ? lv.g(eb.x[q]) : Vec3(Vec3::Zero()));
+      const double w = eb.weight[q];
+      double r0[3], r1[3][3], rq = 0;
+      for (int i = 0; i < D; ++i) {
+        double conv = 0;
+        for (int l = 0; l < D; ++l) conv += v[l] * dv[i][l];
+        r0[i] = w * (a[i] + lv.convection * conv - g[i]);
+        for (int j = 0; j < D; ++j) r1[i][j] = w * (nu * (dv[i][j] + dv[j][i]) - (i == j ? p : 0.0));
+        rq += dv[i][i];
+      }
+      for (int c = 0; c < D; ++c) {
+        const ComponentBasis& cb = eb.comp[c];
+        const double* N = &cb.value[static_cast<size_t>(q) * cb.n];
+        const double* dN = &cb.grad[static_cast<size_t>(q) * cb.n * 3];
+        double* Fc = &Fe[off[c]];
+        for (int f = 0; f < cb.n; ++f) {
+          double r = N[f] * r0[c];
+          for (int j = 0; j < D; ++j) r += dN[3 * f + j] * r1[c][j];
+          Fc[f] += r;
+        }
+      }
+      double* Fp = &Fe[off[D]];
+      for (int f = 0; f < pb.n; ++f) Fp[f] += w * Np[f] * rq;
+    }
+    idx = local_indices(eb, D);
+    for (PetscInt& gi : idx) gi = petsc_index_[gi];
+    CELLFSI_PETSC(VecSetValues(F, n_loc, idx.data(), Fe.data(), ADD_VALUES));
   }
 }
 

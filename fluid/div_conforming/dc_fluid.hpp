@@ -231,6 +231,9 @@ class DivConformingFluid {
     std::function<Vec3(const Vec3&)> g;  // body force per unit mass (or the data of a projection)
   };
   Levels steady_levels(const std::vector<double>& U) const;
+  /// Adds the interior terms of the residual of every owned element to F (no assembly calls): the generic
+  /// assembly's sums for J = null, in less time.
+  void interior_residual(const Levels& lv, Vec F) const;
   /// Adds the immersed points' terms to F and J (no assembly calls).
   void assemble_immersed(const Levels& lv, Vec F, Mat J) const;
   /// A generalized-alpha step from (Un, Udotn) with iterate U.

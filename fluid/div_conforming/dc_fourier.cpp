@@ -238,10 +238,11 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
   built_ = true;
 }
 
-void DcFourierSolver::solve(const std::vector<double>& b, std::vector<double>& x) const {
+template <class PerMode>
+void DcFourierSolver::transform(const std::vector<double>& b, std::vector<double>& x, PerMode&& f) const {
   if (!built_) throw std::logic_error("DcFourierSolver::solve before build");
   if (static_cast<int>(b.size()) != space_.n_dofs())
-    throw std::invalid_argument("DcFourierSolver::solve: b has " + std::to_string(b.size()) +
+    throw std::invalid_argument("DcFourierSolver: the vector has " + std::to_string(b.size()) +
                                 " entries, not n_dofs() = " + std::to_string(space_.n_dofs()));
   int size = 1;
   CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
@@ -253,23 +254,12 @@ void DcFourierSolver::solve(const std::vector<double>& b, std::vector<double>& x
   std::vector<Complex> spectrum(nh * n_line_);
   auto first = [&](int line) { return space_.offset(line_component_[line]) + nx_ * line_y_[line]; };
   for (int l = 0; l < n_line_; ++l) fft.fwd(&spectrum[position_[l] * nh], &b[first(l)], nx_);
-  // 2. This rank's wave numbers, each solution in place of its right-hand side.
-  PetscBLASInt m_blas = 0, kl = 0, ku = 0, ldab = 0, info = 0;
-  const PetscBLASInt one = 1;
-  CELLFSI_PETSC(PetscBLASIntCast(n_line_, &m_blas));
-  CELLFSI_PETSC(PetscBLASIntCast(kl_, &kl));
-  CELLFSI_PETSC(PetscBLASIntCast(ku_, &ku));
-  CELLFSI_PETSC(PetscBLASIntCast(ldab_, &ldab));
+  // 2. This rank's wave numbers, each result in place of its right-hand side.
   std::vector<Complex> rhs(n_line_);
-  const std::size_t slice = static_cast<std::size_t>(ldab_) * n_line_;
   for (size_t k = 0; k < modes_.size(); ++k) {
     const int m = modes_[k];
     for (int p = 0; p < n_line_; ++p) rhs[p] = spectrum[p * nh + m];
-    if (m == 0 && pinned_) rhs[position_[line_offset_[2]]] = 0.0;  // the pinned unit row fixes the constant
-    zgbtrs_("N", &m_blas, &kl, &ku, &one, &ab_[k * slice], &ldab, &ipiv_[k * n_line_], rhs.data(), &m_blas,
-            &info, 1);
-    if (info != 0)
-      throw std::logic_error("DcFourierSolver::solve: zgbtrs rejected argument " + std::to_string(-info));
+    f(k, m, rhs);
     for (int p = 0; p < n_line_; ++p) spectrum[p * nh + m] = rhs[p];
   }
   // 3. The ranks' wave numbers together, then each line's inverse transform (scaled by 1/n; from the half
@@ -285,6 +275,23 @@ void DcFourierSolver::solve(const std::vector<double>& b, std::vector<double>& x
   }
   x.resize(space_.n_dofs());
   for (int l = 0; l < n_line_; ++l) fft.inv(&x[first(l)], &spectrum[position_[l] * nh], nx_);
+}
+
+void DcFourierSolver::solve(const std::vector<double>& b, std::vector<double>& x) const {
+  PetscBLASInt m_blas = 0, kl = 0, ku = 0, ldab = 0, info = 0;
+  const PetscBLASInt one = 1;
+  CELLFSI_PETSC(PetscBLASIntCast(n_line_, &m_blas));
+  CELLFSI_PETSC(PetscBLASIntCast(kl_, &kl));
+  CELLFSI_PETSC(PetscBLASIntCast(ku_, &ku));
+  CELLFSI_PETSC(PetscBLASIntCast(ldab_, &ldab));
+  const std::size_t slice = static_cast<std::size_t>(ldab_) * n_line_;
+  transform(b, x, [&](size_t k, int m, std::vector<Complex>& rhs) {
+    if (m == 0 && pinned_) rhs[position_[line_offset_[2]]] = 0.0;  // the pinned unit row fixes the constant
+    zgbtrs_("N", &m_blas, &kl, &ku, &one, &ab_[k * slice], &ldab, &ipiv_[k * n_line_], rhs.data(), &m_blas,
+            &info, 1);
+    if (info != 0)
+      throw std::logic_error("DcFourierSolver::solve: zgbtrs rejected argument " + std::to_string(-info));
+  });
 }
 
 }  // namespace cellfsi::fluid::dc

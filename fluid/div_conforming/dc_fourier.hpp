@@ -82,6 +82,11 @@ class DcFourierSolver {
   std::vector<int> position_;                 // per line index: its row in the banded systems
   int kl_ = 0, ku_ = 0, ldab_ = 1;  // half-bandwidths below and above, leading dimension 2 kl + ku + 1
   std::vector<Complex> ab_;         // per wave number of modes_: the banded LU of A_m (zgbtrf)
+  /// solve()'s steps: the forward transform of b's lines, f on each of this rank's wave numbers (k: its slot
+  /// in modes_, the wave number's values by banded position, in place), the ranks' spectra summed, the
+  /// inverse transform.
+  template <class PerMode>
+  void transform(const std::vector<double>& b, std::vector<double>& x, PerMode&& f) const;
   std::vector<PetscBLASInt> ipiv_;  // and its pivots
   double deviation_ = 0;
   bool pinned_ = false, built_ = false;
