@@ -57,9 +57,13 @@ def scene_yaml(dim, shapes):
 
 
 def run(cmd, cwd):
-    env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
-    return subprocess.run(cmd, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                          universal_newlines=True)
+    # Each probe its own Open MPI session directory: isolated singletons (the test environment's
+    # OMPI_MCA_ess_singleton_isolated) all get the same one, and probes run in parallel created and removed it
+    # under each other (tests/support/ompi_session_dir.hpp).
+    with tempfile.TemporaryDirectory(prefix="cellfsi-ompi-") as session:
+        env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMPI_MCA_orte_tmpdir_base=session)
+        return subprocess.run(cmd, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              universal_newlines=True)
 
 
 def parse_tables(text, wanted):

@@ -40,6 +40,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/ompi_session_dir.hpp"
 #include "../support/tolerances.hpp"
 
 namespace fs = std::filesystem;
@@ -72,6 +73,13 @@ inline RunResult run_process(const std::vector<std::string>& argv, double timeou
   // singleton is isolated. The runs here spawn nothing, and the daemon cost a quarter of each short run's CPU
   // (0.94 against 0.69 s for `cellfsi -help` on one core; tests/README.md, "Time").
   setenv("OMPI_MCA_ess_singleton_isolated", "1", 0);
+  // And its own session directory (tests/support/ompi_session_dir.hpp): concurrent tests shared one.
+  struct SessionBase {
+    std::string dir;
+    ~SessionBase() { cellfsi_test::remove_ompi_session_base(dir); }
+  } session;
+  unsetenv("OMPI_MCA_orte_tmpdir_base");  // (the previous run's, removed)
+  session.dir = cellfsi_test::private_ompi_session_base();
   RunResult r;
   int fd[2];
   if (pipe(fd) != 0) {
