@@ -9,6 +9,7 @@ import re
 import shlex
 import subprocess
 import sys
+import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -22,11 +23,15 @@ def run_one(args, tag, scene, options):
                 return tag, "kept"
     cmd = [os.path.join(args.build, "apps", "cellfsi"), os.path.join(ROOT, "scenes", scene), "-output_dir",
            out_dir] + options
-    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
-    with open(os.path.join(args.runs, tag + ".log"), "w") as log:
-        log.write(" ".join(shlex.quote(c) for c in cmd) + "\n")
-        log.flush()
-        rc = subprocess.call(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
+    # A private Open MPI session directory for the run: isolated singletons (the test environment's
+    # OMPI_MCA_ess_singleton_isolated) all share one, and concurrent runs removed it under each other
+    # (tests/support/ompi_session_dir.hpp).
+    with tempfile.TemporaryDirectory(prefix="cellfsi-ompi-") as session:
+        env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", OMPI_MCA_orte_tmpdir_base=session)
+        with open(os.path.join(args.runs, tag + ".log"), "w") as log:
+            log.write(" ".join(shlex.quote(c) for c in cmd) + "\n")
+            log.flush()
+            rc = subprocess.call(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
     return tag, f"exit {rc}"
 
 

@@ -21,6 +21,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bench_common import ROOT, fmt, provenance, write_table  # noqa: E402
@@ -81,7 +82,9 @@ def run_case(args, n, ranks, steps):
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1",
                OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     log_path = os.path.join(args.runs, tag + ".log")
-    with open(log_path, "w") as log:
+    # (A private Open MPI session directory, as bench_common.run_one's.)
+    with tempfile.TemporaryDirectory(prefix="cellfsi-ompi-") as session, open(log_path, "w") as log:
+        env["OMPI_MCA_orte_tmpdir_base"] = session
         rc = subprocess.call(launch + timed, stdout=log, stderr=subprocess.STDOUT, env=env)
     text = open(log_path).read()
     try:
