@@ -86,6 +86,17 @@ def check_kept_runs(tool, args, runs):
                  "another --runs folder or delete them:\n  " + "\n  ".join(bad))
 
 
+def mesh_of(tool, text, what):
+    """NX, NY from 'NXxNY' (both at least 4), or exit (code 1) with a message naming `what` (the option)."""
+    try:
+        nx, ny = (int(v) for v in text.split("x"))
+        if nx < 4 or ny < 4:
+            raise ValueError
+        return nx, ny
+    except ValueError:
+        sys.exit(f"{tool}: {what} '{text}' is invalid: give NXxNY with NX, NY >= 4 (e.g. 128x64)")
+
+
 def fmt(x, f):
     return "-" if x is None or (isinstance(x, float) and x != x) else format(x, f)
 

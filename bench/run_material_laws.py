@@ -19,6 +19,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import bench_common  # noqa: E402
 from bench_common import (ROOT, check_kept_runs, fmt, provenance, pyplot, run_one, save_figure,  # noqa: E402
                           summary_of, write_table)
 
@@ -37,13 +38,7 @@ def law_options(body, words):
 
 
 def mesh_of(text, what):
-    try:
-        nx, ny = (int(v) for v in text.split("x"))
-        if nx < 4 or ny < 4:
-            raise ValueError
-        return nx, ny
-    except ValueError:
-        sys.exit(f"{TOOL}: {what} '{text}' is invalid: give NXxNY with NX, NY >= 4 (e.g. 128x64)")
+    return bench_common.mesh_of(TOOL, text, what)
 
 
 def runs_of(args):

@@ -30,6 +30,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import bench_common  # noqa: E402
 from bench_common import (ROOT, check_kept_runs, fmt, provenance, run_one, summary_of,  # noqa: E402
                           write_table)
 
@@ -38,13 +39,7 @@ THETA_CONVERGED, OMEGA_CONVERGED = 26.09, 3.90  # paper Table 1, 512 x 256 cubic
 
 
 def mesh_of(text):
-    try:
-        nx, ny = (int(v) for v in text.split("x"))
-        if nx < 4 or ny < 4:
-            raise ValueError
-        return nx, ny
-    except ValueError:
-        sys.exit(f"{TOOL}: mesh '{text}' is invalid: give NXxNY with NX, NY >= 4 (e.g. 128x64)")
+    return bench_common.mesh_of(TOOL, text, "mesh")
 
 
 def space_of(text):

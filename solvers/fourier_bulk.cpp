@@ -9,20 +9,8 @@
 #include <string>
 #include <type_traits>
 
+#include "common/banded_lapack.hpp"
 #include "common/petsc_error.hpp"
-
-extern "C" {
-// LAPACK (Fortran calling convention; the trailing length is that of the character argument). PETSc's
-// petscblaslapack.h declares no banded LU, so these are declared here, with PETSc's BLAS integer for the
-// integer arguments (64 bits when PETSc is configured for a 64-bit-integer BLAS/LAPACK; the LAPACK CMake
-// links, find_package(LAPACK), must then be that same library).
-void zgbtrf_(const PetscBLASInt* m, const PetscBLASInt* n, const PetscBLASInt* kl, const PetscBLASInt* ku,
-             std::complex<double>* ab, const PetscBLASInt* ldab, PetscBLASInt* ipiv, PetscBLASInt* info);
-void zgbtrs_(const char* trans, const PetscBLASInt* n, const PetscBLASInt* kl, const PetscBLASInt* ku,
-             const PetscBLASInt* nrhs, const std::complex<double>* ab, const PetscBLASInt* ldab,
-             const PetscBLASInt* ipiv, std::complex<double>* b, const PetscBLASInt* ldb, PetscBLASInt* info,
-             std::size_t trans_len);
-}
 
 namespace cellfsi::solvers {
 
