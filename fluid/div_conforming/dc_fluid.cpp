@@ -753,37 +753,127 @@ void DivConformingFluid::set_state(const std::vector<double>& u) {
   std::fill(Udot_.begin(), Udot_.end(), 0.0);
 }
 
+std::vector<double> DivConformingFluid::project_saddle_point(const std::function<Vec3(const Vec3&)>& f) {
+  const int D = space_.dim();
+  std::vector<double> X(space_.n_dofs(), 0.0);
+  // (v, w) - (p, div w) - (f, w) + (q, div v): the interior kernel with a = v, nu = 0, no convection, g = f.
+  auto levels = [&](const std::vector<double>& U) {
+    Levels lv;
+    lv.v = U;
+    lv.a = U;
+    lv.dv_dU = 1;  // with nu = 0 and no convection v enters only through div v; a carries the mass term
+    lv.da_dU = 1;
+    lv.nu = 0;
+    lv.convection = 0;
+    lv.nitsche = false;
+    lv.viscosity_field = false;
+    lv.g = f;
+    return lv;
+  };
+  const DcSolveStats st = newton(X, levels);
+  if (!st.converged)
+    throw std::runtime_error("DivConformingFluid::project_initial_state: the projection's solve failed");
+  for (int i = space_.offset(D); i < space_.n_dofs(); ++i) X[i] = 0.0;
+  return X;
+}
+
 void DivConformingFluid::project_initial_state(const std::function<Vec3(const Vec3&)>& v0,
                                                const std::function<Vec3(const Vec3&)>& vdot0) {
-  const int D = space_.dim();
-  auto project = [&](const std::function<Vec3(const Vec3&)>& f) {
-    std::vector<double> X(space_.n_dofs(), 0.0);
-    // (v, w) - (p, div w) - (f, w) + (q, div v): the interior kernel with a = v, nu = 0, no convection, g =
-    // f.
-    auto levels = [&](const std::vector<double>& U) {
-      Levels lv;
-      lv.v = U;
-      lv.a = U;
-      lv.dv_dU = 1;  // with nu = 0 and no convection v enters only through div v; a carries the mass term
-      lv.da_dU = 1;
-      lv.nu = 0;
-      lv.convection = 0;
-      lv.nitsche = false;
-      lv.viscosity_field = false;
-      lv.g = f;
-      return lv;
-    };
-    const DcSolveStats st = newton(X, levels);
-    if (!st.converged)
-      throw std::runtime_error("DivConformingFluid::project_initial_state: the projection's solve failed");
-    for (int i = space_.offset(D); i < space_.n_dofs(); ++i) X[i] = 0.0;
-    return X;
-  };
-  U_ = project(v0);
-  Udot_ = project(vdot0);
+  // A field uniform along the periodic directions with no component along the others (rest, a shear or
+  // channel profile) has project_columnar's projection: no saddle-point solve (no factorisation).
+  std::vector<double> X;
+  U_ = project_columnar(v0, X) ? X : project_saddle_point(v0);
+  Udot_ = project_columnar(vdot0, X) ? X : project_saddle_point(vdot0);
   time_ = 0;
   steps_ = 0;
   div_history_.clear();
+}
+
+bool DivConformingFluid::project_columnar(const std::function<Vec3(const Vec3&)>& f,
+                                          std::vector<double>& X) const {
+  // Is f uniform along the periodic directions, with no component along the others? Checked at the Gauss
+  // points of every element against f at the same point moved to the periodic directions' lower end; the
+  // tolerance is round-off of f's largest value.
+  const int D = space_.dim(), ng = n_gauss();
+  ElementBasis eb;
+  double largest = 0, deviation = 0;
+  for (int e = 0; e < space_.n_elements(); ++e) {
+    const Index3 ei = space_.element_multi_index(e);
+    space_.evaluate(ei, space_.element_rule(ei, ng), eb);
+    for (int q = 0; q < eb.n_points; ++q) {
+      Vec3 x0 = eb.x[q];
+      for (int d = 0; d < D; ++d)
+        if (space_.periodic(d)) x0[d] = space_.lo(d);
+      const Vec3 v = f(eb.x[q]), v0 = f(x0);
+      for (int c = 0; c < D; ++c) {
+        largest = std::max(largest, std::abs(v[c]));
+        deviation = std::max(deviation, std::abs(v[c] - v0[c]));
+        if (!space_.periodic(c)) deviation = std::max(deviation, std::abs(v[c]));
+      }
+    }
+  }
+  if (!(deviation <= 1e-14 * largest)) return false;
+  X.assign(space_.n_dofs(), 0.0);
+  if (largest == 0) return true;
+  // Per velocity component c along a periodic direction: the coefficients are constant along the periodic
+  // directions (the periodic B-splines sum to 1 there), so the field is sum_I c_I N_I over the non-periodic
+  // directions' functions I; the c_I are the L2 projection over one column of elements (those with periodic
+  // element index 0), with the basis summed over the periodic indices.
+  for (int c = 0; c < D; ++c) {
+    if (!space_.periodic(c)) continue;
+    auto column_index = [&](int global) {  // I: the multi-index's non-periodic part, linearised
+      const Index3 i = space_.multi_index(c, global);
+      int I = 0, stride = 1;
+      for (int d = 0; d < D; ++d) {
+        if (space_.periodic(d)) continue;
+        I += i[d] * stride;
+        stride *= space_.n_basis(c, d);
+      }
+      return I;
+    };
+    int n_col = 1;
+    for (int d = 0; d < D; ++d)
+      if (!space_.periodic(d)) n_col *= space_.n_basis(c, d);
+    std::vector<Eigen::Triplet<double>> entries;
+    Eigen::VectorXd load = Eigen::VectorXd::Zero(n_col);
+    std::vector<int> I;
+    std::vector<double> N;
+    for (int e = 0; e < space_.n_elements(); ++e) {
+      const Index3 ei = space_.element_multi_index(e);
+      bool in_column = true;
+      for (int d = 0; d < D; ++d) in_column = in_column && (!space_.periodic(d) || ei[d] == 0);
+      if (!in_column) continue;
+      space_.evaluate(ei, space_.element_rule(ei, ng), eb);
+      const ComponentBasis& cb = eb.comp[c];
+      for (int q = 0; q < eb.n_points; ++q) {
+        I.clear();
+        N.clear();
+        for (int a = 0; a < cb.n; ++a) {  // sum the functions of one I
+          const int J = column_index(cb.index[a]);
+          const auto it = std::find(I.begin(), I.end(), J);
+          if (it == I.end()) {
+            I.push_back(J);
+            N.push_back(cb.value[q * cb.n + a]);
+          } else {
+            N[it - I.begin()] += cb.value[q * cb.n + a];
+          }
+        }
+        const double fc = f(eb.x[q])[c];
+        for (size_t a = 0; a < I.size(); ++a) {
+          load[I[a]] += eb.weight[q] * N[a] * fc;
+          for (size_t b = 0; b < I.size(); ++b) entries.emplace_back(I[a], I[b], eb.weight[q] * N[a] * N[b]);
+        }
+      }
+    }
+    Eigen::SparseMatrix<double> M(n_col, n_col);
+    M.setFromTriplets(entries.begin(), entries.end());
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(M);
+    if (ldlt.info() != Eigen::Success)
+      throw std::runtime_error("DivConformingFluid::project_initial_state: a column's mass matrix is singular");
+    const Eigen::VectorXd coeffs = ldlt.solve(load);
+    for (int g = space_.offset(c); g < space_.offset(c) + space_.n_basis(c); ++g) X[g] = coeffs[column_index(g)];
+  }
+  return true;
 }
 
 DivConformingFluid::Levels DivConformingFluid::steady_levels(const std::vector<double>& U) const {

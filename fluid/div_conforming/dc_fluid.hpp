@@ -97,8 +97,20 @@ class DivConformingFluid {
   /// Divergence-free L2 projections of v0 and vdot0 (v0 . n and vdot0 . n must vanish on the walls): each
   /// is the velocity of the saddle-point problem (v, w) - (p, div w) = (v0, w), (q, div v) = 0, so it is
   /// pointwise divergence-free and of optimal order for divergence-free data. Pressure 0.
+  /// Fields uniform along the periodic directions with no component along the others (rest, a shear or a
+  /// channel profile) are projected by project_columnar, any other by project_saddle_point.
   void project_initial_state(const std::function<Vec3(const Vec3&)>& v0,
                              const std::function<Vec3(const Vec3&)>& vdot0);
+  /// The saddle-point projection above of f (coefficients; pressure 0): one Newton solve, so one MUMPS
+  /// factorisation. Collective.
+  std::vector<double> project_saddle_point(const std::function<Vec3(const Vec3&)>& f);
+  /// The same projection for an f uniform along the periodic directions, with no component along the others
+  /// (checked at every Gauss point to round-off of f's largest value): then it is the L2 projection of the
+  /// profile onto the non-periodic directions' functions (the x-mean of a discretely divergence-free field is
+  /// one, and f is orthogonal to the rest), found from one column of elements by a sparse Cholesky of its mass
+  /// matrix (the size of one profile). Writes X and returns true, or returns false for any other f. Every
+  /// rank computes it whole (no communication).
+  bool project_columnar(const std::function<Vec3(const Vec3&)>& f, std::vector<double>& X) const;
   /// Sets the unknowns directly (velocity then pressure, dc_space.hpp's numbering); velocity rate 0.
   void set_state(const std::vector<double>& u);
 
