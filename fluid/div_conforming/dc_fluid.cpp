@@ -439,40 +439,73 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J, bool with_imme
 }
 
 void DivConformingFluid::interior_residual(const Levels& lv, Vec F) const {
+  // The sizes of the common spaces as constants, so the compiler unrolls the point loops (256 x 128, k' = 2:
+  // see interior_residual_sized); any other size takes the same code with run-time sizes.
+  const int D = space_.dim(), k = space_.degree();
+  if (D == 2 && k == 2) return interior_residual_sized<2, 12, 9>(lv, F);
+  if (D == 2 && k == 3) return interior_residual_sized<2, 20, 16>(lv, F);
+  if (D == 3 && k == 2) return interior_residual_sized<3, 36, 27>(lv, F);
+  if (D == 2) return interior_residual_sized<2, 0, 0>(lv, F);
+  interior_residual_sized<3, 0, 0>(lv, F);
+}
+
+template <int D, int NV, int NP>
+void DivConformingFluid::interior_residual_sized(const Levels& lv, Vec F) const {
   // dc_interior_residual at every Gauss point, written out: r0 = a + c (v.grad)v - g, r1 = nu (grad v +
-  // grad v^T) - p I, rq = div v, integrated against the element's functions. The tests compare it with the
-  // generic assembly (tests/unit/fluid/test_div_conforming.cpp).
-  const int D = space_.dim();
+  // grad v^T) - p I, rq = div v, integrated against the element's functions. NV (NP): functions per velocity
+  // component (pressure) of an element, 0 if only known at run time. The element's coefficients are gathered
+  // once, and its rows added into F's local array directly (rows of other ranks by one VecSetValues). A step
+  // driven this way agrees with the fluid's own Newton, whose residual is the generic assembly's
+  // (tests/unit/fluid/test_dc_immersed_fluid.cpp), and its central differences with the tangent
+  // (tests/unit/fluid/test_div_conforming.cpp).
   const bool field = lv.viscosity_field && !nu_field_.empty();
   const bool uniform_g = !opt_.body_force_field;
   const Vec3 g_uniform = uniform_g && lv.g ? lv.g(Vec3::Zero()) : Vec3(Vec3::Zero());
-  std::vector<double> Fe;
-  std::vector<PetscInt> idx;
+  // Functions of an element: (k' + 2) (k' + 1)^(D - 1) per velocity component, (k' + 1)^D of the pressure.
+  const int k = space_.degree();
+  const int nv = NV ? NV : (k + 2) * static_cast<int>(std::pow(k + 1, D - 1));
+  const int np = NP ? NP : static_cast<int>(std::pow(k + 1, D));
+  const int n_max = D * nv + np;
+  std::vector<double> buffers(4 * static_cast<size_t>(n_max));
+  double *ue = buffers.data(), *ae = ue + n_max, *Fe = ae + n_max, *nue = Fe + n_max;
+  std::vector<PetscInt> idx(n_max);
+  std::vector<PetscInt> other_rows;  // rows of other ranks (at the partition's edges), added after the loop
+  std::vector<double> other_values;
+  PetscScalar* f;
+  CELLFSI_PETSC(VecGetArray(F, &f));
   for (int e = elem_begin_; e < elem_end_; ++e) {
     const ElementBasis& eb = element_basis(e);
-    int off[5] = {0, 0, 0, 0, 0};
-    for (int c = 0; c <= D; ++c) off[c + 1] = off[c] + eb.comp[c].n;
-    const int n_loc = off[D + 1];
-    Fe.assign(n_loc, 0.0);
+    const int n_loc = n_max;
+    for (int c = 0; c <= D; ++c) {
+      const ComponentBasis& cb = eb.comp[c];
+      for (int a = 0; a < cb.n; ++a) {
+        const int g = cb.index[a];
+        ue[c * nv + a] = lv.v[g];
+        ae[c * nv + a] = lv.a[g];
+        Fe[c * nv + a] = 0.0;
+        idx[c * nv + a] = petsc_index_[g];
+        if (c == D && field) nue[a] = nu_field_[g - space_.offset(D)];
+      }
+    }
+    const double* pe = ue + D * nv;
     for (int q = 0; q < eb.n_points; ++q) {
       double v[3] = {0, 0, 0}, a[3] = {0, 0, 0}, dv[3][3] = {}, p = 0, nu = lv.nu;
       for (int c = 0; c < D; ++c) {
-        const ComponentBasis& cb = eb.comp[c];
-        const double* N = &cb.value[static_cast<size_t>(q) * cb.n];
-        const double* dN = &cb.grad[static_cast<size_t>(q) * cb.n * 3];
-        for (int f = 0; f < cb.n; ++f) {
-          const double cv = lv.v[cb.index[f]], ca = lv.a[cb.index[f]];
-          v[c] += N[f] * cv;
-          a[c] += N[f] * ca;
-          for (int j = 0; j < D; ++j) dv[c][j] += dN[3 * f + j] * cv;
+        const double* N = &eb.comp[c].value[static_cast<size_t>(q) * nv];
+        const double* dN = &eb.comp[c].grad[static_cast<size_t>(q) * nv * 3];
+        const double* uc = ue + c * nv;
+        const double* ac = ae + c * nv;
+        for (int b = 0; b < nv; ++b) {
+          v[c] += N[b] * uc[b];
+          a[c] += N[b] * ac[b];
+          for (int j = 0; j < D; ++j) dv[c][j] += dN[3 * b + j] * uc[b];
         }
       }
-      const ComponentBasis& pb = eb.comp[D];
-      const double* Np = &pb.value[static_cast<size_t>(q) * pb.n];
+      const double* Np = &eb.comp[D].value[static_cast<size_t>(q) * np];
       if (field) nu = 0;
-      for (int f = 0; f < pb.n; ++f) {
-        p += Np[f] * lv.v[pb.index[f]];
-        if (field) nu += Np[f] * nu_field_[pb.index[f] - space_.offset(D)];
+      for (int b = 0; b < np; ++b) {
+        p += Np[b] * pe[b];
+        if (field) nu += Np[b] * nue[b];
       }
       const Vec3 g = uniform_g ? g_uniform : (lv.g ? lv.g(eb.x[q]) : Vec3(Vec3::Zero()));
       const double w = eb.weight[q];
@@ -485,23 +518,30 @@ void DivConformingFluid::interior_residual(const Levels& lv, Vec F) const {
         rq += dv[i][i];
       }
       for (int c = 0; c < D; ++c) {
-        const ComponentBasis& cb = eb.comp[c];
-        const double* N = &cb.value[static_cast<size_t>(q) * cb.n];
-        const double* dN = &cb.grad[static_cast<size_t>(q) * cb.n * 3];
-        double* Fc = &Fe[off[c]];
-        for (int f = 0; f < cb.n; ++f) {
-          double r = N[f] * r0[c];
-          for (int j = 0; j < D; ++j) r += dN[3 * f + j] * r1[c][j];
-          Fc[f] += r;
+        const double* N = &eb.comp[c].value[static_cast<size_t>(q) * nv];
+        const double* dN = &eb.comp[c].grad[static_cast<size_t>(q) * nv * 3];
+        double* Fc = Fe + c * nv;
+        for (int b = 0; b < nv; ++b) {
+          double r = N[b] * r0[c];
+          for (int j = 0; j < D; ++j) r += dN[3 * b + j] * r1[c][j];
+          Fc[b] += r;
         }
       }
-      double* Fp = &Fe[off[D]];
-      for (int f = 0; f < pb.n; ++f) Fp[f] += w * Np[f] * rq;
+      double* Fp = Fe + D * nv;
+      for (int b = 0; b < np; ++b) Fp[b] += w * Np[b] * rq;
     }
-    idx = local_indices(eb, D);
-    for (PetscInt& gi : idx) gi = petsc_index_[gi];
-    CELLFSI_PETSC(VecSetValues(F, n_loc, idx.data(), Fe.data(), ADD_VALUES));
+    for (int b = 0; b < n_loc; ++b) {
+      if (idx[b] >= row_begin_ && idx[b] < row_end_) {
+        f[idx[b] - row_begin_] += Fe[b];
+      } else {
+        other_rows.push_back(idx[b]);
+        other_values.push_back(Fe[b]);
+      }
+    }
   }
+  CELLFSI_PETSC(VecRestoreArray(F, &f));
+  CELLFSI_PETSC(VecSetValues(F, static_cast<PetscInt>(other_rows.size()), other_rows.data(), other_values.data(),
+                             ADD_VALUES));
 }
 
 void DivConformingFluid::assemble_immersed(const Levels& lv, Vec F, Mat J) const {

@@ -246,6 +246,8 @@ class DivConformingFluid {
   /// Adds the interior terms of the residual of every owned element to F (no assembly calls): the generic
   /// assembly's sums for J = null, in less time.
   void interior_residual(const Levels& lv, Vec F) const;
+  template <int D, int NV, int NP>
+  void interior_residual_sized(const Levels& lv, Vec F) const;
   /// Adds the immersed points' terms to F and J (no assembly calls).
   void assemble_immersed(const Levels& lv, Vec F, Mat J) const;
   /// A generalized-alpha step from (Un, Udotn) with iterate U.
