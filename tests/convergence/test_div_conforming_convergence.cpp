@@ -3,7 +3,7 @@
 // k + 1 (pressure L2) within 0.1 over 8^2 .. 64^2 elements for k = 2 and 8^2 .. 32^2 for k = 3, Stokes and
 // Navier-Stokes; divergence-free to 1e-9 of the velocity gradient on every mesh; the velocity independent of
 // the pressure's size (pressure robustness); generalized-alpha second order in time; and a 3D box (periodic
-// x, walls y and z) on 4^3 .. 12^3 elements.
+// x, walls y and z) on 6^3 .. 10^3 elements.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -262,9 +262,9 @@ struct Manufactured3d {
 }  // namespace
 
 TEST(DivConformingFluid, ManufacturedStokes3dConvergesAtTheOptimalRates) {
-  // k = 2 on 4^3, 8^3, 12^3 elements (small meshes: the 3D path is the 2D one, dimension-generic).
+  // k = 2 on 6^3, 8^3, 10^3 elements (small meshes: the 3D path is the 2D one, dimension-generic).
   const Manufactured3d m;
-  const int meshes[3] = {4, 8, 12};
+  const int meshes[3] = {6, 8, 10};
   Rates r;
   for (int n : meshes) {
     const DivConformingSpace sp(3, 2, {n, n, n}, Vec3(0, 0, 0), Vec3(1, 1, 1), {true, false, false});
@@ -295,9 +295,10 @@ TEST(DivConformingFluid, ManufacturedStokes3dConvergesAtTheOptimalRates) {
     print0("  3D k=2 rates (%d -> %d): v L2 %.2f, v H1 %.2f, p L2 %.2f\n", meshes[i - 1], meshes[i],
            rate[i][0], rate[i][1], rate[i][2]);
   }
-  // These meshes are pre-asymptotic: the rates come down to the optimal ones from above (observed 3.58, 2.34,
-  // 3.55 then 3.21, 2.11, 3.20). Asserted: at least optimal within 0.1, and at most 0.3 above (a wrong term
-  // lowers a rate; the 0.1-margin acceptance is the 2D tests' above).
+  // These meshes are pre-asymptotic: the rates come down to the optimal ones from above (observed 3.39, 2.21,
+  // 3.37 from 6^3 to 8^3, then 3.24, 2.13, 3.23 to 10^3; on 4^3, 8^3, 12^3, which took twice the time, 3.58,
+  // 2.34, 3.55 then 3.21, 2.11, 3.20). Asserted: at least optimal within 0.1, and at most 0.3 above (a wrong
+  // term lowers a rate; the 0.1-margin acceptance is the 2D tests' above).
   const double optimal[3] = {3, 2, 3};
   for (int c = 0; c < 3; ++c) {
     EXPECT_GE(rate[2][c], optimal[c] - 0.1) << "3D rate " << c;

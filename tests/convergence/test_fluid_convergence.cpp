@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <functional>
 #include <numbers>
+#include <vector>
 
 #include "fluid/fluid_solver.hpp"
 #include "geometry/builders.hpp"
@@ -93,12 +94,12 @@ TEST_F(TightSolves, TimeIntegrationIsSecondOrder) {
 
 namespace {
 
-/// Relative L2 velocity error of the steady state reached from the L2 projection of v_exact (40 steps of
+/// Relative L2 velocity error of the steady state reached from the L2 projection of v_exact (`steps` steps of
 /// dt = 10: every mode of the error is in generalized-alpha's stiff limit and drops by rho_inf = 0.5 per
-/// step, to 1e-12) on the unit square, periodic in x, walls at y = 0, 1 moving with v_exact there. set_field
-/// gives the fluid its viscosity field.
+/// step, to 1e-12 of the projection's error after 40, 1e-6 after 20) on the unit square, periodic in x, walls
+/// at y = 0, 1 moving with v_exact there. set_field gives the fluid its viscosity field.
 double steady_error(int nx, int ny, int p, const std::function<Vec3(const Vec3&)>& v_exact, const Vec3& force,
-                    const std::function<void(fluid::FluidSolver&)>& set_field) {
+                    const std::function<void(fluid::FluidSolver&)>& set_field, int steps = 40) {
   const geometry::Patch box = geometry::rectangle(1.0, 1.0, nx, ny, p, {true, false});
   fluid::FluidOptions opt;
   opt.density = 1.0;
@@ -110,7 +111,7 @@ double steady_error(int nx, int ny, int p, const std::function<Vec3(const Vec3&)
   fluid::FluidSolver fs(PETSC_COMM_WORLD, box, opt);
   set_field(fs);
   fs.project_initial_state(v_exact, [](const Vec3&) { return Vec3(Vec3::Zero()); });
-  for (int s = 0; s < 40; ++s) {
+  for (int s = 0; s < steps; ++s) {
     const fluid::StepStats st = fs.step();
     if (!st.converged) ADD_FAILURE() << "step " << s << " did not converge: " << st.reason;
   }
@@ -124,7 +125,12 @@ double steady_error(int nx, int ny, int p, const std::function<Vec3(const Vec3&)
 // v = (e^y, 0), p = a sin(2 pi (x + y)), nu = phi(x, y) e^-y with phi = c - g y + a sin(2 pi (x + y)) (so
 // nu u' = phi), and the uniform body force g along x. It satisfies -div(2 nu eps(v)) + grad p = (g, 0),
 // div v = 0 and (v.grad)v = 0 because phi_xx = phi_yy. nu^h is the L2 projection of nu (order p + 1). The
-// rate is p + 1 within 0.25, as for Taylor-Green above; it needs grad nu in r_M (the kernels' choice).
+// rate is p + 1 within 0.25, as for Taylor-Green above, on the last pair of meshes; it needs grad nu in r_M
+// (the kernels' choice). Measured (relative L2 errors on 8, 16, 32, 64): p = 2 1.2507e-5, 1.4159e-6,
+// 1.7566e-7, 2.1940e-8, rates 3.14, 3.01, 3.00; p = 3 5.7577e-7, 1.7523e-8, 8.9155e-10, 5.4085e-11, rates
+// 5.04, 4.30, 4.04. So p = 2 is asymptotic from 16 -> 32 (3.01) and stops at 32; p = 3 is not before 32 -> 64
+// (4.30 at 16 -> 32). 20 steps to the steady state instead of 40 change these errors by less than 1e-7 of
+// themselves and no rate in its second decimal (the test: 25 s of CPU before, 11 s now).
 TEST_F(TightSolves, VariableViscosityManufacturedSolutionConvergesAtTheOptimalRate) {
   const double c = 1.0, g = 0.3, a = 0.3, two_pi = kTwoPi;
   const auto v_exact = [](const Vec3& x) { return Vec3(std::exp(x[1]), 0, 0); };
@@ -132,17 +138,18 @@ TEST_F(TightSolves, VariableViscosityManufacturedSolutionConvergesAtTheOptimalRa
     return (c - g * x[1] + a * std::sin(two_pi * (x[0] + x[1]))) * std::exp(-x[1]);
   };
   for (int p : {2, 3}) {
-    const int meshes[4] = {8, 16, 32, 64};
-    double e[4];
-    for (int i = 0; i < 4; ++i)
-      e[i] = steady_error(meshes[i], meshes[i], p, v_exact, Vec3(g, 0, 0),
-                          [&](fluid::FluidSolver& fs) { fs.project_viscosity(nu); });
-    const double r3 = std::log2(e[2] / e[3]);
-    std::printf(
-        "  variable-viscosity MMS p=%d, 8 ... 64: rel L2 errors %.3e %.3e %.3e %.3e, rates %.2f %.2f %.2f "
-        "(optimal %d)\n",
-        p, e[0], e[1], e[2], e[3], std::log2(e[0] / e[1]), std::log2(e[1] / e[2]), r3, p + 1);
-    EXPECT_NEAR(r3, p + 1, 0.25) << "p=" << p;
+    const std::vector<int> meshes = p == 2 ? std::vector<int>{8, 16, 32} : std::vector<int>{8, 16, 32, 64};
+    std::vector<double> e;
+    for (int n : meshes)
+      e.push_back(steady_error(n, n, p, v_exact, Vec3(g, 0, 0),
+                               [&](fluid::FluidSolver& fs) { fs.project_viscosity(nu); }, 20));
+    std::printf("  variable-viscosity MMS p=%d, 8 ... %d: rel L2 errors", p, meshes.back());
+    for (double x : e) std::printf(" %.4e", x);
+    std::printf(", rates");
+    for (size_t i = 1; i < e.size(); ++i) std::printf(" %.2f", std::log2(e[i - 1] / e[i]));
+    std::printf(" (optimal %d)\n", p + 1);
+    const size_t m = e.size();
+    EXPECT_NEAR(std::log2(e[m - 2] / e[m - 1]), p + 1, 0.25) << "p=" << p;
   }
 }
 
