@@ -21,6 +21,7 @@ packages=(
   libopenmpi-dev openmpi-bin
   libeigen3-dev              # (and its FFT module: solvers/fourier_bulk.cpp)
   liblapack-dev              # banded LU of the Fourier bulk solver (zgbtrf)
+  libfftw3-dev               # FFTs of the divergence-conforming Fourier solver (fluid/div_conforming/dc_fourier.cpp)
   libscotch-dev              # nested-dissection ordering of the region's LU (solvers/nested_dissection.hpp)
   libmumps-dev               # MUMPS in single precision for the 3D region's LU (solvers/single_precision_lu.hpp)
   libcgal-dev

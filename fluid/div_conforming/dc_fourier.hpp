@@ -42,6 +42,7 @@
 #include <petscmat.h>
 
 #include <complex>
+#include <memory>
 #include <vector>
 
 #include "fluid/div_conforming/dc_space.hpp"
@@ -54,6 +55,9 @@ class DcFourierSolver {
   /// the matrix's numbering of each natural unknown (DivConformingFluid::petsc_numbering(); empty: natural).
   explicit DcFourierSolver(const DivConformingSpace& space, MPI_Comm comm = PETSC_COMM_SELF,
                            std::vector<PetscInt> petsc_index = {});
+  ~DcFourierSolver();
+  DcFourierSolver(const DcFourierSolver&) = delete;
+  DcFourierSolver& operator=(const DcFourierSolver&) = delete;
 
   /// Reads the stencil from the rows at x index 0 of A (the operator must not carry a pressure pin, which is
   /// not translation-invariant) and factorises this rank's wave numbers. deviation(): the largest difference
@@ -88,8 +92,14 @@ class DcFourierSolver {
   template <class PerMode>
   void transform(const std::vector<double>& b, std::vector<double>& x, PerMode&& f) const;
   std::vector<PetscBLASInt> ipiv_;  // and its pivots
+  std::vector<Complex> inverse_diagonal_;  // 1 / U's diagonal, per wave number and position
+  /// zgbtrs('N') of one right-hand side in place, with the factors of one wave number (see solve()).
+  void banded_substitution(const Complex* ab, const PetscBLASInt* ipiv, const Complex* inv_diag,
+                           Complex* rhs) const;
   double deviation_ = 0;
   bool pinned_ = false, built_ = false;
+  struct Plans;                   // FFTW's plans of one line's transforms (dc_fourier.cpp)
+  std::unique_ptr<Plans> plans_;  // made by build()
 };
 
 }  // namespace cellfsi::fluid::dc
