@@ -12,7 +12,7 @@
 // splits it into one system per wave number m over the "line" of all y unknowns of all components (size
 // sum_c n_y(c), the zero pressure block included), A_m = sum_s S_s e^{2 pi i m s / n}. The operator is real,
 // so A_{n-m} = conj(A_m): only m = 0 .. n/2 are factorised, and the transforms are real-to-half-complex FFTs
-// (Eigen's, kissfft) of each line's n_x values, which are contiguous in the natural numbering.
+// (FFTW's, planned once) of each line's n_x values, which are contiguous in the natural numbering.
 //
 // Banded systems: the line's unknowns are ordered by y index, the components of one y index together
 // (interleaved), so that A_m is banded: every y function couples only to those whose supports overlap (within
@@ -34,8 +34,9 @@
 // Cost: per solve 2 n_line real FFTs of length n_x and n_x/2 + 1 banded substitutions of size n_line
 // (O(n log n_x) in all); build O(nonzeros) plus the banded LUs. Measured (bench/dc_fourier_solve: the
 // Navier-Stokes step tangent at a Couette state, k = 2, one rank, shared 2-core machine): 64 x 32 elements
-// (6.6 k unknowns) 0.22 ms per solve and 0.014 s to build; 256 x 128 (100 k unknowns) 4.1 ms per solve and
-// 0.2 s to build; equal to MUMPS to 2e-13 of max|x| (fluid/div_conforming/README.md).
+// (6.6 k unknowns) 0.22 ms per solve and 0.014 s to build; 256 x 128 (100 k unknowns) 2.7 ms per solve (4.1-4.2
+// with Eigen's kissfft and LAPACK's zgbtrs; the substitutions, written out, are now four fifths of it) and 0.3 s
+// to build; equal to MUMPS to 2.5e-13 of max|x| (fluid/div_conforming/README.md).
 //
 // Limits (next steps, README): 2D only (3D: transforms in x and z, lines in y); b and x whole on every rank,
 // and every rank transforms all lines (only the banded solves are divided among the ranks).
