@@ -96,6 +96,17 @@ void add_point(const ElementBasis& eb, int q, int dim, double w, const PointResi
   }
 }
 
+/// The L2 projection's coefficients: M^{-1} load for the mass matrix M of n functions given as triplets, by
+/// sparse Cholesky. Throws std::runtime_error "<what> mass matrix is singular" if it fails.
+Eigen::VectorXd solve_mass_matrix(int n, const std::vector<Eigen::Triplet<double>>& entries,
+                                  const Eigen::VectorXd& load, const std::string& what) {
+  Eigen::SparseMatrix<double> M(n, n);
+  M.setFromTriplets(entries.begin(), entries.end());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(M);
+  if (ldlt.info() != Eigen::Success) throw std::runtime_error(what + " mass matrix is singular");
+  return ldlt.solve(load);
+}
+
 /// Global indices of an element's local unknowns (add_point's local numbering).
 std::vector<PetscInt> local_indices(const ElementBasis& eb, int dim) {
   std::vector<PetscInt> idx;
@@ -475,7 +486,6 @@ void DivConformingFluid::interior_residual_sized(const Levels& lv, Vec F) const 
   CELLFSI_PETSC(VecGetArray(F, &f));
   for (int e = elem_begin_; e < elem_end_; ++e) {
     const ElementBasis& eb = element_basis(e);
-    const int n_loc = n_max;
     for (int c = 0; c <= D; ++c) {
       const ComponentBasis& cb = eb.comp[c];
       for (int a = 0; a < cb.n; ++a) {
@@ -530,7 +540,7 @@ void DivConformingFluid::interior_residual_sized(const Levels& lv, Vec F) const 
       double* Fp = Fe + D * nv;
       for (int b = 0; b < np; ++b) Fp[b] += w * Np[b] * rq;
     }
-    for (int b = 0; b < n_loc; ++b) {
+    for (int b = 0; b < n_max; ++b) {
       if (idx[b] >= row_begin_ && idx[b] < row_end_) {
         f[idx[b] - row_begin_] += Fe[b];
       } else {
@@ -905,12 +915,8 @@ bool DivConformingFluid::project_columnar(const std::function<Vec3(const Vec3&)>
         }
       }
     }
-    Eigen::SparseMatrix<double> M(n_col, n_col);
-    M.setFromTriplets(entries.begin(), entries.end());
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(M);
-    if (ldlt.info() != Eigen::Success)
-      throw std::runtime_error("DivConformingFluid::project_initial_state: a column's mass matrix is singular");
-    const Eigen::VectorXd coeffs = ldlt.solve(load);
+    const Eigen::VectorXd coeffs =
+        solve_mass_matrix(n_col, entries, load, "DivConformingFluid::project_initial_state: a column's");
     for (int g = space_.offset(c); g < space_.offset(c) + space_.n_basis(c); ++g) X[g] = coeffs[column_index(g)];
   }
   return true;
@@ -1200,12 +1206,8 @@ void DivConformingFluid::project_viscosity(const std::function<double(const Vec3
       }
     }
   }
-  Eigen::SparseMatrix<double> M(np, np);
-  M.setFromTriplets(entries.begin(), entries.end());
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(M);
-  if (ldlt.info() != Eigen::Success)
-    throw std::runtime_error("DivConformingFluid::project_viscosity: the mass matrix's factorisation failed");
-  const Eigen::VectorXd coeffs = ldlt.solve(load);
+  const Eigen::VectorXd coeffs =
+      solve_mass_matrix(np, entries, load, "DivConformingFluid::project_viscosity: the pressure space's");
   nu_field_.resize(np);
   for (int a = 0; a < np; ++a) nu_field_[a] = coeffs[a] / opt_.density;
 }
