@@ -2,8 +2,8 @@
 // One module's options, declared once in a table: name, kind, where the value lives (its value before
 // reading is the default, so no default is written twice), help text and valid range. Reading (through
 // PETSc's options database, which the command line and a scene YAML file feed), -help (each option is listed
-// in PETSc's options block with its default and help), the checks and every error message come from the
-// table:
+// in PETSc's options block with its default and help, and with "[valid: ...]" where the table states a
+// range or choices), the checks and every error message come from the table:
 //
 //   FluidOptions o;                                   // defaults: the struct's initialisers
 //   OptionTable t("Fluid (VMS Navier-Stokes; CGS units)", "fluid_");
@@ -123,8 +123,7 @@ class OptionTable {
   /// A word; with choices, one of them (listed in -help and in the error message).
   OptionTable& text(const std::string& name, std::string& value, std::string help,
                     std::vector<std::string> choices = {}) {
-    if (!choices.empty()) help += " (" + join(choices, ", ") + ")";
-    add(name, 's', std::move(help));
+    add(name, 's', std::move(help), choices.empty() ? "" : one_of(choices));
     Entry& e = entries_.back();
     e.read = [this, &value, i = entries_.size() - 1](PetscOptionItems* PetscOptionsObject) -> PetscErrorCode {
       PetscFunctionBeginUser;
@@ -149,21 +148,21 @@ class OptionTable {
   /// so it may depend on another option of the table, e.g. the dimension); every value is checked by `each`.
   OptionTable& reals(const std::string& name, std::vector<double>& value, std::string help,
                      std::function<int()> count, Valid<double> each = {}) {
-    return list<double, PetscReal>('R', name, value, std::move(help), std::move(count),
+    return list<double, PetscReal>('R', name, value, std::move(help), std::move(count), valid_text(each),
                                    [this, each, name](double v) {
                                      if (each.ok && !each.ok(v)) bad(name, option_value_text(v), each.text);
                                    });
   }
   OptionTable& integers(const std::string& name, std::vector<int>& value, std::string help,
                         std::function<int()> count, Valid<long long> each = {}) {
-    return list<int, PetscInt>('I', name, value, std::move(help), std::move(count),
+    return list<int, PetscInt>('I', name, value, std::move(help), std::move(count), valid_text(each),
                                [this, each, name](int v) {
                                  if (each.ok && !each.ok(v)) bad(name, std::to_string(v), each.text);
                                });
   }
   OptionTable& flags(const std::string& name, std::vector<bool>& value, std::string help,
                      std::function<int()> count) {
-    return list<bool, PetscBool>('B', name, value, std::move(help), std::move(count), [](bool) {});
+    return list<bool, PetscBool>('B', name, value, std::move(help), std::move(count), "", [](bool) {});
   }
   /// A list of words, at most max_count of them (any count up to it).
   OptionTable& texts(const std::string& name, std::vector<std::string>& value, std::string help,
@@ -243,7 +242,7 @@ class OptionTable {
   struct Entry {
     std::string name;
     char kind = 'r';  // call_reporting_input_errors' kinds, and 's' word, 'S' list of words
-    std::string help;
+    std::string help;  // as -help prints it: the help text, then "[valid: ...]" where the table states it
     std::function<PetscErrorCode(PetscOptionItems*)> read;  // inside the options block
     std::function<void()> check;
     PetscBool given_flag = PETSC_FALSE;
@@ -251,26 +250,27 @@ class OptionTable {
   };
 
   std::string full(const Entry& e) const { return "-" + prefix_ + e.name; }
-  void add(const std::string& name, char kind, std::string help) {
+  /// valid: what the table states is valid (a Valid's text, a word's choices; "" if nothing).
+  void add(const std::string& name, char kind, std::string help, const std::string& valid = "") {
     for (const Entry& e : entries_)
       if (e.name == name) throw std::logic_error("OptionTable '" + title_ + "': option '" + name + "' twice");
     Entry e;
     e.name = name;
     e.kind = kind;
-    e.help = std::move(help);
+    e.help = valid.empty() ? std::move(help) : std::move(help) + " [valid: " + valid + "]";
     entries_.push_back(std::move(e));
-  }
-  static std::string join(const std::vector<std::string>& words, const std::string& sep) {
-    std::string s;
-    for (std::size_t i = 0; i < words.size(); ++i) s += (i ? sep : "") + words[i];
-    return s;
   }
 
   /// A number: PETSc reads it as P (PetscReal, PetscInt; PetscInt is int here, and larger input is refused by
   /// the probes), valid checks it as V.
+  template <class V>
+  static std::string valid_text(const Valid<V>& valid) {
+    return valid.ok ? valid.text : "";
+  }
+
   template <class T, class P, class V>
   OptionTable& scalar(char kind, const std::string& name, T& value, std::string help, Valid<V> valid) {
-    add(name, kind, std::move(help));
+    add(name, kind, std::move(help), valid_text(valid));
     Entry& e = entries_.back();
     e.read = [this, &value, i = entries_.size() - 1](PetscOptionItems* PetscOptionsObject) -> PetscErrorCode {
       PetscFunctionBeginUser;
@@ -295,8 +295,8 @@ class OptionTable {
 
   template <class T, class P, class Each>
   OptionTable& list(char kind, const std::string& name, std::vector<T>& value, std::string help,
-                    std::function<int()> count, Each each) {
-    add(name, kind, std::move(help));
+                    std::function<int()> count, const std::string& valid, Each each) {
+    add(name, kind, std::move(help), valid);
     Entry& e = entries_.back();
     e.read = [this, &value, i = entries_.size() - 1](PetscOptionItems* PetscOptionsObject) -> PetscErrorCode {
       PetscFunctionBeginUser;

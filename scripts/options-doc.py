@@ -12,9 +12,11 @@ How: `cellfsi SCENE.yaml -help` prints every option table of the scenes it is gi
 one PETSc options block per table, each option with its default and help). The script writes two small scene
 files into a temporary folder, a 2D one with a body of each 2D shape (and one given no shape) and a 3D one
 with a body of each 3D shape, so that every table shows (scene, bodies and coupling, each body, fluid; the 3D
-fluid table adds the z walls), and reads the tables from `-help`. -help does not print valid ranges, so each
-option is then given an invalid value (nan, then -1000000000) with -help, and the range named by the error
-message ("option -X = V is invalid; valid: ...", the table's own check) becomes the valid-values column.
+fluid table adds the z walls), and reads the tables from `-help`. -help prints an option's valid values where its table
+states them ("[valid: ...]" after the help: a range, a word's choices), which is what the table's check names
+when it refuses a value. Every other option (flags, options checked only against others) is given an invalid
+value (nan, then -1000000000) with -help, and the range named by the error message ("option -X = V is invalid;
+valid: ...") becomes the valid-values column.
 cellfsi-geometry's table comes the same way.
 
 What is filtered, so the output depends on no path, date or machine:
@@ -84,7 +86,16 @@ def parse_tables(text, wanted):
 
 
 def parse_option(line):
-    """One option line of PETSc 3.18's -help."""
+    """One option line of PETSc 3.18's -help; "stated": the valid values its table states ("[valid: ...]" at
+    the end of the help), when it states them."""
+    row = parse_option_line(line)
+    m = re.fullmatch(r"(.*?) \[valid: (.*)\]", row["help"])
+    if m:
+        row["help"], row["stated"] = m[1], m[2]
+    return row
+
+
+def parse_option_line(line):
     line = line.strip()
     if line.endswith(" (None)"):
         line = line[: -len(" (None)")]
@@ -201,7 +212,8 @@ def main():
             body_sections = [[f"cellfsi body 'NAME' (the body {b} of the generator's scene)", rows]
                              for b, rows in bodies.items()]
 
-        # Valid values: what the program says when refusing a bad value; the probes run on a small 2D mesh
+        # Valid values: the stated ones, else what the program says when refusing a bad value; the probes run
+        # (for the options that state none) on a small 2D mesh
         # (the z walls on the 3D scene's), the body options on the rbc body (a membrane: every check applies).
         small = os.path.join(tmp, "probe2d.yaml")
         with open(small, "w") as f:
@@ -229,6 +241,8 @@ def main():
         # The probes are independent runs, mostly waiting on MPI's start-up: one per core at a time.
         def valid(job):
             row, program, name, count = job
+            if "stated" in row:
+                return row["stated"]
             return probe(lambda n, v: program + [f"-{n}", v, "-help"], name, count, tmp, row["kind"])
         with concurrent.futures.ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
             for job, text in zip(probes, pool.map(valid, probes)):
@@ -271,9 +285,10 @@ Options go on the command line (`-fluid_elements 128,64`) or into a scene file, 
 - **Default**: the value -help gives as the default. For a list option -help shows only the first value of its
   default (PETSc prints the values a list was read with, and none are read when it is not given); such defaults
   end in `,…`, and the help text says what the whole default is where it depends on the scene.
-- **Valid values**: what the program answers when given a bad value (`option -X = V is invalid; valid: ...`),
-  found by giving each option nan and -1000000000; — where it refuses neither (any word or number is taken;
-  checks between options may still refuse a combination, with a message naming both).
+- **Valid values**: what the program answers when given a bad value (`option -X = V is invalid; valid: ...`):
+  the range or choices -help shows as `[valid: ...]` where the option's table states them, else found by giving
+  the option nan and -1000000000; — where it refuses neither (any word or number is taken; checks between
+  options may still refuse a combination, with a message naming both).
 - Body options are per body: `NAME` is a name from `-solid_bodies` (`-solid_membrane_shape`).
 """
 

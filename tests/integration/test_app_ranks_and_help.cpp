@@ -106,7 +106,8 @@ TEST_F(CellfsiApp, HelpListsSceneOptions) {
   for (const char* table : {"cellfsi scene (docs/design.md §4; CGS units):",
                             "Fluid (VMS Navier-Stokes; CGS units):", "cellfsi immersed bodies and coupling:"})
     EXPECT_NE(r.output.find(table), std::string::npos) << "-help lacks the table " << table;
-  EXPECT_NE(r.output.find("Eulerian domain (rectangle, box, narrowing)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("Eulerian domain [valid: rectangle, box or narrowing]"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("Time step [s] [valid: > 0 [s]]"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("  -fluid_density <"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("  -coupling_acceleration <"), std::string::npos) << r.output;
   EXPECT_EQ(count(r.output, "cellfsi: error"), 0u) << r.output;

@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 #include <petscsys.h>
 
+#include <cstdio>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/option_table.hpp"
@@ -109,4 +111,46 @@ TEST_F(OptionTableTest, BadReportsTheFullName) {
   t.read();
   EXPECT_EQ(error_of([&] { t.bad("size", "(given)", "not with -domain narrowing"); }),
             "option -t_size = (given) is invalid; valid: not with -domain narrowing");
+}
+
+TEST_F(OptionTableTest, HelpStatesEachRangeAsTheCheckNamesIt) {
+  // -help lists each option with "[valid: ...]" where the table states a range or choices, the same words the
+  // check names when it refuses a value (scripts/options-doc.py reads them from -help instead of probing).
+  set("-help", nullptr);
+  Settings s;
+  OptionTable t("help test", "h_");
+  declare(t, s);
+  ::testing::internal::CaptureStdout();
+  t.read();
+  std::fflush(stdout);
+  const std::string help = ::testing::internal::GetCapturedStdout();
+  auto line_of = [&help](const std::string& option) {
+    std::size_t at = help.find("  -h_" + option + " ");  // "-NAME <default>: help"
+    if (at == std::string::npos) at = help.find("  -h_" + option + ":");  // a flag: "-NAME: <...> help"
+    return at == std::string::npos ? std::string() : help.substr(at, help.find('\n', at) - at);
+  };
+  const std::vector<std::pair<std::string, std::string>> stated = {{"dim", "2 ... 3"},
+                                                                   {"dt", "> 0 [s]"},
+                                                                   {"every", ">= 0 (0: never)"},
+                                                                   {"flow", "shear, poiseuille or rest"},
+                                                                   {"size", "> 0 [cm]"},
+                                                                   {"elements", ">= 1"}};
+  for (const auto& [option, valid] : stated) {
+    EXPECT_NE(line_of(option).find(" [valid: " + valid + "]"), std::string::npos) << line_of(option);
+    // The check, given a value outside the range, names the same words.
+    PetscOptionsClear(nullptr);
+    set(("-h_" + option).c_str(), option == "flow"   ? "sideways"
+                                   : option == "size" ? "-1,1"
+                                   : option == "elements" ? "-1,4"
+                                                          : "-1");
+    Settings fresh;
+    OptionTable u("check", "h_");
+    declare(u, fresh);
+    const std::string what = error_of([&] { u.read(); });
+    EXPECT_TRUE(what.ends_with("; valid: " + valid)) << option << ": " << what;
+  }
+  for (const char* option : {"restart", "bodies"}) {  // no range: nothing stated
+    EXPECT_FALSE(line_of(option).empty()) << option;
+    EXPECT_EQ(line_of(option).find("[valid:"), std::string::npos) << line_of(option);
+  }
 }
