@@ -230,15 +230,51 @@ def capsule_two_spaces_rows(path):
 
 
 def t_two_spaces_area():
-    path = os.path.join(VAL, "two_spaces_area.md")
-    tables = md_tables(path)
-    rows = [[r["mesh"], f"{r['space']} {r['degree']}", r["dt s"], r["T s"], r[RA], r[RA + " from 0.1 s"],
-             r["r_A(T)"], r["ratio to the coarser mesh (from 0.1 s)"], r["coupling it/step"], r["s/step"],
-             r["status"]]
-            for r in (tables[0] if tables else [])]
+    # dt fixed (two_spaces_area.md), then dt halved with h (two_spaces_area_dt_h.md, when it has been run)
+    paths = [os.path.join(VAL, f) for f in ("two_spaces_area.md", "two_spaces_area_dt_h.md")]
+    paths = [p for p in paths if os.path.exists(p)]
+    rows = []
+    for path in paths:
+        tables = md_tables(path)
+        rows += [[r["mesh"], f"{r['space']} {r['degree']}", r["dt s"], r["T s"], r[RA], r[RA + " from 0.1 s"],
+                  r["r_A(T)"], r["ratio to the coarser mesh (from 0.1 s)"], r["coupling it/step"], r["s/step"],
+                  r["status"]]
+                 for r in (tables[0] if tables else [])]
     cols = ["mesh", "space", "dt s", "T s", RA, RA + " from 0.1 s", "r_A(T)", "ratio to the coarser mesh (from 0.1 s)",
             "coupling it/step", "s/step", "status"]
-    return table(rows, [link_from_page(path)], cols)
+    return table(rows, [" and ".join(link_from_page(p) for p in paths)], cols)
+
+
+def t_two_spaces_sweeps():
+    """The paper's shear sweeps on both spaces at one mesh, side by side: each quantity as
+    divergence-conforming / equal-order, and each space's seconds per step."""
+    rows, sources = [], []
+    skip = {"steps", "wall s", "status", "half-turns"}
+    for sweep in ("swelling", "bulky", "compound"):
+        paths = [os.path.join(VAL, f"two_spaces_shear_{sweep}_{s}.md") for s in ("dc", "eo")]
+        if not all(os.path.exists(p) for p in paths):
+            continue
+        sources += [link_from_page(p) for p in paths]
+        dc, eo = (md_tables(p)[0] for p in paths)
+        eo_by_key = {r[list(r)[0]]: r for r in eo}
+        for r in dc:
+            key = list(r)[0]
+            o = eo_by_key.get(r[key])
+            if o is None:
+                continue
+            pairs = [f"{c} {r[c]} / {o[c]}" for c in list(r)[2:] if c not in skip and (r[c], o[c]) != ("-", "-")]
+            per_step = [fmt_per_step(x) for x in (r, o)]
+            rows.append([sweep, f"{key} {r[key]}", f"{list(r)[1]} {r[list(r)[1]]}", "; ".join(pairs),
+                         " / ".join(per_step), f"{r['status']} / {o['status']}"])
+    cols = ["sweep", "value", "shape", "div-conforming / equal-order", "s/step", "status"]
+    return table(rows, sources or ["(not run)"], cols)
+
+
+def fmt_per_step(r):
+    try:
+        return f"{float(r['wall s']) / float(r['steps']):.3f}"
+    except (KeyError, ValueError, ZeroDivisionError):
+        return "-"
 
 
 def t_default_scene():
@@ -528,7 +564,8 @@ def t_targets():
 
 TABLES = {
     "capsule_shear": t_capsule_shear, "capsule_two_spaces": t_capsule_two_spaces,
-    "two_spaces_area": t_two_spaces_area, "default_scene": t_default_scene, "stiff_disk": t_stiff_disk,
+    "two_spaces_area": t_two_spaces_area, "two_spaces_sweeps": t_two_spaces_sweeps,
+    "default_scene": t_default_scene, "stiff_disk": t_stiff_disk,
     "biconcave_capsule_shear": t_biconcave, "bulky_ellipse_shear": t_bulky, "compound_capsule_shear": t_compound_2d,
     "compound_capsule_shear_3d": t_compound_3d, "rbc_shear_3d": t_rbc_shear_3d, "rbc_stretch_3d": t_stretching,
     "rbc_channel": t_rbc_channel, "capsule_channel_migration": t_migration, "ctc_narrowing": t_ctc,
