@@ -261,13 +261,14 @@ class OptionTable {
     entries_.push_back(std::move(e));
   }
 
-  /// A number: PETSc reads it as P (PetscReal, PetscInt; PetscInt is int here, and larger input is refused by
-  /// the probes), valid checks it as V.
+  /// What -help states as valid for a Valid: its text if it checks anything.
   template <class V>
   static std::string valid_text(const Valid<V>& valid) {
     return valid.ok ? valid.text : "";
   }
 
+  /// A number: PETSc reads it as P (PetscReal, PetscInt; PetscInt is int here, and larger input is refused by
+  /// the probes), valid checks it as V.
   template <class T, class P, class V>
   OptionTable& scalar(char kind, const std::string& name, T& value, std::string help, Valid<V> valid) {
     add(name, kind, std::move(help), valid_text(valid));

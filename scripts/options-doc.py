@@ -12,9 +12,9 @@ How: `cellfsi SCENE.yaml -help` prints every option table of the scenes it is gi
 one PETSc options block per table, each option with its default and help). The script writes two small scene
 files into a temporary folder, a 2D one with a body of each 2D shape (and one given no shape) and a 3D one
 with a body of each 3D shape, so that every table shows (scene, bodies and coupling, each body, fluid; the 3D
-fluid table adds the z walls), and reads the tables from `-help`. -help prints an option's valid values where its table
-states them ("[valid: ...]" after the help: a range, a word's choices), which is what the table's check names
-when it refuses a value. Every other option (flags, options checked only against others) is given an invalid
+fluid table adds the z walls), and reads the tables from `-help`. -help prints an option's valid values where
+its table states them ("[valid: ...]" after the help: a range, a word's choices), which is what the table's
+check names when it refuses a value. Every other option (flags, options checked only against others) is given an invalid
 value (nan, then -1000000000) with -help, and the range named by the error message ("option -X = V is invalid;
 valid: ...") becomes the valid-values column.
 cellfsi-geometry's table comes the same way.
