@@ -13,6 +13,7 @@ namespace cellfsi::coupling {
 BulkSolve::~BulkSolve() {
   try {  // the Jacobian lets the inverse go (a destructor does not throw)
     if (Mat J = c_.fluid.jacobian_matrix()) solvers::pc_bulk_compose(J, nullptr);
+    if (op_) solvers::pc_bulk_compose(op_, nullptr);
   } catch (...) {
   }
 }
@@ -47,15 +48,19 @@ std::optional<FallBack> BulkSolve::prepare(Vec X, bool, SolveCounts& counts) {
   auto bulk = std::make_shared<solvers::BulkInverse>();
   bulk->apply = std::move(inv->apply);
   bulk->description = inv->description;
-  solvers::pc_bulk_compose(c_.fluid.jacobian_matrix(), std::move(bulk));
-  CELLFSI_PETSC(PetscPrintf(c_.fluid.comm(), "cellfsi: %s\n", inv->description.c_str()));
+  // With the bulk stencil the operator is the fluid's: its bulk part the inverse's own stencil, no assembled
+  // bulk (fluid::ImmersedFluid::OwnBulkInverse::stencil_operator).
+  if (c_.options.bulk_stencil) op_ = inv->stencil_operator;
+  solvers::pc_bulk_compose(operator_matrix(), std::move(bulk));
+  CELLFSI_PETSC(PetscPrintf(c_.fluid.comm(), "cellfsi: %s%s\n", inv->description.c_str(),
+                            op_ ? "; the Jacobian's bulk part applied by its stencil" : ""));
   marking_changed();  // the first solve assembles the coupled Jacobian
   return std::nullopt;
 }
 
 void BulkSolve::refresh_jacobian(Vec X) {
   EventScope ev(coupling_events().jacobian);
-  c_.fluid.jacobian(X, c_.fluid.jacobian_matrix());
+  c_.fluid.jacobian(X, operator_matrix());
 }
 
 }  // namespace cellfsi::coupling

@@ -117,6 +117,10 @@ CoupledLinearSolver::CoupledLinearSolver(fluid::ImmersedFluid& fluid, LinearSolv
   CELLFSI_PETSC(KSPSetOptionsPrefix(ksp_, kCouplingPrefix));
   configure_ksp(ksp_, opt_.pc_type.empty() ? default_pc_type(s) : opt_.pc_type, opt_);
   CELLFSI_PETSC(KSPSetFromOptions(ksp_));
+  PetscBool stencil_given = PETSC_FALSE;
+  CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-coupling_bulk_stencil", &stencil_given));
+  if (const std::optional<bool> by_type = pc_type_bulk_stencil(pc_type()); by_type && !stencil_given)
+    opt_.bulk_stencil = *by_type;
   path_ = make_solve_path(pc_type(), context_);
   path_->start(s, seq_baij == PETSC_TRUE);
 }

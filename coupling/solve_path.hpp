@@ -152,8 +152,9 @@ class BulkSolve final : public CellfsiSolve {
 
  private:
   void refresh_jacobian(Vec X) override;
-  Mat operator_matrix() const override { return c_.fluid.jacobian_matrix(); }
+  Mat operator_matrix() const override { return op_ ? op_ : c_.fluid.jacobian_matrix(); }
   bool built_ = false;
+  Mat op_ = nullptr;  // bulk_stencil: the fluid's operator (its own; not destroyed here)
 };
 
 class PetscPCSolve final : public SolvePath {

@@ -29,6 +29,11 @@ LinearSolverOptions linear_solver_defaults(int dim) {
   return o;
 }
 
+std::optional<bool> pc_type_bulk_stencil(const std::string& pc_type) {
+  if (pc_type == solvers::kPCBulk) return true;
+  return std::nullopt;
+}
+
 std::vector<std::pair<std::string, std::string>> PetscPCDefaults::options(bool pressure_null_space) {
   std::vector<std::pair<std::string, std::string>> defaults{
       {"-coupling_sub_pc_type", fluid::KrylovDefaults::sub_pc_type},
@@ -126,10 +131,10 @@ void add_solver_options(OptionTable& t, LinearSolverOptions& l, PCTypeOptions& p
             "copy "
             "(false: one copy, the whole Jacobian at every refresh)")
       .flag("coupling_bulk_stencil", l.bulk_stencil,
-            "cellfsi_fourier: no whole Jacobian after the first step: the Krylov products apply the bulk "
-            "operator's stencil away from the cells and an assembled matrix of the rows near them (saves the "
-            "Jacobian's memory and most of its assembly; an inexact Newton iteration; default " +
-                std::string(in_3d.bulk_stencil ? "true" : "false") + " in 3D)")
+            "cellfsi_fourier and cellfsi_bulk: no whole Jacobian after the first step: the Krylov products "
+            "apply the bulk operator's stencil away from the cells and an assembled matrix of the rows near "
+            "them (saves the Jacobian's memory and most of its assembly; an inexact Newton iteration; default " +
+                std::string(in_3d.bulk_stencil ? "true" : "false") + " in 3D and with cellfsi_bulk)")
       .integer("coupling_region_margin", l.region_margin,
                "cellfsi types: elements around the s^h band and immersed points in the re-assembled region "
                "(default " +
@@ -178,7 +183,7 @@ std::string option_inapplicable(const std::string& name, const std::string& pc_t
         return "a coupled run solves with the KSP -coupling_ (e.g. -" + std::string(kCouplingPrefix) +
                name.substr(6) + "): -fluid_ solver options act on runs without cells";
   // Which PC types read which options: a name, or a prefix (ending in _), and the types.
-  enum class Reader { fourier, band, region_types, cellfsi_types, petsc_pcs };
+  enum class Reader { fourier, band, bulk_types, region_types, cellfsi_types, petsc_pcs };
   struct Scope {
     const char* name;
     Reader reader;
@@ -186,7 +191,7 @@ std::string option_inapplicable(const std::string& name, const std::string& pc_t
   static const Scope kScopes[] = {{"coupling_pc_fourier_", Reader::fourier},
                                   {"coupling_fourier_", Reader::fourier},
                                   {"coupling_partial_jacobian", Reader::fourier},
-                                  {"coupling_bulk_stencil", Reader::fourier},
+                                  {"coupling_bulk_stencil", Reader::bulk_types},
                                   {"coupling_pc_band_", Reader::band},
                                   {"coupling_band_", Reader::band},
                                   {"coupling_refactor_every", Reader::band},
@@ -206,6 +211,9 @@ std::string option_inapplicable(const std::string& name, const std::string& pc_t
         break;
       case Reader::band:
         if (!band) return in_use;
+        break;
+      case Reader::bulk_types:
+        if (!fourier && !bulk) return in_use;
         break;
       case Reader::region_types:
         if (bulk) return in_use + ", which re-assembles the whole Jacobian and has no region around the cells";

@@ -94,6 +94,8 @@ DcImmersedFluid::DcImmersedFluid(MPI_Comm comm, const geometry::Patch& patch, co
 DcImmersedFluid::~DcImmersedFluid() {
   VecDestroy(&U_);
   MatDestroy(&bulk_matrix_);
+  MatDestroy(&stencil_op_);
+  MatDestroy(&immersed_);
 }
 
 void DcImmersedFluid::sync_solution() { fluid_->scatter(fluid_->state(), U_); }
@@ -277,6 +279,10 @@ void DcImmersedFluid::residual(Vec X, Vec F) {
 }
 
 void DcImmersedFluid::jacobian(Vec X, Mat J) {
+  if (J && J == stencil_op_) {
+    refresh_stencil_operator(X);
+    return;
+  }
   fluid_->gather(X, work_);
   if (fluid_->has_viscosity_field()) {  // the field moves with the cells: everything re-assembled
     fluid_->step_tangent(work_, J, true, false);
@@ -332,7 +338,64 @@ std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X
     bulk_->solve(b, x);
     fluid_->scatter(x, out);
   };
+  if (!stencil_op_) {
+    PetscInt m = 0, n = 0;
+    CELLFSI_PETSC(VecGetLocalSize(U_, &m));
+    CELLFSI_PETSC(VecGetSize(U_, &n));
+    CELLFSI_PETSC(MatCreateShell(comm_, m, m, n, n, this, &stencil_op_));
+    CELLFSI_PETSC(MatShellSetOperation(stencil_op_, MATOP_MULT, reinterpret_cast<void (*)(void)>(stencil_mult)));
+    CELLFSI_PETSC(PetscObjectSetName(reinterpret_cast<PetscObject>(stencil_op_), "cellfsi_dc_stencil"));
+  }
+  inv.stencil_operator = stencil_op_;
   return inv;
+}
+
+void DcImmersedFluid::refresh_stencil_operator(Vec X) {
+  fluid_->gather(X, work_);
+  op_assembled_ = fluid_->has_viscosity_field();
+  if (op_assembled_) {  // the field moves with the cells: the bulk is not the stencil's
+    fluid_->step_tangent(work_, fluid_->matrix(), true, false);
+  } else {
+    // The immersed points' pattern (they move), then their tangent on it.
+    MatDestroy(&immersed_);
+    Mat pattern;
+    PetscInt m = 0, n = 0;
+    CELLFSI_PETSC(VecGetLocalSize(U_, &m));
+    CELLFSI_PETSC(VecGetSize(U_, &n));
+    CELLFSI_PETSC(MatCreate(comm_, &pattern));
+    CELLFSI_PETSC(MatSetType(pattern, MATPREALLOCATOR));
+    CELLFSI_PETSC(MatSetSizes(pattern, m, m, n, n));
+    CELLFSI_PETSC(MatSetUp(pattern));
+    fluid_->immersed_tangent(work_, pattern);
+    CELLFSI_PETSC(MatCreate(comm_, &immersed_));
+    CELLFSI_PETSC(MatSetType(immersed_, MATAIJ));
+    CELLFSI_PETSC(MatSetSizes(immersed_, m, m, n, n));
+    CELLFSI_PETSC(MatPreallocatorPreallocate(pattern, PETSC_TRUE, immersed_));
+    CELLFSI_PETSC(MatDestroy(&pattern));
+    fluid_->immersed_tangent(work_, immersed_);
+  }
+  // (An assembly raises the operator's state: KSP sets its preconditioner up again.)
+  CELLFSI_PETSC(MatAssemblyBegin(stencil_op_, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(stencil_op_, MAT_FINAL_ASSEMBLY));
+}
+
+PetscErrorCode DcImmersedFluid::stencil_mult(Mat A, Vec x, Vec y) {
+  PetscFunctionBeginUser;
+  DcImmersedFluid* self = nullptr;
+  PetscCall(MatShellGetContext(A, &self));
+  if (self->op_assembled_) {
+    PetscCall(MatMult(self->fluid_->matrix(), x, y));
+    PetscFunctionReturn(0);
+  }
+  try {
+    self->fluid_->gather(x, self->x_nat_);
+    self->bulk_->multiply(self->x_nat_, self->y_nat_);
+    self->fluid_->scatter(self->y_nat_, y);
+  } catch (const std::exception& e) {
+    SETERRQ(PetscObjectComm(reinterpret_cast<PetscObject>(A)), PETSC_ERR_LIB, "%s", e.what());
+  }
+  if (self->immersed_) PetscCall(MatMultAdd(self->immersed_, x, y, y));
+  PetscFunctionReturn(0);
 }
 
 std::string DcImmersedFluid::write_fields(const std::string& dir, const std::string& stem, int samples_per_element,

@@ -19,7 +19,10 @@
 //   * the pressure: one pressure unknown is pinned during a step (a unit row) and the pressure is shifted to
 //     zero mean after it, so options().pressure_null_space is false.
 //   * the coupled Jacobian: its bulk part kept from the first iterate, the immersed points' tangent added at
-//     each refresh (bulk_matrix_ below).
+//     each refresh (bulk_matrix_ below); or, as bulk_inverse()'s stencil_operator (-coupling_bulk_stencil),
+//     a MATSHELL named cellfsi_dc_stencil: the bulk part applied by the bulk inverse's own stencil
+//     (DcFourierSolver::multiply, no matrix) plus an assembled matrix of the immersed points' tangent alone
+//     (its pattern made at each refresh by a MATPREALLOCATOR pass: the points move).
 //   * the region hooks of the equal-order solvers (jacobian_part, jacobian_add_part, region_unknowns) do
 //     not apply: they throw std::logic_error.
 // State: replicated on every rank (DivConformingFluid's; fluid/div_conforming/README.md says what a real
@@ -107,6 +110,13 @@ class DcImmersedFluid final : public ImmersedFluid {
   /// paper's flows); the residual, and so the solution, is exact. With a viscosity field (a contrast, which
   /// moves with the cells) the whole tangent is assembled instead.
   Mat bulk_matrix_ = nullptr;
+  /// bulk_inverse()'s stencil_operator (see the header comment), its immersed part, and whether it applies
+  /// the whole assembled tangent instead (a viscosity field: the bulk is not the stencil's).
+  Mat stencil_op_ = nullptr, immersed_ = nullptr;
+  bool op_assembled_ = false;
+  std::vector<double> x_nat_, y_nat_;  // the operator's product in the natural numbering
+  static PetscErrorCode stencil_mult(Mat A, Vec x, Vec y);
+  void refresh_stencil_operator(Vec X);
 };
 
 }  // namespace cellfsi::fluid

@@ -170,10 +170,14 @@ class ImmersedFluid {
   /// from the structure the inverse assumes (relative to a row's largest entry); or nothing if it has none
   /// (the VMS fluid: its bulk inverse is solvers/fourier_bulk.hpp, made from block_layout()). The coupled
   /// solve's PC type cellfsi_bulk applies it. Collective.
+  /// stencil_operator: if not null, the coupled Jacobian as an operator whose bulk part is the inverse's own
+  /// stencil (no assembled bulk; -coupling_bulk_stencil): owned by the fluid, refreshed by jacobian(X, it),
+  /// its products those of jacobian() to the operator's deviation from that stencil.
   struct OwnBulkInverse {
     std::function<void(Vec b, Vec x)> apply;
     std::string description;
     double deviation = 0;
+    Mat stencil_operator = nullptr;
   };
   virtual std::optional<OwnBulkInverse> bulk_inverse(Vec /*X*/) { return std::nullopt; }
   /// For a space whose velocity is divergence-free pointwise: the largest max|div v| / max|grad v| after any

@@ -666,6 +666,22 @@ void DivConformingFluid::step_tangent_from(Mat bulk, const std::vector<double>& 
   CELLFSI_PETSC(MatZeroRows(J, static_cast<PetscInt>(rows.size()), rows.data(), 1.0, nullptr, nullptr));
 }
 
+void DivConformingFluid::immersed_tangent(const std::vector<double>& U, Mat C) {
+  const bool started = !Un_.empty();
+  const Levels lv = step_levels(U, started ? Un_ : U_, started ? Udotn_ : Udot_);
+  assemble_immersed(lv, nullptr, C);
+  CELLFSI_PETSC(MatAssemblyBegin(C, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(C, MAT_FINAL_ASSEMBLY));
+  MatType type = nullptr;
+  CELLFSI_PETSC(MatGetType(C, &type));
+  if (std::string(type) == MATPREALLOCATOR) return;
+  std::vector<PetscInt> rows;
+  const PetscInt pin = petsc_index_[space_.offset(space_.dim())];
+  for (PetscInt r : owned_fixed_)
+    if (r != pin) rows.push_back(r);
+  CELLFSI_PETSC(MatZeroRows(C, static_cast<PetscInt>(rows.size()), rows.data(), 0.0, nullptr, nullptr));
+}
+
 void DivConformingFluid::end_step(const std::vector<double>& U) {
   if (Un_.empty()) throw std::logic_error("DivConformingFluid::end_step before begin_step");
   const int nv = space_.n_velocity();

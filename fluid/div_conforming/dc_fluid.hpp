@@ -211,6 +211,10 @@ class DivConformingFluid {
   /// another state (the coupling loop's Jacobian: the bulk changes with the flow only through terms of the
   /// order of the Reynolds number). Collective.
   void step_tangent_from(Mat bulk, const std::vector<double>& U, Mat J, bool pin_pressure = true);
+  /// The immersed points' part of the step's tangent at U alone into C (ADD_VALUES, then assembled; the fixed
+  /// rows zero, the pressure pin's row kept as assembled): step_tangent_from(bulk, U, J, false) is bulk + C. C
+  /// may be a MATPREALLOCATOR, whose pattern is then that of C. Collective.
+  void immersed_tangent(const std::vector<double>& U, Mat C);
   /// Accepts U as U_{n+1}: the rate, the time, the pressure's zero mean, divergence_history().
   void end_step(const std::vector<double>& U);
   /// v and grad v at t_{n+alpha_f} and the acceleration at t_{n+alpha_m} of the step's iterate U at points

@@ -248,7 +248,31 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
                "pin_pressure = true"
              : "; is the operator invertible?"));
   if (!plans_) plans_ = std::make_unique<Plans>(nx_);
+  stencil_ = std::move(stencil);
+  row_start_ = std::move(row_start);
   built_ = true;
+}
+
+void DcFourierSolver::multiply(const std::vector<double>& x, std::vector<double>& y) const {
+  if (!built_) throw std::logic_error("DcFourierSolver::multiply before build");
+  if (static_cast<int>(x.size()) != space_.n_dofs())
+    throw std::invalid_argument("DcFourierSolver::multiply: the vector has " + std::to_string(x.size()) +
+                                " entries, not n_dofs() = " + std::to_string(space_.n_dofs()));
+  y.assign(x.size(), 0.0);
+  auto first = [&](int line) { return space_.offset(line_component_[line]) + nx_ * line_y_[line]; };
+  const int n = nx_;
+  for (int r = 0; r < n_line_; ++r) {
+    double* __restrict yr = &y[first(r)];
+    for (int e = row_start_[r]; e < row_start_[r + 1]; ++e) {
+      // y_r[i] += v x_c[(i + s) mod n]: two contiguous loops, split where the shift wraps.
+      const StencilEntry& se = stencil_[e];
+      const double v = se.value;
+      const double* __restrict xc = &x[first(se.col)];
+      const int s = se.shift, m = n - s;
+      for (int i = 0; i < m; ++i) yr[i] += v * xc[i + s];
+      for (int i = m; i < n; ++i) yr[i] += v * xc[i - m];
+    }
+  }
 }
 
 template <class PerMode>

@@ -3,6 +3,7 @@
 // defaults and ranges (the same values the PC types read).
 #include <gtest/gtest.h>
 
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -22,6 +23,11 @@ TEST(SolverPolicy, DefaultsPerDimension) {
   EXPECT_EQ(d3.region_margin, 1);
   EXPECT_TRUE(d3.bulk_stencil);
   EXPECT_EQ(d3.rtol, 1e-2);
+  // cellfsi_bulk applies its bulk inverse's stencil in both dimensions unless told otherwise; the other types
+  // keep the dimension's default.
+  EXPECT_EQ(coupling::pc_type_bulk_stencil("cellfsi_bulk"), std::optional<bool>(true));
+  EXPECT_EQ(coupling::pc_type_bulk_stencil("cellfsi_fourier"), std::nullopt);
+  EXPECT_EQ(coupling::pc_type_bulk_stencil("asm"), std::nullopt);
   // What does not depend on the dimension.
   for (const LinearSolverOptions& d : {d2, d3}) {
     EXPECT_EQ(d.pc_type, "");
@@ -100,6 +106,7 @@ TEST(SolverPolicy, MemoryPlanDropsTheSecondCopyWhenFourAndAHalfJacobiansDoNotFit
 TEST(SolverPolicy, WhichOptionsApplyToWhichPCType) {
   const std::string fourier = "cellfsi_fourier", band = "cellfsi_band", asm_pc = "asm";
   // Each type's own options.
+  EXPECT_EQ(coupling::option_inapplicable("coupling_bulk_stencil", "cellfsi_bulk"), "");
   for (const char* name : {"coupling_pc_fourier_threshold", "coupling_fourier_region_pc_type",
                            "coupling_partial_jacobian", "coupling_bulk_stencil"}) {
     EXPECT_EQ(coupling::option_inapplicable(name, fourier), "") << name;

@@ -181,6 +181,77 @@ TEST(DcImmersedFluid, ItsBulkInverseInvertsTheJacobianWithoutCells) {
   VecDestroy(&r);
 }
 
+TEST(DcImmersedFluid, ItsStencilOperatorMultipliesAsTheAssembledJacobian) {
+  // The coupled Jacobian two ways (-coupling_bulk_stencil): assembled (the bulk part kept, the immersed
+  // points' tangent added) and as the stencil operator (the bulk part by the bulk inverse's stencil, the
+  // points' tangent a matrix of its own). With the bulk uniform along x to round-off (the shear flow), their
+  // products agree to round-off; asserted 1e-12 of max|y|, with immersed points (a ring of them with stress,
+  // density and stiffness, as a membrane gives) and, after the points are gone, without.
+  ShearBox box(32, 16);
+  std::unique_ptr<fluid::ImmersedFluid> f = fluid::create_fluid(PETSC_COMM_WORLD, box.patch, box.options);
+  f->set_initial_velocity([&](const Vec3& x) { return box.shear(x); });
+  Vec X, x, y_op, y_mat;
+  CELLFSI_PETSC(VecDuplicate(f->solution(), &X));
+  CELLFSI_PETSC(VecDuplicate(X, &x));
+  CELLFSI_PETSC(VecDuplicate(X, &y_op));
+  CELLFSI_PETSC(VecDuplicate(X, &y_mat));
+  f->begin_step(X);
+  std::optional<fluid::ImmersedFluid::OwnBulkInverse> inv = f->bulk_inverse(X);
+  ASSERT_TRUE(inv);
+  ASSERT_NE(inv->stencil_operator, nullptr);
+  auto set_ring = [&](int n) {
+    std::vector<geometry::Index3> elements;
+    std::vector<geometry::Param> xi;
+    std::vector<fluid::ImmersedPoint> data;
+    for (int i = 0; i < n; ++i) {
+      const double a = 2 * M_PI * i / n;
+      const geometry::Param p{0.5 + 0.2 * std::cos(a), 0.5 + 0.3 * std::sin(a), 0};
+      elements.push_back(box.patch.find_element(p));
+      xi.push_back(p);
+      fluid::ImmersedPoint d;
+      d.weight = 1e-9;
+      d.beta = 0.1;
+      d.stiffness_viscosity = 0.5;
+      d.stress = {{{0.3, 0.1, 0}, {0.1, -0.2, 0}, {0, 0, 0}}};
+      data.push_back(d);
+    }
+    f->set_immersed_points(elements, xi, data);
+  };
+  PetscInt lo = 0, hi = 0;
+  CELLFSI_PETSC(VecGetOwnershipRange(x, &lo, &hi));
+  PetscScalar* px;
+  CELLFSI_PETSC(VecGetArray(x, &px));
+  for (PetscInt i = lo; i < hi; ++i) px[i - lo] = std::sin(0.37 * static_cast<double>(i)) + 0.1;
+  CELLFSI_PETSC(VecRestoreArray(x, &px));
+  Vec y_points;  // the product with the points, to check that they matter
+  CELLFSI_PETSC(VecDuplicate(X, &y_points));
+  for (int n : {200, 0}) {
+    set_ring(n);
+    f->jacobian(X, inv->stencil_operator);
+    f->jacobian(X, f->jacobian_matrix());
+    CELLFSI_PETSC(MatMult(inv->stencil_operator, x, y_op));
+    CELLFSI_PETSC(MatMult(f->jacobian_matrix(), x, y_mat));
+    PetscReal scale = 0, diff = 0;
+    CELLFSI_PETSC(VecNorm(y_mat, NORM_INFINITY, &scale));
+    CELLFSI_PETSC(VecAXPY(y_op, -1.0, y_mat));
+    CELLFSI_PETSC(VecNorm(y_op, NORM_INFINITY, &diff));
+    EXPECT_LT(diff, 1e-12 * scale) << n << " points";
+    EXPECT_GT(scale, 0) << n << " points";
+    if (n > 0) {
+      CELLFSI_PETSC(VecCopy(y_mat, y_points));
+    } else {  // the points' part is more than round-off
+      CELLFSI_PETSC(VecAXPY(y_points, -1.0, y_mat));
+      CELLFSI_PETSC(VecNorm(y_points, NORM_INFINITY, &diff));
+      EXPECT_GT(diff, 1e-6 * scale);
+    }
+  }
+  VecDestroy(&y_points);
+  VecDestroy(&X);
+  VecDestroy(&x);
+  VecDestroy(&y_op);
+  VecDestroy(&y_mat);
+}
+
 TEST(DcImmersedFluid, RefusesADomainThatIsNotABox) {
   const geometry::Patch channel = geometry::narrowing_channel(geometry::NarrowingChannel{}, 32, 16, 2);
   fluid::FluidOptions o;
