@@ -248,30 +248,96 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
                "pin_pressure = true"
              : "; is the operator invertible?"));
   if (!plans_) plans_ = std::make_unique<Plans>(nx_);
-  stencil_ = std::move(stencil);
-  row_start_ = std::move(row_start);
+  // 5. The stencil by (row line, column line) pair for multiply(), its x shifts as signed offsets.
+  auto signed_offset = [&](int shift) { return shift <= nx_ / 2 ? shift : shift - nx_; };
+  halo_ = 0;
+  for (const StencilEntry& e : stencil) halo_ = std::max(halo_, std::abs(signed_offset(e.shift)));
+  const int width = 2 * halo_ + 1;
+  pair_row_.clear();
+  pair_col_.clear();
+  pair_taps_.clear();
+  for (const StencilEntry& e : stencil) {  // sorted by (row, column line, shift)
+    if (pair_row_.empty() || pair_row_.back() != e.row || pair_col_.back() != e.col) {
+      pair_row_.push_back(e.row);
+      pair_col_.push_back(e.col);
+      pair_taps_.resize(pair_taps_.size() + width, 0.0);
+    }
+    pair_taps_[pair_taps_.size() - width + signed_offset(e.shift) + halo_] += e.value;
+  }
   built_ = true;
 }
+
+namespace {
+
+/// y_r[i] += sum_t w[t] x_pad[i + t] for each pair (r, c) (x_pad: line c with its halo, so that t = 0 is the
+/// offset -halo), W taps known at compile time so that the loop over i vectorises.
+template <int W>
+void multiply_pairs(int n, int padded_length, std::size_t n_pairs, const int* rows, const int* cols,
+                    const double* taps, const double* padded, const std::vector<int>& first, double* y) {
+  for (std::size_t g = 0; g < n_pairs; ++g) {
+    double w[W];
+    for (int t = 0; t < W; ++t) w[t] = taps[g * W + t];
+    double* __restrict yr = y + first[rows[g]];
+    const double* __restrict xl = padded + static_cast<std::size_t>(cols[g]) * padded_length;
+    for (int i = 0; i < n; ++i) {
+      double acc = 0;
+      for (int t = 0; t < W; ++t) acc += w[t] * xl[i + t];
+      yr[i] += acc;
+    }
+  }
+}
+
+/// The same for any width (not one of the compiled ones).
+void multiply_pairs_any(int W, int n, int padded_length, std::size_t n_pairs, const int* rows, const int* cols,
+                        const double* taps, const double* padded, const std::vector<int>& first, double* y) {
+  for (std::size_t g = 0; g < n_pairs; ++g) {
+    double* yr = y + first[rows[g]];
+    const double* xl = padded + static_cast<std::size_t>(cols[g]) * padded_length;
+    for (int t = 0; t < W; ++t) {
+      const double w = taps[g * W + t];
+      for (int i = 0; i < n; ++i) yr[i] += w * xl[i + t];
+    }
+  }
+}
+
+}  // namespace
 
 void DcFourierSolver::multiply(const std::vector<double>& x, std::vector<double>& y) const {
   if (!built_) throw std::logic_error("DcFourierSolver::multiply before build");
   if (static_cast<int>(x.size()) != space_.n_dofs())
     throw std::invalid_argument("DcFourierSolver::multiply: the vector has " + std::to_string(x.size()) +
                                 " entries, not n_dofs() = " + std::to_string(space_.n_dofs()));
-  y.assign(x.size(), 0.0);
-  auto first = [&](int line) { return space_.offset(line_component_[line]) + nx_ * line_y_[line]; };
-  const int n = nx_;
-  for (int r = 0; r < n_line_; ++r) {
-    double* __restrict yr = &y[first(r)];
-    for (int e = row_start_[r]; e < row_start_[r + 1]; ++e) {
-      // y_r[i] += v x_c[(i + s) mod n]: two contiguous loops, split where the shift wraps.
-      const StencilEntry& se = stencil_[e];
-      const double v = se.value;
-      const double* __restrict xc = &x[first(se.col)];
-      const int s = se.shift, m = n - s;
-      for (int i = 0; i < m; ++i) yr[i] += v * xc[i + s];
-      for (int i = m; i < n; ++i) yr[i] += v * xc[i - m];
+  const int n = nx_, h = halo_, L = n + 2 * h, W = 2 * h + 1;
+  std::vector<int> first(n_line_);
+  for (int l = 0; l < n_line_; ++l) first[l] = space_.offset(line_component_[l]) + nx_ * line_y_[l];
+  // Each line of x with its periodic halo: padded[l L + j] = x_l[(j - h) mod n].
+  padded_.resize(static_cast<std::size_t>(n_line_) * L);
+  for (int l = 0; l < n_line_; ++l) {
+    const double* xl = &x[first[l]];
+    double* p = &padded_[static_cast<std::size_t>(l) * L];
+    std::copy(xl, xl + n, p + h);
+    for (int j = 0; j < h; ++j) {
+      p[j] = xl[((j - h) % n + n) % n];
+      p[h + n + j] = xl[j % n];
     }
+  }
+  y.assign(x.size(), 0.0);
+  const std::size_t pairs = pair_row_.size();
+  const int* r = pair_row_.data();
+  const int* c = pair_col_.data();
+  const double* w = pair_taps_.data();
+  switch (W) {  // k' = 1, 2, 3: halo k' + 1
+    case 5:
+      multiply_pairs<5>(n, L, pairs, r, c, w, padded_.data(), first, y.data());
+      break;
+    case 7:
+      multiply_pairs<7>(n, L, pairs, r, c, w, padded_.data(), first, y.data());
+      break;
+    case 9:
+      multiply_pairs<9>(n, L, pairs, r, c, w, padded_.data(), first, y.data());
+      break;
+    default:
+      multiply_pairs_any(W, n, L, pairs, r, c, w, padded_.data(), first, y.data());
   }
 }
 

@@ -69,9 +69,10 @@ class DcFourierSolver {
   void solve(const std::vector<double>& b, std::vector<double>& x) const;
   /// y = S x, S the circulant matrix of the stencil build() read (A itself to deviation(); without the pin
   /// build() adds to its own factors). Natural numbering, size n_dofs, every entry on every rank; local (no
-  /// communication). Cost: one pass over the stencil per line, each entry a contiguous loop over the n_x
-  /// values of a line: at 256 x 128, k' = 2, 27 k entries and 7 M multiply-adds, with x and y in cache (the
-  /// assembled matrix's product reads 7 M entries and their column indices from memory).
+  /// communication). How: x's lines copied with a periodic halo, then per (row line, column line) pair one
+  /// loop over the line's n_x values, each a short fixed-width dot product with the pair's x offsets: at
+  /// 256 x 128, k' = 2, about 7 M multiply-adds from cache, where the assembled matrix's product reads 7 M
+  /// entries and their column indices from memory. Not thread-safe (a work buffer).
   void multiply(const std::vector<double>& x, std::vector<double>& y) const;
   double deviation() const { return deviation_; }
 
@@ -103,8 +104,12 @@ class DcFourierSolver {
   /// zgbtrs('N') of one right-hand side in place, with the factors of one wave number (see solve()).
   void banded_substitution(const Complex* ab, const PetscBLASInt* ipiv, const Complex* inv_diag,
                            Complex* rhs) const;
-  std::vector<StencilEntry> stencil_;  // sorted by (row, column line, shift), no zeros
-  std::vector<int> row_start_;         // per row line: its first entry in stencil_ (n_line_ + 1)
+  /// The stencil regrouped for multiply(): per (row line, column line) pair, the values at the signed x
+  /// offsets -halo_ .. halo_ (zeros where the stencil has none), 2 halo_ + 1 per pair, the pairs by row line.
+  int halo_ = 0;
+  std::vector<int> pair_row_, pair_col_;
+  std::vector<double> pair_taps_;
+  mutable std::vector<double> padded_;  // multiply()'s lines of x with halo_ periodic values at both ends
   double deviation_ = 0;
   bool pinned_ = false, built_ = false;
   struct Plans;                   // FFTW's plans of one line's transforms (dc_fourier.cpp)
