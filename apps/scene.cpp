@@ -71,11 +71,12 @@ std::array<int, 3> body_element_counts(const SceneSettings& s, const BodySetting
   // Automatic counts: elements slightly smaller (0.9) than the smallest fluid element (paper Sec. 3.4),
   // scaled from a trial mesh (element size ~ 1 / count). On the divergence-conforming space the cell's area
   // follows the fluid's divergence-free velocity, and what is left of its error is the membrane's own
-  // interpolation of that velocity between its collocation points, so membranes get 0.1125 (measured on the
-  // capsule, k' = 2: at 64 x 32 to t = 0.1 s r_A -7.1e-3 at 0.9, +1.8e-4 at 0.45, -1.4e-4 at 0.225; at dt 2.5e-4
-  // r_A drifts by +1.2e-4 per second at 0.225 on 128 x 64 and 256 x 128, by -0.6e-5 at 0.1125; bulk bodies
-  // keep 0.225, not measured finer; docs/validation.md, "The divergence-conforming space").
-  const double factor = s.fluid_space != "div_conforming" ? 0.9 : b.membrane() ? 0.1125 : 0.225;
+  // interpolation of that velocity between its collocation points, so 2D membranes get 0.1125 (measured on
+  // the capsule, k' = 2: at 64 x 32 to t = 0.1 s r_A -7.1e-3 at 0.9, +1.8e-4 at 0.45, -1.4e-4 at 0.225; at dt
+  // 2.5e-4 r_A drifts by +1.2e-4 per second at 0.225 on 128 x 64 and 256 x 128, by -0.6e-5 at 0.1125;
+  // docs/validation.md, "The divergence-conforming space"). Bulk bodies and 3D keep 0.225, not measured finer
+  // (in 3D a membrane's elements grow as the square: 0.1125 gave the 3D compound capsule 22 k of them at 16^3).
+  const double factor = s.fluid_space != "div_conforming" ? 0.9 : b.membrane() && s.dim == 2 ? 0.1125 : 0.225;
   const double target = factor * std::min(1.0, s.max_mesh_ratio) * fluid_element_size(s);
   std::array<int, 3> n = b.elements;
   const int D = s.dim;

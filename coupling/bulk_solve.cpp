@@ -22,7 +22,7 @@ void BulkSolve::start(const SolverSituation& s, bool) {
   if (!s.own_bulk_inverse)
     throw std::invalid_argument(
         "-coupling_pc_type cellfsi_bulk needs a fluid with its own bulk inverse: -fluid_space div_conforming "
-        "on a 2D box periodic in x");
+        "on a box periodic in x (and in 3D in z)");
 }
 
 bool BulkSolve::may_assemble(bool first_iteration) const {

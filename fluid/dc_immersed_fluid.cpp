@@ -328,10 +328,16 @@ std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X
   OwnBulkInverse inv;
   inv.deviation = bulk_->deviation();
   char line[160];
-  std::snprintf(line, sizeof line,
-                "divergence-conforming bulk inverse: DFT along x, one LU per wave number (%d in x), operator "
-                "circulant to %.2e",
-                space_->n_elements(0), inv.deviation);
+  if (dim() == 2)
+    std::snprintf(line, sizeof line,
+                  "divergence-conforming bulk inverse: DFT along x, one LU per wave number (%d in x), operator "
+                  "circulant to %.2e",
+                  space_->n_elements(0), inv.deviation);
+  else
+    std::snprintf(line, sizeof line,
+                  "divergence-conforming bulk inverse: DFT along x and z, one LU per wave vector (%d x %d), "
+                  "operator circulant to %.2e",
+                  space_->n_elements(0), space_->n_elements(2), inv.deviation);
   inv.description = line;
   inv.apply = [this, b = std::vector<double>(), x = std::vector<double>()](Vec r, Vec out) mutable {
     fluid_->gather(r, b);
@@ -356,22 +362,31 @@ void DcImmersedFluid::refresh_stencil_operator(Vec X) {
   if (op_assembled_) {  // the field moves with the cells: the bulk is not the stencil's
     fluid_->step_tangent(work_, fluid_->matrix(), true, false);
   } else {
-    // The immersed points' pattern (they move), then their tangent on it.
-    MatDestroy(&immersed_);
-    Mat pattern;
-    PetscInt m = 0, n = 0;
-    CELLFSI_PETSC(VecGetLocalSize(U_, &m));
-    CELLFSI_PETSC(VecGetSize(U_, &n));
-    CELLFSI_PETSC(MatCreate(comm_, &pattern));
-    CELLFSI_PETSC(MatSetType(pattern, MATPREALLOCATOR));
-    CELLFSI_PETSC(MatSetSizes(pattern, m, m, n, n));
-    CELLFSI_PETSC(MatSetUp(pattern));
-    fluid_->immersed_tangent(work_, pattern);
-    CELLFSI_PETSC(MatCreate(comm_, &immersed_));
-    CELLFSI_PETSC(MatSetType(immersed_, MATAIJ));
-    CELLFSI_PETSC(MatSetSizes(immersed_, m, m, n, n));
-    CELLFSI_PETSC(MatPreallocatorPreallocate(pattern, PETSC_TRUE, immersed_));
-    CELLFSI_PETSC(MatDestroy(&pattern));
+    // The pattern of the elements that hold points, made again when they changed on any rank (the points
+    // move, mostly within their elements between refreshes), then the points' tangent on it.
+    std::vector<int> elements = fluid_->immersed_elements();
+    int changed = !immersed_ || elements != pattern_elements_;
+    CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &changed, 1, MPI_INT, MPI_MAX, comm_));
+    if (changed) {
+      MatDestroy(&immersed_);
+      Mat pattern;
+      PetscInt m = 0, n = 0;
+      CELLFSI_PETSC(VecGetLocalSize(U_, &m));
+      CELLFSI_PETSC(VecGetSize(U_, &n));
+      CELLFSI_PETSC(MatCreate(comm_, &pattern));
+      CELLFSI_PETSC(MatSetType(pattern, MATPREALLOCATOR));
+      CELLFSI_PETSC(MatSetSizes(pattern, m, m, n, n));
+      CELLFSI_PETSC(MatSetUp(pattern));
+      fluid_->immersed_pattern(pattern);
+      CELLFSI_PETSC(MatCreate(comm_, &immersed_));
+      CELLFSI_PETSC(MatSetType(immersed_, MATAIJ));
+      CELLFSI_PETSC(MatSetSizes(immersed_, m, m, n, n));
+      CELLFSI_PETSC(MatPreallocatorPreallocate(pattern, PETSC_TRUE, immersed_));
+      CELLFSI_PETSC(MatDestroy(&pattern));
+      pattern_elements_ = std::move(elements);
+    } else {
+      CELLFSI_PETSC(MatZeroEntries(immersed_));
+    }
     fluid_->immersed_tangent(work_, immersed_);
   }
   // (An assembly raises the operator's state: KSP sets its preconditioner up again.)

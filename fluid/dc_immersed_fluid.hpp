@@ -10,7 +10,7 @@
 //   * the unknowns: the space's (velocity components, then pressure), in DivConformingFluid's PETSc
 //     numbering; no node blocks (block_layout() is empty, so cellfsi_fourier and cellfsi_band do not apply).
 //     The coupled solve uses PC type cellfsi_bulk with bulk_inverse(): the DFT inverse of the operator
-//     without the cells (2D, periodic in x).
+//     without the cells (periodic in x, and in 3D in z).
 //   * s^h: none. The velocity is divergence-free pointwise, so a cell keeps its volume without the interface
 //     scaling; set_scaling is ignored and uses_interface_scaling() is false (the app refuses -s_interface).
 //   * the viscosity field by the patch's control points: the pressure space (degree k', C^(k'-1)) is the
@@ -22,7 +22,8 @@
 //     each refresh (bulk_matrix_ below); or, as bulk_inverse()'s stencil_operator (-coupling_bulk_stencil),
 //     a MATSHELL named cellfsi_dc_stencil: the bulk part applied by the bulk inverse's own stencil
 //     (DcFourierSolver::multiply, no matrix) plus an assembled matrix of the immersed points' tangent alone
-//     (its pattern made at each refresh by a MATPREALLOCATOR pass: the points move).
+//     (its pattern, the unknowns of the elements that hold points, made by a MATPREALLOCATOR pass whenever
+//     those elements change).
 //   * the region hooks of the equal-order solvers (jacobian_part, jacobian_add_part, region_unknowns) do
 //     not apply: they throw std::logic_error.
 // State: replicated on every rank (DivConformingFluid's; fluid/div_conforming/README.md says what a real
@@ -76,7 +77,9 @@ class DcImmersedFluid final : public ImmersedFluid {
   Mat jacobian_matrix() const override { return fluid_->matrix(); }
   void release_jacobian_matrix() override {}  // the matrix is the fluid's own solver's too
   std::optional<OwnBulkInverse> bulk_inverse(Vec X) override;
-  bool has_bulk_inverse() const override { return dim() == 2 && space_->periodic(0); }
+  bool has_bulk_inverse() const override {
+    return space_->periodic(0) && (dim() == 2 || space_->periodic(2));
+  }
   bool uses_interface_scaling() const override { return false; }
   std::optional<double> max_divergence_ratio() const override;
 
@@ -113,6 +116,7 @@ class DcImmersedFluid final : public ImmersedFluid {
   /// bulk_inverse()'s stencil_operator (see the header comment), its immersed part, and whether it applies
   /// the whole assembled tangent instead (a viscosity field: the bulk is not the stencil's).
   Mat stencil_op_ = nullptr, immersed_ = nullptr;
+  std::vector<int> pattern_elements_;  // this rank's elements with points when immersed_'s pattern was made
   bool op_assembled_ = false;
   std::vector<double> x_nat_, y_nat_;  // the operator's product in the natural numbering
   static PetscErrorCode stencil_mult(Mat A, Vec x, Vec y);

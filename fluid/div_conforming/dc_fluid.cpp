@@ -672,14 +672,30 @@ void DivConformingFluid::immersed_tangent(const std::vector<double>& U, Mat C) {
   assemble_immersed(lv, nullptr, C);
   CELLFSI_PETSC(MatAssemblyBegin(C, MAT_FINAL_ASSEMBLY));
   CELLFSI_PETSC(MatAssemblyEnd(C, MAT_FINAL_ASSEMBLY));
-  MatType type = nullptr;
-  CELLFSI_PETSC(MatGetType(C, &type));
-  if (std::string(type) == MATPREALLOCATOR) return;
   std::vector<PetscInt> rows;
   const PetscInt pin = petsc_index_[space_.offset(space_.dim())];
   for (PetscInt r : owned_fixed_)
     if (r != pin) rows.push_back(r);
   CELLFSI_PETSC(MatZeroRows(C, static_cast<PetscInt>(rows.size()), rows.data(), 0.0, nullptr, nullptr));
+}
+
+std::vector<int> DivConformingFluid::immersed_elements() const {
+  std::vector<int> e;
+  for (const ImmersedAt& p : immersed_)  // sorted by element (set_immersed_points)
+    if (e.empty() || e.back() != p.element) e.push_back(p.element);
+  return e;
+}
+
+void DivConformingFluid::immersed_pattern(Mat C) const {
+  const std::vector<double> zeros(static_cast<std::size_t>(n_local_) * n_local_, 0.0);
+  std::vector<PetscInt> idx(n_local_);
+  for (int e : immersed_elements()) {
+    const auto first = element_unknowns_.begin() + static_cast<std::ptrdiff_t>(e - elem_begin_) * n_local_;
+    for (int a = 0; a < n_local_; ++a) idx[a] = petsc_index_[first[a]];
+    CELLFSI_PETSC(MatSetValues(C, n_local_, idx.data(), n_local_, idx.data(), zeros.data(), ADD_VALUES));
+  }
+  CELLFSI_PETSC(MatAssemblyBegin(C, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(C, MAT_FINAL_ASSEMBLY));
 }
 
 void DivConformingFluid::end_step(const std::vector<double>& U) {

@@ -213,8 +213,13 @@ class DivConformingFluid {
   void step_tangent_from(Mat bulk, const std::vector<double>& U, Mat J, bool pin_pressure = true);
   /// The immersed points' part of the step's tangent at U alone into C (ADD_VALUES, then assembled; the fixed
   /// rows zero, the pressure pin's row kept as assembled): step_tangent_from(bulk, U, J, false) is bulk + C. C
-  /// may be a MATPREALLOCATOR, whose pattern is then that of C. Collective.
+  /// may be a MATPREALLOCATOR. Collective.
   void immersed_tangent(const std::vector<double>& U, Mat C);
+  /// This rank's elements that hold immersed points, sorted.
+  std::vector<int> immersed_elements() const;
+  /// Zeros over the unknowns of each element with immersed points into C (immersed_tangent's pattern, without
+  /// computing it; C a MATPREALLOCATOR or a matrix preallocated for them), then assembled. Collective.
+  void immersed_pattern(Mat C) const;
   /// Accepts U as U_{n+1}: the rate, the time, the pressure's zero mean, divergence_history().
   void end_step(const std::vector<double>& U);
   /// v and grad v at t_{n+alpha_f} and the acceleration at t_{n+alpha_m} of the step's iterate U at points

@@ -15,16 +15,29 @@
 
 namespace cellfsi::fluid::dc {
 
-// FFTW's plans for one line of n_x values (real to half spectrum and back), made once by build() and executed
-// on every line (new-array execution; FFTW_UNALIGNED since lines start at any double).
+// FFTW's plans for one line of one component (real to half spectrum and back): 2D, its n_x values, contiguous;
+// 3D, its n_z x n_x values, n_x contiguous per z index and `stride` apart, to and from a contiguous half spectrum
+// [n_z][n_x / 2 + 1]. Made once by build() and executed on every line (new-array execution; FFTW_UNALIGNED since
+// lines start at any double).
 struct DcFourierSolver::Plans {
   fftw_plan forward = nullptr, inverse = nullptr;
-  explicit Plans(int n) {
-    std::vector<double> line(n);
-    std::vector<fftw_complex> half(n / 2 + 1);
-    forward = fftw_plan_dft_r2c_1d(n, line.data(), half.data(), FFTW_ESTIMATE | FFTW_UNALIGNED);
-    inverse = fftw_plan_dft_c2r_1d(n, half.data(), line.data(), FFTW_ESTIMATE | FFTW_UNALIGNED);
-    if (!forward || !inverse) throw std::runtime_error("DcFourierSolver: FFTW made no plan for " + std::to_string(n));
+  Plans(int nx, int nz, int stride) {
+    const int nh = nx / 2 + 1;
+    std::vector<double> line(static_cast<std::size_t>(nz - 1) * stride + nx);
+    std::vector<fftw_complex> half(static_cast<std::size_t>(nz) * nh);
+    if (nz == 1) {
+      forward = fftw_plan_dft_r2c_1d(nx, line.data(), half.data(), FFTW_ESTIMATE | FFTW_UNALIGNED);
+      inverse = fftw_plan_dft_c2r_1d(nx, half.data(), line.data(), FFTW_ESTIMATE | FFTW_UNALIGNED);
+    } else {
+      const int n[2] = {nz, nx}, real_embed[2] = {nz, stride}, half_embed[2] = {nz, nh};
+      forward = fftw_plan_many_dft_r2c(2, n, 1, line.data(), real_embed, 1, 0, half.data(), half_embed, 1, 0,
+                                       FFTW_ESTIMATE | FFTW_UNALIGNED);
+      inverse = fftw_plan_many_dft_c2r(2, n, 1, half.data(), half_embed, 1, 0, line.data(), real_embed, 1, 0,
+                                       FFTW_ESTIMATE | FFTW_UNALIGNED);
+    }
+    if (!forward || !inverse)
+      throw std::runtime_error("DcFourierSolver: FFTW made no plan for " + std::to_string(nz) + " x " +
+                               std::to_string(nx));
   }
   ~Plans() {
     fftw_destroy_plan(forward);
@@ -39,20 +52,25 @@ DcFourierSolver::~DcFourierSolver() = default;
 DcFourierSolver::DcFourierSolver(const DivConformingSpace& space, MPI_Comm comm,
                                  std::vector<PetscInt> petsc_index)
     : space_(space), comm_(comm), petsc_index_(std::move(petsc_index)) {
-  if (space.dim() != 2 || !space.periodic(0))
-    throw std::invalid_argument("DcFourierSolver: needs a 2D space periodic in x (got dim " +
-                                std::to_string(space.dim()) + (space.periodic(0) ? "" : ", x not periodic") +
-                                ")");
+  const int D = space.dim();
+  if (!space.periodic(0) || (D == 3 && !space.periodic(2)))
+    throw std::invalid_argument("DcFourierSolver: needs a space periodic in x (2D) or in x and z (3D); got dim " +
+                                std::to_string(D) + (space.periodic(0) ? "" : ", x not periodic") +
+                                (D == 3 && !space.periodic(2) ? ", z not periodic" : ""));
   nx_ = space.n_elements(0);
+  nz_ = D == 3 ? space.n_elements(2) : 1;
   n_half_ = nx_ / 2 + 1;
+  n_modes_ = nz_ * n_half_;
   int off = 0;
-  for (int c = 0; c <= 2; ++c) {
-    if (space.n_basis(c, 0) != nx_)
-      throw std::logic_error("DcFourierSolver: a periodic component without n_x functions");
+  for (int c = 0; c <= D; ++c) {
+    if (space.n_basis(c, 0) != nx_ || (D == 3 && space.n_basis(c, 2) != nz_))
+      throw std::logic_error("DcFourierSolver: a periodic component without one function per element");
     line_offset_.push_back(off);
+    plane_stride_.push_back(nx_ * space.n_basis(c, 1));
     for (int j = 0; j < space.n_basis(c, 1); ++j) {
       line_component_.push_back(c);
       line_y_.push_back(j);
+      line_first_.push_back(space.offset(c) + nx_ * j);
     }
     off += space.n_basis(c, 1);
   }
@@ -81,7 +99,7 @@ DcFourierSolver::DcFourierSolver(const DivConformingSpace& space, MPI_Comm comm,
   int rank = 0, size = 1;
   CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
   CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
-  for (int m = rank; m < n_half_; m += size) modes_.push_back(m);
+  for (int m = rank; m < n_modes_; m += size) modes_.push_back(m);
 }
 
 void DcFourierSolver::build(Mat A, bool pin_pressure) {
@@ -91,20 +109,25 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
   auto to_natural = [&](PetscInt p) {
     return natural_index_.empty() ? static_cast<int>(p) : static_cast<int>(natural_index_[p]);
   };
-  // Decodes a natural index into (component, x index, line index).
-  auto decode = [&](int g, int& c, int& i, int& line) {
-    c = 2;
+  const int D = space_.dim();
+  // Decodes a natural index into (component, x index, z index, line index).
+  auto decode = [&](int g, int& c, int& i, int& l, int& line) {
+    c = D;
     while (g < space_.offset(c)) --c;
-    const int local = g - space_.offset(c);
+    const int local = g - space_.offset(c), ny = space_.n_basis(c, 1);
     i = local % nx_;
-    line = line_offset_[c] + local / nx_;
+    line = line_offset_[c] + (local / nx_) % ny;
+    l = local / (nx_ * ny);
+  };
+  auto natural = [&](int line, int i, int l) {
+    return line_first_[line] + i + plane_stride_[line_component_[line]] * l;
   };
 
-  // 1. The stencil from the rows at x index 0, copied to every rank (sorted rows, as MatCreateSubMatrices
+  // 1. The stencil from the rows at x (and z) index 0, copied to every rank (sorted rows, as MatCreateSubMatrices
   // wants them; all columns, so that the copy keeps the matrix's column numbering).
   std::vector<std::pair<PetscInt, int>> stencil_rows(n_line_);  // (PETSc row, line)
   for (int l = 0; l < n_line_; ++l)
-    stencil_rows[l] = {to_petsc(space_.offset(line_component_[l]) + nx_ * line_y_[l]), l};
+    stencil_rows[l] = {to_petsc(line_first_[l]), l};
   std::sort(stencil_rows.begin(), stencil_rows.end());
   std::vector<PetscInt> rows(n_line_);
   for (int q = 0; q < n_line_; ++q) rows[q] = stencil_rows[q].first;
@@ -123,9 +146,9 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
     const PetscScalar* vals;
     CELLFSI_PETSC(MatGetRow(sub[0], q, &ncols, &cols, &vals));
     for (PetscInt k = 0; k < ncols; ++k) {
-      int c, i, line;
-      decode(to_natural(cols[k]), c, i, line);
-      stencil.push_back({row_line, line, i, vals[k]});
+      int c, i, l, line;
+      decode(to_natural(cols[k]), c, i, l, line);
+      stencil.push_back({row_line, line, i, l, vals[k]});
     }
     CELLFSI_PETSC(MatRestoreRow(sub[0], q, &ncols, &cols, &vals));
   }
@@ -133,13 +156,13 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
   // Entries sorted by (row, column line, shift), duplicates (a short period folding shifts) summed, zeros
   // dropped; row_start: each row line's first entry.
   std::sort(stencil.begin(), stencil.end(), [](const StencilEntry& a, const StencilEntry& b) {
-    return std::tie(a.row, a.col, a.shift) < std::tie(b.row, b.col, b.shift);
+    return std::tie(a.row, a.col, a.shift_z, a.shift) < std::tie(b.row, b.col, b.shift_z, b.shift);
   });
   {
     std::vector<StencilEntry> merged;
     for (const StencilEntry& e : stencil)
       if (!merged.empty() && merged.back().row == e.row && merged.back().col == e.col &&
-          merged.back().shift == e.shift)
+          merged.back().shift == e.shift && merged.back().shift_z == e.shift_z)
         merged.back().value += e.value;
       else
         merged.push_back(e);
@@ -158,8 +181,8 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
   CELLFSI_PETSC(MatGetOwnershipRange(A, &row_begin, &row_end));
   std::vector<std::pair<int, double>> diff;
   for (PetscInt p = row_begin; p < row_end; ++p) {
-    int c, i, line;
-    decode(to_natural(p), c, i, line);
+    int c, i, l, line;
+    decode(to_natural(p), c, i, l, line);
     PetscInt ncols;
     const PetscInt* cols;
     const PetscScalar* vals;
@@ -173,8 +196,7 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
     CELLFSI_PETSC(MatRestoreRow(A, p, &ncols, &cols, &vals));
     for (int e = row_start[line]; e < row_start[line + 1]; ++e) {
       const StencilEntry& s = stencil[e];
-      const int col = space_.offset(line_component_[s.col]) + (i + s.shift) % nx_ + nx_ * line_y_[s.col];
-      diff.emplace_back(col, -s.value);
+      diff.emplace_back(natural(s.col, (i + s.shift) % nx_, (l + s.shift_z) % nz_), -s.value);
     }
     std::sort(diff.begin(), diff.end());
     double worst = 0;
@@ -196,31 +218,33 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
   }
   ldab_ = 2 * kl_ + ku_ + 1;  // zgbtrf: kl rows of fill above the ku + kl + 1 of the band
 
-  // 4. A_m = sum_s S_s e^{2 pi i m s / n} in LAPACK's band storage (A(r, l) at ab[kl + ku + r - l + l ldab]),
-  // factorised for this rank's m.
+  // 4. A_mq = sum_s S_s e^{2 pi i (m s_x / n_x + q s_z / n_z)} in LAPACK's band storage (A(r, l) at
+  // ab[kl + ku + r - l + l ldab]), factorised for this rank's wave vectors (index q n_half + m).
   pinned_ = pin_pressure;
   const std::size_t slice = static_cast<std::size_t>(ldab_) * n_line_;
   ab_.assign(modes_.size() * slice, Complex(0.0));
   ipiv_.assign(modes_.size() * n_line_, 0);
   inverse_diagonal_.assign(modes_.size() * n_line_, Complex(0.0));
-  std::vector<Complex> phase(nx_);
+  std::vector<Complex> phase(nx_), phase_z(nz_);
   for (int t = 0; t < nx_; ++t) phase[t] = std::polar(1.0, 2 * std::numbers::pi * t / nx_);
+  for (int t = 0; t < nz_; ++t) phase_z[t] = std::polar(1.0, 2 * std::numbers::pi * t / nz_);
   PetscBLASInt m_blas = 0, kl = 0, ku = 0, ldab = 0;
   CELLFSI_PETSC(PetscBLASIntCast(n_line_, &m_blas));
   CELLFSI_PETSC(PetscBLASIntCast(kl_, &kl));
   CELLFSI_PETSC(PetscBLASIntCast(ku_, &ku));
   CELLFSI_PETSC(PetscBLASIntCast(ldab_, &ldab));
-  const int pin = position_[line_offset_[2]];  // the first pressure unknown (x index 0, y index 0)
+  const int pin = position_[line_offset_[D]];  // the first pressure unknown (x, y, z index 0)
   int singular = -1, singular_info = 0;        // a wave number whose A_m is singular, and zgbtrf's info
   for (size_t k = 0; k < modes_.size(); ++k) {
-    const int m = modes_[k];
+    const int mode = modes_[k], m = mode % n_half_, q = mode / n_half_;
     Complex* ab = &ab_[k * slice];
     for (const StencilEntry& e : stencil) {
       const int r = position_[e.row], l = position_[e.col];
       ab[(kl_ + ku_ + r - l) + static_cast<std::size_t>(l) * ldab_] +=
-          e.value * phase[(static_cast<long>(m) * e.shift) % nx_];
+          e.value * phase[(static_cast<long>(m) * e.shift) % nx_] *
+          phase_z[(static_cast<long>(q) * e.shift_z) % nz_];
     }
-    if (m == 0 && pin_pressure) {  // a unit row for the pin
+    if (mode == 0 && pin_pressure) {  // a unit row for the pin
       for (int l = std::max(0, pin - kl_); l <= std::min(n_line_ - 1, pin + ku_); ++l)
         ab[(kl_ + ku_ + pin - l) + static_cast<std::size_t>(l) * ldab_] = 0.0;
       ab[(kl_ + ku_) + static_cast<std::size_t>(pin) * ldab_] = 1.0;
@@ -232,7 +256,7 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
     if (info < 0)
       throw std::logic_error("DcFourierSolver: zgbtrf rejected argument " + std::to_string(-info));
     if (info > 0 && singular < 0) {
-      singular = m;
+      singular = mode;
       singular_info = static_cast<int>(info);
     }
   }
@@ -240,62 +264,82 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
   CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, worst, 1, MPI_2INT, MPI_MAXLOC, comm_));
   if (worst[0] >= 0)
     throw std::runtime_error(
-        "DcFourierSolver: the system of wave number " + std::to_string(worst[0]) +
+        "DcFourierSolver: the system of wave vector (" + std::to_string(worst[0] % n_half_) + ", " +
+        std::to_string(worst[0] / n_half_) + ")" +
         " is singular (LAPACK zgbtrf: zero pivot in column " + std::to_string(worst[1]) + " of " +
         std::to_string(n_line_) + ")" +
         (worst[0] == 0 && !pin_pressure
              ? "; wave 0 of a box without outflow has the constant pressure as null vector: build with "
                "pin_pressure = true"
              : "; is the operator invertible?"));
-  if (!plans_) plans_ = std::make_unique<Plans>(nx_);
-  // 5. The stencil by (row line, column line) pair for multiply(), its x shifts as signed offsets.
-  auto signed_offset = [&](int shift) { return shift <= nx_ / 2 ? shift : shift - nx_; };
-  halo_ = 0;
-  for (const StencilEntry& e : stencil) halo_ = std::max(halo_, std::abs(signed_offset(e.shift)));
-  const int width = 2 * halo_ + 1;
+  if (plans_.empty())
+    for (int c = 0; c <= D; ++c) plans_.push_back(std::make_unique<Plans>(nx_, nz_, plane_stride_[c]));
+  // 5. The stencil by (row line, column line) pair for multiply(), its shifts as signed offsets.
+  auto signed_offset = [](int shift, int n) { return shift <= n / 2 ? shift : shift - n; };
+  halo_ = halo_z_ = 0;
+  for (const StencilEntry& e : stencil) {
+    halo_ = std::max(halo_, std::abs(signed_offset(e.shift, nx_)));
+    halo_z_ = std::max(halo_z_, std::abs(signed_offset(e.shift_z, nz_)));
+  }
+  const int width = 2 * halo_ + 1, block = (2 * halo_z_ + 1) * width;
   pair_row_.clear();
   pair_col_.clear();
   pair_taps_.clear();
-  for (const StencilEntry& e : stencil) {  // sorted by (row, column line, shift)
+  for (const StencilEntry& e : stencil) {  // sorted by (row, column line, z shift, x shift)
     if (pair_row_.empty() || pair_row_.back() != e.row || pair_col_.back() != e.col) {
       pair_row_.push_back(e.row);
       pair_col_.push_back(e.col);
-      pair_taps_.resize(pair_taps_.size() + width, 0.0);
+      pair_taps_.resize(pair_taps_.size() + block, 0.0);
     }
-    pair_taps_[pair_taps_.size() - width + signed_offset(e.shift) + halo_] += e.value;
+    pair_taps_[pair_taps_.size() - block + (signed_offset(e.shift_z, nz_) + halo_z_) * width +
+               signed_offset(e.shift, nx_) + halo_] += e.value;
   }
   built_ = true;
 }
 
 namespace {
 
-/// y_r[i] += sum_t w[t] x_pad[i + t] for each pair (r, c) (x_pad: line c with its halo, so that t = 0 is the
-/// offset -halo), W taps known at compile time so that the loop over i vectorises.
-template <int W>
-void multiply_pairs(int n, int padded_length, std::size_t n_pairs, const int* rows, const int* cols,
-                    const double* taps, const double* padded, const std::vector<int>& first, double* y) {
-  for (std::size_t g = 0; g < n_pairs; ++g) {
-    double w[W];
-    for (int t = 0; t < W; ++t) w[t] = taps[g * W + t];
-    double* __restrict yr = y + first[rows[g]];
-    const double* __restrict xl = padded + static_cast<std::size_t>(cols[g]) * padded_length;
-    for (int i = 0; i < n; ++i) {
-      double acc = 0;
-      for (int t = 0; t < W; ++t) acc += w[t] * xl[i + t];
-      yr[i] += acc;
-    }
-  }
-}
+/// The pairs' products: for each pair (r, c), z index l and z offset tz, y_r[l][i] += sum_t w[tz][t]
+/// x_pad_c[l + tz][i + t] (x_pad: line c with its halos, so that t = 0 is the x offset -halo and tz = 0 the z
+/// offset -halo_z), W x taps known at compile time (W = 0: any width) so that the loop over i vectorises.
+struct PairProduct {
+  int nx, nz, wz, padded_x, padded_line;  // run length, runs, z taps, padded run and line lengths
+  std::size_t n_pairs;
+  const int *rows, *cols;
+  const double *taps, *padded;
+  const int *first, *row_stride;  // per line: its first unknown and its z stride
+};
 
-/// The same for any width (not one of the compiled ones).
-void multiply_pairs_any(int W, int n, int padded_length, std::size_t n_pairs, const int* rows, const int* cols,
-                        const double* taps, const double* padded, const std::vector<int>& first, double* y) {
-  for (std::size_t g = 0; g < n_pairs; ++g) {
-    double* yr = y + first[rows[g]];
-    const double* xl = padded + static_cast<std::size_t>(cols[g]) * padded_length;
-    for (int t = 0; t < W; ++t) {
-      const double w = taps[g * W + t];
-      for (int i = 0; i < n; ++i) yr[i] += w * xl[i + t];
+template <int W>
+void multiply_pairs(const PairProduct& p, int width, double* y) {
+  const int wx = W > 0 ? W : width;
+  for (std::size_t g = 0; g < p.n_pairs; ++g) {
+    const double* wg = p.taps + g * static_cast<std::size_t>(p.wz) * wx;
+    const double* xc = p.padded + static_cast<std::size_t>(p.cols[g]) * p.padded_line;
+    for (int l = 0; l < p.nz; ++l) {
+      double* __restrict yr = y + p.first[p.rows[g]] + static_cast<std::size_t>(p.row_stride[p.rows[g]]) * l;
+      for (int tz = 0; tz < p.wz; ++tz) {
+        const double* w = wg + tz * wx;
+        const double* __restrict xl = xc + static_cast<std::size_t>(l + tz) * p.padded_x;
+        if constexpr (W > 0) {
+          double wl[W];
+          bool zero = true;
+          for (int t = 0; t < W; ++t) {
+            wl[t] = w[t];
+            zero = zero && wl[t] == 0.0;
+          }
+          if (zero) continue;  // (3D: the corners of the z x x block)
+          for (int i = 0; i < p.nx; ++i) {
+            double acc = 0;
+            for (int t = 0; t < W; ++t) acc += wl[t] * xl[i + t];
+            yr[i] += acc;
+          }
+        } else {
+          for (int t = 0; t < wx; ++t)
+            if (w[t] != 0.0)
+              for (int i = 0; i < p.nx; ++i) yr[i] += w[t] * xl[i + t];
+        }
+      }
     }
   }
 }
@@ -307,37 +351,39 @@ void DcFourierSolver::multiply(const std::vector<double>& x, std::vector<double>
   if (static_cast<int>(x.size()) != space_.n_dofs())
     throw std::invalid_argument("DcFourierSolver::multiply: the vector has " + std::to_string(x.size()) +
                                 " entries, not n_dofs() = " + std::to_string(space_.n_dofs()));
-  const int n = nx_, h = halo_, L = n + 2 * h, W = 2 * h + 1;
-  std::vector<int> first(n_line_);
-  for (int l = 0; l < n_line_; ++l) first[l] = space_.offset(line_component_[l]) + nx_ * line_y_[l];
-  // Each line of x with its periodic halo: padded[l L + j] = x_l[(j - h) mod n].
-  padded_.resize(static_cast<std::size_t>(n_line_) * L);
-  for (int l = 0; l < n_line_; ++l) {
-    const double* xl = &x[first[l]];
-    double* p = &padded_[static_cast<std::size_t>(l) * L];
-    std::copy(xl, xl + n, p + h);
-    for (int j = 0; j < h; ++j) {
-      p[j] = xl[((j - h) % n + n) % n];
-      p[h + n + j] = xl[j % n];
+  const int n = nx_, h = halo_, hz = halo_z_, Lx = n + 2 * h, Lz = nz_ + 2 * hz, W = 2 * h + 1;
+  const std::size_t line_length = static_cast<std::size_t>(Lx) * Lz;
+  // Each line of x with its periodic halos: padded[line][j_z][j_x] = x_line[(j_z - hz) mod n_z][(j_x - h) mod n].
+  padded_.resize(static_cast<std::size_t>(n_line_) * line_length);
+  std::vector<int> stride(n_line_);
+  for (int line = 0; line < n_line_; ++line) {
+    stride[line] = plane_stride_[line_component_[line]];
+    for (int jz = 0; jz < Lz; ++jz) {
+      const double* xl = &x[line_first_[line] + static_cast<std::size_t>(stride[line]) * (((jz - hz) % nz_ + nz_) % nz_)];
+      double* p = &padded_[line * line_length + static_cast<std::size_t>(jz) * Lx];
+      std::copy(xl, xl + n, p + h);
+      for (int j = 0; j < h; ++j) {
+        p[j] = xl[((j - h) % n + n) % n];
+        p[h + n + j] = xl[j % n];
+      }
     }
   }
   y.assign(x.size(), 0.0);
-  const std::size_t pairs = pair_row_.size();
-  const int* r = pair_row_.data();
-  const int* c = pair_col_.data();
-  const double* w = pair_taps_.data();
+  const PairProduct pp{n, nz_, 2 * hz + 1, Lx, static_cast<int>(line_length), pair_row_.size(),
+                       pair_row_.data(), pair_col_.data(), pair_taps_.data(), padded_.data(),
+                       line_first_.data(), stride.data()};
   switch (W) {  // k' = 1, 2, 3: halo k' + 1
     case 5:
-      multiply_pairs<5>(n, L, pairs, r, c, w, padded_.data(), first, y.data());
+      multiply_pairs<5>(pp, W, y.data());
       break;
     case 7:
-      multiply_pairs<7>(n, L, pairs, r, c, w, padded_.data(), first, y.data());
+      multiply_pairs<7>(pp, W, y.data());
       break;
     case 9:
-      multiply_pairs<9>(n, L, pairs, r, c, w, padded_.data(), first, y.data());
+      multiply_pairs<9>(pp, W, y.data());
       break;
     default:
-      multiply_pairs_any(W, n, L, pairs, r, c, w, padded_.data(), first, y.data());
+      multiply_pairs<0>(pp, W, y.data());
   }
 }
 
@@ -349,46 +395,49 @@ void DcFourierSolver::transform(const std::vector<double>& b, std::vector<double
                                 " entries, not n_dofs() = " + std::to_string(space_.n_dofs()));
   int size = 1;
   CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
-  // 1. Each line's half spectrum, b_hat_m = sum_i b_i e^{-2 pi i m i / n}, m = 0 .. n/2, by banded position:
-  // spectrum[p * n_half + m].
-  const std::size_t nh = n_half_;
-  std::vector<Complex> spectrum(nh * n_line_);
-  auto first = [&](int line) { return space_.offset(line_component_[line]) + nx_ * line_y_[line]; };
-  auto half = [&](int line) { return reinterpret_cast<fftw_complex*>(&spectrum[position_[line] * nh]); };
+  // 1. Each line's half spectrum, b_hat_mq = sum_il b_il e^{-2 pi i (m i / n_x + q l / n_z)}, m = 0 .. n_x/2,
+  // by banded position and wave vector: spectrum[p * n_modes + q * n_half + m].
+  const std::size_t nm = n_modes_;
+  std::vector<Complex> spectrum(nm * n_line_);
+  auto half = [&](int line) { return reinterpret_cast<fftw_complex*>(&spectrum[position_[line] * nm]); };
+  auto plan = [&](int line) -> const Plans& { return *plans_[line_component_[line]]; };
   for (int l = 0; l < n_line_; ++l)  // FFTW's r2c leaves its input as it is (out of place)
-    fftw_execute_dft_r2c(plans_->forward, const_cast<double*>(&b[first(l)]), half(l));
-  // 2. This rank's wave numbers, each result in place of its right-hand side.
+    fftw_execute_dft_r2c(plan(l).forward, const_cast<double*>(&b[line_first_[l]]), half(l));
+  // 2. This rank's wave vectors, each result in place of its right-hand side.
   std::vector<Complex> rhs(n_line_);
   for (size_t k = 0; k < modes_.size(); ++k) {
     const int m = modes_[k];
-    for (int p = 0; p < n_line_; ++p) rhs[p] = spectrum[p * nh + m];
+    for (int p = 0; p < n_line_; ++p) rhs[p] = spectrum[p * nm + m];
     f(k, m, rhs);
-    for (int p = 0; p < n_line_; ++p) spectrum[p * nh + m] = rhs[p];
+    for (int p = 0; p < n_line_; ++p) spectrum[p * nm + m] = rhs[p];
   }
-  // 3. The ranks' wave numbers together, then each line's inverse transform (scaled by 1/n; from the half
-  // spectrum, the other half being its conjugate since x is real).
+  // 3. The ranks' wave vectors together, then each line's inverse transform (scaled by 1/(n_x n_z); from the
+  // half spectrum, the other half being its conjugate since x is real).
   if (size > 1) {
-    std::vector<char> mine(nh, 0);
+    std::vector<char> mine(nm, 0);
     for (int m : modes_) mine[m] = 1;
     for (int p = 0; p < n_line_; ++p)
-      for (std::size_t m = 0; m < nh; ++m)
-        if (!mine[m]) spectrum[p * nh + m] = 0.0;
+      for (std::size_t m = 0; m < nm; ++m)
+        if (!mine[m]) spectrum[p * nm + m] = 0.0;
     CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, spectrum.data(), static_cast<int>(2 * spectrum.size()),
                                 MPI_DOUBLE, MPI_SUM, comm_));
   }
   x.resize(space_.n_dofs());
-  const double scale = 1.0 / nx_;  // FFTW's inverse is unscaled
+  const double scale = 1.0 / (static_cast<double>(nx_) * nz_);  // FFTW's inverse is unscaled
   for (int l = 0; l < n_line_; ++l) {
-    double* line = &x[first(l)];
-    fftw_execute_dft_c2r(plans_->inverse, half(l), line);  // (overwrites the spectrum's line, not needed again)
-    for (int i = 0; i < nx_; ++i) line[i] *= scale;
+    double* line = &x[line_first_[l]];
+    fftw_execute_dft_c2r(plan(l).inverse, half(l), line);  // (overwrites the spectrum's line, not needed again)
+    const int stride = plane_stride_[line_component_[l]];
+    for (int z = 0; z < nz_; ++z)
+      for (int i = 0; i < nx_; ++i) line[static_cast<std::size_t>(stride) * z + i] *= scale;
   }
 }
 
 void DcFourierSolver::solve(const std::vector<double>& b, std::vector<double>& x) const {
   const std::size_t slice = static_cast<std::size_t>(ldab_) * n_line_;
+  const int pin = position_[line_offset_[space_.dim()]];
   transform(b, x, [&](size_t k, int m, std::vector<Complex>& rhs) {
-    if (m == 0 && pinned_) rhs[position_[line_offset_[2]]] = 0.0;  // the pinned unit row fixes the constant
+    if (m == 0 && pinned_) rhs[pin] = 0.0;  // the pinned unit row fixes the constant
     banded_substitution(&ab_[k * slice], &ipiv_[k * n_line_], &inverse_diagonal_[k * n_line_], rhs.data());
   });
 }

@@ -819,14 +819,16 @@ struct FourierCase {
   int k, nx, ny;
   bool periodic_y, time_step;
   const char* name;
+  int nz = 0;  // 3D (periodic in z) when > 0
 };
 
 /// The tangent of `cs` (fluid on `comm`) solved by DcFourierSolver on `comm` and by MUMPS on one rank (the
 /// fluid on PETSC_COMM_SELF, the operator with its pressure pin) for a consistent random right-hand side:
 /// max|x_F - x_D| / max|x_D| after both pressures are shifted to zero mean. deviation: the Fourier solver's.
 double fourier_vs_direct(const FourierCase& cs, MPI_Comm comm, double& deviation) {
-  const DivConformingSpace sp(2, cs.k, {cs.nx, cs.ny, 1}, Vec3(0, 0, 0), Vec3(1, 0.5, 0),
-                              {true, cs.periodic_y, false});
+  const int D = cs.nz > 0 ? 3 : 2;
+  const DivConformingSpace sp(D, cs.k, {cs.nx, cs.ny, std::max(1, cs.nz)}, Vec3(0, 0, 0),
+                              Vec3(1, 0.5, D == 3 ? 0.75 : 0), {true, cs.periodic_y, D == 3});
   DcFluidOptions opt;
   opt.density = 1.0;
   opt.viscosity = 0.1;
@@ -842,8 +844,8 @@ double fourier_vs_direct(const FourierCase& cs, MPI_Comm comm, double& deviation
   std::mt19937 gen(9);
   std::uniform_real_distribution<double> dist(-1.0, 1.0);
   double mean_p = 0;
-  for (int a = sp.offset(2); a < sp.n_dofs(); ++a) mean_p += (b[a] = dist(gen)) / sp.n_pressure();
-  for (int a = sp.offset(2); a < sp.n_dofs(); ++a) b[a] -= mean_p;
+  for (int a = sp.offset(D); a < sp.n_dofs(); ++a) mean_p += (b[a] = dist(gen)) / sp.n_pressure();
+  for (int a = sp.offset(D); a < sp.n_dofs(); ++a) b[a] -= mean_p;
   for (int r : sp.wall_normal_dofs()) b[r] = 0.0;
 
   std::vector<double> xf, xd(sp.n_dofs());
@@ -884,7 +886,7 @@ double fourier_vs_direct(const FourierCase& cs, MPI_Comm comm, double& deviation
   Vec bv, xv;
   MatCreateVecs(J, &xv, &bv);
   for (int a = 0; a < sp.n_dofs(); ++a)  // the pin's unit row gets 0: its continuity equation is implied
-    VecSetValue(bv, a, a == sp.offset(2) ? 0.0 : b[a], INSERT_VALUES);
+    VecSetValue(bv, a, a == sp.offset(D) ? 0.0 : b[a], INSERT_VALUES);
   VecAssemblyBegin(bv);
   VecAssemblyEnd(bv);
   KSP ksp;
@@ -909,13 +911,13 @@ double fourier_vs_direct(const FourierCase& cs, MPI_Comm comm, double& deviation
   VecDestroy(&xv);
 
   double mf = 0, md = 0;
-  for (int a = sp.offset(2); a < sp.n_dofs(); ++a) {
+  for (int a = sp.offset(D); a < sp.n_dofs(); ++a) {
     mf += xf[a] / sp.n_pressure();
     md += xd[a] / sp.n_pressure();
   }
   double diff = 0, scale = 0;
   for (int a = 0; a < sp.n_dofs(); ++a) {
-    const double shift = a >= sp.offset(2) ? mf - md : 0.0;
+    const double shift = a >= sp.offset(D) ? mf - md : 0.0;
     diff = std::max(diff, std::abs(xf[a] - xd[a] - shift));
     scale = std::max(scale, std::abs(xd[a]));
   }
@@ -925,16 +927,18 @@ double fourier_vs_direct(const FourierCase& cs, MPI_Comm comm, double& deviation
 }  // namespace
 
 TEST(DcFourierSolver, EqualsTheDirectSolve) {
-  // Tangents that are translation-invariant in x: a Navier-Stokes time step at a Couette state (moving top
-  // wall) in the channel, the steady Stokes operator there, and a time step on the all-periodic square at
-  // rest; k = 2 and 3. The Fourier solve (mode 0 pinned) against MUMPS on the same operator with its pressure
+  // Tangents that are translation-invariant in x (and z): a Navier-Stokes time step at a Couette state
+  // (moving top wall) in the channel, the steady Stokes operator there, and a time step on the all-periodic
+  // square at rest; k = 2 and 3; in 3D the channel (periodic in x and z) and the periodic box, odd n_z. The Fourier solve (mode 0 pinned) against MUMPS on the same operator with its pressure
   // pin: velocities and zero-mean pressures agree to 1e-12 of max|x| (measured 4e-15 .. 1.1e-14; with MUMPS's
   // default pivot threshold 0.01 instead of 0.5 its own solve was off by 4e-12). The stencil is circulant to
   // 1e-13.
   const FourierCase cases[] = {{2, 16, 8, false, true, "channel, NS step at Couette"},
                                {3, 12, 6, false, true, "channel, NS step at Couette"},
                                {2, 16, 8, false, false, "channel, steady Stokes"},
-                               {2, 12, 12, true, true, "periodic square, NS step at rest"}};
+                               {2, 12, 12, true, true, "periodic square, NS step at rest"},
+                               {2, 8, 4, false, true, "3D channel, NS step at Couette", 6},
+                               {2, 6, 6, true, true, "periodic cube, NS step at rest", 5}};
   for (const FourierCase& cs : cases) {
     double deviation = 0;
     const double diff = fourier_vs_direct(cs, PETSC_COMM_SELF, deviation);
@@ -1002,12 +1006,14 @@ TEST(DivConformingParallel, OneAndTwoRanksGiveTheSameState) {
 }
 
 TEST(DivConformingParallel, TheFourierSolverOnAllRanksEqualsTheDirectSolve) {
-  // As DcFourierSolver.EqualsTheDirectSolve, with the operator assembled and the wave numbers solved on all
-  // ranks of PETSC_COMM_WORLD (inside div_conforming_parallel_2ranks: 2), MUMPS on one: 1e-12 of max|x|.
+  // As DcFourierSolver.EqualsTheDirectSolve, with the operator assembled and the wave vectors solved on all
+  // ranks of PETSC_COMM_WORLD (inside div_conforming_parallel_2ranks: 2), MUMPS on one: 1e-12 of max|x|; the
+  // stencil's product on every rank equal to the distributed MatMult.
   int size = 1;
   MPI_Comm_size(PETSC_COMM_WORLD, &size);
   for (const FourierCase& cs : {FourierCase{2, 16, 8, false, true, "channel, NS step at Couette"},
-                                FourierCase{2, 12, 12, true, true, "periodic square, NS step at rest"}}) {
+                                FourierCase{2, 12, 12, true, true, "periodic square, NS step at rest"},
+                                FourierCase{2, 6, 4, false, true, "3D channel, NS step at Couette", 5}}) {
     double deviation = 0;
     const double diff = fourier_vs_direct(cs, PETSC_COMM_WORLD, deviation);
     print0(
