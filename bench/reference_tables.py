@@ -230,8 +230,10 @@ def capsule_two_spaces_rows(path):
 
 
 def t_two_spaces_area():
-    # dt fixed (two_spaces_area.md), then dt halved with h (two_spaces_area_dt_h.md, when it has been run)
-    paths = [os.path.join(VAL, f) for f in ("two_spaces_area.md", "two_spaces_area_dt_h.md")]
+    # dt fixed (two_spaces_area.md), then dt halved with h from 1e-3 and from 5e-4 (two_spaces_area_dt_h.md,
+    # two_spaces_area_dt_h5.md, when they have been run)
+    paths = [os.path.join(VAL, f)
+             for f in ("two_spaces_area.md", "two_spaces_area_dt_h.md", "two_spaces_area_dt_h5.md")]
     paths = [p for p in paths if os.path.exists(p)]
     rows = []
     for path in paths:
