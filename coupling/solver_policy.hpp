@@ -52,7 +52,7 @@ struct LinearSolverOptions {
   // stencil away from the cells and an assembled matrix of the rows near them (solvers/near_operator.hpp;
   // true in 3D: linear_solver_defaults). cellfsi_bulk: the bulk part applied by the bulk inverse's stencil
   // and the cells' tangent by a matrix of their own (fluid::ImmersedFluid::OwnBulkInverse; true unless given:
-  // default_bulk_stencil).
+  // pc_type_bulk_stencil).
   bool bulk_stencil = false;
   int preconditioner_lag = 10;  // other PCs: linear solves between rebuilds of the preconditioner
   // cellfsi types: the FGMRES's relative tolerance per coupling iteration (-coupling_ksp_rtol overrides it;
