@@ -75,7 +75,8 @@ std::array<int, 3> body_element_counts(const SceneSettings& s, const BodySetting
   // the capsule, k' = 2: at 64 x 32 to t = 0.1 s r_A -7.1e-3 at 0.9, +1.8e-4 at 0.45, -1.4e-4 at 0.225; at dt
   // 2.5e-4 r_A drifts by +1.2e-4 per second at 0.225 on 128 x 64 and 256 x 128, by -0.6e-5 at 0.1125;
   // docs/validation.md, "The divergence-conforming space"). Bulk bodies and 3D keep 0.225, not measured finer
-  // (in 3D a membrane's elements grow as the square: 0.1125 gave the 3D compound capsule 22 k of them at 16^3).
+  // (in 3D a membrane's elements grow as the square: 0.1125 gave the 3D compound capsule 22 k of them at
+  // 16^3).
   const double factor = s.fluid_space != "div_conforming" ? 0.9 : b.membrane() && s.dim == 2 ? 0.1125 : 0.225;
   const double target = factor * std::min(1.0, s.max_mesh_ratio) * fluid_element_size(s);
   std::array<int, 3> n = b.elements;

@@ -489,7 +489,8 @@ void check_memory(SceneSettings& s) {
       PetscOptionsGetString(nullptr, nullptr, "-fluid_mat_type_jacobian", type, sizeof type, nullptr));
   coupling::SolverSituation situation;
   situation.baij = std::string(type) == "baij";
-  situation.own_bulk_inverse = s.fluid_space == "div_conforming" && s.periodic[0] && (s.dim == 2 || s.periodic[2]);
+  situation.own_bulk_inverse =
+      s.fluid_space == "div_conforming" && s.periodic[0] && (s.dim == 2 || s.periodic[2]);
   situation.fluid_ranks = size;
   coupling::LinearSolverOptions& l = s.coupling.linear;
   // The domain is built only for the choice between several copies: a mesh that cannot hold one is refused

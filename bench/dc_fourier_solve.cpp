@@ -166,13 +166,13 @@ int main(int argc, char** argv) {
       diff = std::max(diff, std::abs(xf[a] - xd[a] - shift));
       scale = std::max(scale, std::abs(xd[a]));
     }
-    CELLFSI_PETSC(PetscPrintf(comm,
-                              "| %d x %d | %d | %d | %d | %.3f | %.3f | %.3f | %.1f | %.1e | %.1e | %.3f | %.3f | "
-                              "%.1e |\n",
-                              static_cast<int>(nx), static_cast<int>(ny), static_cast<int>(k), n, size,
-                              t_build, 1e3 * best, 1e3 * total / repeat, 1e3 * t_mumps, fourier.deviation(),
-                              diff / scale, 1e3 * best_stencil, 1e3 * best_matmult,
-                              product_diff / product_scale));
+    CELLFSI_PETSC(
+        PetscPrintf(comm,
+                    "| %d x %d | %d | %d | %d | %.3f | %.3f | %.3f | %.1f | %.1e | %.1e | %.3f | %.3f | "
+                    "%.1e |\n",
+                    static_cast<int>(nx), static_cast<int>(ny), static_cast<int>(k), n, size, t_build,
+                    1e3 * best, 1e3 * total / repeat, 1e3 * t_mumps, fourier.deviation(), diff / scale,
+                    1e3 * best_stencil, 1e3 * best_matmult, product_diff / product_scale));
   }
   CELLFSI_PETSC(PetscFinalize());
   return 0;

@@ -133,7 +133,8 @@ void add_solver_options(OptionTable& t, LinearSolverOptions& l, PCTypeOptions& p
       .flag("coupling_bulk_stencil", l.bulk_stencil,
             "cellfsi_fourier and cellfsi_bulk: no whole Jacobian after the first step: the Krylov products "
             "apply the bulk operator's stencil away from the cells and an assembled matrix of the rows near "
-            "them (saves the Jacobian's memory and most of its assembly; an inexact Newton iteration; default " +
+            "them (saves the Jacobian's memory and most of its assembly; an inexact Newton iteration; "
+            "default " +
                 std::string(in_3d.bulk_stencil ? "true" : "false") + " in 3D and with cellfsi_bulk)")
       .integer("coupling_region_margin", l.region_margin,
                "cellfsi types: elements around the s^h band and immersed points in the re-assembled region "

@@ -329,10 +329,11 @@ std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X
   inv.deviation = bulk_->deviation();
   char line[160];
   if (dim() == 2)
-    std::snprintf(line, sizeof line,
-                  "divergence-conforming bulk inverse: DFT along x, one LU per wave number (%d in x), operator "
-                  "circulant to %.2e",
-                  space_->n_elements(0), inv.deviation);
+    std::snprintf(
+        line, sizeof line,
+        "divergence-conforming bulk inverse: DFT along x, one LU per wave number (%d in x), operator "
+        "circulant to %.2e",
+        space_->n_elements(0), inv.deviation);
   else
     std::snprintf(line, sizeof line,
                   "divergence-conforming bulk inverse: DFT along x and z, one LU per wave vector (%d x %d), "
@@ -349,7 +350,8 @@ std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X
     CELLFSI_PETSC(VecGetLocalSize(U_, &m));
     CELLFSI_PETSC(VecGetSize(U_, &n));
     CELLFSI_PETSC(MatCreateShell(comm_, m, m, n, n, this, &stencil_op_));
-    CELLFSI_PETSC(MatShellSetOperation(stencil_op_, MATOP_MULT, reinterpret_cast<void (*)(void)>(stencil_mult)));
+    CELLFSI_PETSC(
+        MatShellSetOperation(stencil_op_, MATOP_MULT, reinterpret_cast<void (*)(void)>(stencil_mult)));
     CELLFSI_PETSC(PetscObjectSetName(reinterpret_cast<PetscObject>(stencil_op_), "cellfsi_dc_stencil"));
   }
   inv.stencil_operator = stencil_op_;

@@ -1,7 +1,7 @@
 #pragma once
 // The divergence-conforming fluid (fluid/div_conforming/: Evans-Hughes B-splines, Galerkin, pointwise
-// divergence-free velocity) behind the fluid interface (fluid/immersed_fluid.hpp): what create_fluid makes for
-// -fluid_space div_conforming.
+// divergence-free velocity) behind the fluid interface (fluid/immersed_fluid.hpp): what create_fluid makes
+// for -fluid_space div_conforming.
 //
 // What it maps, and how:
 //   * the patch: an axis-aligned box (geometry::affine_map; the narrowing channel's curved walls need the

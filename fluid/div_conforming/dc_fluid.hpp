@@ -212,8 +212,8 @@ class DivConformingFluid {
   /// order of the Reynolds number). Collective.
   void step_tangent_from(Mat bulk, const std::vector<double>& U, Mat J, bool pin_pressure = true);
   /// The immersed points' part of the step's tangent at U alone into C (ADD_VALUES, then assembled; the fixed
-  /// rows zero, the pressure pin's row kept as assembled): step_tangent_from(bulk, U, J, false) is bulk + C. C
-  /// may be a MATPREALLOCATOR. Collective.
+  /// rows zero, the pressure pin's row kept as assembled): step_tangent_from(bulk, U, J, false) is bulk + C.
+  /// C may be a MATPREALLOCATOR. Collective.
   void immersed_tangent(const std::vector<double>& U, Mat C);
   /// This rank's elements that hold immersed points, sorted.
   std::vector<int> immersed_elements() const;

@@ -15,10 +15,10 @@
 
 namespace cellfsi::fluid::dc {
 
-// FFTW's plans for one line of one component (real to half spectrum and back): 2D, its n_x values, contiguous;
-// 3D, its n_z x n_x values, n_x contiguous per z index and `stride` apart, to and from a contiguous half spectrum
-// [n_z][n_x / 2 + 1]. Made once by build() and executed on every line (new-array execution; FFTW_UNALIGNED since
-// lines start at any double).
+// FFTW's plans for one line of one component (real to half spectrum and back): 2D, its n_x values,
+// contiguous; 3D, its n_z x n_x values, n_x contiguous per z index and `stride` apart, to and from a
+// contiguous half spectrum [n_z][n_x / 2 + 1]. Made once by build() and executed on every line (new-array
+// execution; FFTW_UNALIGNED since lines start at any double).
 struct DcFourierSolver::Plans {
   fftw_plan forward = nullptr, inverse = nullptr;
   Plans(int nx, int nz, int stride) {
@@ -54,9 +54,10 @@ DcFourierSolver::DcFourierSolver(const DivConformingSpace& space, MPI_Comm comm,
     : space_(space), comm_(comm), petsc_index_(std::move(petsc_index)) {
   const int D = space.dim();
   if (!space.periodic(0) || (D == 3 && !space.periodic(2)))
-    throw std::invalid_argument("DcFourierSolver: needs a space periodic in x (2D) or in x and z (3D); got dim " +
-                                std::to_string(D) + (space.periodic(0) ? "" : ", x not periodic") +
-                                (D == 3 && !space.periodic(2) ? ", z not periodic" : ""));
+    throw std::invalid_argument(
+        "DcFourierSolver: needs a space periodic in x (2D) or in x and z (3D); got dim " + std::to_string(D) +
+        (space.periodic(0) ? "" : ", x not periodic") +
+        (D == 3 && !space.periodic(2) ? ", z not periodic" : ""));
   nx_ = space.n_elements(0);
   nz_ = D == 3 ? space.n_elements(2) : 1;
   n_half_ = nx_ / 2 + 1;
@@ -123,11 +124,10 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
     return line_first_[line] + i + plane_stride_[line_component_[line]] * l;
   };
 
-  // 1. The stencil from the rows at x (and z) index 0, copied to every rank (sorted rows, as MatCreateSubMatrices
-  // wants them; all columns, so that the copy keeps the matrix's column numbering).
+  // 1. The stencil from the rows at x (and z) index 0, copied to every rank (sorted rows, as
+  // MatCreateSubMatrices wants them; all columns, so that the copy keeps the matrix's column numbering).
   std::vector<std::pair<PetscInt, int>> stencil_rows(n_line_);  // (PETSc row, line)
-  for (int l = 0; l < n_line_; ++l)
-    stencil_rows[l] = {to_petsc(line_first_[l]), l};
+  for (int l = 0; l < n_line_; ++l) stencil_rows[l] = {to_petsc(line_first_[l]), l};
   std::sort(stencil_rows.begin(), stencil_rows.end());
   std::vector<PetscInt> rows(n_line_);
   for (int q = 0; q < n_line_; ++q) rows[q] = stencil_rows[q].first;
@@ -265,9 +265,8 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
   if (worst[0] >= 0)
     throw std::runtime_error(
         "DcFourierSolver: the system of wave vector (" + std::to_string(worst[0] % n_half_) + ", " +
-        std::to_string(worst[0] / n_half_) + ")" +
-        " is singular (LAPACK zgbtrf: zero pivot in column " + std::to_string(worst[1]) + " of " +
-        std::to_string(n_line_) + ")" +
+        std::to_string(worst[0] / n_half_) + ")" + " is singular (LAPACK zgbtrf: zero pivot in column " +
+        std::to_string(worst[1]) + " of " + std::to_string(n_line_) + ")" +
         (worst[0] == 0 && !pin_pressure
              ? "; wave 0 of a box without outflow has the constant pressure as null vector: build with "
                "pin_pressure = true"
@@ -353,13 +352,15 @@ void DcFourierSolver::multiply(const std::vector<double>& x, std::vector<double>
                                 " entries, not n_dofs() = " + std::to_string(space_.n_dofs()));
   const int n = nx_, h = halo_, hz = halo_z_, Lx = n + 2 * h, Lz = nz_ + 2 * hz, W = 2 * h + 1;
   const std::size_t line_length = static_cast<std::size_t>(Lx) * Lz;
-  // Each line of x with its periodic halos: padded[line][j_z][j_x] = x_line[(j_z - hz) mod n_z][(j_x - h) mod n].
+  // Each line of x with its periodic halos: padded[line][j_z][j_x] = x_line[(j_z - hz) mod n_z][(j_x - h) mod
+  // n].
   padded_.resize(static_cast<std::size_t>(n_line_) * line_length);
   std::vector<int> stride(n_line_);
   for (int line = 0; line < n_line_; ++line) {
     stride[line] = plane_stride_[line_component_[line]];
     for (int jz = 0; jz < Lz; ++jz) {
-      const double* xl = &x[line_first_[line] + static_cast<std::size_t>(stride[line]) * (((jz - hz) % nz_ + nz_) % nz_)];
+      const double* xl =
+          &x[line_first_[line] + static_cast<std::size_t>(stride[line]) * (((jz - hz) % nz_ + nz_) % nz_)];
       double* p = &padded_[line * line_length + static_cast<std::size_t>(jz) * Lx];
       std::copy(xl, xl + n, p + h);
       for (int j = 0; j < h; ++j) {
@@ -369,9 +370,18 @@ void DcFourierSolver::multiply(const std::vector<double>& x, std::vector<double>
     }
   }
   y.assign(x.size(), 0.0);
-  const PairProduct pp{n, nz_, 2 * hz + 1, Lx, static_cast<int>(line_length), pair_row_.size(),
-                       pair_row_.data(), pair_col_.data(), pair_taps_.data(), padded_.data(),
-                       line_first_.data(), stride.data()};
+  const PairProduct pp{n,
+                       nz_,
+                       2 * hz + 1,
+                       Lx,
+                       static_cast<int>(line_length),
+                       pair_row_.size(),
+                       pair_row_.data(),
+                       pair_col_.data(),
+                       pair_taps_.data(),
+                       padded_.data(),
+                       line_first_.data(),
+                       stride.data()};
   switch (W) {  // k' = 1, 2, 3: halo k' + 1
     case 5:
       multiply_pairs<5>(pp, W, y.data());
@@ -426,7 +436,8 @@ void DcFourierSolver::transform(const std::vector<double>& b, std::vector<double
   const double scale = 1.0 / (static_cast<double>(nx_) * nz_);  // FFTW's inverse is unscaled
   for (int l = 0; l < n_line_; ++l) {
     double* line = &x[line_first_[l]];
-    fftw_execute_dft_c2r(plan(l).inverse, half(l), line);  // (overwrites the spectrum's line, not needed again)
+    fftw_execute_dft_c2r(plan(l).inverse, half(l),
+                         line);  // (overwrites the spectrum's line, not needed again)
     const int stride = plane_stride_[line_component_[l]];
     for (int z = 0; z < nz_; ++z)
       for (int i = 0; i < nx_; ++i) line[static_cast<std::size_t>(stride) * z + i] *= scale;

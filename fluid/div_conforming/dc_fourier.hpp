@@ -8,19 +8,20 @@
 // components and the pressure alike (their degrees along x differ, k + 1 for v_x and k for the others, which
 // only widens the stencil to half-width k + 1). An operator assembled from data uniform in x and z (the bulk
 // flow of the paper's shear boxes and channels) is then block-circulant: A[(c,i,j,l),(c',i',j',l')] =
-// S_{i'-i mod n_x, l'-l mod n_z}[(c,j),(c',j')], with c the component, i, j, l the x, y, z indices. A discrete
-// Fourier transform in x and z splits it into one system per wave vector (m, q) over the "line" of all y
-// unknowns of all components (size sum_c n_y(c), the zero pressure block included), A_mq = sum_s S_s
-// e^{2 pi i (m s_x / n_x + q s_z / n_z)}. The operator is real, so A_{-m,-q} = conj(A_mq): only m = 0 .. n_x/2
-// are factorised (every q), and the transforms are real-to-half-complex FFTs (FFTW's, planned once per
-// component) of each line's n_z x n_x values (a plane of the natural numbering in 3D, a contiguous run in 2D).
+// S_{i'-i mod n_x, l'-l mod n_z}[(c,j),(c',j')], with c the component, i, j, l the x, y, z indices. A
+// discrete Fourier transform in x and z splits it into one system per wave vector (m, q) over the "line" of
+// all y unknowns of all components (size sum_c n_y(c), the zero pressure block included), A_mq = sum_s S_s
+// e^{2 pi i (m s_x / n_x + q s_z / n_z)}. The operator is real, so A_{-m,-q} = conj(A_mq): only m = 0 ..
+// n_x/2 are factorised (every q), and the transforms are real-to-half-complex FFTs (FFTW's, planned once per
+// component) of each line's n_z x n_x values (a plane of the natural numbering in 3D, a contiguous run in
+// 2D).
 //
 // Banded systems: the line's unknowns are ordered by y index, the components of one y index together
-// (interleaved), so that A_mq is banded: every y function couples only to those whose supports overlap (within
-// k + 1 y indices on either side). In y periodic the order is folded (j = 0, n-1, 1, n-2, ...) so that the
-// wrap-around coupling is banded too, at twice the width. The half-bandwidths are read from the stencil's
-// nonzeros, and each A_mq is factorised by LAPACK's banded LU with partial pivoting (zgbtrf; the pivots are
-// those of a dense partial-pivoting LU, since below the band the columns are zero anyway).
+// (interleaved), so that A_mq is banded: every y function couples only to those whose supports overlap
+// (within k + 1 y indices on either side). In y periodic the order is folded (j = 0, n-1, 1, n-2, ...) so
+// that the wrap-around coupling is banded too, at twice the width. The half-bandwidths are read from the
+// stencil's nonzeros, and each A_mq is factorised by LAPACK's banded LU with partial pivoting (zgbtrf; the
+// pivots are those of a dense partial-pivoting LU, since below the band the columns are zero anyway).
 //
 // Wave vector 0 of a box without outflow has the constant pressure as null vector: with pin_pressure its
 // first pressure unknown is pinned, so solve() returns one solution of the consistent part, with its own
@@ -34,10 +35,10 @@
 //
 // Cost: per solve 2 n_line real FFTs of n_x n_z values and n_z (n_x/2 + 1) banded substitutions of size
 // n_line (O(n log(n_x n_z)) in all); build O(nonzeros) plus the banded LUs. Measured (bench/dc_fourier_solve:
-// the Navier-Stokes step tangent at a Couette state, k = 2, one rank, shared 2-core machine): 64 x 32 elements
-// (6.6 k unknowns) 0.22 ms per solve and 0.014 s to build; 256 x 128 (100 k unknowns) 2.7 ms per solve (4.1-4.2
-// with Eigen's kissfft and LAPACK's zgbtrs; the substitutions, written out, are now four fifths of it) and 0.3 s
-// to build; equal to MUMPS to 2.5e-13 of max|x| (fluid/div_conforming/README.md).
+// the Navier-Stokes step tangent at a Couette state, k = 2, one rank, shared 2-core machine): 64 x 32
+// elements (6.6 k unknowns) 0.22 ms per solve and 0.014 s to build; 256 x 128 (100 k unknowns) 2.7 ms per
+// solve (4.1-4.2 with Eigen's kissfft and LAPACK's zgbtrs; the substitutions, written out, are now four
+// fifths of it) and 0.3 s to build; equal to MUMPS to 2.5e-13 of max|x| (fluid/div_conforming/README.md).
 //
 // Limits (next steps, README): b and x whole on every rank, and every rank transforms all lines (only the
 // banded solves are divided among the ranks).
@@ -62,9 +63,9 @@ class DcFourierSolver {
   DcFourierSolver(const DcFourierSolver&) = delete;
   DcFourierSolver& operator=(const DcFourierSolver&) = delete;
 
-  /// Reads the stencil from the rows at x (and z) index 0 of A (the operator must not carry a pressure pin, which is
-  /// not translation-invariant) and factorises this rank's wave numbers. deviation(): the largest difference
-  /// between A and the circulant matrix of that stencil, relative to the largest entry of its row.
+  /// Reads the stencil from the rows at x (and z) index 0 of A (the operator must not carry a pressure pin,
+  /// which is not translation-invariant) and factorises this rank's wave numbers. deviation(): the largest
+  /// difference between A and the circulant matrix of that stencil, relative to the largest entry of its row.
   /// Collective. Throws std::runtime_error if a wave number's system is singular.
   void build(Mat A, bool pin_pressure);
   /// x = A^{-1} b (natural numbering, size n_dofs, the same b on every rank; x on every rank). Collective.
@@ -91,10 +92,11 @@ class DcFourierSolver {
   std::vector<PetscInt> petsc_index_, natural_index_;  // natural <-> the matrix's numbering (empty: the same)
   // n_half_ = n_x / 2 + 1 x wave numbers 0 .. n_x / 2; n_z 1 in 2D; wave vector index mz n_half_ + mx
   int nx_ = 0, nz_ = 1, n_half_ = 0, n_modes_ = 0, n_line_ = 0;
-  std::vector<int> modes_;  // this rank's wave vectors (of 0 .. n_modes_ - 1)
+  std::vector<int> modes_;        // this rank's wave vectors (of 0 .. n_modes_ - 1)
   std::vector<int> line_offset_;  // per component: its first line index (c, j) -> line_offset_[c] + j
   std::vector<int> line_component_, line_y_;  // per line index: c and j
-  std::vector<int> line_first_, plane_stride_;  // per line: its (i, l) = (0, 0) unknown; per component: l's stride
+  std::vector<int> line_first_,
+      plane_stride_;  // per line: its (i, l) = (0, 0) unknown; per component: l's stride
   std::vector<int> position_;                 // per line index: its row in the banded systems
   int kl_ = 0, ku_ = 0, ldab_ = 1;  // half-bandwidths below and above, leading dimension 2 kl + ku + 1
   std::vector<Complex> ab_;         // per wave number of modes_: the banded LU of A_m (zgbtrf)

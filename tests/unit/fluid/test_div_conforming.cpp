@@ -929,10 +929,10 @@ double fourier_vs_direct(const FourierCase& cs, MPI_Comm comm, double& deviation
 TEST(DcFourierSolver, EqualsTheDirectSolve) {
   // Tangents that are translation-invariant in x (and z): a Navier-Stokes time step at a Couette state
   // (moving top wall) in the channel, the steady Stokes operator there, and a time step on the all-periodic
-  // square at rest; k = 2 and 3; in 3D the channel (periodic in x and z) and the periodic box, odd n_z. The Fourier solve (mode 0 pinned) against MUMPS on the same operator with its pressure
-  // pin: velocities and zero-mean pressures agree to 1e-12 of max|x| (measured 4e-15 .. 1.1e-14; with MUMPS's
-  // default pivot threshold 0.01 instead of 0.5 its own solve was off by 4e-12). The stencil is circulant to
-  // 1e-13.
+  // square at rest; k = 2 and 3; in 3D the channel (periodic in x and z) and the periodic box, odd n_z. The
+  // Fourier solve (mode 0 pinned) against MUMPS on the same operator with its pressure pin: velocities and
+  // zero-mean pressures agree to 1e-12 of max|x| (measured 2.6e-15 .. 7.2e-14; with MUMPS's default pivot
+  // threshold 0.01 instead of 0.5 its own solve was off by 4e-12). The stencil is circulant to 1e-13.
   const FourierCase cases[] = {{2, 16, 8, false, true, "channel, NS step at Couette"},
                                {3, 12, 6, false, true, "channel, NS step at Couette"},
                                {2, 16, 8, false, false, "channel, steady Stokes"},
