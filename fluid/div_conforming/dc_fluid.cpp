@@ -639,44 +639,42 @@ void DivConformingFluid::step_residual(const std::vector<double>& U, Vec F, bool
   CELLFSI_PETSC(VecRestoreArray(F, &f));
 }
 
-void DivConformingFluid::step_tangent(const std::vector<double>& U, Mat J, bool with_immersed,
-                                      bool pin_pressure) {
+DivConformingFluid::Levels DivConformingFluid::iterate_levels(const std::vector<double>& U) const {
   const bool started = !Un_.empty();
-  Levels lv = step_levels(U, started ? Un_ : U_, started ? Udotn_ : Udot_);
-  if (!with_immersed) lv.viscosity_field = false;
-  assemble(lv, F_, J, with_immersed);
+  return step_levels(U, started ? Un_ : U_, started ? Udotn_ : Udot_);
+}
+
+void DivConformingFluid::zero_fixed_rows(Mat J, bool pin_pressure, double diagonal) const {
   std::vector<PetscInt> rows;
   const PetscInt pin = petsc_index_[space_.offset(space_.dim())];
   for (PetscInt r : owned_fixed_)
     if (pin_pressure || r != pin) rows.push_back(r);
-  CELLFSI_PETSC(MatZeroRows(J, static_cast<PetscInt>(rows.size()), rows.data(), 1.0, nullptr, nullptr));
+  CELLFSI_PETSC(MatZeroRows(J, static_cast<PetscInt>(rows.size()), rows.data(), diagonal, nullptr, nullptr));
+}
+
+void DivConformingFluid::step_tangent(const std::vector<double>& U, Mat J, bool with_immersed,
+                                      bool pin_pressure) {
+  Levels lv = iterate_levels(U);
+  if (!with_immersed) lv.viscosity_field = false;
+  assemble(lv, F_, J, with_immersed);
+  zero_fixed_rows(J, pin_pressure, 1.0);
 }
 
 void DivConformingFluid::step_tangent_from(Mat bulk, const std::vector<double>& U, Mat J, bool pin_pressure) {
-  const bool started = !Un_.empty();
-  const Levels lv = step_levels(U, started ? Un_ : U_, started ? Udotn_ : Udot_);
+  const Levels lv = iterate_levels(U);
   CELLFSI_PETSC(MatCopy(bulk, J, SAME_NONZERO_PATTERN));
   assemble_immersed(lv, nullptr, J);
   CELLFSI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
   CELLFSI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
-  std::vector<PetscInt> rows;
-  const PetscInt pin = petsc_index_[space_.offset(space_.dim())];
-  for (PetscInt r : owned_fixed_)
-    if (pin_pressure || r != pin) rows.push_back(r);
-  CELLFSI_PETSC(MatZeroRows(J, static_cast<PetscInt>(rows.size()), rows.data(), 1.0, nullptr, nullptr));
+  zero_fixed_rows(J, pin_pressure, 1.0);
 }
 
 void DivConformingFluid::immersed_tangent(const std::vector<double>& U, Mat C) {
-  const bool started = !Un_.empty();
-  const Levels lv = step_levels(U, started ? Un_ : U_, started ? Udotn_ : Udot_);
+  const Levels lv = iterate_levels(U);
   assemble_immersed(lv, nullptr, C);
   CELLFSI_PETSC(MatAssemblyBegin(C, MAT_FINAL_ASSEMBLY));
   CELLFSI_PETSC(MatAssemblyEnd(C, MAT_FINAL_ASSEMBLY));
-  std::vector<PetscInt> rows;
-  const PetscInt pin = petsc_index_[space_.offset(space_.dim())];
-  for (PetscInt r : owned_fixed_)
-    if (r != pin) rows.push_back(r);
-  CELLFSI_PETSC(MatZeroRows(C, static_cast<PetscInt>(rows.size()), rows.data(), 0.0, nullptr, nullptr));
+  zero_fixed_rows(C, false, 0.0);
 }
 
 std::vector<int> DivConformingFluid::immersed_elements() const {
@@ -714,9 +712,7 @@ void DivConformingFluid::end_step(const std::vector<double>& U) {
 std::vector<DivConformingFluid::StepSample> DivConformingFluid::sample_step(
     const std::vector<double>& U, const std::vector<int>& elements, const std::vector<Vec3>& x) const {
   const int D = space_.dim();
-  const std::vector<double>& Un = Un_.empty() ? U_ : Un_;
-  const std::vector<double>& Udotn = Un_.empty() ? Udot_ : Udotn_;
-  const Levels lv = step_levels(U, Un, Udotn);
+  const Levels lv = iterate_levels(U);
   std::vector<StepSample> out(x.size());
   ElementBasis eb;
   for (size_t i = 0; i < x.size(); ++i) {
@@ -1027,11 +1023,7 @@ DcSolveStats DivConformingFluid::step() {
 Mat DivConformingFluid::jacobian(bool time_step, bool pin_pressure) {
   const Levels lv = time_step ? step_levels(U_, U_, Udot_) : steady_levels(U_);
   assemble(lv, F_, J_);
-  std::vector<PetscInt> rows;
-  const PetscInt pin = petsc_index_[space_.offset(space_.dim())];
-  for (PetscInt r : owned_fixed_)
-    if (pin_pressure || r != pin) rows.push_back(r);
-  CELLFSI_PETSC(MatZeroRows(J_, static_cast<PetscInt>(rows.size()), rows.data(), 1.0, nullptr, nullptr));
+  zero_fixed_rows(J_, pin_pressure, 1.0);
   return J_;
 }
 

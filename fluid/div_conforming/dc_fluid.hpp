@@ -262,6 +262,11 @@ class DivConformingFluid {
   /// A generalized-alpha step from (Un, Udotn) with iterate U.
   Levels step_levels(const std::vector<double>& U, const std::vector<double>& Un,
                      const std::vector<double>& Udotn) const;
+  /// step_levels of the current step's iterate U (from U_n within a step, from the state before one).
+  Levels iterate_levels(const std::vector<double>& U) const;
+  /// Zeroes this rank's fixed rows of J with `diagonal` on them (the pressure pin's row too if pin_pressure).
+  /// Collective.
+  void zero_fixed_rows(Mat J, bool pin_pressure, double diagonal) const;
   std::function<Vec3(const Vec3&)> body_force_per_mass(double t) const;
   /// Residual F and, if J is not null, the tangent (PETSc numbering), both without the fixed rows.
   /// Collective.
