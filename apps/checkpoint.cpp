@@ -123,6 +123,7 @@ void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c
     js["newton_iterations"] = c.newton;
     js["linear_iterations"] = c.linear;
     js["factorizations"] = c.factorizations;
+    js["bulk_factorizations"] = c.bulk_factorizations;
     js["options"] = c.options;
     js["body_names"] = c.body_names;
     js["bodies"] = c.bodies;
@@ -191,6 +192,8 @@ Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, const std::str
     c.newton = js.at("newton_iterations").get<long>();
     c.linear = js.at("linear_iterations").get<long>();
     c.factorizations = js.at("factorizations").get<long>();
+    // (absent from checkpoints written before it was counted)
+    c.bulk_factorizations = js.value("bulk_factorizations", 0L);
     c.options = js.at("options").get<std::string>();
     c.body_names = js.at("body_names").get<std::vector<std::string>>();
     c.bodies = js.at("bodies").get<std::vector<std::vector<double>>>();

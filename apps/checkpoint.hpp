@@ -19,7 +19,7 @@ namespace cellfsi::app {
 struct Checkpoint {
   int step = 0;
   double time = 0;
-  long newton = 0, linear = 0, factorizations = 0;
+  long newton = 0, linear = 0, factorizations = 0, bulk_factorizations = 0;
   std::string options;  // options.yaml of the run that wrote it
   std::vector<std::string> body_names;
   std::vector<std::vector<double>> bodies, trackers;  // per body: SolidSolver::state, BodyTracker::state

@@ -142,6 +142,7 @@ void FluidRun::take_folder() {
   lock_ = std::make_unique<FolderLock>(PETSC_COMM_WORLD, settings_.output_dir, settings_.output_dir_adopt);
   if (settings_.restart) restore_checkpoint();
   newton_ = resume_.newton, linear_ = resume_.linear, factorizations_ = resume_.factorizations;
+  bulk_factorizations_ = resume_.bulk_factorizations;
   done_ = resume_.step;
 }
 
@@ -241,6 +242,7 @@ int FluidRun::step_loop() {
       newton_ += st.iterations;
       linear_ += st.linear_iterations;
       factorizations_ += st.factorizations;
+      bulk_factorizations_ += st.bulk_factorizations;
       if (k == resume_.step + 1)
         reject_unknown_options(coupled && scene_->coupler()->linear_solver().fell_back() ? OptionCheck::after_fallback
                                                                          : OptionCheck::after_first_step);
@@ -348,6 +350,7 @@ void FluidRun::write_checkpoint_after(int k) {
   c.step = k;
   c.time = scene_->fluid().time();
   c.newton = newton_, c.linear = linear_, c.factorizations = factorizations_;
+  c.bulk_factorizations = bulk_factorizations_;
   c.options = effective_options_yaml();
   for (const solid::SolidSolver* b : scene_->bodies()) c.body_names.push_back(b->name());
   c.bodies = scene_->body_states();
@@ -379,10 +382,11 @@ void FluidRun::fail(const std::exception& e, const std::string& where) {
 FluidRun::Metrics FluidRun::final_metrics(bool with_solver_size) const {
   Metrics m = scene_->summary_metrics();
   if (const coupling::FsiCoupler* coupler = scene_->coupler()) {
-    // What the linear algebra cost: factorisations of the whole fluid Jacobian (cellfsi_band: of its kept
-    // part; cellfsi_fourier: the bulk solver's set-up; the small factorisations of the band or the region
-    // are not counted) and the unknowns of that band or region.
+    // What the linear algebra cost: the LU factorisations made in steps (coupling::SolveCounts), the bulk
+    // operator's (once per run and restart: cellfsi_fourier, cellfsi_bulk), and the unknowns of the band or
+    // region.
     m.emplace_back("factorizations", static_cast<double>(factorizations_));
+    m.emplace_back("bulk_factorizations", static_cast<double>(bulk_factorizations_));
     if (with_solver_size)
       m.emplace_back("corrected_unknowns", static_cast<double>(coupler->linear_solver().corrected_unknowns()));
   }

@@ -103,7 +103,7 @@ class FluidRun {
   std::unique_ptr<solid::SolidSeriesWriter> solid_series_;
 
   // The counters of the steps (a restart's start from the checkpoint's).
-  long newton_ = 0, linear_ = 0, factorizations_ = 0;
+  long newton_ = 0, linear_ = 0, factorizations_ = 0, bulk_factorizations_ = 0;
   int done_ = 0;          // steps completed
   int current_step_ = 0;  // the step being computed or written, for a failure's message
   Metrics last_;          // the last step's metrics

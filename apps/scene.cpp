@@ -291,7 +291,7 @@ SceneStep Scene::step() {
   }
   const coupling::CouplerStats st = coupler_->step();
   r.iterations = st.iterations, r.linear_iterations = st.linear_iterations;
-  r.factorizations = st.factorizations;
+  r.factorizations = st.factorizations, r.bulk_factorizations = st.bulk_factorizations;
   r.converged = st.converged, r.reason = st.reason;
   if (st.converged) {
     for (size_t b = 0; b < bodies_.size(); ++b)

@@ -117,7 +117,7 @@ void check_bodies(const SceneSettings& s, const geometry::Patch& domain);
 /// What one time step cost (a fluid-only step or a coupled one).
 struct SceneStep {
   int iterations = 0, linear_iterations = 0;
-  int factorizations = 0;  // LU factorisations of the whole fluid Jacobian (or of its fixed part)
+  int factorizations = 0, bulk_factorizations = 0;  // see coupling::SolveCounts
   bool converged = false;
   std::string reason;
 };

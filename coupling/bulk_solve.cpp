@@ -32,11 +32,11 @@ bool BulkSolve::may_assemble(bool first_iteration) const {
 std::optional<FallBack> BulkSolve::prepare(Vec X, bool, SolveCounts& counts) {
   if (built_) return std::nullopt;
   // Once per run, at the first iterate (the initial state: the undisturbed flow, uniform along x), as
-  // cellfsi_fourier's bulk solver; counted as a factorisation (its per-wave-number LUs), the run's only one.
+  // cellfsi_fourier's bulk solver; counted as the bulk's factorisation (its per-wave-number LUs).
   EventScope ev(coupling_events().factor);
   std::optional<fluid::ImmersedFluid::OwnBulkInverse> inv = c_.fluid.bulk_inverse(X);
   if (!inv) throw std::logic_error("cellfsi_bulk: the fluid gave no bulk inverse");
-  ++counts.factorizations;
+  ++counts.bulk_factorizations;
   built_ = true;
   if (!(inv->deviation <= c_.options.uniformity)) {
     char amount[32];

@@ -85,6 +85,7 @@ int CellfsiSolve::solve(Vec X, Vec F, Vec dX, bool first_iteration, SolveCounts&
     EventScope ev(coupling_events().pc_setup);
     set_up_pc();  // the region's LU, or the band's Schur complement (and the kept part's LU when re-split)
     ++counts.refreshes;
+    if (refresh_factorizes()) ++counts.factorizations;
     solves_since_refresh_ = steps_since_refresh_ = 0;
     after_refresh();
     resplit_ = false;

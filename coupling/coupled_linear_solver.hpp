@@ -40,7 +40,11 @@ namespace cellfsi::coupling {
 
 /// What a solve cost (added to the step's statistics).
 struct SolveCounts {
-  int factorizations = 0;  // of the whole Jacobian, its kept part (cellfsi_band) or the bulk (cellfsi_fourier)
+  // LU factorisations made in steps: of the whole Jacobian (a PETSc PC's rebuild), of cellfsi_band's kept
+  // part and its Schur complement, of cellfsi_fourier's region.
+  int factorizations = 0;
+  // The bulk operator's banded LUs (cellfsi_fourier, cellfsi_bulk), once per run.
+  int bulk_factorizations = 0;
   int refreshes = 0;       // re-assemblies of the Jacobian with a new preconditioner set-up (cellfsi types)
 };
 

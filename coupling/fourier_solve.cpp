@@ -78,7 +78,7 @@ bool FourierSolve::may_assemble(bool first_iteration) const {
 
 std::optional<FallBack> FourierSolve::prepare(Vec X, bool, SolveCounts& counts) {
   if (bulk_built_) return std::nullopt;
-  ++counts.factorizations;
+  ++counts.bulk_factorizations;
   return build_bulk(X);
 }
 
@@ -265,6 +265,11 @@ void FourierSolve::after_refresh() {
                               "  Fourier solver: %d nodes differ from the bulk, region %" PetscInt_FMT
                               " unknowns\n",
                               fourier->n_differing_nodes(), corrected_unknowns()));
+}
+
+bool FourierSolve::refresh_factorizes() const {
+  const solvers::RegionCorrectedSolver* f = solvers::pc_fourier_solver(pc());
+  return f && f->region_factorized();
 }
 
 PetscInt FourierSolve::corrected_unknowns() const {

@@ -257,6 +257,7 @@ CouplerStats FsiCoupler::step() {
       SolveCounts counts;
       st.linear_iterations += linear_->solve(X_, F_, dX_, it == 0, counts);
       st.factorizations += counts.factorizations;
+      st.bulk_factorizations += counts.bulk_factorizations;
       st.refreshes += counts.refreshes;
     } catch (const std::invalid_argument&) {
       throw;  // bad input found by the solver (a misspelt type read at the first solve)

@@ -64,9 +64,9 @@ struct CouplerOptions {
 
 struct CouplerStats {
   int iterations = 0, linear_iterations = 0;
-  // Factorisations of the whole fluid Jacobian (cellfsi_band: of its kept part; cellfsi_fourier: the bulk
-  // solver's set-up) and refreshes of the Jacobian with the preconditioner's set-up, in the step.
-  int factorizations = 0, refreshes = 0;
+  // In the step: LU factorisations (coupling::SolveCounts::factorizations), the bulk operator's (the run's
+  // first step only), and refreshes of the Jacobian with the preconditioner's set-up.
+  int factorizations = 0, bulk_factorizations = 0, refreshes = 0;
   bool converged = false;
   double fluid_residual0 = 0, fluid_residual = 0;
   std::vector<double> solid_residual0, solid_residual;

@@ -91,6 +91,7 @@ class CellfsiSolve : public SolvePath {
   virtual Mat operator_matrix() const = 0;   // the KSP's operator
   virtual void set_up_pc() { CELLFSI_PETSC(KSPSetUp(c_.ksp)); }
   virtual void after_refresh() {}  // reports, after the preconditioner's set-up
+  virtual bool refresh_factorizes() const = 0;  // whether set_up_pc() factorised a matrix
   bool marking_changed_ = true;
   int steps_since_refresh_ = 0;
 };
@@ -113,6 +114,7 @@ class FourierSolve final : public CellfsiSolve {
   void make_near_operator();
   Mat operator_matrix() const override;
   void after_refresh() override;
+  bool refresh_factorizes() const override;           // the region's LU, unless its PC type says otherwise
   std::shared_ptr<solvers::FourierBulkSolver> bulk_;  // made by start(), built by the first prepare()
   bool bulk_built_ = false;
   std::vector<char> region_;                // elements re-assembled at every refresh
@@ -136,6 +138,7 @@ class BandSolve final : public CellfsiSolve {
   Mat operator_matrix() const override { return c_.fluid.jacobian_matrix(); }
   void set_up_pc() override;  // the kept part's LU when re-split, the Schur complement
   void after_refresh() override;
+  bool refresh_factorizes() const override { return true; }  // the Schur complement's LU
   std::vector<char> region_;  // the band's elements
   Mat J_fixed_ = nullptr;     // the Jacobian of the other elements
   long in_region_ = 0;        // elements in region_
@@ -153,6 +156,7 @@ class BulkSolve final : public CellfsiSolve {
  private:
   void refresh_jacobian(Vec X) override;
   Mat operator_matrix() const override { return op_ ? op_ : c_.fluid.jacobian_matrix(); }
+  bool refresh_factorizes() const override { return false; }
   bool built_ = false;
   Mat op_ = nullptr;  // bulk_stencil: the fluid's operator (its own; not destroyed here)
 };

@@ -189,6 +189,16 @@ void RegionCorrectedSolver::set_operator(Mat J) {
         " unknowns) failed: " + (reason != PC_NOERROR ? PCFailedReasons[reason] : "on another rank"));
 }
 
+bool RegionCorrectedSolver::region_factorized() const {
+  if (n_region_ == 0 || !region_ksp_) return false;
+  PC pc;
+  CELLFSI_PETSC(KSPGetPC(region_ksp_, &pc));
+  PetscBool factor = PETSC_FALSE;
+  CELLFSI_PETSC(PetscObjectTypeCompareAny(reinterpret_cast<PetscObject>(pc), &factor, PCLU, PCCHOLESKY,
+                                          kPCLUSingle, ""));
+  return factor == PETSC_TRUE;
+}
+
 void RegionCorrectedSolver::create_region_ksp(int size) {
   CELLFSI_PETSC(KSPCreate(comm_, &region_ksp_));
   CELLFSI_PETSC(KSPSetOptionsPrefix(region_ksp_, (prefix_ + "region_").c_str()));

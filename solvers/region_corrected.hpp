@@ -91,6 +91,9 @@ class RegionCorrectedSolver {
 
   const FourierBulkSolver& bulk() const { return *bulk_; }
   PetscInt n_region() const { return n_region_; }  // unknowns in the region
+  /// Whether the last set_operator factorised the region (a non-empty region, and its PC an LU, a Cholesky or
+  /// cellfsi_lu_single rather than one chosen by options that does not factorise).
+  bool region_factorized() const;
   /// The region's solver (null before the first set_operator): its view is part of the PC's.
   KSP region_ksp() const { return region_ksp_; }
   /// Nodes whose rows of J differ from the bulk operator by more than the threshold (before the growth).

@@ -560,7 +560,8 @@ TEST_F(CellfsiApp, FourierBandAndFluidSolversAgree) {
   // 2D, 6e-8 at 16^3 in 3D).
   auto state = [](std::vector<std::pair<std::string, double>> row) {
     std::erase_if(row, [](const auto& kv) {
-      return kv.first.find("iterations") != std::string::npos || kv.first == "factorizations";
+      return kv.first.find("iterations") != std::string::npos ||
+             kv.first.find("factorizations") != std::string::npos;
     });
     return row;
   };
@@ -619,7 +620,8 @@ TEST_F(CellfsiApp, OneAndTwoFluidRanksAgree) {
   // solves stop at rtol 1e-5).
   auto state = [](std::vector<std::pair<std::string, double>> row) {
     std::erase_if(row, [](const auto& kv) {
-      return kv.first.find("iterations") != std::string::npos || kv.first == "factorizations";
+      return kv.first.find("iterations") != std::string::npos ||
+             kv.first.find("factorizations") != std::string::npos;
     });
     return row;
   };
