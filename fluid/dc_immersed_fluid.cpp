@@ -17,8 +17,8 @@
 #include "common/option_table.hpp"
 #include "common/petsc_error.hpp"
 #include "fluid/state_file.hpp"
-#include "geometry/quadrature.hpp"
 #include "geometry/patch_vtk.hpp"
+#include "geometry/quadrature.hpp"
 
 namespace cellfsi::fluid {
 
@@ -81,7 +81,8 @@ DcImmersedFluid::DcImmersedFluid(MPI_Comm comm, const geometry::Patch& patch, co
   offset_ = map->offset;
   scale_ = map->scale;
   try {
-    space_ = std::make_unique<dc::DivConformingSpace>(dc::DivConformingSpace::from_patch(patch, options_.dc_degree));
+    space_ = std::make_unique<dc::DivConformingSpace>(
+        dc::DivConformingSpace::from_patch(patch, options_.dc_degree));
   } catch (const std::invalid_argument& e) {
     bad_option("fluid_space", "div_conforming", std::string("equal_order on this domain (") + e.what() + ")");
   }
@@ -136,7 +137,8 @@ StepStats DcImmersedFluid::step() {
   return st;
 }
 
-std::vector<PointSample> DcImmersedFluid::evaluate(const std::vector<double>& c, const std::vector<double>* rate,
+std::vector<PointSample> DcImmersedFluid::evaluate(const std::vector<double>& c,
+                                                   const std::vector<double>* rate,
                                                    const std::vector<Vec3>& points) const {
   const int D = dim();
   std::vector<PointSample> out(points.size());
@@ -310,10 +312,12 @@ void DcImmersedFluid::jacobian_part(Vec, Mat, const std::vector<char>&, bool) {
   throw std::logic_error("jacobian_part: the divergence-conforming fluid has no region split (-fluid_space)");
 }
 void DcImmersedFluid::jacobian_add_part(Vec, Mat, const std::vector<char>&) {
-  throw std::logic_error("jacobian_add_part: the divergence-conforming fluid has no region split (-fluid_space)");
+  throw std::logic_error(
+      "jacobian_add_part: the divergence-conforming fluid has no region split (-fluid_space)");
 }
 std::vector<PetscInt> DcImmersedFluid::region_unknowns(const std::vector<char>&) const {
-  throw std::logic_error("region_unknowns: the divergence-conforming fluid has no region split (-fluid_space)");
+  throw std::logic_error(
+      "region_unknowns: the divergence-conforming fluid has no region split (-fluid_space)");
 }
 
 std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X) {
@@ -371,20 +375,7 @@ void DcImmersedFluid::refresh_stencil_operator(Vec X) {
     CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &changed, 1, MPI_INT, MPI_MAX, comm_));
     if (changed) {
       MatDestroy(&immersed_);
-      Mat pattern;
-      PetscInt m = 0, n = 0;
-      CELLFSI_PETSC(VecGetLocalSize(U_, &m));
-      CELLFSI_PETSC(VecGetSize(U_, &n));
-      CELLFSI_PETSC(MatCreate(comm_, &pattern));
-      CELLFSI_PETSC(MatSetType(pattern, MATPREALLOCATOR));
-      CELLFSI_PETSC(MatSetSizes(pattern, m, m, n, n));
-      CELLFSI_PETSC(MatSetUp(pattern));
-      fluid_->immersed_pattern(pattern);
-      CELLFSI_PETSC(MatCreate(comm_, &immersed_));
-      CELLFSI_PETSC(MatSetType(immersed_, MATAIJ));
-      CELLFSI_PETSC(MatSetSizes(immersed_, m, m, n, n));
-      CELLFSI_PETSC(MatPreallocatorPreallocate(pattern, PETSC_TRUE, immersed_));
-      CELLFSI_PETSC(MatDestroy(&pattern));
+      immersed_ = fluid_->create_immersed_matrix();
       pattern_elements_ = std::move(elements);
     } else {
       CELLFSI_PETSC(MatZeroEntries(immersed_));
@@ -415,7 +406,8 @@ PetscErrorCode DcImmersedFluid::stencil_mult(Mat A, Vec x, Vec y) {
   PetscFunctionReturn(0);
 }
 
-std::string DcImmersedFluid::write_fields(const std::string& dir, const std::string& stem, int samples_per_element,
+std::string DcImmersedFluid::write_fields(const std::string& dir, const std::string& stem,
+                                          int samples_per_element,
                                           const std::function<Vec3(const Vec3&)>& undisturbed) const {
   if (samples_per_element < 1)
     throw std::invalid_argument("write_fields: samples_per_element must be >= 1, got " +
@@ -437,7 +429,8 @@ std::string DcImmersedFluid::write_fields(const std::string& dir, const std::str
           for (int m0 = 0; m0 < n[0]; ++m0) {
             const int m[3] = {m0, m1, m2};
             Vec3 x = Vec3::Zero();
-            for (int d = 0; d < D; ++d) x[d] = space_->lo(d) + (space_->hi(d) - space_->lo(d)) * m[d] / (n[d] - 1);
+            for (int d = 0; d < D; ++d)
+              x[d] = space_->lo(d) + (space_->hi(d) - space_->lo(d)) * m[d] / (n[d] - 1);
             pts.push_back(x);
           }
       const std::vector<PointSample> smp = evaluate(fluid_->state(), nullptr, pts);
@@ -482,7 +475,8 @@ std::string DcImmersedFluid::write_fields(const std::string& dir, const std::str
     }
   }
   CELLFSI_PETSC(MPI_Bcast(&failed, 1, MPI_INT, 0, comm_));
-  if (failed) throw std::runtime_error("write_fields: " + (rank == 0 ? message : std::string("rank 0 failed")));
+  if (failed)
+    throw std::runtime_error("write_fields: " + (rank == 0 ? message : std::string("rank 0 failed")));
   return name;
 }
 

@@ -22,8 +22,8 @@
 //     each refresh (bulk_matrix_ below); or, as bulk_inverse()'s stencil_operator (-coupling_bulk_stencil),
 //     a MATSHELL named cellfsi_dc_stencil: the bulk part applied by the bulk inverse's own stencil
 //     (DcFourierSolver::multiply, no matrix) plus an assembled matrix of the immersed points' tangent alone
-//     (its pattern, the unknowns of the elements that hold points, made by a MATPREALLOCATOR pass whenever
-//     those elements change).
+//     (its pattern, the unknowns of the elements that hold points, counted exactly by
+//     DivConformingFluid::create_immersed_matrix whenever those elements change).
 //   * the region hooks of the equal-order solvers (jacobian_part, jacobian_add_part, region_unknowns) do
 //     not apply: they throw std::logic_error.
 // State: replicated on every rank (DivConformingFluid's; fluid/div_conforming/README.md says what a real
