@@ -801,14 +801,14 @@ void DivConformingFluid::assemble_immersed(const Levels& lv, Vec F, Mat J) const
   prm.dim = D;
   prm.convection = lv.convection;
   int current = -1;
+  TensorRule rule;  // (one point; kept, so that the loop allocates nothing)
   for (const ImmersedAt& p : immersed_) {
     const Index3 ei = space_.element_multi_index(p.element);
-    TensorRule rule;
     for (int d = 0; d < 3; ++d) {
-      rule.points[d] = {d < D ? p.x[d] : 0.0};
-      rule.weights[d] = {1.0};
+      rule.points[d].assign(1, d < D ? p.x[d] : 0.0);
+      rule.weights[d].assign(1, 1.0);
     }
-    space_.evaluate(ei, rule, eb);
+    space_.evaluate(ei, rule, eb, p.element != current);
     if (p.element != current) {
       flush();
       current = p.element;
@@ -985,13 +985,14 @@ std::vector<DivConformingFluid::StepSample> DivConformingFluid::sample_step(
   const Levels lv = iterate_levels(U);
   std::vector<StepSample> out(x.size());
   ElementBasis eb;
+  TensorRule rule;  // (one point; kept, so that the loop allocates nothing)
   for (size_t i = 0; i < x.size(); ++i) {
-    TensorRule rule;
     for (int d = 0; d < 3; ++d) {
-      rule.points[d] = {d < D ? x[i][d] : 0.0};
-      rule.weights[d] = {1.0};
+      rule.points[d].assign(1, d < D ? x[i][d] : 0.0);
+      rule.weights[d].assign(1, 1.0);
     }
-    space_.evaluate(space_.element_multi_index(elements[i]), rule, eb);
+    space_.evaluate(space_.element_multi_index(elements[i]), rule, eb,
+                    i == 0 || elements[i] != elements[i - 1]);
     const auto pv = DivConformingSpace::interpolate(eb, 0, D, lv.v.data());
     const auto pa = DivConformingSpace::interpolate(eb, 0, D, lv.a.data());
     for (int a = 0; a < D; ++a) {

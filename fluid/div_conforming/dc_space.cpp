@@ -140,7 +140,8 @@ TensorRule DivConformingSpace::face_rule(const Index3& e, int d, int side, int n
   return r;
 }
 
-void DivConformingSpace::evaluate(const Index3& e, const TensorRule& rule, ElementBasis& out) const {
+void DivConformingSpace::evaluate(const Index3& e, const TensorRule& rule, ElementBasis& out,
+                                  bool with_indices) const {
   const int nq[3] = {static_cast<int>(rule.points[0].size()), static_cast<int>(rule.points[1].size()),
                      static_cast<int>(rule.points[2].size())};
   const int n_points = nq[0] * nq[1] * nq[2];
@@ -158,12 +159,12 @@ void DivConformingSpace::evaluate(const Index3& e, const TensorRule& rule, Eleme
 
   // Univariate values uni[d][(q * (p + 1) + j) * 2 + m] (m = 0 value, 1 derivative) of the two spaces.
   constexpr int kMax = geometry::kMaxDegree + 1;
-  std::vector<double> uni[2][3];  // [space: 0 low, 1 high][direction]
+  thread_local std::vector<double> uni[2][3];  // [space: 0 low, 1 high][direction] (kept: no allocation)
   int first[2][3] = {{0, 0, 0}, {0, 0, 0}};
   for (int s = 0; s < 2; ++s)
     for (int d = 0; d < 3; ++d) {
       if (d >= dim_) {
-        uni[s][d] = {1.0, 0.0};
+        uni[s][d].assign({1.0, 0.0});
         continue;
       }
       const KnotVector& kv = s ? high_[d] : low_[d];
@@ -188,18 +189,20 @@ void DivConformingSpace::evaluate(const Index3& e, const TensorRule& rule, Eleme
       np[d] = d < dim_ ? knots(c, d).degree() + 1 : 1;
     }
     cb.n = np[0] * np[1] * np[2];
-    cb.index.resize(cb.n);
     cb.value.resize(static_cast<size_t>(n_points) * cb.n);
     cb.grad.resize(static_cast<size_t>(n_points) * cb.n * 3);
-    for (int j2 = 0; j2 < np[2]; ++j2)
-      for (int j1 = 0; j1 < np[1]; ++j1)
-        for (int j0 = 0; j0 < np[0]; ++j0) {
-          const int a = j0 + np[0] * (j1 + np[1] * j2);
-          const int j[3] = {j0, j1, j2};
-          Index3 folded{0, 0, 0};
-          for (int d = 0; d < dim_; ++d) folded[d] = knots(c, d).fold(first[sp[d]][d] + j[d]);
-          cb.index[a] = index(c, folded);
-        }
+    if (with_indices) {
+      cb.index.resize(cb.n);
+      for (int j2 = 0; j2 < np[2]; ++j2)
+        for (int j1 = 0; j1 < np[1]; ++j1)
+          for (int j0 = 0; j0 < np[0]; ++j0) {
+            const int a = j0 + np[0] * (j1 + np[1] * j2);
+            const int j[3] = {j0, j1, j2};
+            Index3 folded{0, 0, 0};
+            for (int d = 0; d < dim_; ++d) folded[d] = knots(c, d).fold(first[sp[d]][d] + j[d]);
+            cb.index[a] = index(c, folded);
+          }
+    }
     for (int q2 = 0; q2 < nq[2]; ++q2)
       for (int q1 = 0; q1 < nq[1]; ++q1)
         for (int q0 = 0; q0 < nq[0]; ++q0) {

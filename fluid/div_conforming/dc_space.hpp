@@ -103,8 +103,9 @@ class DivConformingSpace {
   /// otherwise) and the one-point rule at x in it (periodic coordinates wrapped).
   Index3 find_element(const Vec3& x) const;
   TensorRule point_rule(const Vec3& x) const;
-  /// The basis of every component at the points of `rule` in element e.
-  void evaluate(const Index3& e, const TensorRule& rule, ElementBasis& out) const;
+  /// The basis of every component at the points of `rule` in element e. with_indices false keeps out's
+  /// function indices: the caller's last call was on the same element (the immersed points of one element).
+  void evaluate(const Index3& e, const TensorRule& rule, ElementBasis& out, bool with_indices = true) const;
   /// The fields at the points of eb from a coefficient array over all unknowns: velocity (dim) and its
   /// gradient grad[i][j] = d v_i / d x_j, and pressure.
   struct PointValues {
