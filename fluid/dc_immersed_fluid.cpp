@@ -397,7 +397,7 @@ PetscErrorCode DcImmersedFluid::stencil_mult(Mat A, Vec x, Vec y) {
   }
   try {
     self->fluid_->gather(x, self->x_nat_);
-    self->bulk_->multiply(self->x_nat_, self->y_nat_);
+    self->bulk_->multiply(self->x_nat_, self->y_nat_, true);  // (scatter() takes this rank's rows)
     self->fluid_->scatter(self->y_nat_, y);
   } catch (const std::exception& e) {
     SETERRQ(PetscObjectComm(reinterpret_cast<PetscObject>(A)), PETSC_ERR_LIB, "%s", e.what());

@@ -293,6 +293,19 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
     pair_taps_[pair_taps_.size() - block + (signed_offset(e.shift_z, nz_) + halo_z_) * width +
                signed_offset(e.shift, nx_) + halo_] += e.value;
   }
+  // The runs (line, l) that hold a row of this rank's (A's ownership range), for multiply(owned_only).
+  PetscInt r0 = 0, r1 = 0;
+  CELLFSI_PETSC(MatGetOwnershipRange(A, &r0, &r1));
+  owned_runs_.assign(static_cast<std::size_t>(n_line_) * nz_, 0);
+  for (int line = 0; line < n_line_; ++line)
+    for (int l = 0; l < nz_; ++l)
+      for (int i = 0; i < nx_; ++i) {
+        const PetscInt r = to_petsc(line_first_[line] + plane_stride_[line_component_[line]] * l + i);
+        if (r >= r0 && r < r1) {
+          owned_runs_[static_cast<std::size_t>(line) * nz_ + l] = 1;
+          break;
+        }
+      }
   built_ = true;
 }
 
@@ -307,6 +320,7 @@ struct PairProduct {
   const int *rows, *cols;
   const double *taps, *padded;
   const int *first, *row_stride;  // per line: its first unknown and its z stride
+  const char* runs;               // per (line, l): whether to compute it (null: every run)
 };
 
 template <int W>
@@ -316,6 +330,7 @@ void multiply_pairs(const PairProduct& p, int width, double* y) {
     const double* wg = p.taps + g * static_cast<std::size_t>(p.wz) * wx;
     const double* xc = p.padded + static_cast<std::size_t>(p.cols[g]) * p.padded_line;
     for (int l = 0; l < p.nz; ++l) {
+      if (p.runs && !p.runs[static_cast<std::size_t>(p.rows[g]) * p.nz + l]) continue;
       double* __restrict yr = y + p.first[p.rows[g]] + static_cast<std::size_t>(p.row_stride[p.rows[g]]) * l;
       for (int tz = 0; tz < p.wz; ++tz) {
         const double* w = wg + tz * wx;
@@ -345,7 +360,7 @@ void multiply_pairs(const PairProduct& p, int width, double* y) {
 
 }  // namespace
 
-void DcFourierSolver::multiply(const std::vector<double>& x, std::vector<double>& y) const {
+void DcFourierSolver::multiply(const std::vector<double>& x, std::vector<double>& y, bool owned_only) const {
   if (!built_) throw std::logic_error("DcFourierSolver::multiply before build");
   if (static_cast<int>(x.size()) != space_.n_dofs())
     throw std::invalid_argument("DcFourierSolver::multiply: the vector has " + std::to_string(x.size()) +
@@ -381,7 +396,8 @@ void DcFourierSolver::multiply(const std::vector<double>& x, std::vector<double>
                        pair_taps_.data(),
                        padded_.data(),
                        line_first_.data(),
-                       stride.data()};
+                       stride.data(),
+                       owned_only ? owned_runs_.data() : nullptr};
   switch (W) {  // k' = 1, 2, 3: halo k' + 1
     case 5:
       multiply_pairs<5>(pp, W, y.data());
@@ -453,8 +469,8 @@ void DcFourierSolver::solve(const std::vector<double>& b, std::vector<double>& x
   });
 }
 
-void DcFourierSolver::banded_substitution(const Complex* ab, const PetscBLASInt* ipiv, const Complex* inv_diag,
-                                          Complex* rhs) const {
+void DcFourierSolver::banded_substitution(const Complex* ab, const PetscBLASInt* ipiv,
+                                          const Complex* inv_diag, Complex* rhs) const {
   // zgbtrs('N') for one right-hand side, written out: LAPACK's calls one BLAS level-2 routine per column for
   // a band of a few dozen entries, and std::complex's operator* checks for infinities (GCC's __muldc3); here
   // the products are written in real arithmetic and the diagonal is inverted once at build (bench

@@ -75,8 +75,10 @@ class DcFourierSolver {
   /// communication). How: x's lines copied with a periodic halo, then per (row line, column line) pair and z
   /// offset one loop over each run of n_x values, each a short fixed-width dot product with the pair's x
   /// offsets: at 256 x 128, k' = 2, about 7 M multiply-adds from cache, where the assembled matrix's product
-  /// reads 7 M entries and their column indices from memory. Not thread-safe (a work buffer).
-  void multiply(const std::vector<double>& x, std::vector<double>& y) const;
+  /// reads 7 M entries and their column indices from memory. owned_only: only the runs of n_x rows that hold
+  /// a row of this rank's (the build matrix's ownership range); the other entries of y are 0. Not thread-safe
+  /// (a work buffer).
+  void multiply(const std::vector<double>& x, std::vector<double>& y, bool owned_only = false) const;
   double deviation() const { return deviation_; }
 
  private:
@@ -96,8 +98,8 @@ class DcFourierSolver {
   std::vector<int> line_offset_;  // per component: its first line index (c, j) -> line_offset_[c] + j
   std::vector<int> line_component_, line_y_;  // per line index: c and j
   std::vector<int> line_first_,
-      plane_stride_;  // per line: its (i, l) = (0, 0) unknown; per component: l's stride
-  std::vector<int> position_;                 // per line index: its row in the banded systems
+      plane_stride_;                // per line: its (i, l) = (0, 0) unknown; per component: l's stride
+  std::vector<int> position_;       // per line index: its row in the banded systems
   int kl_ = 0, ku_ = 0, ldab_ = 1;  // half-bandwidths below and above, leading dimension 2 kl + ku + 1
   std::vector<Complex> ab_;         // per wave number of modes_: the banded LU of A_m (zgbtrf)
   /// solve()'s steps: the forward transform of b's lines, f on each of this rank's wave numbers (k: its slot
@@ -105,7 +107,7 @@ class DcFourierSolver {
   /// inverse transform.
   template <class PerMode>
   void transform(const std::vector<double>& b, std::vector<double>& x, PerMode&& f) const;
-  std::vector<PetscBLASInt> ipiv_;  // and its pivots
+  std::vector<PetscBLASInt> ipiv_;         // and its pivots
   std::vector<Complex> inverse_diagonal_;  // 1 / U's diagonal, per wave number and position
   /// zgbtrs('N') of one right-hand side in place, with the factors of one wave number (see solve()).
   void banded_substitution(const Complex* ab, const PetscBLASInt* ipiv, const Complex* inv_diag,
@@ -117,6 +119,7 @@ class DcFourierSolver {
   std::vector<int> pair_row_, pair_col_;
   std::vector<double> pair_taps_;
   mutable std::vector<double> padded_;  // multiply()'s lines of x with halo_ periodic values at both ends
+  std::vector<char> owned_runs_;        // per (line, l): whether it holds a row of this rank's (build())
   double deviation_ = 0;
   bool pinned_ = false, built_ = false;
   struct Plans;                                // FFTW's plans of one line's transforms (dc_fourier.cpp)
