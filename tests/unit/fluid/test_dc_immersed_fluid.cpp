@@ -130,8 +130,11 @@ TEST(DcImmersedFluid, AStepDrivenFromOutsideEqualsItsOwnStep) {
   // (DcFluidOptions::newton_stol), so three steps agree to about 1e-9.
   EXPECT_LT(worst, 1e-8 * vmax);
   EXPECT_NEAR(own->time(), driven->time(), 1e-15);
+  // Divergence-free to the linear solves' round-off (tests/support/tolerances.hpp: eps times the Jacobian's
+  // condition, 1e6-1e8 on the test meshes): measured below 1e-12 with OpenBLAS's Haswell kernels and 5.7e-12
+  // with its AVX-512 ones; bounded by issue 44's 1e-9.
   ASSERT_TRUE(driven->max_divergence_ratio().has_value());
-  EXPECT_LT(*driven->max_divergence_ratio(), 1e-12);
+  EXPECT_LT(*driven->max_divergence_ratio(), 1e-9);
   KSPDestroy(&ksp);
   VecDestroy(&X);
   VecDestroy(&F);
