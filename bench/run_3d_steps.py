@@ -10,7 +10,8 @@ rank (/usr/bin/time -v). The table goes to docs/performance/coupled_steps_3d.md 
 
 Bodies: --elements paper (default) scales the paper's 64^3 discretisation with N (membrane 1 x N/2 x 3N/2,
 nucleus 7 x N/4 x N: the paper's 1 x 32 x 96 and 7 x 16 x 64 at N = 64, mesh ratio 1.52); --elements auto takes
-them from the fluid mesh (-solid_NAME_elements 1,0,0 and 0,0,0). Runs one case at a time (64^3 needs most of
+them from the fluid mesh (-solid_NAME_elements 1,0,0 and 0,0,0); a -solid_NAME_elements in --extra replaces
+either. Runs one case at a time (64^3 needs most of
 a 24 GB machine); OPENBLAS_NUM_THREADS=1. Needs /usr/bin/time (Debian package time).
 """
 import argparse
@@ -70,9 +71,15 @@ def run_case(args, n, ranks, steps):
     bodies = (["-solid_membrane_elements", "1,0,0", "-solid_nucleus_elements", "0,0,0"] if args.elements == "auto"
               else ["-solid_membrane_elements", f"1,{n // 2},{3 * n // 2}",
                     "-solid_nucleus_elements", f"7,{max(n // 4, 2)},{n}"])
+    # A body's elements given in --extra replace these (an option may be given once).
+    extra = args.extra.split()
+    for name in ("-solid_membrane_elements", "-solid_nucleus_elements"):
+        if name in extra:
+            i = bodies.index(name)
+            del bodies[i:i + 2]
     cmd = [os.path.join(args.build, "apps", "cellfsi"), os.path.join(ROOT, "scenes", "compound_capsule_shear_3d.yaml"),
            "-fluid_elements", f"{n},{n},{n}", "-final_time", repr(steps * 5e-4), "-output_every", "0",
-           "-log_view", "-output_dir", out_dir] + bodies + args.extra.split()
+           "-log_view", "-output_dir", out_dir] + bodies + extra
     time_base = os.path.join(args.runs, tag + ".time")
     for old in glob.glob(time_base + ".*"):
         os.remove(old)
