@@ -372,7 +372,8 @@ void DivConformingFluid::create_matrix() {
   // support, a velocity row all of them, a pressure row their velocity columns and its own diagonal (for the
   // pin's unit row). Each element's unknowns, then each unknown's elements (both compressed, O(elements x
   // their unknowns)), then one owned row at a time with a marker, counted and then inserted: a list per row
-  // filled element by element held each row's columns 36 times over (19 GB per rank at 64^3 in 3D).
+  // filled element by element held each row's columns about 36 times over (at 64^3 in 3D the OOM killer
+  // stopped the run at 13 GB per rank).
   const int n = space_.n_dofs(), D = space_.dim(), n_el = space_.n_elements();
   std::vector<int> el_start(n_el + 1, 0), el_unknowns;
   int n_vel = 0;  // an element's velocity unknowns (the first of its list)
@@ -670,8 +671,8 @@ void DivConformingFluid::interior_residual_batched(const Levels& lv, Vec F) cons
   // values and the D derivatives of the component's functions at the element's points stacked
   // (nq (D + 1) x nv) and U_c the block's coefficients (nv x m); the residual's point values R_c are then
   // tested by G_c^T R_c, one GEMM more. The pressure (and the viscosity field) likewise with the pressure
-  // functions' values. Measured on the 3D compound capsule at 32^3, k' = 2: 0.43 s per residual point by
-  // point, see docs/notes/2026-11-28-dc-3d-assembly.md for this one.
+  // functions' values. Measured on the 3D compound capsule at 32^3, k' = 2, one rank: the elements' terms
+  // 0.16 s per residual, 0.43 s point by point (docs/notes/2026-11-28-dc-3d-assembly.md).
   const int D = space_.dim();
   const bool field = lv.viscosity_field && !nu_field_.empty();
   const Vec3 g = lv.g ? lv.g(Vec3::Zero()) : Vec3(Vec3::Zero());
