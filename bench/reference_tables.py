@@ -515,36 +515,33 @@ def t_plasma():
 # ---------------------------------------------------------------------------------------------------------
 # performance.md
 # ---------------------------------------------------------------------------------------------------------
-def t_steps_3d():
-    path = os.path.join(PERF, "coupled_steps_3d.md")
-    cols = ["mesh", "ranks", "s/step", "region LU (PCSetUp)", "linear solves", "Jacobian", "residuals", "location",
-            "coupling it./step", "peak GB per rank", "commit", "command"]
-    rows = []
-    commit = commit_of(path)
-    for r in md_tables(path)[0]:
-        n = r["mesh"].split("^")[0]
-        rows.append([r["mesh"], r["ranks"], r["s/step"], r["PCSetUp"], r["LinearSolve"], r["Jacobian"], r["Residual"],
-                     r["Locate"], r["coupling/step"], r["peak GB"], commit,
-                     code(f"python3 bench/run_3d_steps.py --cases {n}:{r['ranks']}:{r['steps']}")])
-    return table(rows, [link_from_page(path) + " (the compound capsule, the paper's bodies scaled with N, dt 5e-4, "
-                        "quadratic; seconds per step)"], cols)
-
-
-def t_steps_3d_dc():
-    path = os.path.join(PERF, "coupled_steps_3d_dc.md")
-    cols = ["mesh", "ranks", "s/step", "linear solves", "Jacobian", "residuals", "location", "bulk build (once)",
+def steps_3d_table(name, space_column, extra, about):
+    """A run_3d_steps.py table: per row the step's split, with space_column (header, column of the kept table)
+    for what differs between the spaces; extra, the --extra the runs were given."""
+    path = os.path.join(PERF, name)
+    head, key = space_column
+    cols = ["mesh", "ranks", "s/step", "linear solves", "Jacobian", "residuals", "location", head,
             "coupling it./step", "peak GB per rank", "commit", "command"]
     rows = []
     commit = commit_of(path)
     for r in md_tables(path)[0]:
         n = r["mesh"].split("^")[0]
         rows.append([r["mesh"], r["ranks"], r["s/step"], r["LinearSolve"], r["Jacobian"], r["Residual"], r["Locate"],
-                     r["Factor (once)"], r["coupling/step"], r["peak GB"], commit,
-                     code(f"python3 bench/run_3d_steps.py --cases {n}:{r['ranks']}:{r['steps']} "
-                          "--extra \"-fluid_space div_conforming -fluid_dc_degree 2\"")])
-    return table(rows, [link_from_page(path) + " (the compound capsule on the divergence-conforming space, k' = 2, "
-                        "the paper's bodies scaled with N, dt 5e-4; seconds per step; nothing factorised in a step)"],
-                 cols)
+                     r[key], r["coupling/step"], r["peak GB"], commit,
+                     code(f"python3 bench/run_3d_steps.py --cases {n}:{r['ranks']}:{r['steps']}{extra}")])
+    return table(rows, [link_from_page(path) + f" ({about}; seconds per step)"], cols)
+
+
+def t_steps_3d():
+    return steps_3d_table("coupled_steps_3d.md", ("region LU (PCSetUp)", "PCSetUp"), "",
+                          "the compound capsule, the paper's bodies scaled with N, dt 5e-4, quadratic")
+
+
+def t_steps_3d_dc():
+    return steps_3d_table("coupled_steps_3d_dc.md", ("bulk build (once)", "Factor (once)"),
+                          " --extra \"-fluid_space div_conforming -fluid_dc_degree 2\"",
+                          "the compound capsule on the divergence-conforming space, k' = 2, the paper's bodies "
+                          "scaled with N, dt 5e-4; nothing factorised in a step")
 
 
 def t_steps_2d():
