@@ -30,7 +30,7 @@ Enum enum_of(const std::string& word, const std::vector<std::string>& words) {
 
 const std::vector<std::string> kMarkings{"support", "central"};
 const std::vector<std::string> kAccelerations{"none", "anderson"};
-const std::vector<std::string> kSolidTangents{"isotropic", "consistent"};
+const std::vector<std::string> kSolidTangents{"isotropic", "consistent", "collocation"};
 const std::vector<std::string> kShapes{"hollow_ellipse",   "ellipse",   "rbc",
                                        "hollow_ellipsoid", "ellipsoid", "rbc_3d"};
 const std::vector<std::string> kArrangements{"even", "staggered", "random"};
@@ -106,7 +106,7 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
   coupling::LinearSolverOptions& l = c.linear;
   std::string marking = kMarkings[static_cast<int>(c.marking)],
               acceleration = kAccelerations[static_cast<int>(c.acceleration)], s_interface = "auto",
-              solid_tangent = kSolidTangents[static_cast<int>(c.solid_tangent)];
+              solid_tangent = kSolidTangents[static_cast<int>(coupling::default_solid_tangent(s.dim))];
   // "-solid_bodies ''" would read as no list at all: name the mistake.
   PetscBool has = PETSC_FALSE;
   char value[8] = "";
@@ -154,8 +154,11 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
       .flag("coupling_monitor", c.monitor, "Print every coupling iteration's residuals")
       .text("coupling_solid_tangent", solid_tangent,
             "The solids' stiffness in the fluid's Jacobian: isotropic (a viscosity from each material's "
-            "small-strain shear modulus) or consistent (the material's tangent at the point's deformation, "
-            "and its stress); the solution does not depend on it, the coupling iterations do",
+            "small-strain shear modulus), consistent (the material's tangent at the point's deformation, "
+            "and its stress) or collocation (that tangent through the body's own interpolation of the "
+            "velocity at its collocation points; divergence-conforming fluid only, consistent elsewhere); "
+            "default collocation in 3D, consistent in 2D; the solution does not depend on it, the coupling "
+            "iterations do",
             kSolidTangents);
   coupling::add_solver_options(t, l, pc);
   t.real("coupling_max_mesh_ratio", s.max_mesh_ratio,

@@ -76,9 +76,37 @@ void FsiCoupler::update_immersed(bool first_iteration) {
   std::vector<geometry::Vec3> interface;
   const double rho1 = fluid_.options().density;
   const bool with_tangent =
-      opt_.solid_tangent == SolidTangent::consistent && linear_->may_assemble(first_iteration);
+      opt_.solid_tangent != SolidTangent::isotropic && linear_->may_assemble(first_iteration);
+  // The bodies' stiffness through their collocation (fluid::SolidLinearization): each body that gives its
+  // functions' gradients gets 3 columns per control unknown, from `offset`.
+  const bool collocation =
+      with_tangent && opt_.solid_tangent == SolidTangent::collocation && !linearization_refused_;
+  fluid::SolidLinearization lin;
+  struct Linearized {
+    solid::SolidSolver* body;
+    int offset, n_control, first_point, n_points;
+  };
+  std::vector<Linearized> linearized;
+  std::vector<int> q_begin, q_unknown;
+  std::vector<double> q_grad;
   for (size_t b = 0; b < bodies_.size(); ++b) {
     const std::vector<solid::QuadratureData> q = bodies_[b]->quadrature_data(rho1, with_tangent);
+    const bool linear = collocation && bodies_[b]->n_control() > 0 &&
+                        bodies_[b]->basis_gradients(q_begin, q_unknown, q_grad) &&
+                        q_begin.size() == q.size() + 1;
+    const int offset = lin.n_columns;
+    if (linear) {
+      const std::vector<geometry::Vec3> pts = bodies_[b]->collocation_points();
+      auto& loc = collocation_loc_[b];
+      if (loc.size() != pts.size()) {  // (before the first iteration of a run)
+        loc.resize(pts.size());
+        for (size_t i = 0; i < pts.size(); ++i) loc[i] = locator_.locate_or_throw(pts[i], nullptr);
+      }
+      linearized.push_back({bodies_[b], offset, bodies_[b]->n_control(),
+                            static_cast<int>(lin.elements.size()), static_cast<int>(pts.size())});
+      for (const Location& l : loc) lin.elements.push_back(l.element), lin.xi.push_back(l.xi);
+      lin.n_columns += 3 * bodies_[b]->n_control();
+    }
     auto& warm = quadrature_loc_[b];
     warm.resize(q.size());
     for (size_t i = 0; i < q.size(); ++i) {
@@ -92,9 +120,17 @@ void FsiCoupler::update_immersed(bool first_iteration) {
       // The solid's stiffness in the fluid tangent (see fluid::ImmersedPoint::stiffness_viscosity).
       const double stiffness_time = tp_.gamma * tp_.dt * tp_.alpha_f / tp_.alpha_m;
       ip.stiffness_viscosity = q[i].shear_modulus * stiffness_time / rho1;
-      if (opt_.solid_tangent == SolidTangent::consistent && q[i].has_tangent) {
+      if (opt_.solid_tangent != SolidTangent::isotropic && q[i].has_tangent) {
         ip.stiffness_time = stiffness_time;
         ip.stiffness = q[i].tangent;
+      }
+      if (linear) {
+        ip.solid_begin = static_cast<int>(lin.column.size());
+        for (int k = q_begin[i]; k < q_begin[i + 1]; ++k) {
+          lin.column.push_back(offset + 3 * q_unknown[k]);
+          lin.grad.insert(lin.grad.end(), q_grad.begin() + 3 * k, q_grad.begin() + 3 * k + 3);
+        }
+        ip.solid_end = static_cast<int>(lin.column.size());
       }
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) ip.stress[r][c] = q[i].stress(r, c);
@@ -104,6 +140,21 @@ void FsiCoupler::update_immersed(bool first_iteration) {
     if (!first_iteration) continue;  // (the marking's points; a remote body's are a message)
     const std::vector<geometry::Vec3> pts = bodies_[b]->interface_points();
     interface.insert(interface.end(), pts.begin(), pts.end());
+  }
+  if (!linearized.empty()) {
+    lin.control = [linearized, dv3 = std::vector<solid::Vec3>(), dc = Eigen::MatrixXd()](
+                      const std::vector<double>& dv, std::vector<double>& out) mutable {
+      for (const Linearized& l : linearized) {
+        dv3.resize(l.n_points);
+        for (int i = 0; i < l.n_points; ++i)
+          for (int c = 0; c < 3; ++c) dv3[i][c] = dv[3 * static_cast<size_t>(l.first_point + i) + c];
+        if (!l.body->control_increment(dv3, dc)) continue;
+        for (Eigen::Index r = 0; r < dc.rows(); ++r)
+          for (Eigen::Index c = 0; c < dc.cols(); ++c) out[l.offset + 3 * r + c] = dc(r, c);
+      }
+    };
+    // (A fluid that does not take it says so once; its points keep their consistent tangent.)
+    linearization_refused_ = !fluid_.set_solid_linearization(std::move(lin));
   }
   fluid_.set_immersed_points(elements, xi, data);
   if (!first_iteration) return;

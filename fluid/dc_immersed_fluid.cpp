@@ -362,9 +362,74 @@ std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X
   return inv;
 }
 
+bool DcImmersedFluid::set_solid_linearization(SolidLinearization lin) {
+  if (!has_bulk_inverse()) return false;  // (only the stencil operator applies it)
+  solid_ = std::move(lin);
+  solid_given_ = true;
+  return true;
+}
+
+void DcImmersedFluid::build_solid_operator() {
+  const int D = dim();
+  const double alpha_f = fluid_->velocity_alpha();
+  const std::size_t n = solid_.elements.size();
+  colloc_begin_.assign(1, 0);
+  colloc_index_.clear();
+  colloc_value_.clear();
+  dc::ElementBasis eb;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 x = physical(solid_.xi[i]);
+    const int e = patch_.element_index(solid_.elements[i]);
+    space_->evaluate(space_->element_multi_index(e), space_->point_rule(x), eb);
+    for (int c = 0; c < 3; ++c) {
+      if (c < D) {
+        const dc::ComponentBasis& cb = eb.comp[c];
+        for (int a = 0; a < cb.n; ++a) {
+          colloc_index_.push_back(cb.index[a]);
+          colloc_value_.push_back(alpha_f * cb.value[a]);
+        }
+      }
+      colloc_begin_.push_back(static_cast<int>(colloc_index_.size()));
+    }
+  }
+  solid_blocks_ = fluid_->solid_blocks(solid_.column, solid_.grad);
+}
+
+void DcImmersedFluid::add_solid_product(Vec y) {
+  const std::size_t rows = colloc_begin_.size() - 1;
+  dv_.assign(rows, 0.0);
+  for (std::size_t r = 0; r < rows; ++r) {
+    double v = 0;
+    for (int k = colloc_begin_[r]; k < colloc_begin_[r + 1]; ++k)
+      v += colloc_value_[k] * x_nat_[colloc_index_[k]];
+    dv_[r] = v;
+  }
+  dc_.assign(solid_.n_columns, 0.0);
+  solid_.control(dv_, dc_);
+  for (const dc::DivConformingFluid::SolidBlock& b : solid_blocks_) {
+    const std::size_t m = b.rows.size(), n = b.cols.size();
+    block_y_.assign(m, 0.0);
+    for (std::size_t r = 0; r < m; ++r) {
+      const double* row = b.values.data() + r * n;
+      double sum = 0;
+      for (std::size_t c = 0; c < n; ++c) sum += row[c] * dc_[b.cols[c]];
+      block_y_[r] = sum;
+    }
+    CELLFSI_PETSC(VecSetValues(y, static_cast<PetscInt>(m), b.rows.data(), block_y_.data(), ADD_VALUES));
+  }
+  CELLFSI_PETSC(VecAssemblyBegin(y));
+  CELLFSI_PETSC(VecAssemblyEnd(y));
+}
+
 void DcImmersedFluid::refresh_stencil_operator(Vec X) {
   fluid_->gather(X, work_);
   op_assembled_ = fluid_->has_viscosity_field();
+  // The solids' stiffness through their collocation, if the coupler gave it for these points (and the
+  // operator is the stencil's: an assembled one carries the points' own tangent).
+  const bool apart = solid_given_ && !op_assembled_;
+  fluid_->set_solid_stiffness_apart(apart);
+  solid_given_ = false;
+  if (!apart) solid_blocks_.clear(), colloc_begin_.clear();
   if (op_assembled_) {  // the field moves with the cells: the bulk is not the stencil's
     fluid_->step_tangent(work_, fluid_->matrix(), true, false);
   } else {
@@ -381,6 +446,7 @@ void DcImmersedFluid::refresh_stencil_operator(Vec X) {
       CELLFSI_PETSC(MatZeroEntries(immersed_));
     }
     fluid_->immersed_tangent(work_, immersed_);
+    if (apart) build_solid_operator();
   }
   // (An assembly raises the operator's state: KSP sets its preconditioner up again.)
   CELLFSI_PETSC(MatAssemblyBegin(stencil_op_, MAT_FINAL_ASSEMBLY));
@@ -403,6 +469,13 @@ PetscErrorCode DcImmersedFluid::stencil_mult(Mat A, Vec x, Vec y) {
     SETERRQ(PetscObjectComm(reinterpret_cast<PetscObject>(A)), PETSC_ERR_LIB, "%s", e.what());
   }
   if (self->immersed_) PetscCall(MatMultAdd(self->immersed_, x, y, y));
+  if (!self->colloc_begin_.empty()) {
+    try {
+      self->add_solid_product(y);
+    } catch (const std::exception& e) {
+      SETERRQ(PetscObjectComm(reinterpret_cast<PetscObject>(A)), PETSC_ERR_LIB, "%s", e.what());
+    }
+  }
   PetscFunctionReturn(0);
 }
 

@@ -64,6 +64,7 @@ class DcImmersedFluid final : public ImmersedFluid {
   bool owns_element(const geometry::Index3& e) const override;
   void set_immersed_points(const std::vector<geometry::Index3>& elements, const std::vector<geometry::Param>& xi,
                            const std::vector<ImmersedPoint>& data) override;
+  bool set_solid_linearization(SolidLinearization lin) override;
   void set_scaling(const std::function<double(int node)>&) override {}  // no s^h on this space
   void set_viscosity(const std::function<double(int node)>& mu) override;
   void begin_step(Vec X) override;
@@ -121,6 +122,18 @@ class DcImmersedFluid final : public ImmersedFluid {
   std::vector<double> x_nat_, y_nat_;  // the operator's product in the natural numbering
   static PetscErrorCode stencil_mult(Mat A, Vec x, Vec y);
   void refresh_stencil_operator(Vec X);
+  /// The solids' stiffness through their collocation (set_solid_linearization), in the stencil operator
+  /// only: the velocity at the collocation points from the natural-numbered iterate (rows 3 per point,
+  /// coefficients times alpha_f), the bodies' control increments from it (solid_.control), and each element's
+  /// block of DivConformingFluid::solid_blocks. Empty: the points carry their own consistent tangent.
+  SolidLinearization solid_;
+  bool solid_given_ = false;
+  std::vector<int> colloc_begin_, colloc_index_;
+  std::vector<double> colloc_value_;
+  std::vector<dc::DivConformingFluid::SolidBlock> solid_blocks_;
+  std::vector<double> dv_, dc_, block_y_;
+  void build_solid_operator();
+  void add_solid_product(Vec y);
 };
 
 }  // namespace cellfsi::fluid

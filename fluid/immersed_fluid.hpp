@@ -53,6 +53,25 @@ struct StepStats {
   std::string reason;  // SNES converged reason
 };
 
+/// The solids' stiffness in the coupled Jacobian as the block iteration sees it (-coupling_solid_tangent
+/// collocation): a velocity increment dv of the fluid moves a body only through its values at the body's
+/// collocation points (kinematic_update, then the collocation solve), not through dv at each quadrature
+/// point, as the consistent tangent assumes. On a body about as fine as the fluid the two differ by 20 %
+/// for the first correction of a step and by 70-90 % for the later ones
+/// (docs/notes/2026-11-28-solid-tangent.md). So the tangent is: the velocity at the collocation points
+/// (elements, xi), control(dv, dc) for the bodies' control increments (n_columns: unknowns times 3
+/// components, the columns below), and at each immersed point (ImmersedPoint::solid_begin, solid_end) its
+/// functions' first columns and spatial gradients.
+struct SolidLinearization {
+  int n_columns = 0;
+  std::vector<geometry::Index3> elements;  // the collocation points, every body's in turn
+  std::vector<geometry::Param> xi;
+  /// dv: 3 values per collocation point (t_{n+alpha_f} velocity increments); dc: n_columns values.
+  std::function<void(const std::vector<double>& dv, std::vector<double>& dc)> control;
+  std::vector<int> column;   // per entry: the column of the function's component 0 (1 and 2 follow)
+  std::vector<double> grad;  // per entry: 3 values, d N / d x
+};
+
 /// Velocity, its gradient and its time derivative at a point (at t_{n+1} after a step).
 struct PointSample {
   bool found = false;
@@ -131,6 +150,10 @@ class ImmersedFluid {
   virtual void set_immersed_points(const std::vector<geometry::Index3>& elements,
                                    const std::vector<geometry::Param>& xi,
                                    const std::vector<ImmersedPoint>& data) = 0;
+  /// The solids' stiffness for the next jacobian() through their collocation (SolidLinearization), for the
+  /// points then given to set_immersed_points; returns false if this discretisation does not use it (its
+  /// jacobian() then uses each point's consistent tangent).
+  virtual bool set_solid_linearization(SolidLinearization /*lin*/) { return false; }
   /// The interface scaling field s^h by the patch's control points (natural index -> s; s_I on the functions
   /// the marking chose, 1 elsewhere; paper Sec. 3.3). Applies to owned control points.
   virtual void set_scaling(const std::function<double(int node)>& s) = 0;

@@ -26,6 +26,9 @@ struct ImmersedPoint {
   /// An external force on the solid (an optical tweezers' bead): (1/rho_1) times its density per unit
   /// reference volume [cm/s^2], weighed like the other terms (solid/external_load.hpp). Zero: no load.
   std::array<double, 3> force{};
+  /// Tangent only, with a SolidLinearization (ImmersedFluid::set_solid_linearization): the point's body
+  /// functions are entries [solid_begin, solid_end) of its tables; -1: none (the consistent tangent above).
+  int solid_begin = -1, solid_end = -1;
 };
 
 }  // namespace cellfsi::fluid

@@ -214,6 +214,7 @@ double NurbsSolid::kinematic_update(const std::vector<VelocitySample>& samples) 
     throw std::invalid_argument("kinematic_update: expected " + std::to_string(n_points()) +
                                 " samples, got " + std::to_string(samples.size()));
   double norm2 = 0;
+  kinematic_tangent_.resize(n_points());
   for (int i = 0; i < n_points(); ++i) {
     Vec3 u = Vec3::Zero(), un = Vec3::Zero(), rn = Vec3::Zero();
     u.head(dim_) = u_.row(i).transpose();
@@ -223,11 +224,53 @@ double NurbsSolid::kinematic_update(const std::vector<VelocitySample>& samples) 
     for (int c = dim_; c < 3; ++c) R[c] = 0;
     norm2 += R.squaredNorm();
     const Mat3 T = kinematic_tangent(time_, samples[i].grad_v, dim_);
+    kinematic_tangent_[i] = T;
     const Vec3 du = T.partialPivLu().solve(-R);  // step 2: a d x d solve per point
     u_.row(i) += du.head(dim_).transpose();
   }
   c_ = control_from_points(u_);  // step 3
   return std::sqrt(norm2);
+}
+
+bool NurbsSolid::control_increment(const std::vector<Vec3>& dv, Eigen::MatrixXd& dc) const {
+  if (static_cast<int>(dv.size()) != n_points())
+    throw std::invalid_argument("control_increment: expected " + std::to_string(n_points()) +
+                                " velocities, got " + std::to_string(dv.size()));
+  if (static_cast<int>(kinematic_tangent_.size()) != n_points()) return false;  // no update made yet
+  // Step 2 linearised: T du = dv at each point (kinematic_residual's derivative in v is -I); step 3: the
+  // collocation solve; the control at t_{n+alpha_f} moves by alpha_f of it.
+  Eigen::MatrixXd du(n_points(), dim_);
+  for (int i = 0; i < n_points(); ++i) {
+    const Vec3 d = kinematic_tangent_[i].partialPivLu().solve(dv[i]);
+    du.row(i) = d.head(dim_).transpose();
+  }
+  dc = time_.alpha_f * factor_.solve(du);
+  return true;
+}
+
+bool NurbsSolid::basis_gradients(std::vector<int>& begin, std::vector<int>& unknown,
+                                 std::vector<double>& grad) const {
+  const int n_q = static_cast<int>(q_X_.size());
+  begin.assign(q_begin_.begin(), q_begin_.end());
+  unknown.assign(q_unknown_.begin(), q_unknown_.end());
+  grad.assign(3 * q_unknown_.size(), 0.0);
+  int q = 0;
+  // d N / d x = F^{-T} d N / d X at the configuration quadrature_data() describes.
+  for_each_quadrature_point(displacement_control_alpha(), [&](const Vec3&, const Mat3& F, double) {
+    Mat3 Fd = Mat3::Identity();
+    Fd.topLeftCorner(dim_, dim_) = F.topLeftCorner(dim_, dim_);
+    const Mat3 Finv = Fd.inverse();
+    for (int k = q_begin_[q]; k < q_begin_[q + 1]; ++k) {
+      const double* dN = q_dN_.data() + static_cast<std::size_t>(k) * dim_;
+      for (int l = 0; l < dim_; ++l) {
+        double g = 0;
+        for (int a = 0; a < dim_; ++a) g += dN[a] * Finv(a, l);
+        grad[3 * static_cast<std::size_t>(k) + l] = g;
+      }
+    }
+    ++q;
+  });
+  return q == n_q;
 }
 
 Eigen::MatrixXd NurbsSolid::displacement_control_alpha() const { return c_n_ + time_.alpha_f * (c_ - c_n_); }

@@ -35,6 +35,10 @@ class NurbsSolid final : public SolidSolver {
   double kinematic_update(const std::vector<VelocitySample>& samples) override;
   std::vector<QuadratureData> quadrature_data(double fluid_density, bool with_tangent) const override;
   std::vector<Vec3> interface_points() const override;
+  bool control_increment(const std::vector<Vec3>& dv, Eigen::MatrixXd& dc) const override;
+  int n_control() const override { return n_reduced_; }
+  bool basis_gradients(std::vector<int>& begin, std::vector<int>& unknown,
+                       std::vector<double>& grad) const override;
   void end_step() override;
 
   /// Sets the displacement rate at the collocation points (e.g. the fluid velocity there at t = 0, so the
@@ -101,6 +105,8 @@ class NurbsSolid final : public SolidSolver {
   Eigen::SparseLU<Eigen::SparseMatrix<double>> factor_;
   Eigen::MatrixXd u_, u_n_, rate_n_;  // at the collocation points (n_points x dim)
   Eigen::MatrixXd c_, c_n_;           // control variables (n_reduced x dim)
+  std::vector<Mat3>
+      kinematic_tangent_;             // the last kinematic_update()'s tangent per point (control_increment)
   std::vector<Vec3> load_density_;    // external force per reference volume at the quadrature points
   // The quadrature points' reference data, tabulated once (the basis at a fixed parametric point does not
   // change, only the control variables do), so that for_each_quadrature_point, at every coupling iteration,

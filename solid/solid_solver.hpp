@@ -62,6 +62,25 @@ class SolidSolver {
   /// the spatial tangent (QuadratureData::has_tangent and tangent), which only an assembly of the coupling's
   /// Jacobian reads; the coupler asks for it at the iterations that may assemble one (a step's first).
   virtual std::vector<QuadratureData> quadrature_data(double fluid_density, bool with_tangent) const = 0;
+  /// The linearised steps 2-3, for a coupled Jacobian that follows the body's own interpolation
+  /// (-coupling_solid_tangent collocation): the displacement control at t_{n+alpha_f} changes by dc
+  /// (n_control() rows, one per control unknown, dim() columns) when the velocity at the collocation points
+  /// (their order) changes by dv, through the last kinematic_update()'s tangent. False: this solver cannot
+  /// say (the coupling then uses the consistent tangent for it).
+  virtual bool control_increment(const std::vector<Vec3>& dv, Eigen::MatrixXd& dc) const {
+    (void)dv, (void)dc;
+    return false;
+  }
+  /// The control unknowns behind control_increment (0 where it is not available).
+  virtual int n_control() const { return 0; }
+  /// Each quadrature point's functions, in quadrature_data()'s order, at t_{n+alpha_f}: point q's are
+  /// [begin[q], begin[q + 1]) of `unknown` (the control unknown, a row of control_increment's dc) and `grad`
+  /// (3 values each: the spatial gradient d N / d x, zero beyond dim()). False: not available.
+  virtual bool basis_gradients(std::vector<int>& begin, std::vector<int>& unknown,
+                               std::vector<double>& grad) const {
+    (void)begin, (void)unknown, (void)grad;
+    return false;
+  }
   /// Points on the fluid-solid interface (both faces of a membrane, the boundary of a bulky body) at
   /// t_{n+alpha_f}, for marking s^h.
   virtual std::vector<Vec3> interface_points() const = 0;

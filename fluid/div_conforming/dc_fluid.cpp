@@ -869,9 +869,143 @@ void DivConformingFluid::assemble_immersed(const Levels& lv, Vec F, Mat J) const
     const Vec3 g = lv.g ? lv.g(p.x) : Vec3(Vec3::Zero());
     for (int i = 0; i < 3; ++i) prm.g[i] = g[i];
     if (F) add_point_residual(eb, 0, D, p.data.weight, dc_immersed_residual(st, prm, p.data), Fe);
-    if (J) tangent.add(eb, 0, p.data.weight, dc_immersed_tangent(st, prm, p.data), lv.dv_dU, lv.da_dU);
+    if (!J) continue;
+    if (solid_apart_ && p.data.solid_begin >= 0) {  // its stiffness is solid_blocks()'
+      ImmersedPoint without = p.data;
+      without.stiffness_time = 0;
+      without.stiffness_viscosity = 0;
+      tangent.add(eb, 0, p.data.weight, dc_immersed_tangent(st, prm, without), lv.dv_dU, lv.da_dU);
+    } else {
+      tangent.add(eb, 0, p.data.weight, dc_immersed_tangent(st, prm, p.data), lv.dv_dU, lv.da_dU);
+    }
   }
   flush();
+}
+
+std::vector<DivConformingFluid::SolidBlock> DivConformingFluid::solid_blocks(
+    const std::vector<int>& column, const std::vector<double>& grad) const {
+  // Points of one body element inside one fluid element share their columns (they come in the body's
+  // quadrature order, kept by set_immersed_points' stable sort): for each such group and velocity
+  // component i the block's rows of i gain one GEMM, (w dN_a/dx_j)_{a, (p, j)} times
+  // (sum_l X^p_ijkl dN_r/dx_l)_{(p, j), (k, r)}, X the points' stiffness (c + the stress terms).
+  static constexpr int voigt[3][3] = {{0, 5, 4}, {5, 1, 3}, {4, 3, 2}};
+  const int D = space_.dim();
+  std::vector<char> fixed(space_.n_dofs(), 0);
+  for (int r : fixed_rows_) fixed[r] = 1;
+  auto uses = [](const ImmersedPoint& ip) { return ip.solid_begin >= 0 && ip.stiffness_time > 0; };
+  auto same_columns = [&](const ImmersedPoint& a, const ImmersedPoint& b) {
+    return a.solid_end - a.solid_begin == b.solid_end - b.solid_begin &&
+           std::equal(column.begin() + a.solid_begin, column.begin() + a.solid_end,
+                      column.begin() + b.solid_begin);
+  };
+  std::vector<SolidBlock> out;
+  ElementBasis eb;
+  TensorRule rule;
+  std::vector<int> where;                       // column -> its place in the block's columns (-1: none)
+  std::vector<double> left[3], right[3], prod;  // a group's GEMM operands per component, and its product
+  size_t first = 0;
+  while (first < immersed_.size()) {
+    const int e = immersed_[first].element;
+    size_t last = first;
+    while (last < immersed_.size() && immersed_[last].element == e) ++last;
+    SolidBlock b;
+    for (size_t i = first; i < last; ++i) {
+      const ImmersedPoint& ip = immersed_[i].data;
+      if (!uses(ip)) continue;
+      for (int k = ip.solid_begin; k < ip.solid_end; ++k)
+        for (int c = 0; c < D; ++c) b.cols.push_back(column[k] + c);
+    }
+    if (b.cols.empty()) {
+      first = last;
+      continue;
+    }
+    std::sort(b.cols.begin(), b.cols.end());
+    b.cols.erase(std::unique(b.cols.begin(), b.cols.end()), b.cols.end());
+    const int n_cols = static_cast<int>(b.cols.size());
+    if (static_cast<int>(where.size()) <= b.cols.back()) where.resize(b.cols.back() + 1, -1);
+    for (int c = 0; c < n_cols; ++c) where[b.cols[c]] = c;
+    int off[4] = {0, 0, 0, 0};
+    bool new_element = true;
+    size_t g0 = first;
+    while (g0 < last) {
+      if (!uses(immersed_[g0].data)) {
+        ++g0;
+        continue;
+      }
+      size_t g1 = g0 + 1;
+      while (g1 < last && uses(immersed_[g1].data) && same_columns(immersed_[g0].data, immersed_[g1].data))
+        ++g1;
+      const int P = static_cast<int>(g1 - g0), K = D * P;
+      const ImmersedPoint& head = immersed_[g0].data;
+      const int n_e = head.solid_end - head.solid_begin, n_c = D * n_e;
+      for (int p = 0; p < P; ++p) {
+        const ImmersedAt& pt = immersed_[g0 + p];
+        const ImmersedPoint& ip = pt.data;
+        for (int d = 0; d < 3; ++d) {
+          rule.points[d].assign(1, d < D ? pt.x[d] : 0.0);
+          rule.weights[d].assign(1, 1.0);
+        }
+        space_.evaluate(space_.element_multi_index(e), rule, eb, new_element);
+        if (new_element) {
+          for (int c = 0; c < D; ++c) off[c + 1] = off[c] + eb.comp[c].n;
+          const std::vector<PetscInt> idx = local_indices(eb, D);
+          b.rows.resize(off[D]);
+          for (int r = 0; r < off[D]; ++r) b.rows[r] = fixed[idx[r]] ? -1 : petsc_index_[idx[r]];
+          b.values.assign(static_cast<size_t>(off[D]) * n_cols, 0.0);
+          new_element = false;
+        }
+        double c6[6][6];
+        for (int r = 0, t = 0; r < 6; ++r)
+          for (int q = r; q < 6; ++q, ++t) c6[r][q] = c6[q][r] = ip.stiffness[t];
+        for (int i = 0; i < D; ++i) {
+          const ComponentBasis& cb = eb.comp[i];
+          if (p == 0) {
+            left[i].resize(static_cast<size_t>(cb.n) * K);
+            right[i].resize(static_cast<size_t>(K) * n_c);
+          }
+          // left_i (n_i x K, column-major): w dN_a / dx_j in column (p, j).
+          for (int j = 0; j < D; ++j)
+            for (int a = 0; a < cb.n; ++a)
+              left[i][static_cast<size_t>(p * D + j) * cb.n + a] =
+                  ip.weight * cb.grad[3 * static_cast<size_t>(a) + j];
+          // right_i (K x n_c, column-major): row (p, j), column (k, r).
+          for (int j = 0; j < D; ++j)
+            for (int k = 0; k < D; ++k) {
+              double X[3];
+              for (int l = 0; l < D; ++l) {
+                X[l] = c6[voigt[i][j]][voigt[k][l]];
+                if (j == k) X[l] += ip.stress[i][l];
+                if (i == k) X[l] += ip.stress[l][j];
+              }
+              for (int r = 0; r < n_e; ++r) {
+                const double* g = grad.data() + 3 * static_cast<size_t>(ip.solid_begin + r);
+                double sum = 0;
+                for (int l = 0; l < D; ++l) sum += X[l] * g[l];
+                right[i][static_cast<size_t>(k * n_e + r) * K + p * D + j] = sum;
+              }
+            }
+        }
+      }
+      for (int i = 0; i < D; ++i) {
+        const PetscBLASInt m = eb.comp[i].n, n = n_c, kk = K;
+        const double one = 1.0, zero = 0.0;
+        prod.resize(static_cast<size_t>(m) * n);
+        BLASgemm_("N", "N", &m, &n, &kk, &one, left[i].data(), &m, right[i].data(), &kk, &zero, prod.data(),
+                  &m);
+        for (int k = 0; k < D; ++k)
+          for (int r = 0; r < n_e; ++r) {
+            const int col = where[column[head.solid_begin + r] + k];
+            const double* src = prod.data() + static_cast<size_t>(k * n_e + r) * m;
+            for (int a = 0; a < m; ++a) b.values[static_cast<size_t>(off[i] + a) * n_cols + col] += src[a];
+          }
+      }
+      g0 = g1;
+    }
+    for (int c : b.cols) where[c] = -1;
+    out.push_back(std::move(b));
+    first = last;
+  }
+  return out;
 }
 
 void DivConformingFluid::set_immersed_points(std::vector<ImmersedAt> points) {

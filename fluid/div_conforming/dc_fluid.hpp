@@ -215,6 +215,22 @@ class DivConformingFluid {
   /// rows zero, the pressure pin's row kept as assembled): step_tangent_from(bulk, U, J, false) is bulk + C.
   /// Collective.
   void immersed_tangent(const std::vector<double>& U, Mat C);
+  /// The solids' stiffness through their collocation (fluid::SolidLinearization): with `on`, the points'
+  /// tangent (immersed_tangent, step_tangent*) leaves out the stiffness of every point with
+  /// ImmersedPoint::solid_begin >= 0, which solid_blocks() then gives.
+  void set_solid_stiffness_apart(bool on) { solid_apart_ = on; }
+  /// Per element with such points, its momentum rows' derivative with respect to the solids' control
+  /// increments: sum over the points of w d_j N_A,i (c_ijkl + delta_jk tau_il + delta_ik tau_lj) dN_r/dx_l
+  /// (`column` and `grad`: SolidLinearization's tables). rows: PETSc numbering, -1 for a fixed row
+  /// (VecSetValues skips it); values rows x cols, row-major.
+  struct SolidBlock {
+    std::vector<PetscInt> rows;
+    std::vector<int> cols;
+    std::vector<double> values;
+  };
+  std::vector<SolidBlock> solid_blocks(const std::vector<int>& column, const std::vector<double>& grad) const;
+  /// d v(t_{n+alpha_f}) / d U of a step's iterate (alpha_f).
+  double velocity_alpha() const { return alpha_.alpha_f; }
   /// This rank's elements that hold immersed points, sorted.
   std::vector<int> immersed_elements() const;
   /// A matrix preallocated for immersed_tangent: AIJ, each owned row's distinct columns over the elements
@@ -307,6 +323,7 @@ class DivConformingFluid {
   std::vector<double> div_history_;
   std::vector<double> nu_field_;      // kinematic viscosity per pressure function; empty: uniform
   std::vector<ImmersedAt> immersed_;  // this rank's, sorted by element
+  bool solid_apart_ = false;          // set_solid_stiffness_apart
   struct CachedBasis {
     Index3 element;  // the element it was evaluated on
     ElementBasis basis;

@@ -10,6 +10,8 @@
 #include "common/petsc_error.hpp"
 #include "fluid/dc_immersed_fluid.hpp"
 #include "geometry/builders.hpp"
+#include "solid/material.hpp"
+#include "solid/nurbs_solid.hpp"
 
 using namespace cellfsi;
 using geometry::Vec3;
@@ -253,6 +255,126 @@ TEST(DcImmersedFluid, ItsStencilOperatorMultipliesAsTheAssembledJacobian) {
   VecDestroy(&x);
   VecDestroy(&y_op);
   VecDestroy(&y_mat);
+}
+
+TEST(DcImmersedFluid, TheSolidTangentThroughTheCollocationEqualsTheConsistentOneOnLinearFields) {
+  // The solids' stiffness two ways (-coupling_solid_tangent): consistent (each point's tangent applied to
+  // the fluid's gradient there) and through the body's collocation (fluid::SolidLinearization: the velocity
+  // at the collocation points, the body's own interpolation, its functions' gradients at the points). For a
+  // velocity that is linear in x, the body interpolates it exactly (isoparametric NURBS), so the two products
+  // agree to round-off; asserted 1e-10 of max|y| with a deformed, stressed membrane (relative to the size of
+  // its stiffness part, the difference of the two products with the points and without), on one rank or
+  // two. For a velocity that is not linear they differ: what the other tangent is for.
+  ShearBox box(32, 16);
+  std::unique_ptr<fluid::ImmersedFluid> f = fluid::create_fluid(PETSC_COMM_WORLD, box.patch, box.options);
+  f->set_initial_velocity([&](const Vec3& x) { return box.shear(x); });
+  const std::optional<geometry::AffineMap> map = geometry::affine_map(box.patch);
+  ASSERT_TRUE(map);
+  auto locate = [&](const Vec3& x, geometry::Index3& e, geometry::Param& xi) {
+    for (int d = 0; d < 3; ++d) xi[d] = d < 2 ? (x[d] - map->offset[d]) / map->scale[d] : 0.0;
+    e = box.patch.find_element(xi);
+  };
+  // A membrane deformed by one kinematic update, the last with grad v = 0 (its tangent is then the scalar
+  // alpha_m / (gamma dt), as the consistent tangent assumes).
+  const double rho1 = 1.025;
+  const solid::TimeParameters tp = solid::TimeParameters::from_rho_inf(0.5, box.options.dt);
+  solid::NurbsSolid body("m", geometry::hollow_ellipse(2e-4, 1e-4, 5e-7, 24, 2, Vec3(1.2e-3, 6e-4, 0), 0.5),
+                         std::make_shared<solid::DeviatoricNeoHookean>(7500.0), 1.1);
+  body.begin_step(tp);
+  {
+    std::vector<solid::VelocitySample> vs(body.n_points());
+    const std::vector<Vec3> x = body.collocation_points();
+    for (int i = 0; i < body.n_points(); ++i)
+      vs[i].v = Vec3(30 * (x[i][1] - 6e-4), 20 * (x[i][0] - 1.2e-3), 0);
+    body.kinematic_update(vs);
+  }
+  const std::vector<solid::QuadratureData> q = body.quadrature_data(rho1, true);
+  std::vector<int> q_begin, q_unknown;
+  std::vector<double> q_grad;
+  ASSERT_TRUE(body.basis_gradients(q_begin, q_unknown, q_grad));
+  ASSERT_EQ(q_begin.size(), q.size() + 1);
+  const double stiffness_time = tp.gamma * tp.dt * tp.alpha_f / tp.alpha_m;
+  std::vector<geometry::Index3> elements(q.size());
+  std::vector<geometry::Param> xi(q.size());
+  std::vector<fluid::ImmersedPoint> data(q.size());
+  fluid::SolidLinearization lin;
+  for (size_t i = 0; i < q.size(); ++i) {
+    locate(q[i].x, elements[i], xi[i]);
+    fluid::ImmersedPoint& d = data[i];
+    d.weight = q[i].weight;
+    d.beta = q[i].beta;
+    d.stiffness_time = stiffness_time;
+    d.stiffness = q[i].tangent;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) d.stress[r][c] = q[i].stress(r, c);
+    d.solid_begin = static_cast<int>(lin.column.size());
+    for (int k = q_begin[i]; k < q_begin[i + 1]; ++k) {
+      lin.column.push_back(3 * q_unknown[k]);
+      lin.grad.insert(lin.grad.end(), q_grad.begin() + 3 * k, q_grad.begin() + 3 * k + 3);
+    }
+    d.solid_end = static_cast<int>(lin.column.size());
+  }
+  const std::vector<Vec3> colloc = body.collocation_points();
+  lin.elements.resize(colloc.size());
+  lin.xi.resize(colloc.size());
+  for (size_t i = 0; i < colloc.size(); ++i) locate(colloc[i], lin.elements[i], lin.xi[i]);
+  lin.n_columns = 3 * body.n_control();
+  lin.control = [&body](const std::vector<double>& dv, std::vector<double>& dc) {
+    std::vector<Vec3> v(dv.size() / 3);
+    for (size_t i = 0; i < v.size(); ++i) v[i] = Vec3(dv[3 * i], dv[3 * i + 1], dv[3 * i + 2]);
+    Eigen::MatrixXd c;
+    ASSERT_TRUE(body.control_increment(v, c));
+    for (Eigen::Index r = 0; r < c.rows(); ++r)
+      for (Eigen::Index k = 0; k < c.cols(); ++k) dc[3 * r + k] = c(r, k);
+  };
+
+  Vec X, x, y_col, y_cons, y_none;
+  CELLFSI_PETSC(VecDuplicate(f->solution(), &X));
+  CELLFSI_PETSC(VecDuplicate(X, &y_col));
+  CELLFSI_PETSC(VecDuplicate(X, &y_cons));
+  CELLFSI_PETSC(VecDuplicate(X, &y_none));
+  f->begin_step(X);
+  std::optional<fluid::ImmersedFluid::OwnBulkInverse> inv = f->bulk_inverse(X);
+  ASSERT_TRUE(inv && inv->stencil_operator);
+  Mat op = inv->stencil_operator;
+  // The velocities: linear (another shear and a uniform flow), and one that is not.
+  std::unique_ptr<fluid::ImmersedFluid> g = fluid::create_fluid(PETSC_COMM_WORLD, box.patch, box.options);
+  for (int field = 0; field < 2; ++field) {
+    g->set_initial_velocity([&](const Vec3& p) {
+      return field == 0 ? Vec3(-45 * p[1] + 0.02, 0, 0)
+                        : Vec3(0.01 * std::sin(16 * M_PI * p[1] / box.ly), 0, 0);
+    });
+    CELLFSI_PETSC(VecDuplicate(g->solution(), &x));
+    CELLFSI_PETSC(VecCopy(g->solution(), x));
+    EXPECT_TRUE(f->set_solid_linearization(lin));
+    f->set_immersed_points(elements, xi, data);
+    f->jacobian(X, op);
+    CELLFSI_PETSC(MatMult(op, x, y_col));
+    std::vector<fluid::ImmersedPoint> plain = data;
+    for (fluid::ImmersedPoint& d : plain) d.solid_begin = d.solid_end = -1;
+    f->set_immersed_points(elements, xi, plain);
+    f->jacobian(X, op);
+    CELLFSI_PETSC(MatMult(op, x, y_cons));
+    for (fluid::ImmersedPoint& d : plain) d.stiffness_time = 0;  // no stiffness at all
+    f->set_immersed_points(elements, xi, plain);
+    f->jacobian(X, op);
+    CELLFSI_PETSC(MatMult(op, x, y_none));
+    PetscReal stiff = 0, diff = 0;
+    CELLFSI_PETSC(VecAXPY(y_none, -1.0, y_cons));
+    CELLFSI_PETSC(VecNorm(y_none, NORM_INFINITY, &stiff));
+    CELLFSI_PETSC(VecAXPY(y_col, -1.0, y_cons));
+    CELLFSI_PETSC(VecNorm(y_col, NORM_INFINITY, &diff));
+    EXPECT_GT(stiff, 0) << "field " << field;
+    if (field == 0)
+      EXPECT_LT(diff, 1e-10 * stiff) << "a linear field";
+    else
+      EXPECT_GT(diff, 1e-2 * stiff) << "a field the membrane does not interpolate exactly";
+    VecDestroy(&x);
+  }
+  VecDestroy(&X);
+  VecDestroy(&y_col);
+  VecDestroy(&y_cons);
+  VecDestroy(&y_none);
 }
 
 TEST(DcImmersedFluid, RefusesADomainThatIsNotABox) {

@@ -132,6 +132,85 @@ TEST(NurbsSolid, LinearVelocityFieldsAreFollowedExactly) {
   EXPECT_LT(s.kinematic_update(vs), 1e-12 * r0);
 }
 
+TEST(NurbsSolid, ControlIncrementIsTheKinematicUpdatesDerivative) {
+  // Steps 2-3 are linear in the sampled velocity for a fixed grad v (the tangent's): two bodies updated from
+  // v and v + h dv differ in their control variables by exactly h dc / alpha_f, dc = control_increment(dv).
+  // Asserted to 1e-9 of max|dc| (round-off of the collocation solve), in 2D and 3D.
+  const solid::TimeParameters t = solid::TimeParameters::from_rho_inf(0.5, 5e-4);
+  for (int dim : {2, 3}) {
+    const geometry::Patch p =
+        dim == 2
+            ? geometry::rectangle(2e-4, 1e-4, 4, 3, 2, {false, false}, Vec3(1e-4, 2e-4, 0))
+            : geometry::box(2e-4, 1e-4, 1.5e-4, 3, 2, 2, 2, {false, false, false}, Vec3(1e-4, 2e-4, 3e-4));
+    solid::NurbsSolid a("a", p, membrane_material(), 1.1), b("b", p, membrane_material(), 1.1);
+    a.begin_step(t);
+    b.begin_step(t);
+    Mat3 M;
+    M << 10, 70, -5, -20, 5, 12, 3, -8, -15;
+    Mat3 L = Mat3::Zero();
+    L.topLeftCorner(dim, dim) = M.topLeftCorner(dim, dim);
+    const std::vector<Vec3> x = a.collocation_points();
+    std::vector<solid::VelocitySample> va(a.n_points()), vb(a.n_points());
+    std::vector<Vec3> dv(a.n_points());
+    const double h = 1e-3;
+    for (int i = 0; i < a.n_points(); ++i) {
+      va[i].v = Vec3(std::sin(1e4 * x[i][1]), std::cos(2e4 * x[i][0]), dim == 3 ? x[i][2] * 1e3 : 0.0) * 1e-2;
+      dv[i] = Vec3(std::cos(3e4 * x[i][0] + i), 0.5 * std::sin(1e4 * x[i][1]), dim == 3 ? 0.3 : 0.0);
+      vb[i].v = va[i].v + h * dv[i];
+      va[i].grad_v = vb[i].grad_v = L;
+    }
+    a.kinematic_update(va);
+    b.kinematic_update(vb);
+    a.end_step();
+    b.end_step();
+    Eigen::MatrixXd dc;
+    ASSERT_TRUE(a.control_increment(dv, dc));
+    ASSERT_EQ(dc.rows(), a.n_control());
+    const std::vector<Vec3> ca = a.current_patch().control_points(), cb = b.current_patch().control_points();
+    double err = 0;
+    for (int k = 0; k < a.n_control(); ++k)
+      for (int c = 0; c < dim; ++c)
+        err = std::max(err, std::abs(dc(k, c) - t.alpha_f * (cb[k][c] - ca[k][c]) / h));
+    EXPECT_LT(err, 1e-9 * dc.cwiseAbs().maxCoeff()) << dim << "D";
+  }
+}
+
+TEST(NurbsSolid, BasisGradientsReproduceTheCurrentPosition) {
+  // The spatial gradients d N / d x at the quadrature points of a deformed body: sum_k x_k (x) grad N_k = I
+  // (the current position is the isoparametric sum of the control points) and sum_k grad N_k = 0 (partition
+  // of unity), to 1e-9 relative.
+  const solid::TimeParameters t = solid::TimeParameters::from_rho_inf(0.5, 5e-4);
+  const geometry::Patch p = geometry::box(2e-4, 1e-4, 1.5e-4, 3, 2, 2, 2, {false, false, false});
+  solid::NurbsSolid s("s", p, membrane_material(), 1.1);
+  s.begin_step(t);
+  const std::vector<Vec3> x = s.collocation_points();
+  std::vector<solid::VelocitySample> vs(s.n_points());
+  for (int i = 0; i < s.n_points(); ++i)
+    vs[i].v = Vec3(30 * x[i][1] + 1e4 * x[i][2] * x[i][2], 20 * x[i][0] * x[i][0] * 1e4, 10 * x[i][1]);
+  s.kinematic_update(vs);
+  s.end_step();
+  std::vector<int> begin, unknown;
+  std::vector<double> grad;
+  ASSERT_TRUE(s.basis_gradients(begin, unknown, grad));
+  ASSERT_EQ(begin.size(), s.quadrature_data(1.0, false).size() + 1);
+  const std::vector<Vec3> cp = s.current_patch().control_points();
+  double err_identity = 0, err_sum = 0, scale = 0;
+  for (size_t q = 0; q + 1 < begin.size(); ++q) {
+    Mat3 I = Mat3::Zero();
+    Vec3 sum = Vec3::Zero();
+    for (int k = begin[q]; k < begin[q + 1]; ++k) {
+      const Vec3 g(grad[3 * k], grad[3 * k + 1], grad[3 * k + 2]);
+      I += cp[unknown[k]] * g.transpose();
+      sum += g;
+      scale = std::max(scale, g.cwiseAbs().maxCoeff());
+    }
+    err_identity = std::max(err_identity, (I - Mat3::Identity()).cwiseAbs().maxCoeff());
+    err_sum = std::max(err_sum, sum.cwiseAbs().maxCoeff());
+  }
+  EXPECT_LT(err_identity, 1e-9);
+  EXPECT_LT(err_sum, 1e-9 * scale);
+}
+
 TEST(NurbsSolid, AnInvertedElementIsReportedWithItsBodyElementAndStretches) {
   // v = L (x - c) with L = diag(-a, 0) squeezes the body in x: F = diag(f, 1) everywhere, f falling each step
   // (the implicit update slows it, so f < 0 takes a few steps). The error names the body, the element and the
