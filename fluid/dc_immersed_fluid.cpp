@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include <petscblaslapack.h>
+
 #include <vtkDoubleArray.h>
 #include <vtkNew.h>
 #include <vtkPointData.h>
@@ -407,15 +409,16 @@ void DcImmersedFluid::add_solid_product(Vec y) {
   dc_.assign(solid_.n_columns, 0.0);
   solid_.control(dv_, dc_);
   for (const dc::DivConformingFluid::SolidBlock& b : solid_blocks_) {
-    const std::size_t m = b.rows.size(), n = b.cols.size();
-    block_y_.assign(m, 0.0);
-    for (std::size_t r = 0; r < m; ++r) {
-      const double* row = b.values.data() + r * n;
-      double sum = 0;
-      for (std::size_t c = 0; c < n; ++c) sum += row[c] * dc_[b.cols[c]];
-      block_y_[r] = sum;
-    }
-    CELLFSI_PETSC(VecSetValues(y, static_cast<PetscInt>(m), b.rows.data(), block_y_.data(), ADD_VALUES));
+    // y_rows += values dc[cols]: values is row-major, i.e. its transpose column-major for BLAS.
+    const PetscBLASInt m = static_cast<PetscBLASInt>(b.rows.size()),
+                       n = static_cast<PetscBLASInt>(b.cols.size());
+    block_x_.resize(n);
+    for (PetscBLASInt c = 0; c < n; ++c) block_x_[c] = dc_[b.cols[c]];
+    block_y_.resize(m);
+    const double one = 1.0, zero = 0.0;
+    const PetscBLASInt inc = 1;
+    BLASgemv_("T", &n, &m, &one, b.values.data(), &n, block_x_.data(), &inc, &zero, block_y_.data(), &inc);
+    CELLFSI_PETSC(VecSetValues(y, m, b.rows.data(), block_y_.data(), ADD_VALUES));
   }
   CELLFSI_PETSC(VecAssemblyBegin(y));
   CELLFSI_PETSC(VecAssemblyEnd(y));

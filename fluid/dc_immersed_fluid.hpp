@@ -131,7 +131,7 @@ class DcImmersedFluid final : public ImmersedFluid {
   std::vector<int> colloc_begin_, colloc_index_;
   std::vector<double> colloc_value_;
   std::vector<dc::DivConformingFluid::SolidBlock> solid_blocks_;
-  std::vector<double> dv_, dc_, block_y_;
+  std::vector<double> dv_, dc_, block_x_, block_y_;
   void build_solid_operator();
   void add_solid_product(Vec y);
 };

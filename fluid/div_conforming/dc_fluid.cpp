@@ -464,10 +464,10 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J, bool with_imme
     const ElementBasis& eb = *current;
     PointState s;
     const auto pv = DivConformingSpace::interpolate(eb, q, D, lv.v.data());
-    const auto pa = DivConformingSpace::interpolate(eb, q, D, lv.a.data());
+    const auto pa = DivConformingSpace::interpolate_velocity(eb, q, D, lv.a.data());
     for (int i = 0; i < D; ++i) {
       s.v[i] = pv.v[i];
-      s.a[i] = pa.v[i];
+      s.a[i] = pa[i];
       for (int j = 0; j < D; ++j) s.dv[i][j] = pv.grad[i][j];
     }
     s.p = pv.p;  // lv.v carries U's pressure
@@ -854,10 +854,10 @@ void DivConformingFluid::assemble_immersed(const Levels& lv, Vec F, Mat J) const
     }
     PointState st;
     const auto pv = DivConformingSpace::interpolate(eb, 0, D, lv.v.data());
-    const auto pa = DivConformingSpace::interpolate(eb, 0, D, lv.a.data());
+    const auto pa = DivConformingSpace::interpolate_velocity(eb, 0, D, lv.a.data());
     for (int i = 0; i < D; ++i) {
       st.v[i] = pv.v[i];
-      st.a[i] = pa.v[i];
+      st.a[i] = pa[i];
       for (int j = 0; j < D; ++j) st.dv[i][j] = pv.grad[i][j];
     }
     prm.nu = lv.nu;
@@ -908,22 +908,24 @@ std::vector<DivConformingFluid::SolidBlock> DivConformingFluid::solid_blocks(
     const int e = immersed_[first].element;
     size_t last = first;
     while (last < immersed_.size() && immersed_[last].element == e) ++last;
-    SolidBlock b;
+    SolidBlock b;  // its columns in the order met, `where` marking those taken
     for (size_t i = first; i < last; ++i) {
       const ImmersedPoint& ip = immersed_[i].data;
       if (!uses(ip)) continue;
       for (int k = ip.solid_begin; k < ip.solid_end; ++k)
-        for (int c = 0; c < D; ++c) b.cols.push_back(column[k] + c);
+        for (int c = 0; c < D; ++c) {
+          const int col = column[k] + c;
+          if (static_cast<int>(where.size()) <= col) where.resize(col + 1, -1);
+          if (where[col] >= 0) continue;
+          where[col] = static_cast<int>(b.cols.size());
+          b.cols.push_back(col);
+        }
     }
     if (b.cols.empty()) {
       first = last;
       continue;
     }
-    std::sort(b.cols.begin(), b.cols.end());
-    b.cols.erase(std::unique(b.cols.begin(), b.cols.end()), b.cols.end());
     const int n_cols = static_cast<int>(b.cols.size());
-    if (static_cast<int>(where.size()) <= b.cols.back()) where.resize(b.cols.back() + 1, -1);
-    for (int c = 0; c < n_cols; ++c) where[b.cols[c]] = c;
     int off[4] = {0, 0, 0, 0};
     bool new_element = true;
     size_t g0 = first;
@@ -1158,10 +1160,10 @@ std::vector<DivConformingFluid::StepSample> DivConformingFluid::sample_step(
     space_.evaluate(space_.element_multi_index(elements[i]), rule, eb,
                     i == 0 || elements[i] != elements[i - 1]);
     const auto pv = DivConformingSpace::interpolate(eb, 0, D, lv.v.data());
-    const auto pa = DivConformingSpace::interpolate(eb, 0, D, lv.a.data());
+    const auto pa = DivConformingSpace::interpolate_velocity(eb, 0, D, lv.a.data());
     for (int a = 0; a < D; ++a) {
       out[i].v[a] = pv.v[a];
-      out[i].a[a] = pa.v[a];
+      out[i].a[a] = pa[a];
       for (int b = 0; b < D; ++b) out[i].grad_v(a, b) = pv.grad[a][b];
     }
   }

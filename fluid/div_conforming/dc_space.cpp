@@ -226,23 +226,50 @@ void DivConformingSpace::evaluate(const Index3& e, const TensorRule& rule, Eleme
   }
 }
 
+namespace {
+
+/// interpolate's sums with the dimension fixed, so that the gradient's loop unrolls (it ran a loop of
+/// run-time length per function: 20 % of a 3D coupled step at 32^3, measured with perf).
+template <int D>
+DivConformingSpace::PointValues interpolate_fixed(const ElementBasis& eb, int q, const double* coeffs) {
+  DivConformingSpace::PointValues pv;
+  for (int c = 0; c < D; ++c) {
+    const ComponentBasis& cb = eb.comp[c];
+    const double* value = cb.value.data() + static_cast<size_t>(q) * cb.n;
+    const double* grad = cb.grad.data() + static_cast<size_t>(q) * cb.n * 3;
+    double v = 0, g[3] = {0, 0, 0};
+    for (int a = 0; a < cb.n; ++a) {
+      const double u = coeffs[cb.index[a]];
+      v += u * value[a];
+      for (int j = 0; j < D; ++j) g[j] += u * grad[3 * a + j];
+    }
+    pv.v[c] = v;
+    for (int j = 0; j < D; ++j) pv.grad[c][j] = g[j];
+  }
+  const ComponentBasis& cp = eb.comp[D];
+  const double* value = cp.value.data() + static_cast<size_t>(q) * cp.n;
+  for (int a = 0; a < cp.n; ++a) pv.p += coeffs[cp.index[a]] * value[a];
+  return pv;
+}
+
+}  // namespace
+
 DivConformingSpace::PointValues DivConformingSpace::interpolate(const ElementBasis& eb, int q, int dim,
                                                                 const double* coeffs) {
-  PointValues pv;
-  for (int c = 0; c <= dim; ++c) {
+  return dim == 3 ? interpolate_fixed<3>(eb, q, coeffs) : interpolate_fixed<2>(eb, q, coeffs);
+}
+
+std::array<double, 3> DivConformingSpace::interpolate_velocity(const ElementBasis& eb, int q, int dim,
+                                                               const double* coeffs) {
+  std::array<double, 3> v{};
+  for (int c = 0; c < dim; ++c) {
     const ComponentBasis& cb = eb.comp[c];
-    for (int a = 0; a < cb.n; ++a) {
-      const size_t qa = static_cast<size_t>(q) * cb.n + a;
-      const double u = coeffs[cb.index[a]];
-      if (c < dim) {
-        pv.v[c] += u * cb.value[qa];
-        for (int j = 0; j < dim; ++j) pv.grad[c][j] += u * cb.grad[qa * 3 + j];
-      } else {
-        pv.p += u * cb.value[qa];
-      }
-    }
+    const double* value = cb.value.data() + static_cast<size_t>(q) * cb.n;
+    double s = 0;
+    for (int a = 0; a < cb.n; ++a) s += coeffs[cb.index[a]] * value[a];
+    v[c] = s;
   }
-  return pv;
+  return v;
 }
 
 std::vector<double> DivConformingSpace::divergence(const std::vector<double>& u) const {

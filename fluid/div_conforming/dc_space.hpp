@@ -114,6 +114,9 @@ class DivConformingSpace {
     double p = 0;
   };
   static PointValues interpolate(const ElementBasis& eb, int q, int dim, const double* coeffs);
+  /// The velocity alone at point q (no gradient, no pressure): interpolate's v, in a fifth of its work.
+  static std::array<double, 3> interpolate_velocity(const ElementBasis& eb, int q, int dim,
+                                                    const double* coeffs);
 
   /// The divergence as a map of coefficients: (D u)[pressure index] such that div v_h = sum_A (D u)_A q_A for
   /// the velocity with coefficients u (size n_velocity(); result size n_pressure()). Exact, from the
