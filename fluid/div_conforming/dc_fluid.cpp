@@ -1103,17 +1103,22 @@ Mat DivConformingFluid::create_immersed_matrix() const {
   CELLFSI_PETSC(
       MPI_Allgatherv(mine.data(), n_mine, MPI_INT, all.data(), counts.data(), displs.data(), MPI_INT, comm_));
   const int D = space_.dim();
+  // An element's velocity unknowns (first in its local numbering): the points' tangent has no pressure row or
+  // column (assemble_immersed).
+  // (Component i: degree k' + 1 along x_i, k' along the others.)
+  const int n_velocity = D * (space_.degree() + 2) * static_cast<int>(std::pow(space_.degree() + 1, D - 1));
   std::vector<std::vector<int>> unknowns(all.size());
   ElementBasis eb;
   for (size_t k = 0; k < all.size(); ++k) {
     const int e = all[k];
     if (e >= elem_begin_ && e < elem_end_) {
       const auto first = element_unknowns_.begin() + static_cast<std::ptrdiff_t>(e - elem_begin_) * n_local_;
-      unknowns[k].assign(first, first + n_local_);
+      unknowns[k].assign(first, first + n_velocity);
     } else {
       const Index3 ei = space_.element_multi_index(e);
       space_.evaluate(ei, space_.element_rule(ei, 1), eb);  // indices only
-      for (PetscInt g : local_indices(eb, D)) unknowns[k].push_back(static_cast<int>(g));
+      const std::vector<PetscInt> idx = local_indices(eb, D);
+      unknowns[k].assign(idx.begin(), idx.begin() + n_velocity);
     }
   }
   // Each owned row's elements, then its distinct columns (an element adds its whole block, as its tangent).

@@ -234,8 +234,9 @@ class DivConformingFluid {
   /// This rank's elements that hold immersed points, sorted.
   std::vector<int> immersed_elements() const;
   /// A matrix preallocated for immersed_tangent: AIJ, each owned row's distinct columns over the elements
-  /// with points on every rank (their whole blocks), counted exactly (a MATPREALLOCATOR filled with the
-  /// blocks took 1.2-1.5 s of each refresh at 32^3; with this count the whole refresh takes 1.0 s). Collective.
+  /// with points on every rank (their velocity blocks: the points' terms have no pressure), counted exactly
+  /// (a MATPREALLOCATOR filled with the blocks took 1.2-1.5 s of each refresh at 32^3; with this count the
+  /// whole refresh takes 1.0 s). Collective.
   Mat create_immersed_matrix() const;
   /// Accepts U as U_{n+1}: the rate, the time, the pressure's zero mean, divergence_history().
   void end_step(const std::vector<double>& U);
