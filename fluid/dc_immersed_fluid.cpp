@@ -288,6 +288,7 @@ void DcImmersedFluid::jacobian(Vec X, Mat J) {
     return;
   }
   fluid_->gather(X, work_);
+  fluid_->set_solid_stiffness_apart(false);  // (an assembled Jacobian carries the points' own stiffness)
   if (fluid_->has_viscosity_field()) {  // the field moves with the cells: everything re-assembled
     fluid_->step_tangent(work_, J, true, false);
     return;
@@ -395,6 +396,9 @@ void DcImmersedFluid::build_solid_operator() {
     }
   }
   solid_blocks_ = fluid_->solid_blocks(solid_.column, solid_.grad);
+  // (The points' tables are in the blocks now; the product needs the collocation points and control alone.)
+  std::vector<int>().swap(solid_.column);
+  std::vector<double>().swap(solid_.grad);
 }
 
 void DcImmersedFluid::add_solid_product(Vec y) {
