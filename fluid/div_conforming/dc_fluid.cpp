@@ -62,11 +62,11 @@ void add_point_residual(const ElementBasis& eb, int q, int dim, double w, const 
 /// refresh of the points' tangent 2.9 s against 6.5 s when each point wrote the element matrix a column at a
 /// time (docs/notes/2026-11-28-dc-3d-assembly.md).
 /// velocity_only: the points' terms have no pressure (no d r1 / d p, rq = 0: the immersed points), so Ke is
-/// the velocity block alone (the first off_[dim] local unknowns): a third fewer operations.
+/// the velocity block alone (the first off_[dim] local unknowns): about a third fewer operations.
 class TangentAccumulator {
  public:
-  /// Starts an element: Ke (n_loc x n_loc, row-major, zeroed by the caller; n_loc = local_size()) receives
-  /// the sums.
+  /// Starts an element: Ke (n_loc x n_loc, row-major, zeroed by the caller; n_loc the element's unknowns, or
+  /// with velocity_only its velocity unknowns) receives the sums.
   void start(const ElementBasis& eb, int dim, std::vector<double>* Ke, bool velocity_only = false) {
     dim_ = dim;
     K_ = Ke;
