@@ -40,9 +40,9 @@ enum class SolidTangent {
 
 /// The default per dimension, measured (docs/notes/2026-11-28-solid-tangent.md): in 3D, where a scene's
 /// bodies are about as coarse as the fluid, collocation (the compound capsule at 64^3 on the
-/// divergence-conforming space: 4 coupling iterations per step instead of 8.5, 19.9 s per step instead
-/// of 36.8); in 2D, where they are several times finer, consistent (the capsule at 256 x 128: the same
-/// iterations, 10 % slower with collocation).
+/// divergence-conforming space: 4 coupling iterations per step instead of 8.5, 19.9-27.0 s per step
+/// on two ranks instead of 36.8); in 2D, where they are several times finer, consistent (the capsule at 256 x
+/// 128: the same iterations, 10 % slower with collocation).
 inline SolidTangent default_solid_tangent(int dim) {
   return dim == 3 ? SolidTangent::collocation : SolidTangent::consistent;
 }

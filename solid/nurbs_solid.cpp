@@ -214,7 +214,7 @@ double NurbsSolid::kinematic_update(const std::vector<VelocitySample>& samples) 
     throw std::invalid_argument("kinematic_update: expected " + std::to_string(n_points()) +
                                 " samples, got " + std::to_string(samples.size()));
   double norm2 = 0;
-  kinematic_tangent_.resize(n_points());
+  kinematic_inverse_.resize(n_points());
   for (int i = 0; i < n_points(); ++i) {
     Vec3 u = Vec3::Zero(), un = Vec3::Zero(), rn = Vec3::Zero();
     u.head(dim_) = u_.row(i).transpose();
@@ -224,8 +224,9 @@ double NurbsSolid::kinematic_update(const std::vector<VelocitySample>& samples) 
     for (int c = dim_; c < 3; ++c) R[c] = 0;
     norm2 += R.squaredNorm();
     const Mat3 T = kinematic_tangent(time_, samples[i].grad_v, dim_);
-    kinematic_tangent_[i] = T;
-    const Vec3 du = T.partialPivLu().solve(-R);  // step 2: a d x d solve per point
+    const Eigen::PartialPivLU<Mat3> lu = T.partialPivLu();
+    kinematic_inverse_[i] = lu.inverse();
+    const Vec3 du = lu.solve(-R);  // step 2: a d x d solve per point
     u_.row(i) += du.head(dim_).transpose();
   }
   c_ = control_from_points(u_);  // step 3
@@ -236,12 +237,12 @@ bool NurbsSolid::control_increment(const std::vector<Vec3>& dv, Eigen::MatrixXd&
   if (static_cast<int>(dv.size()) != n_points())
     throw std::invalid_argument("control_increment: expected " + std::to_string(n_points()) +
                                 " velocities, got " + std::to_string(dv.size()));
-  if (static_cast<int>(kinematic_tangent_.size()) != n_points()) return false;  // no update made yet
+  if (static_cast<int>(kinematic_inverse_.size()) != n_points()) return false;  // no update made yet
   // Step 2 linearised: T du = dv at each point (kinematic_residual's derivative in v is -I); step 3: the
   // collocation solve; the control at t_{n+alpha_f} moves by alpha_f of it.
   Eigen::MatrixXd du(n_points(), dim_);
   for (int i = 0; i < n_points(); ++i) {
-    const Vec3 d = kinematic_tangent_[i].partialPivLu().solve(dv[i]);
+    const Vec3 d = kinematic_inverse_[i] * dv[i];
     du.row(i) = d.head(dim_).transpose();
   }
   dc = time_.alpha_f * factor_.solve(du);

@@ -105,8 +105,9 @@ class NurbsSolid final : public SolidSolver {
   Eigen::SparseLU<Eigen::SparseMatrix<double>> factor_;
   Eigen::MatrixXd u_, u_n_, rate_n_;  // at the collocation points (n_points x dim)
   Eigen::MatrixXd c_, c_n_;           // control variables (n_reduced x dim)
-  // The last kinematic_update()'s tangent at each collocation point (control_increment).
-  std::vector<Mat3> kinematic_tangent_;
+  // The inverse of the last kinematic_update()'s tangent at each collocation point (control_increment, which
+  // runs at every product of the coupled Krylov solve).
+  std::vector<Mat3> kinematic_inverse_;
   std::vector<Vec3> load_density_;    // external force per reference volume at the quadrature points
   // The quadrature points' reference data, tabulated once (the basis at a fixed parametric point does not
   // change, only the control variables do), so that for_each_quadrature_point, at every coupling iteration,
