@@ -26,13 +26,14 @@ std::string decode(const std::vector<double>& d) {
 constexpr std::size_t kVecSize = 3;                       // a Vec3, or a Param
 constexpr std::size_t kMatSize = 9;                       // a Mat3, row by row
 constexpr std::size_t kSampleSize = kVecSize + kMatSize;  // VelocitySample: v, grad_v
-// QuadratureData: x, weight, stress, beta, shear_modulus, force, has_tangent, and, when the request asked for
-// the tangent, its upper triangle (kQuadratureSize doubles per point; kQuadratureTangent without it).
+// QuadratureData: x, weight, stress, beta, shear_modulus, force, area, has_tangent, and, when the request
+// asked for the tangent, its upper triangle (kQuadratureSize doubles per point; kQuadratureTangent without
+// it).
 constexpr std::size_t kTangentSize = 21;
 constexpr std::size_t kQuadratureWeight = kVecSize, kQuadratureStress = kQuadratureWeight + 1,
                       kQuadratureBeta = kQuadratureStress + kMatSize, kQuadratureShear = kQuadratureBeta + 1,
-                      kQuadratureForce = kQuadratureShear + 1,
-                      kQuadratureHasTangent = kQuadratureForce + kVecSize,
+                      kQuadratureForce = kQuadratureShear + 1, kQuadratureArea = kQuadratureForce + kVecSize,
+                      kQuadratureHasTangent = kQuadratureArea + 1,
                       kQuadratureTangent = kQuadratureHasTangent + 1,
                       kQuadratureSize = kQuadratureTangent + kTangentSize;
 
@@ -80,6 +81,7 @@ void put(std::vector<double>& out, const solid::QuadratureData& q, bool with_tan
   out.push_back(q.beta);
   out.push_back(q.shear_modulus);
   put(out, q.force);
+  out.push_back(q.area);
   out.push_back(q.has_tangent ? 1 : 0);
   if (with_tangent) out.insert(out.end(), q.tangent.begin(), q.tangent.end());
 }
@@ -94,6 +96,7 @@ std::vector<solid::QuadratureData> unpack_quadrature(const std::vector<double>& 
     q[i].beta = p[kQuadratureBeta];
     q[i].shear_modulus = p[kQuadratureShear];
     q[i].force = vec(p + kQuadratureForce);
+    q[i].area = p[kQuadratureArea];
     q[i].has_tangent = with_tangent && p[kQuadratureHasTangent] != 0;
     if (q[i].has_tangent)
       std::copy(p + kQuadratureTangent, p + kQuadratureTangent + kTangentSize, q[i].tangent.begin());

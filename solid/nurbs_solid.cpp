@@ -116,6 +116,10 @@ void NurbsSolid::tabulate_quadrature() {
   q_dN_.reserve(n_points * n_functions * dim_);
   q_X_.reserve(n_points);
   q_weight_.reserve(n_points);
+  if (membrane_) q_area_.reserve(n_points);
+  // A membrane's thickness at a point: |dX / dxi_0| times direction 0's parameter range (the builders map
+  // it linearly across the thickness, one element through it).
+  const double range0 = reference_.knots(0).b() - reference_.knots(0).a();
   q_begin_.assign(1, 0);
   for (int e = 0; e < reference_.n_elements(); ++e) {
     const Index3 m = reference_.element_multi_index(e);
@@ -138,6 +142,7 @@ void NurbsSolid::tabulate_quadrature() {
       q_begin_.push_back(static_cast<int>(q_N_.size()));
       q_X_.push_back(mv.x);
       q_weight_.push_back(q.weight * std::abs(dXdxi.topLeftCorner(dim_, dim_).determinant()));
+      if (membrane_) q_area_.push_back(q_weight_.back() / (dXdxi.col(0).norm() * range0));
     }
   }
 }
@@ -389,6 +394,7 @@ std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density, bo
         for (int k = r; k < 6; ++k, ++t) d.tangent[t] = c(r, k) / fluid_density;
     }
     if (!load_density_.empty()) d.force = load_density_[out.size()] / fluid_density;
+    if (membrane_) d.area = q_area_[out.size()];
     out.push_back(d);
   });
   return out;

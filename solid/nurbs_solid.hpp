@@ -115,6 +115,7 @@ class NurbsSolid final : public SolidSolver {
   // (value) and q_dN_ (d / dX, dim_ per function, in the reference configuration).
   std::vector<int> q_begin_, q_unknown_;
   std::vector<double> q_N_, q_dN_, q_weight_;  // q_weight_: Gauss weight times |det dX / dxi|
+  std::vector<double> q_area_;  // a membrane's: q_weight_ over the thickness there (QuadratureData::area)
   std::vector<Vec3> q_X_;                      // reference position
   void tabulate_quadrature();
 };

@@ -43,6 +43,10 @@ struct QuadratureData {
   bool has_tangent = false;
   std::array<double, 21> tangent{};
   Vec3 force = Vec3::Zero();   // (1/rho_1) external force per unit reference volume (solid/external_load.hpp)
+  /// A membrane's point: its share of the reference mid-surface area (in 2D, length), weight / thickness, so
+  /// that the points through the thickness of a column sum to the column's area (the contact repulsion's
+  /// weight, coupling/repulsion.hpp). 0: a bulky body's point, which takes no part in it.
+  double area = 0;
 };
 
 class SolidSolver {

@@ -351,6 +351,28 @@ TEST(NurbsSolid, QuadratureDataOfAHomogeneousDeformationIn3DIsExact) {
   EXPECT_LT(worst_c, 1e-9 * c6.norm() / 1.025);
 }
 
+TEST(NurbsSolid, AMembranesPointAreasSumToItsMidSurfaceAndABulkyBodysAreZero) {
+  // QuadratureData::area (the contact repulsion's weight): weight over the thickness, so that a membrane's
+  // points sum to the mid-line's length (2D) or about the mid-surface's area (3D). Exact geometry (rational
+  // conics), Gauss rules on rational maps: agreement to the rule's error, below 1e-7 here.
+  const auto m = std::make_shared<solid::DeviatoricNeoHookean>(40.0);
+  const double a = 1e-4, h = 5e-7;
+  const auto sum = [](const std::vector<solid::QuadratureData>& q) {
+    double s = 0;
+    for (const auto& p : q) s += p.area;
+    return s;
+  };
+  const solid::NurbsSolid ring("ring", geometry::hollow_ellipse(a, a, h, 32, 2, Vec3(5e-4, 5e-4, 0)), m, 1.1);
+  EXPECT_NEAR(sum(ring.quadrature_data(1.025, false)) / (2 * M_PI * a), 1.0, 1e-6);
+  const solid::NurbsSolid sphere(
+      "sphere", geometry::hollow_ellipsoid(a, a, a, h, 8, 16, 2, Vec3(5e-4, 5e-4, 5e-4)), m, 1.1);
+  // A spherical shell's volume over its thickness: 4 pi (a^2 + h^2 / 12), the mean of its spheres' areas
+  // (2.1e-6 above the mid-surface's here).
+  EXPECT_NEAR(sum(sphere.quadrature_data(1.025, false)) / (4 * M_PI * (a * a + h * h / 12)), 1.0, 1e-7);
+  const solid::NurbsSolid disk("disk", geometry::bulky_ellipse(a, a, 4, 16, 2, Vec3(5e-4, 5e-4, 0)), m, 1.1);
+  EXPECT_EQ(sum(disk.quadrature_data(1.025, false)), 0.0);
+}
+
 TEST(NurbsSolid, MembranesAndBulkyBodiesAreTold) {
   // A bulky body's centre face is degenerate (no interface there); a membrane has two interface faces. The
   // builders place bodies far from the origin, where the centre's Greville points agree only to round-off.
