@@ -211,6 +211,12 @@ void FluidRun::open_output() {
   if (coupled && settings_.coupling.linear.pc_type.empty())
     CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD, "cellfsi: the coupled solve uses -coupling_pc_type %s\n",
                               scene_->coupler()->linear_solver().pc_type().c_str()));
+  if (const coupling::Repulsion* r = coupled ? scene_->coupler()->repulsion() : nullptr)
+    CELLFSI_PETSC(
+        PetscPrintf(PETSC_COMM_WORLD,
+                    "cellfsi: contact repulsion below %.4g cm (-coupling_repulsion_cutoff), pressure "
+                    "scale %.4g dyn/cm^2 (-coupling_repulsion_pressure)\n",
+                    r->cutoff(), r->scale()));
   if (settings_.restart)
     CELLFSI_PETSC(PetscPrintf(PETSC_COMM_WORLD,
                               "cellfsi: restarting from the checkpoint at t = %g s (step %d)\n", resume_.time,

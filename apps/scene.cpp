@@ -234,6 +234,7 @@ void Scene::attach_bodies(std::vector<solid::SolidSolver*> bodies) {
   for (const BodySettings& b : s_.bodies) co.inner_viscosity.push_back(b.inner_viscosity);
   coupler_ = std::make_unique<coupling::FsiCoupler>(*fluid_, bodies_, co);
   coupler_->initialize();
+  for (const solid::SolidSolver* b : bodies_) membranes_ += b->is_membrane();
   raise_threshold_ = s_.s_interface_target / 2;
   const int plane = wall_dir_ > 0 ? wall_dir_ : 1;
   for (solid::SolidSolver* b : bodies_) {
@@ -294,6 +295,9 @@ SceneStep Scene::step() {
   r.factorizations = st.factorizations, r.bulk_factorizations = st.bulk_factorizations;
   r.converged = st.converged, r.reason = st.reason;
   if (st.converged) {
+    contact_last_ = st.repulsion;
+    contact_cell_min_ = std::min(contact_cell_min_, st.repulsion.cell_gap);
+    contact_wall_min_ = std::min(contact_wall_min_, st.repulsion.wall_gap);
     for (size_t b = 0; b < bodies_.size(); ++b)
       trackers_[b].record(fluid_->time(), bodies_[b]->current_patch());
     record_diameters();

@@ -178,6 +178,9 @@ class Scene {
   void record_suspension();
   /// Membranes in a 2D channel: the shape's mirror asymmetries (keys without the body's name).
   std::vector<std::pair<std::string, double>> shape_symmetry(std::size_t body) const;
+  /// Points of the membranes' mid-surfaces (sampled) that lie inside another membrane (in any periodic
+  /// image): 0 while no two membranes overlap.
+  int membrane_overlaps() const;
   /// Adds the current mid-length profile to the window's average (channel flows).
   void accumulate_profile();
   double average_from() const;  // start of the metrics' averaging window [s]
@@ -202,6 +205,13 @@ class Scene {
   double raise_threshold_ = 0;  // -s_interface_raise: the |r_A| whose passing raises s_I next
   double raise_previous_ = std::numeric_limits<double>::infinity();  // the largest |r_A| at the last step
   int s_interface_raises_ = 0;
+  // The contact repulsion's least gaps [cm]: at the last step, and over the run (infinite: none within its
+  // cut-off).
+  coupling::RepulsionStats contact_last_;
+  double contact_cell_min_ = std::numeric_limits<double>::infinity();
+  double contact_wall_min_ = std::numeric_limits<double>::infinity();
+  int membranes_ = 0;
+  int overlaps_max_ = 0;     // the most membrane_overlaps() over the run
   double profile_from_ = 0;  // the window start the profile is summed from (average_from() of its run)
 };
 

@@ -12,6 +12,7 @@
 
 #include "apps/scene.hpp"
 #include "common/petsc_error.hpp"
+#include "coupling/inner_viscosity.hpp"
 #include "coupling/placement.hpp"
 #include "geometry/measures.hpp"
 
@@ -95,6 +96,10 @@ nlohmann::json Scene::metric_state() const {
                        {"suspension", std::move(suspension)},
                        {"flow_rates", std::move(rates)},
                        {"equilibrium", std::move(equilibrium)}};
+  // The least contact distances so far (absent: none yet within the cut-off).
+  if (std::isfinite(contact_cell_min_)) state["contact_cell_gap_min"] = contact_cell_min_;
+  if (std::isfinite(contact_wall_min_)) state["contact_wall_gap_min"] = contact_wall_min_;
+  if (overlaps_max_ > 0) state["contact_overlap_points_max"] = overlaps_max_;
   // s_I as -s_interface_raise has left it (absent from earlier checkpoints: s_I as the options give it).
   if (coupler_)
     state["s_interface"] = {{"value", coupler_->interface_scaling()},
@@ -140,6 +145,11 @@ void Scene::restore_metric_state(const nlohmann::json& state) {
         if (equilibrium_[b]) equilibrium_[b]->restore(eq[b].get<std::vector<double>>());
       }
     }
+    if (state.contains("contact_cell_gap_min"))
+      contact_cell_min_ = state.at("contact_cell_gap_min").get<double>();
+    if (state.contains("contact_wall_gap_min"))
+      contact_wall_min_ = state.at("contact_wall_gap_min").get<double>();
+    overlaps_max_ = state.value("contact_overlap_points_max", 0);
     profile_sum_ = std::move(sum);
     suspension_ = std::move(records);
     flow_rates_ = std::move(rates);
@@ -238,6 +248,15 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
   // half-width across the walls.
   // The s_I used, chosen or given (-s_interface), the area error an automatic choice aims at, and with
   // -s_interface_raise the value at the end and how often it was raised.
+  if (const coupling::Repulsion* r = coupler_ ? coupler_->repulsion() : nullptr) {
+    // The repulsion's constants, and the least distances over the run (left out where none came within
+    // the cut-off).
+    m.emplace_back("repulsion_cutoff", r->cutoff());
+    m.emplace_back("repulsion_pressure", r->scale());
+    if (std::isfinite(contact_cell_min_)) m.emplace_back("contact_cell_gap_min", contact_cell_min_);
+    if (std::isfinite(contact_wall_min_)) m.emplace_back("contact_wall_gap_min", contact_wall_min_);
+    if (membranes_ >= 2) m.emplace_back("contact_overlap_points_max", overlaps_max_);
+  }
   if (!bodies_.empty()) {
     m.emplace_back("s_interface", s_.coupling.s_interface);
     if (s_.s_interface_auto) m.emplace_back("s_interface_target", s_.s_interface_target);
@@ -352,6 +371,16 @@ std::vector<std::pair<std::string, std::string>> Scene::summary_text() const {
 
 std::vector<std::pair<std::string, double>> Scene::metrics() {
   last_ = flow_metrics();
+  // The contact repulsion's least distances at this step [cm] (inf: none within its cut-off).
+  if (coupler_ && coupler_->repulsion()) {
+    if (membranes_ >= 2) {
+      last_.emplace_back("contact_cell_gap", contact_last_.cell_gap);
+      const int overlaps = membrane_overlaps();
+      overlaps_max_ = std::max(overlaps_max_, overlaps);
+      last_.emplace_back("contact_overlap_points", overlaps);
+    }
+    if (s_.coupling.repulsion.walls) last_.emplace_back("contact_wall_gap", contact_last_.wall_gap);
+  }
   for (size_t b = 0; b < bodies_.size(); ++b) {
     for (const auto& [k, v] : trackers_[b].metrics()) last_.emplace_back(bodies_[b]->name() + "_" + k, v);
     for (const auto& [k, v] : shape_symmetry(b)) last_.emplace_back(bodies_[b]->name() + "_" + k, v);
@@ -363,6 +392,48 @@ std::vector<std::pair<std::string, double>> Scene::metrics() {
     }
   }
   return last_;
+}
+
+int Scene::membrane_overlaps() const {
+  // Each membrane's mid-surface sampled (2D: 256 points; 3D: 17 x 33, against 2 x 2 triangles per element
+  // and direction: a check of crossing, not of the last chord's distance), against the bodies whose boxes
+  // meet its own.
+  std::vector<geometry::Patch> patches;
+  std::vector<std::vector<Vec3>> samples;
+  std::vector<Vec3> lo, hi;
+  for (const solid::SolidSolver* b : bodies_) {
+    if (!b->is_membrane()) continue;
+    patches.push_back(b->current_patch());
+    samples.push_back(s_.dim == 2 ? solid::mid_surface_points(patches.back(), 256, 1)
+                                  : solid::mid_surface_points(patches.back(), 17, 33));
+    Vec3 l, h;
+    patches.back().bounding_box(l, h);
+    lo.push_back(l), hi.push_back(h);
+  }
+  std::vector<Vec3> shifts{Vec3::Zero()};
+  for (int d = 0; d < s_.dim; ++d) {
+    if (!patch_.knots(d).periodic()) continue;
+    const size_t n = shifts.size();
+    for (size_t k = 0; k < n; ++k)
+      shifts.push_back(shifts[k] + patch_.shift(d)), shifts.push_back(shifts[k] - patch_.shift(d));
+  }
+  int count = 0;
+  for (size_t a = 0; a < patches.size(); ++a)
+    for (size_t b = 0; b < patches.size(); ++b) {
+      if (a == b) continue;
+      for (const Vec3& t : shifts) {
+        // b's points moved by t against a's box first.
+        bool meet = true;
+        for (int d = 0; d < s_.dim; ++d)
+          meet = meet && lo[b][d] + t[d] <= hi[a][d] && lo[a][d] <= hi[b][d] + t[d];
+        if (!meet) continue;
+        std::vector<Vec3> pts = samples[b];
+        for (Vec3& x : pts) x += t;
+        const std::vector<char> in = coupling::inside_membrane(patches[a], pts, s_.dim == 2 ? 0 : 2);
+        count += static_cast<int>(std::count(in.begin(), in.end(), 1));
+      }
+    }
+  return count;
 }
 
 std::vector<std::pair<std::string, double>> Scene::shape_symmetry(std::size_t b) const {

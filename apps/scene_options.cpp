@@ -161,6 +161,21 @@ void read_coupling(SceneSettings& s, std::vector<std::string>& names) {
             "iterations do",
             kSolidTangents);
   coupling::add_solver_options(t, l, pc);
+  // The contact repulsion (coupling/repulsion.hpp): defaults from the mesh and the membranes.
+  t.flag("coupling_repulsion", c.repulsion.enabled,
+         "Contact repulsion between membranes, and between membranes and walls, below "
+         "-coupling_repulsion_cutoff: "
+         "the pressure P0 (1 - s)^2 / s^2, s = distance / cut-off (coupling/README.md, \"Repulsion\")")
+      .real("coupling_repulsion_cutoff", c.repulsion.cutoff,
+            "Distance [cm] below which the repulsion acts (0: the fluid's smallest element extent)",
+            non_negative("[cm]"))
+      .real("coupling_repulsion_pressure", c.repulsion.scale,
+            "The repulsion's pressure scale P0 [dyn/cm^2] (its pressure at half the cut-off; 0: the largest "
+            "G h / R "
+            "of the membranes, R the radius of a circle or sphere of a membrane's perimeter or area)",
+            non_negative("[dyn/cm^2]"))
+      .flag("coupling_repulsion_walls", c.repulsion.walls,
+            "The repulsion also between membranes and the walls");
   t.real("coupling_max_mesh_ratio", s.max_mesh_ratio,
          "Largest Lagrangian / smallest Eulerian element size (paper Remark 3)", positive())
       .real("metrics_average_from", s.metrics_average_from,

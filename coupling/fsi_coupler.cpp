@@ -10,6 +10,7 @@
 #include "coupling/inner_viscosity.hpp"
 #include "coupling/interface_marking.hpp"
 #include "geometry/element_region.hpp"
+#include "geometry/measures.hpp"
 
 namespace cellfsi::coupling {
 
@@ -89,8 +90,18 @@ void FsiCoupler::update_immersed(bool first_iteration) {
   std::vector<Linearized> linearized;
   std::vector<int> q_begin, q_unknown;
   std::vector<double> q_grad;
+  // Every body's points first, located: the repulsion between them needs them all.
+  std::vector<std::vector<solid::QuadratureData>>& all_q = scratch_q_;
+  all_q.resize(bodies_.size());
   for (size_t b = 0; b < bodies_.size(); ++b) {
-    const std::vector<solid::QuadratureData> q = bodies_[b]->quadrature_data(rho1, with_tangent);
+    all_q[b] = bodies_[b]->quadrature_data(rho1, with_tangent);
+    auto& warm = quadrature_loc_[b];
+    warm.resize(all_q[b].size());
+    for (size_t i = 0; i < all_q[b].size(); ++i) warm[i] = locator_.locate_or_throw(all_q[b][i].x, &warm[i]);
+  }
+  const std::vector<std::vector<geometry::Vec3>>* contact = repulsion_forces(all_q);
+  for (size_t b = 0; b < bodies_.size(); ++b) {
+    const std::vector<solid::QuadratureData>& q = all_q[b];
     const bool linear = collocation && bodies_[b]->n_control() > 0 &&
                         bodies_[b]->basis_gradients(q_begin, q_unknown, q_grad) &&
                         q_begin.size() == q.size() + 1;
@@ -107,10 +118,8 @@ void FsiCoupler::update_immersed(bool first_iteration) {
       for (const Location& l : loc) lin.elements.push_back(l.element), lin.xi.push_back(l.xi);
       lin.n_columns += 3 * bodies_[b]->n_control();
     }
-    auto& warm = quadrature_loc_[b];
-    warm.resize(q.size());
+    const auto& warm = quadrature_loc_[b];
     for (size_t i = 0; i < q.size(); ++i) {
-      warm[i] = locator_.locate_or_throw(q[i].x, &warm[i]);
       if (!fluid_.owns_element(warm[i].element)) continue;  // another rank's: it keeps its own points
       elements.push_back(warm[i].element);
       xi.push_back(warm[i].xi);
@@ -135,6 +144,9 @@ void FsiCoupler::update_immersed(bool first_iteration) {
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) ip.stress[r][c] = q[i].stress(r, c);
       for (int c = 0; c < 3; ++c) ip.force[c] = q[i].force[c];
+      // The contact repulsion's force [dyn] on the point, per unit reference volume, like the loads.
+      if (contact && !(*contact)[b].empty())
+        for (int c = 0; c < 3; ++c) ip.force[c] += (*contact)[b][i][c] / (q[i].weight * rho1);
       data.push_back(ip);
     }
     if (!first_iteration) continue;  // (the marking's points; a remote body's are a message)
@@ -165,6 +177,49 @@ void FsiCoupler::update_immersed(bool first_iteration) {
     linear_->marking_changed();
   }
   apply_scaling();
+}
+
+const std::vector<std::vector<geometry::Vec3>>* FsiCoupler::repulsion_forces(
+    const std::vector<std::vector<solid::QuadratureData>>& q) {
+  if (!opt_.repulsion.enabled) return nullptr;
+  const int dim = fluid_.dim();
+  std::vector<RepulsionBody> bodies(q.size());
+  contact_x_.resize(q.size());
+  contact_area_.resize(q.size());
+  int membranes = 0;
+  double scale = 0;
+  for (size_t b = 0; b < q.size(); ++b) {
+    if (q[b].empty() || !(q[b][0].area > 0)) continue;  // a bulky body
+    ++membranes;
+    auto& x = contact_x_[b];
+    auto& a = contact_area_[b];
+    x.resize(q[b].size());
+    a.resize(q[b].size());
+    double area = 0, volume = 0;
+    for (size_t i = 0; i < q[b].size(); ++i) {
+      x[i] = q[b][i].x;
+      a[i] = q[b][i].area;
+      area += a[i], volume += q[b][i].weight;
+    }
+    bodies[b] = {&x, &a, &quadrature_loc_[b]};
+    if (repulsion_checked_) continue;
+    // The default scale: the membrane's surface modulus G h over the radius of a circle (sphere) of its
+    // reference perimeter (area), the pressure that strains it by about one.
+    const double radius = dim == 2 ? area / (2 * M_PI) : std::sqrt(area / (4 * M_PI));
+    scale = std::max(scale, q[b][0].shear_modulus * (volume / area) / radius);
+  }
+  if (!repulsion_checked_) {
+    repulsion_checked_ = true;
+    if (membranes == 0) return nullptr;
+    const double cutoff =
+        opt_.repulsion.cutoff > 0 ? opt_.repulsion.cutoff : geometry::smallest_element_extent(fluid_.patch());
+    repulsion_ = std::make_unique<Repulsion>(fluid_.patch(), cutoff,
+                                             opt_.repulsion.scale > 0 ? opt_.repulsion.scale : scale,
+                                             opt_.repulsion.walls);
+  }
+  if (!repulsion_) return nullptr;
+  repulsion_stats_ = repulsion_->forces(bodies, contact_force_);
+  return repulsion_stats_.cell_pairs + repulsion_stats_.wall_points > 0 ? &contact_force_ : nullptr;
 }
 
 void FsiCoupler::apply_scaling() {
@@ -330,6 +385,7 @@ CouplerStats FsiCoupler::step() {
   }
   fluid_.end_step(X_);
   for (auto* b : bodies_) b->end_step();
+  st.repulsion = repulsion_stats_;
   return st;
 }
 

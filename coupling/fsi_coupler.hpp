@@ -17,6 +17,7 @@
 #include "coupling/coupled_linear_solver.hpp"
 #include "coupling/interface_marking.hpp"
 #include "coupling/locator.hpp"
+#include "coupling/repulsion.hpp"
 #include "fluid/immersed_fluid.hpp"
 #include "solid/solid_solver.hpp"
 
@@ -47,6 +48,15 @@ inline SolidTangent default_solid_tangent(int dim) {
   return dim == 3 ? SolidTangent::collocation : SolidTangent::consistent;
 }
 
+/// The contact repulsion between membranes and from the walls (coupling/repulsion.hpp).
+struct RepulsionOptions {
+  bool enabled = true;
+  double cutoff = 0;  // r_c [cm]; 0: the fluid mesh's smallest element extent
+  double scale = 0;   // P0 [dyn/cm^2]; 0: the largest G h / R of the membranes (R: of a circle or sphere of
+                      // the membrane's reference perimeter or area)
+  bool walls = true;  // also between membranes and the walls
+};
+
 struct CouplerOptions {
   double s_interface = 1e10;           // s_I (paper Sec. 3.3)
   Marking marking = Marking::central;  // which functions get s_I (coupling/interface_marking.hpp)
@@ -70,6 +80,7 @@ struct CouplerOptions {
   // fluid inside a membrane (coupling/inner_viscosity.hpp). Only membranes take one. A value equal to the
   // fluid's adds nothing: with no contrast the fluid never gets a viscosity field, and runs are unchanged.
   std::vector<double> inner_viscosity;
+  RepulsionOptions repulsion;
   // The linear solves (coupling/coupled_linear_solver.hpp); its fluid_atol and s_I are set from the above.
   LinearSolverOptions linear;
 };
@@ -83,6 +94,7 @@ struct CouplerStats {
   double fluid_residual0 = 0, fluid_residual = 0;
   std::vector<double> solid_residual0, solid_residual;
   std::string reason;
+  RepulsionStats repulsion;  // at the step's last iteration (none found: infinite gaps)
 };
 
 class FsiCoupler {
@@ -106,6 +118,8 @@ class FsiCoupler {
   double interface_scaling() const { return opt_.s_interface; }
   /// The linear solver (its PC type, whether it fell back, its KSP).
   const CoupledLinearSolver& linear_solver() const { return *linear_; }
+  /// The contact repulsion (null while off, or before the first configuration, or without membranes).
+  const Repulsion* repulsion() const { return repulsion_.get(); }
 
  private:
   // The solids' data at the immersed points. first_iteration (a step's first, or before any step): s^h is
@@ -113,6 +127,10 @@ class FsiCoupler {
   // assemble the Jacobian (CoupledLinearSolver::may_assemble).
   void update_immersed(bool first_iteration);
   void apply_scaling();             // s^h on the fluid: s_I on the marked functions, 1 elsewhere
+  /// The repulsion's force [dyn] on every body's points (q: their data, located in quadrature_loc_), or null
+  /// where none acts; built at the first call (its defaults come from the membranes' points).
+  const std::vector<std::vector<geometry::Vec3>>* repulsion_forces(
+      const std::vector<std::vector<solid::QuadratureData>>& q);
   /// The fluid's viscosity field from the membranes' current insides (with a contrast; between steps, from
   /// the accepted configuration, like the bodies' current_patch()).
   void update_viscosity();
@@ -127,6 +145,12 @@ class FsiCoupler {
   std::vector<geometry::Index3> scratch_elements_;
   std::vector<geometry::Param> scratch_xi_;
   std::vector<fluid::ImmersedPoint> scratch_data_;
+  std::vector<std::vector<solid::QuadratureData>> scratch_q_;
+  std::unique_ptr<Repulsion> repulsion_;
+  bool repulsion_checked_ = false;  // repulsion_ built, or found not to apply
+  std::vector<std::vector<geometry::Vec3>> contact_x_, contact_force_;
+  std::vector<std::vector<double>> contact_area_;
+  RepulsionStats repulsion_stats_;
   Vec X_ = nullptr, dX_ = nullptr, F_ = nullptr;
   solid::TimeParameters tp_;
   bool linearization_refused_ = false;  // the fluid takes no SolidLinearization (SolidTangent::collocation)
