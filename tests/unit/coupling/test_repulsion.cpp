@@ -176,6 +176,45 @@ TEST(Repulsion, TheSearchOnTheCurvedNarrowingFindsWhatAllPairsFind) {
       EXPECT_LT((f[b][i] - g[b][i]).norm(), 1e-12 * scale) << b << " " << i;
 }
 
+TEST(Repulsion, In3DTheSearchFindsWhatAllPairsFindAndTheWallsPush) {
+  // A box periodic in x and z (walls in y), two bodies of random points crowded near the x = 0 end, a cut-off
+  // of 1.2 elements; and a point near each wall (the walls as triangles).
+  const double L = 6e-4, rc = 1.2 * L / 12, p0 = 30;
+  const geometry::Patch fluid = geometry::box(L, L, L, 12, 12, 12, 2, {true, false, true});
+  std::mt19937 gen(11);
+  std::uniform_real_distribution<double> ux(-0.15 * L, 0.15 * L), u(0.2 * L, 0.8 * L);
+  Cloud c;
+  c.x.resize(2), c.area.resize(2);
+  for (int b = 0; b < 2; ++b)
+    for (int i = 0; i < 400; ++i) {
+      double x = ux(gen);
+      if (x < 0) x += L;
+      c.x[b].push_back(Vec3(x, u(gen), u(gen)));
+      c.area[b].push_back(1e-9);
+    }
+  Repulsion rep(fluid, rc, p0, false);
+  std::vector<std::vector<Vec3>> f;
+  const coupling::RepulsionStats st = rep.forces(c.bodies(fluid), f);
+  const std::vector<std::vector<Vec3>> g = all_pairs(c, rc, p0, L);  // (wraps x only: z pairs stay inside)
+  ASSERT_GT(st.cell_pairs, 50);
+  double scale = 0;
+  for (const auto& body : g)
+    for (const Vec3& v : body) scale = std::max(scale, v.norm());
+  for (int b = 0; b < 2; ++b)
+    for (size_t i = 0; i < g[b].size(); ++i)
+      EXPECT_LT((f[b][i] - g[b][i]).norm(), 1e-12 * scale) << b << " " << i;
+
+  Repulsion walls(fluid, rc, p0);
+  Cloud w;
+  w.x = {{Vec3(1e-4, 0.25 * rc, 3e-4), Vec3(5e-4, L - 0.6 * rc, 1e-4)}};
+  w.area = {{1e-9, 1e-9}};
+  const coupling::RepulsionStats ws = walls.forces(w.bodies(fluid), f);
+  EXPECT_TRUE(agree(f[0][0][1], 1e-9 * coupling::repulsion_pressure(0.25 * rc, rc, p0), 1e-12));
+  EXPECT_TRUE(agree(f[0][1][1], -1e-9 * coupling::repulsion_pressure(0.6 * rc, rc, p0), 1e-12));
+  EXPECT_LT(std::abs(f[0][0][0]) + std::abs(f[0][0][2]), 1e-12 * std::abs(f[0][0][1]));
+  EXPECT_EQ(ws.wall_points, 2);
+}
+
 TEST(Repulsion, AWallPushesAPointAlongItsNormalByThePressureOfTheLaw) {
   // Flat walls of a periodic rectangle (exact), and the narrowing's curved wall (a polyline of 8 chords per
   // element: its distance within 1e-3 of an element of the exact profile's).
