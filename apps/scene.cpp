@@ -6,13 +6,17 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <stdexcept>
 
 #include "common/option_table.hpp"
 #include "common/petsc_error.hpp"
+#include "coupling/inner_viscosity.hpp"
+#include "coupling/locator.hpp"
 #include "coupling/placement.hpp"
+#include "coupling/repulsion.hpp"
 #include "geometry/measures.hpp"
 
 namespace cellfsi::app {
@@ -142,6 +146,105 @@ std::vector<std::unique_ptr<solid::NurbsSolid>> build_bodies(const SceneSettings
     }
   }
   return out;
+}
+
+namespace {
+
+/// A body as place_scattered_copies sees it: points on its surface (a membrane's mid-surface, a bulky body's
+/// outer face), their box, and the membrane's patch (for what it encloses).
+struct Outline {
+  std::vector<Vec3> points;
+  Vec3 lo, hi;
+  std::optional<geometry::Patch> membrane;
+};
+
+Outline outline_of(const geometry::Patch& p, bool membrane, int dim) {
+  Outline o;
+  const int n1 = 8 * p.n_elements(1), n2 = dim == 3 ? 4 * p.n_elements(2) : 1;
+  if (membrane) {
+    o.points = solid::mid_surface_points(p, n1 + 1, n2 + 1);
+    o.membrane = p;
+  } else {
+    const geometry::KnotVector &k1 = p.knots(1), &k2 = p.knots(dim == 3 ? 2 : 1);
+    for (int i = 0; i <= n1; ++i)
+      for (int j = 0; j <= (dim == 3 ? n2 : 0); ++j)
+        o.points.push_back(p.point({p.knots(0).b(), k1.a() + (k1.b() - k1.a()) * i / n1,
+                                    dim == 3 ? k2.a() + (k2.b() - k2.a()) * j / n2 : 0.0}));
+  }
+  o.lo = o.hi = o.points.front();
+  for (const Vec3& x : o.points) o.lo = o.lo.cwiseMin(x), o.hi = o.hi.cwiseMax(x);
+  return o;
+}
+
+/// Whether outline a, moved by t, keeps at least `gap` from b and neither encloses the other.
+bool apart(const Outline& a, const Vec3& t, const Outline& b, double gap, int dim) {
+  for (int d = 0; d < dim; ++d)
+    if (a.lo[d] + t[d] > b.hi[d] + gap || b.lo[d] > a.hi[d] + t[d] + gap) return true;
+  const double g2 = gap * gap;
+  for (const Vec3& x : a.points)
+    for (const Vec3& y : b.points)
+      if ((x + t - y).squaredNorm() < g2) return false;
+  // Boundaries apart: one lies wholly inside the other or neither does; one point of each tells.
+  if (b.membrane && coupling::inside_membrane(*b.membrane, {a.points.front() + t})[0]) return false;
+  if (a.membrane && coupling::inside_membrane(*a.membrane, {b.points.front() - t})[0]) return false;
+  return true;
+}
+
+}  // namespace
+
+void place_scattered_copies(SceneSettings& s) {
+  if (std::none_of(s.bodies.begin(), s.bodies.end(), [](const BodySettings& b) { return b.scattered; }))
+    return;
+  const int D = s.dim;
+  const geometry::Patch domain = build_domain(s);
+  const double gap = geometry::smallest_element_extent(domain);
+  const coupling::Locator locator(domain);
+  const coupling::Repulsion walls(domain, gap, 0.0);
+  Vec3 lo, hi;
+  domain.bounding_box(lo, hi);
+  // The periodic images a body can meet another through.
+  std::vector<Vec3> shifts{Vec3::Zero()};
+  for (int d = 0; d < D; ++d) {
+    if (!domain.knots(d).periodic()) continue;
+    const size_t n = shifts.size();
+    for (size_t k = 0; k < n; ++k)
+      shifts.push_back(shifts[k] + domain.shift(d)), shifts.push_back(shifts[k] - domain.shift(d));
+  }
+  std::vector<Outline> placed;
+  int placed_copies = 0;
+  for (BodySettings& b : s.bodies) {
+    if (!b.scattered) {
+      placed.push_back(outline_of(build_body_patch(s, b), b.membrane(), D));
+      continue;
+    }
+    b.elements = body_element_counts(s, b);  // (once, not at every draw)
+    std::mt19937 rng(b.scatter_seed);
+    std::uniform_real_distribution<double> uni(0.0, 1.0);
+    bool found = false;
+    for (int k = 0; k < kScatterTries && !found; ++k) {
+      for (int d = 0; d < D; ++d) b.center[d] = lo[d] + (hi[d] - lo[d]) * uni(rng);
+      Outline o = outline_of(build_body_patch(s, b), b.membrane(), D);
+      found = std::all_of(o.points.begin(), o.points.end(), [&](const Vec3& x) {
+        Vec3 n;
+        return locator.locate(x).found && walls.wall_distance(x, n) >= gap;
+      });
+      for (size_t j = 0; j < placed.size() && found; ++j)
+        for (const Vec3& t : shifts) found = found && apart(o, t, placed[j], gap, D);
+      if (found) placed.push_back(std::move(o));
+    }
+    if (!found) {
+      const std::string row = b.name.substr(0, b.name.rfind('_'));
+      std::ostringstream w;
+      w << "fewer copies: only " << placed_copies << " found a place (" << kScatterTries
+        << " random draws each) at least " << gap
+        << " cm (one fluid element) from the walls and every other body; or smaller cells, or a larger "
+           "domain";
+      int count = 0;
+      for (const BodySettings& o : s.bodies) count += o.scattered && o.name.rfind(row + "_", 0) == 0;
+      bad_option("solid_" + row + "_count", std::to_string(count), w.str());
+    }
+    ++placed_copies;
+  }
 }
 
 void check_bodies(const SceneSettings& s, const geometry::Patch& domain) {

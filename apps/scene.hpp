@@ -49,6 +49,10 @@ struct BodySettings {
   double stretch_force = 0;
   double stretch_patch = 2e-4;
   geometry::Vec3 stretch_axis = geometry::Vec3::UnitX();
+  // A copy of -solid_NAME_arrangement scattered: its centre is drawn at random (place_scattered_copies), from
+  // this seed (the row's -seed and the copy's number).
+  bool scattered = false;
+  unsigned scatter_seed = 0;
   bool membrane() const { return shape.rfind("hollow", 0) == 0 || biconcave(); }
   bool biconcave() const { return shape == "rbc" || shape == "rbc_3d"; }  // Evans-Fung: no semi-axes
 };
@@ -110,6 +114,13 @@ std::shared_ptr<const solid::Material> make_material(const BodySettings& b);
 std::vector<solid::PatchLoad> stretch_loads(const BodySettings& b, const geometry::Patch& reference);
 /// The scene's bodies as NurbsSolid (the solid side of a run), with their loads.
 std::vector<std::unique_ptr<solid::NurbsSolid>> build_bodies(const SceneSettings& s);
+/// Centres for the copies of -solid_NAME_arrangement scattered, in the order of the bodies: drawn uniformly
+/// over the domain's box until the copy lies inside the domain at least one fluid element (the smallest
+/// element extent) from the walls and from every body placed before it (periodic images included), and
+/// neither holds nor lies in another body's membrane. Throws std::invalid_argument (naming -solid_NAME_count)
+/// when a copy finds no place in kScatterTries draws.
+void place_scattered_copies(SceneSettings& s);
+inline constexpr int kScatterTries = 2000;
 /// The placement checks of docs/design.md §4 (inside the domain, no overlap, Lagrangian elements no larger
 /// than max_mesh_ratio times the Eulerian ones); throws std::invalid_argument naming the option to change.
 void check_bodies(const SceneSettings& s, const geometry::Patch& domain);

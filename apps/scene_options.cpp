@@ -33,7 +33,7 @@ const std::vector<std::string> kAccelerations{"none", "anderson"};
 const std::vector<std::string> kSolidTangents{"isotropic", "consistent", "collocation"};
 const std::vector<std::string> kShapes{"hollow_ellipse",   "ellipse",   "rbc",
                                        "hollow_ellipsoid", "ellipsoid", "rbc_3d"};
-const std::vector<std::string> kArrangements{"even", "staggered", "random"};
+const std::vector<std::string> kArrangements{"even", "staggered", "random", "scattered"};
 const std::vector<std::string> kMaterials{"neo_hookean", "mooney_rivlin", "strain_hardening"};
 // C3 / G of the strain-hardening law: Mills et al. (2004) fitted 1/30; 100 makes the law 600 times stiffer
 // than neo-Hookean at I1 - 3 = 1 (a stretch of 1.9), far beyond any cell.
@@ -268,7 +268,8 @@ void declare_body_options(OptionTable& t, BodySettings& b, BodyOptionValues& v, 
             "(right-handed)",
             finite("[degrees]"))
       .reals("axis", v.axis, "3D: rotation axis x,y,z of -angle", nullptr, finite())
-      .real("area", b.area, "rbc: area enclosed by the mid-line [cm^2] (0: the default RBC, docs/design.md §3)")
+      .real("area", b.area,
+            "rbc: area enclosed by the mid-line [cm^2] (0: the default RBC, docs/design.md §3)")
       .real("thickness", b.thickness, "Membrane thickness h [cm]")
       .integers("elements", v.elements,
                 "Lagrangian elements per direction (through/around; radial,around; 0: slightly smaller than "
@@ -314,7 +315,8 @@ void declare_body_options(OptionTable& t, BodySettings& b, BodyOptionValues& v, 
       .text(
           "arrangement", v.arrangement,
           "Copies across the flow: even (all at the row), staggered (+-spread alternately), random (uniform "
-          "in +-spread, -seed)",
+          "in +-spread, -seed); or scattered: anywhere in the domain at random (-seed), at least one fluid "
+          "element from the walls and every other body",
           kArrangements)
       .real("spread", v.spread, "Offset across the flow of staggered or random copies [cm]",
             non_negative("[cm]"))
@@ -429,6 +431,8 @@ void add_body_or_copies(SceneSettings& s, const BodySettings& b, const BodyOptio
     s.bodies.push_back(b);
     return;
   }
+  if (arrangement == "scattered" && spread > 0)
+    t.bad("spread", option_value_text(spread), "0 with -" + pre + "arrangement scattered (placed anywhere)");
   if (arrangement == "staggered" && count % 2)
     t.bad("count", std::to_string(count),
           "an even count with -" + pre +
@@ -458,6 +462,8 @@ void add_body_or_copies(SceneSettings& s, const BodySettings& b, const BodyOptio
     c.center[0] = s.origin[0] + (i + 0.5) * s.size[0] / count;
     if (arrangement == "staggered") c.center[across] += (i % 2 == 0 ? spread : -spread);
     if (arrangement == "random") c.center[across] += spread * uni(rng);
+    c.scattered = arrangement == "scattered";
+    c.scatter_seed = static_cast<unsigned>(v.seed) * 1000003u + static_cast<unsigned>(i);
     s.bodies.push_back(c);
   }
 }
@@ -702,6 +708,7 @@ SceneSettings SceneSettings::from_options(const std::string& default_name, bool 
     t.bad("equilibrium_window", option_value_text(s.equilibrium_window), only_stretched);
   if (!stretched && t.given("equilibrium_stop"))
     t.bad("equilibrium_stop", s.equilibrium_stop ? "true" : "false", only_stretched);
+  place_scattered_copies(s);
   if (fluid_side) check_memory(s);
   return s;
 }

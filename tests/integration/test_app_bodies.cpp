@@ -868,3 +868,62 @@ TEST_F(CellfsiApp, TwoCapsulesCloserThanTheCutOffArePushedApartWithoutOverlap) {
   EXPECT_NE(last_output_.find("option -coupling_repulsion_cutoff = -1 is invalid"), std::string::npos)
       << last_output_;
 }
+
+TEST_F(CellfsiApp, ScatteredCopiesKeepAnElementFromEveryBodyAndTheWallsOrAreRefused) {
+  // Six RBCs scattered at random around the CTC of the narrowing (issue 46): every copy inside the channel at
+  // least one fluid element (r_c: the throat's 8e-4 / 32 cm) from the walls and from every other body, none
+  // inside the CTC; the same seed places them the same way (metrics.csv's centroids). Forty do not fit: the
+  // count is refused with how many did.
+  const std::vector<std::string> base = {scene("ctc_narrowing.yaml"),
+                                         "-fluid_elements",
+                                         "96,32",
+                                         "-fluid_degree",
+                                         "2",
+                                         "-solid_membrane_elements",
+                                         "1,0",
+                                         "-solid_nucleus_elements",
+                                         "0,0",
+                                         "-dt",
+                                         "5e-4",
+                                         "-final_time",
+                                         "5e-4",
+                                         "-output_every",
+                                         "0",
+                                         "-solid_bodies",
+                                         "membrane,nucleus,rbc",
+                                         "-solid_rbc_shape",
+                                         "rbc",
+                                         "-solid_rbc_count",
+                                         "6",
+                                         "-solid_rbc_arrangement",
+                                         "scattered",
+                                         "-solid_rbc_elements",
+                                         "1,0"};
+  ASSERT_EQ(cellfsi(base, 120).exit_code, 0) << last_output_;
+  const double rc = 8e-4 / 32;
+  const auto row = last_row(out_ / "metrics.csv");
+  std::vector<double> centres;
+  for (const auto& [k, v] : row) {
+    if (k == "contact_wall_gap") EXPECT_GE(v, rc * (1 - 1e-9)) << k;  // (one step moved them by < 1e-8 cm)
+    if (k == "contact_overlap_points") EXPECT_EQ(v, 0.0);
+    if (k.rfind("rbc_", 0) == 0 && k.find("_centroid_") != std::string::npos) centres.push_back(v);
+  }
+  ASSERT_EQ(centres.size(), 12u) << "six copies, x and y";
+  fs::remove_all(out_);
+  ASSERT_EQ(cellfsi(base, 120).exit_code, 0) << last_output_;
+  std::vector<double> again;
+  for (const auto& [k, v] : last_row(out_ / "metrics.csv"))
+    if (k.rfind("rbc_", 0) == 0 && k.find("_centroid_") != std::string::npos) again.push_back(v);
+  // (The same placement; the one step after it by the same operations, compared to round-off all the same.)
+  ASSERT_EQ(again.size(), centres.size());
+  for (size_t i = 0; i < again.size(); ++i)
+    EXPECT_TRUE(cellfsi_test::agree(again[i], centres[i], 1e-12, 1e-6));
+  fs::remove_all(out_);
+  // (Coarse copies for the refusal: 2000 draws of the copy that finds no place take 2 s, not 8.)
+  expect_one_clear_error(cellfsi(with(base, {"-solid_rbc_count", "40", "-solid_rbc_elements", "1,32"}), 120));
+  EXPECT_NE(last_output_.find("option -solid_rbc_count = 40 is invalid; valid: fewer copies: only "),
+            std::string::npos)
+      << last_output_;
+  expect_one_clear_error(cellfsi(with(base, {"-solid_rbc_spread", "1e-5"}), 120));
+  EXPECT_NE(last_output_.find("-solid_rbc_spread"), std::string::npos) << last_output_;
+}
