@@ -421,7 +421,15 @@ int Scene::membrane_overlaps() const {
   for (size_t a = 0; a < patches.size(); ++a)
     for (size_t b = 0; b < patches.size(); ++b) {
       if (a == b) continue;
-      for (const Vec3& t : shifts) {
+      // b brought next to a first (bodies of a periodic channel drift by whole periods), then its images.
+      Vec3 near = Vec3::Zero();
+      for (int d = 0; d < s_.dim; ++d) {
+        const Vec3& p = patch_.shift(d);
+        if (!patch_.knots(d).periodic() || p.isZero()) continue;
+        near -= std::round((0.5 * (lo[b] + hi[b] - lo[a] - hi[a])).dot(p) / p.squaredNorm()) * p;
+      }
+      for (const Vec3& image : shifts) {
+        const Vec3 t = near + image;
         // b's points moved by t against a's box first.
         bool meet = true;
         for (int d = 0; d < s_.dim; ++d)

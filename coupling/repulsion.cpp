@@ -219,8 +219,12 @@ RepulsionStats Repulsion::forces(const std::vector<RepulsionBody>& bodies,
   for (int a = 0; a < nb; ++a)
     for (int b = a + 1; b < nb; ++b) {
       if (!n_points(a) || !n_points(b)) continue;
+      // b's box brought next to a's first: bodies of a periodic channel drift by whole periods.
+      const Vec3 ca = 0.5 * (lo[a] + hi[a]), cb = 0.5 * (lo[b] + hi[b]);
+      const Vec3 near = separation(cb, ca) - (cb - ca);
       bool meet = false;
-      for (const Vec3& s : images) {
+      for (const Vec3& image : images) {
+        const Vec3 s = near + image;
         bool m = true;
         for (int d = 0; d < dim_; ++d)
           m = m && lo[a][d] - cutoff_ <= hi[b][d] + s[d] && lo[b][d] + s[d] <= hi[a][d] + cutoff_;

@@ -112,6 +112,31 @@ TEST(Repulsion, TwoParallelSheetsFeelThePressureOfTheLawAndNoNetForce) {
   EXPECT_EQ(st.cell_pairs, 400);
 }
 
+TEST(Repulsion, ABodyThatDriftedByWholePeriodsMeetsItsNeighbourAllTheSame) {
+  // Bodies of a periodic channel travel several periods: their points' coordinates are not wrapped. The same
+  // two sheets, one of them two periods and the other three periods along: the same forces.
+  const double lx = 1e-3, ly = 5e-4, rc = 2e-5, p0 = 100, gap = 0.4 * rc;
+  const geometry::Patch fluid = geometry::rectangle(lx, ly, 50, 25, 2, {true, false});
+  Cloud near, far;
+  near.x.resize(2), near.area.resize(2);
+  for (int i = 0; i < 50; ++i) {
+    const double x = (i + 0.5) * 0.2 * lx / 50;
+    near.x[0].push_back(Vec3(x, 2.5e-4, 0)), near.x[1].push_back(Vec3(x, 2.5e-4 + gap, 0));
+    near.area[0].push_back(1e-6), near.area[1].push_back(1e-6);
+  }
+  far = near;
+  for (Vec3& x : far.x[0]) x[0] += 2 * lx;
+  for (Vec3& x : far.x[1]) x[0] -= 3 * lx;
+  Repulsion rep(fluid, rc, p0, false);
+  std::vector<std::vector<Vec3>> f, g;
+  rep.forces(near.bodies(fluid), f);
+  const coupling::RepulsionStats st = rep.forces(far.bodies(fluid), g);
+  EXPECT_EQ(st.cell_pairs, 100);
+  for (int b = 0; b < 2; ++b)
+    for (int i = 0; i < 50; ++i)
+      EXPECT_LT((f[b][i] - g[b][i]).norm(), 1e-9 * f[b][i].norm()) << b << " " << i;
+}
+
 TEST(Repulsion, TheElementSearchFindsWhatAllPairsFind) {
   // Three bodies of random points in a periodic rectangle, crowded near x = 0 so that pairs wrap around the
   // period; a cut-off of 1.5 elements (two layers of elements searched).
