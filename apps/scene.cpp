@@ -211,7 +211,6 @@ void place_scattered_copies(SceneSettings& s) {
       shifts.push_back(shifts[k] + domain.shift(d)), shifts.push_back(shifts[k] - domain.shift(d));
   }
   std::vector<Outline> placed;
-  int placed_copies = 0;
   for (BodySettings& b : s.bodies) {
     if (!b.scattered) {
       placed.push_back(outline_of(build_body_patch(s, b), b.membrane(), D));
@@ -234,6 +233,9 @@ void place_scattered_copies(SceneSettings& s) {
     }
     if (!found) {
       const std::string row = b.name.substr(0, b.name.rfind('_'));
+      int placed_copies = 0;  // the row's copies before this one
+      for (const BodySettings* o = s.bodies.data(); o != &b; ++o)
+        placed_copies += o->scattered && o->name.rfind(row + "_", 0) == 0;
       std::ostringstream w;
       w << "fewer copies: only " << placed_copies << " found a place (" << kScatterTries
         << " random draws each) at least " << gap
@@ -243,7 +245,6 @@ void place_scattered_copies(SceneSettings& s) {
       for (const BodySettings& o : s.bodies) count += o.scattered && o.name.rfind(row + "_", 0) == 0;
       bad_option("solid_" + row + "_count", std::to_string(count), w.str());
     }
-    ++placed_copies;
   }
 }
 
