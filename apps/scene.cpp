@@ -203,13 +203,7 @@ void place_scattered_copies(SceneSettings& s) {
   Vec3 lo, hi;
   domain.bounding_box(lo, hi);
   // The periodic images a body can meet another through.
-  std::vector<Vec3> shifts{Vec3::Zero()};
-  for (int d = 0; d < D; ++d) {
-    if (!domain.knots(d).periodic()) continue;
-    const size_t n = shifts.size();
-    for (size_t k = 0; k < n; ++k)
-      shifts.push_back(shifts[k] + domain.shift(d)), shifts.push_back(shifts[k] - domain.shift(d));
-  }
+  const std::vector<Vec3> shifts = geometry::neighbour_image_shifts(domain);
   std::vector<Outline> placed;
   for (BodySettings& b : s.bodies) {
     if (!b.scattered) {

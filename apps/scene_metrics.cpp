@@ -410,24 +410,14 @@ int Scene::membrane_overlaps() const {
     patches.back().bounding_box(l, h);
     lo.push_back(l), hi.push_back(h);
   }
-  std::vector<Vec3> shifts{Vec3::Zero()};
-  for (int d = 0; d < s_.dim; ++d) {
-    if (!patch_.knots(d).periodic()) continue;
-    const size_t n = shifts.size();
-    for (size_t k = 0; k < n; ++k)
-      shifts.push_back(shifts[k] + patch_.shift(d)), shifts.push_back(shifts[k] - patch_.shift(d));
-  }
+  const std::vector<Vec3> shifts = geometry::neighbour_image_shifts(patch_);
   int count = 0;
   for (size_t a = 0; a < patches.size(); ++a)
     for (size_t b = 0; b < patches.size(); ++b) {
       if (a == b) continue;
       // b brought next to a first (bodies of a periodic channel drift by whole periods), then its images.
-      Vec3 near = Vec3::Zero();
-      for (int d = 0; d < s_.dim; ++d) {
-        const Vec3& p = patch_.shift(d);
-        if (!patch_.knots(d).periodic() || p.isZero()) continue;
-        near -= std::round((0.5 * (lo[b] + hi[b] - lo[a] - hi[a])).dot(p) / p.squaredNorm()) * p;
-      }
+      const Vec3 gap = 0.5 * (lo[b] + hi[b] - lo[a] - hi[a]);
+      const Vec3 near = geometry::nearest_image(patch_, gap) - gap;
       for (const Vec3& image : shifts) {
         const Vec3 t = near + image;
         // b's points moved by t against a's box first.

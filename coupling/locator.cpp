@@ -71,14 +71,8 @@ Locator::~Locator() = default;
 
 Vec3 Locator::primary_image(const Vec3& x) const {
   // In a periodic direction the tree holds one period: bring x into it.
-  Vec3 y = x;
   const Vec3 centre = 0.5 * (box_lo_ + box_hi_);
-  for (int d = 0; d < patch_.param_dim(); ++d) {
-    const Vec3& s = patch_.shift(d);
-    if (!patch_.knots(d).periodic() || s.isZero()) continue;
-    y -= std::round((y - centre).dot(s) / s.squaredNorm()) * s;
-  }
-  return y;
+  return centre + geometry::nearest_image(patch_, x - centre);
 }
 
 std::vector<int> Locator::candidates(const Vec3& x) const {

@@ -83,7 +83,6 @@ Repulsion::Repulsion(const geometry::Patch& fluid, double cutoff, double scale, 
     n_[d] = fluid.n_elements(d);
     reach_[d] = static_cast<int>(std::ceil(cutoff / shortest[d] - 1e-12)) + (affine ? 0 : 1);
     periodic_[d] = fluid.knots(d).periodic();
-    period_[d] = fluid.shift(d);
   }
   Vec3 lo, hi;
   fluid.bounding_box(lo, hi);
@@ -145,21 +144,14 @@ Repulsion::Repulsion(const geometry::Patch& fluid, double cutoff, double scale, 
 Repulsion::~Repulsion() = default;
 
 Vec3 Repulsion::separation(const Vec3& x, const Vec3& y) const {
-  Vec3 r = x - y;
-  for (int d = 0; d < dim_; ++d)
-    if (periodic_[d] && !period_[d].isZero())
-      r -= std::round(r.dot(period_[d]) / period_[d].squaredNorm()) * period_[d];
-  return r;
+  return geometry::nearest_image(patch_, x - y);
 }
 
 double Repulsion::wall_distance(const Vec3& x, Vec3& normal) const {
   normal = Vec3::Zero();
   if (walls_->segments.empty() && walls_->triangles.empty()) return std::numeric_limits<double>::infinity();
   // The walls were sampled over one period: x's image in it.
-  Vec3 y = x;
-  for (int d = 0; d < dim_; ++d)
-    if (periodic_[d] && !period_[d].isZero())
-      y -= std::round((y - walls_->centre).dot(period_[d]) / period_[d].squaredNorm()) * period_[d];
+  const Vec3 y = walls_->centre + geometry::nearest_image(patch_, x - walls_->centre);
   const auto q = point3(y);
   const Kernel::Point_3 c =
       dim_ == 2 ? walls_->segment_tree.closest_point(q) : walls_->triangle_tree.closest_point(q);
@@ -207,13 +199,7 @@ RepulsionStats Repulsion::forces(const std::vector<RepulsionBody>& bodies,
       lo[b] = lo[b].cwiseMin((*bodies[b].x)[i]);
       hi[b] = hi[b].cwiseMax((*bodies[b].x)[i]);
     }
-  std::vector<Vec3> images{Vec3::Zero()};
-  for (int d = 0; d < dim_; ++d) {
-    if (!periodic_[d]) continue;
-    const size_t n = images.size();
-    for (size_t k = 0; k < n; ++k)
-      images.push_back(images[k] + period_[d]), images.push_back(images[k] - period_[d]);
-  }
+  const std::vector<Vec3> images = geometry::neighbour_image_shifts(patch_);
   std::vector<char> active(nb, 0);
   int n_active = 0;
   for (int a = 0; a < nb; ++a)

@@ -79,7 +79,6 @@ class Repulsion {
   std::array<int, 3> n_{1, 1, 1};      // elements per direction
   std::array<int, 3> reach_{0, 0, 0};  // elements within r_c of a point's own, per direction
   std::array<bool, 3> periodic_{false, false, false};
-  std::array<geometry::Vec3, 3> period_;  // the periodic shifts
   struct Walls;
   std::unique_ptr<Walls> walls_;
 };

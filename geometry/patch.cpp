@@ -399,4 +399,24 @@ std::optional<AffineMap> affine_map(const Patch& patch, double tol) {
   return m;
 }
 
+Vec3 nearest_image(const Patch& patch, Vec3 r) {
+  for (int d = 0; d < patch.param_dim(); ++d) {
+    const Vec3& s = patch.shift(d);
+    if (!patch.knots(d).periodic() || s.isZero()) continue;
+    r -= std::round(r.dot(s) / s.squaredNorm()) * s;
+  }
+  return r;
+}
+
+std::vector<Vec3> neighbour_image_shifts(const Patch& patch) {
+  std::vector<Vec3> shifts{Vec3::Zero()};
+  for (int d = 0; d < patch.param_dim(); ++d) {
+    const Vec3& s = patch.shift(d);
+    if (!patch.knots(d).periodic() || s.isZero()) continue;
+    const size_t n = shifts.size();
+    for (size_t k = 0; k < n; ++k) shifts.push_back(shifts[k] + s), shifts.push_back(shifts[k] - s);
+  }
+  return shifts;
+}
+
 }  // namespace cellfsi::geometry

@@ -144,4 +144,11 @@ struct AffineMap {
 /// relative to the patch's extent.
 std::optional<AffineMap> affine_map(const Patch& patch, double tol = 1e-12);
 
+/// r moved by whole periods of the patch's periodic directions to the image nearest the origin (applied to a
+/// separation x - y: its shortest periodic form; to x - centre: x's image in the period around centre).
+Vec3 nearest_image(const Patch& patch, Vec3 r);
+/// The shifts that bring a periodic patch's neighbouring images next to it: 0 and every sum of -1, 0 or +1
+/// times each periodic direction's shift (3^k of them for k periodic directions).
+std::vector<Vec3> neighbour_image_shifts(const Patch& patch);
+
 }  // namespace cellfsi::geometry

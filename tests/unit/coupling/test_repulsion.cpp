@@ -68,6 +68,19 @@ std::vector<std::vector<Vec3>> all_pairs(const Cloud& c, double rc, double p0, d
   return f;
 }
 
+// Every point's force agrees with the all-pairs one to 1e-12 of the largest (the same sums in another order).
+void expect_same_forces(const std::vector<std::vector<Vec3>>& f, const std::vector<std::vector<Vec3>>& g) {
+  double scale = 0;
+  for (const auto& body : g)
+    for (const Vec3& v : body) scale = std::max(scale, v.norm());
+  ASSERT_EQ(f.size(), g.size());
+  for (size_t b = 0; b < g.size(); ++b) {
+    ASSERT_EQ(f[b].size(), g[b].size()) << b;
+    for (size_t i = 0; i < g[b].size(); ++i)
+      EXPECT_LT((f[b][i] - g[b][i]).norm(), 1e-12 * scale) << b << " " << i;
+  }
+}
+
 }  // namespace
 
 TEST(Repulsion, PressureLawStartsSmoothlyAndGrowsWithoutBound) {
@@ -158,17 +171,13 @@ TEST(Repulsion, TheElementSearchFindsWhatAllPairsFind) {
   const coupling::RepulsionStats st = rep.forces(c.bodies(fluid), f);
   const std::vector<std::vector<Vec3>> g = all_pairs(c, rc, p0, lx);
   ASSERT_GT(st.cell_pairs, 100);
-  double scale = 0;
-  for (int b : {0, 1, 3})
-    for (const Vec3& v : g[b]) scale = std::max(scale, v.norm());
-  Vec3 total = Vec3::Zero();
-  for (int b : {0, 1, 3})
-    for (size_t i = 0; i < g[b].size(); ++i) {
-      // (The same sums in another order: round-off of a few terms.)
-      EXPECT_LT((f[b][i] - g[b][i]).norm(), 1e-12 * scale) << b << " " << i;
-      total += f[b][i];
-    }
+  expect_same_forces(f, g);
   EXPECT_TRUE(f[2].empty());
+  // No net force: the pairs' forces cancel to round-off of the largest.
+  double scale = 0;
+  Vec3 total = Vec3::Zero();
+  for (const auto& body : f)
+    for (const Vec3& v : body) scale = std::max(scale, v.norm()), total += v;
   EXPECT_LT(total.norm(), 1e-10 * scale);
 }
 
@@ -193,12 +202,7 @@ TEST(Repulsion, TheSearchOnTheCurvedNarrowingFindsWhatAllPairsFind) {
   const coupling::RepulsionStats st = rep.forces(c.bodies(fluid), f);
   const std::vector<std::vector<Vec3>> g = all_pairs(c, rc, p0, ch.length);
   ASSERT_GT(st.cell_pairs, 50);
-  double scale = 0;
-  for (const auto& body : g)
-    for (const Vec3& v : body) scale = std::max(scale, v.norm());
-  for (int b = 0; b < 2; ++b)
-    for (size_t i = 0; i < g[b].size(); ++i)
-      EXPECT_LT((f[b][i] - g[b][i]).norm(), 1e-12 * scale) << b << " " << i;
+  expect_same_forces(f, g);
 }
 
 TEST(Repulsion, In3DTheSearchFindsWhatAllPairsFindAndTheWallsPush) {
@@ -222,12 +226,7 @@ TEST(Repulsion, In3DTheSearchFindsWhatAllPairsFindAndTheWallsPush) {
   const coupling::RepulsionStats st = rep.forces(c.bodies(fluid), f);
   const std::vector<std::vector<Vec3>> g = all_pairs(c, rc, p0, L);  // (wraps x only: z pairs stay inside)
   ASSERT_GT(st.cell_pairs, 50);
-  double scale = 0;
-  for (const auto& body : g)
-    for (const Vec3& v : body) scale = std::max(scale, v.norm());
-  for (int b = 0; b < 2; ++b)
-    for (size_t i = 0; i < g[b].size(); ++i)
-      EXPECT_LT((f[b][i] - g[b][i]).norm(), 1e-12 * scale) << b << " " << i;
+  expect_same_forces(f, g);
 
   Repulsion walls(fluid, rc, p0);
   Cloud w;
