@@ -318,9 +318,25 @@ Scene::Scene(MPI_Comm comm, const SceneSettings& settings) : s_(settings) {
   const int wd = wall_dir_;
   const double rate = s_.shear_rate;
   const bool shear = s_.flow == "shear";
-  // Initial state: the undisturbed flow for shear, rest otherwise.
+  // Initial state: the undisturbed flow for shear, and for a channel that starts developed (the plasma's
+  // plane Poiseuille flow, so that at a finite Reynolds number the bulk Jacobian a Fourier solver keeps is
+  // the developed flow's), rest otherwise.
   if (shear) undisturbed_ = [=](const Vec3& x) { return Vec3(rate * (x[wd] - mid), 0, 0); };
-  fluid_->set_initial_velocity(shear ? undisturbed_ : [](const Vec3&) { return Vec3(Vec3::Zero()); });
+  if (s_.flow_start == "developed") {
+    const Vec3 f = fo.body_force;
+    for (int d = 1; d < D; ++d)
+      if (f[d] != 0)
+        throw std::invalid_argument(
+            "option -flow_start = developed is invalid here: the body force (-fluid_body_force) "
+            "must be along x, the channel's axis");
+    const double y0 = s_.origin[wd], H = s_.size[wd], c = f[0] / (2 * fo.viscosity);
+    undisturbed_ = [=](const Vec3& x) { return Vec3(c * (x[wd] - y0) * (H - (x[wd] - y0)), 0, 0); };
+  }
+  if (s_.flow_start == "developed")
+    fluid_->project_initial_velocity(undisturbed_);  // (the parabola exactly, on degree >= 2)
+  else
+    fluid_->set_initial_velocity(undisturbed_ ? undisturbed_
+                                              : [](const Vec3&) { return Vec3(Vec3::Zero()); });
 }
 
 void Scene::attach_bodies(std::vector<solid::SolidSolver*> bodies) {

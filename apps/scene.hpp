@@ -68,6 +68,8 @@ struct SceneSettings {
   std::array<int, 3> elements{64, 32, 1};
   int degree = 3;
   std::string flow = "shear";  // shear | poiseuille | rest
+  std::string flow_start =
+      "rest";                  // poiseuille: rest | developed (the plasma's profile in a straight channel)
   double shear_rate = 70.0;    // [1/s]
   double final_time = 0.05;    // [s]
   int output_every = 0;        // write fluid.pvd every N steps (0: never)
@@ -160,7 +162,8 @@ class Scene {
   /// The velocity across the channel at mid-length averaged over the metrics' window (channel flows; empty
   /// before the window or for shear): points and mean velocity.
   fluid::SectionData mean_profile() const;
-  /// The flow without cells where it is known (shear: gammadot (y - H/2) along x), else empty.
+  /// The flow without cells where it is known (shear: gammadot (y - H/2) along x; a channel started
+  /// developed: the plasma's Poiseuille profile), else empty.
   const std::function<geometry::Vec3(const geometry::Vec3&)>& undisturbed_velocity() const {
     return undisturbed_;
   }

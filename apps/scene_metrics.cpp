@@ -225,6 +225,21 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     }
     m.emplace_back("rheology_records", r.records);
   }
+  if (!flow_rates_.empty() && s_.flow == "poiseuille" && s_.domain != "narrowing" && wall_dir_ >= 0) {
+    // The channel Reynolds number rho u H / mu: with the mean velocity measured over the last tenth of the
+    // run (cells slow the flow), and with the plasma's f H^2 / (12 mu) for the same body force.
+    const fluid::FluidOptions& fo = fluid_->options();
+    const double H = s_.size[wall_dir_], t1 = flow_rates_.back().first,
+                 from = t1 - 0.1 * (t1 - flow_rates_.front().first);
+    double area = H, q = 0, n = 0;
+    for (int d = 0; d < s_.dim; ++d)
+      if (d != 0 && d != wall_dir_) area *= s_.size[d];
+    for (const auto& [t, rate] : flow_rates_)
+      if (t >= from) q += rate, n += 1;
+    m.emplace_back("channel_reynolds", fo.density * q / n / area * H / fo.viscosity);
+    m.emplace_back("channel_reynolds_plasma",
+                   fo.density * fo.body_force[0] * H * H * H / (12 * fo.viscosity * fo.viscosity));
+  }
   if (!flow_rates_.empty()) {
     // The flow rate through mid-length once the flow has developed from rest (after 5 viscous times H^2 / nu
     // across the channel; the impulsive start overshoots in the first step): its largest and smallest value
@@ -283,6 +298,16 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
       m.emplace_back(name + "_lateral_offset_start", mg.offset_start);
       m.emplace_back(name + "_lateral_offset_final", mg.offset_final);
       m.emplace_back(name + "_time_to_centreline", mg.time_to_centreline);
+      // At a finite Reynolds number a body settles off the centre line (inertial migration): its offset and
+      // distance from the nearer wall over H averaged over the last tenth of the run, the drift left there,
+      // and when it came within 1 % of H of that offset for good.
+      const double H = s_.size[wall_dir_];
+      const solid::LateralEquilibrium eq = solid::lateral_equilibrium(
+          trackers_[b].centroid_track(), wall_dir_, s_.origin[wall_dir_] + 0.5 * H, 0.01 * H);
+      m.emplace_back(name + "_lateral_offset_equilibrium", eq.offset);
+      m.emplace_back(name + "_wall_distance_over_height", 0.5 - std::abs(eq.offset) / H);
+      m.emplace_back(name + "_lateral_drift_final", eq.drift);
+      m.emplace_back(name + "_lateral_settle_time", eq.settle_time);
     }
     if (s_.domain == "narrowing") {
       // Passage through the throat (paper Sec. 4.4): when the centroid crossed its start and its end.

@@ -607,6 +607,10 @@ SceneSettings SceneSettings::from_options(const std::string& default_name, bool 
                {[](const long long& v) { return v >= 2 && v <= 8; }, "2 <= p <= 8"})
       .text("flow", s.flow, "shear (moving walls), poiseuille (body force) or rest",
             {"shear", "poiseuille", "rest"})
+      .text("flow_start", s.flow_start,
+            "Channel flow's start: rest, or developed (the plasma's Poiseuille profile f y (H - y) / (2 mu) "
+            "between the walls of a rectangle or box, for a channel at a finite Reynolds number)",
+            {"rest", "developed"})
       .real("shear_rate", s.shear_rate, "Shear rate of the shear flow [1/s]", finite("[1/s]"))
       .real("final_time", s.final_time, "End time [s]", positive("[s]"))
       .real("dt", s.dt, "Time step [s]", positive("[s]"))
@@ -670,6 +674,16 @@ SceneSettings SceneSettings::from_options(const std::string& default_name, bool 
     if (s.periodic[d] && s.elements[d] < s.degree)
       t.bad("fluid_elements", std::to_string(s.elements[d]), ">= degree in a periodic direction");
   if (s.flow == "shear" && s.domain == "narrowing") t.bad("flow", "shear", "shear needs a rectangle or box");
+  if (s.flow_start == "developed") {
+    if (s.flow != "poiseuille") t.bad("flow_start", "developed", "only with -flow poiseuille");
+    if (s.domain == "narrowing")
+      t.bad("flow_start", "developed",
+            "a straight channel (-domain rectangle or box): the narrowing's is not known");
+    if (std::count(s.periodic.begin(), s.periodic.begin() + s.dim, false) != 1)
+      t.bad("flow_start", "developed", "walls in exactly one direction (-domain_periodic), a plane channel");
+    else if (!s.periodic[0])
+      t.bad("flow_start", "developed", "a channel periodic along x, its axis (-domain_periodic)");
+  }
   // The step count must be at least 1 and fit its int (-final_time 10 -dt 1e-12 wrapped to a negative count).
   if (!(s.dt <= s.final_time))
     t.bad("dt", option_value_text(s.dt),

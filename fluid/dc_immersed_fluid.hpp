@@ -50,6 +50,9 @@ class DcImmersedFluid final : public ImmersedFluid {
   std::vector<int> unknown_kinds() const override;
 
   void set_initial_velocity(const std::function<Vec3(const Vec3&)>& v0) override;
+  void project_initial_velocity(const std::function<Vec3(const Vec3&)>& v0) override {
+    set_initial_velocity(v0);  // (the space's interpolant is already its L2 projection)
+  }
   void setup() override {}
   StepStats step() override;
   double time() const override { return fluid_->time(); }

@@ -64,6 +64,9 @@ class FluidSolver final : public ImmersedFluid {
   /// control values are their Greville-point values, e.g. linear fields on affine meshes); pressure 0;
   /// velocity rate 0. Wall control values take the wall velocity.
   void set_initial_velocity(const std::function<Vec3(const Vec3&)>& v0) override;
+  void project_initial_velocity(const std::function<Vec3(const Vec3&)>& v0) override {
+    project_initial_state(v0, [](const Vec3&) { return Vec3(Vec3::Zero()); });
+  }
   /// Sets velocity and velocity rate to the L2 projections of v0 and vdot0 (optimal-order initial data; a
   /// rate consistent with the flow keeps generalized-alpha second order from the first step); pressure 0.
   /// Wall control values then take the wall velocity. Collective; solves mass-matrix systems with CG (prefix

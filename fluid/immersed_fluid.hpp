@@ -122,6 +122,11 @@ class ImmersedFluid {
   // --- State and its own time stepping (runs without cells) ---
   /// Sets the velocity from a function of position (the discretisation's interpolant); pressure 0, rate 0.
   virtual void set_initial_velocity(const std::function<Vec3(const Vec3&)>& v0) = 0;
+  /// Sets the velocity to the L2 projection of v0 onto the discretisation's space, which holds every field of
+  /// that space exactly (a channel's parabola on degree >= 2 elements, where the interpolant of
+  /// set_initial_velocity is exact only for linear fields); pressure 0, rate 0. Costs a mass-matrix assembly
+  /// and solve (a scalar matrix of the fluid's mesh).
+  virtual void project_initial_velocity(const std::function<Vec3(const Vec3&)>& v0) = 0;
   /// Sets up the fluid's own linear solver on the Jacobian of the current state, so every solver option has
   /// been read; optional (step() does it lazily). Call after setting the initial state.
   virtual void setup() = 0;

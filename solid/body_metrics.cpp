@@ -114,6 +114,33 @@ Migration lateral_migration(const std::vector<std::pair<double, Vec3>>& track, i
   return m;
 }
 
+LateralEquilibrium lateral_equilibrium(const std::vector<std::pair<double, Vec3>>& track, int dir, double mid,
+                                       double tolerance, double window) {
+  if (track.empty() || !(window > 0 && window <= 1))
+    throw std::invalid_argument("lateral_equilibrium: a non-empty track and a window in (0, 1]");
+  const double t0 = track.front().first, t1 = track.back().first, from = t1 - window * (t1 - t0);
+  // The offset's mean and least-squares slope over the window.
+  double n = 0, st = 0, sy = 0, stt = 0, sty = 0;
+  for (const auto& [t, c] : track)
+    if (t >= from) {
+      const double y = c[dir] - mid, tau = t - from;
+      n += 1, st += tau, sy += y, stt += tau * tau, sty += tau * y;
+    }
+  LateralEquilibrium e;
+  e.offset = sy / n;
+  const double var = n * stt - st * st;
+  e.drift = var > 0 ? (n * sty - st * sy) / var : 0.0;
+  // The last record outside the band, and the time of the record after it.
+  e.settle_time = 0;
+  for (std::size_t i = track.size(); i-- > 0;)
+    if (std::abs(track[i].second[dir] - mid - e.offset) > tolerance) {
+      e.settle_time =
+          i + 1 < track.size() ? track[i + 1].first - t0 : std::numeric_limits<double>::quiet_NaN();
+      break;
+    }
+  return e;
+}
+
 double mirror_asymmetry(const std::vector<Vec3>& curve, const Vec3& centre, int axis) {
   if (curve.size() < 3 || (axis != 0 && axis != 1))
     throw std::invalid_argument("mirror_asymmetry: at least 3 points, axis 0 or 1");

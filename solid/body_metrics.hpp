@@ -109,6 +109,17 @@ struct Migration {
 Migration lateral_migration(const std::vector<std::pair<double, geometry::Vec3>>& track, int dir, double mid,
                             double fraction = 0.1);
 
+/// Where a body settles across a channel at a finite Reynolds number (inertial migration, the
+/// Segre-Silberberg effect), from a centroid track: the offset from the centre line `mid` along `dir`
+/// averaged over the last `window` of the track's time, the lateral drift there (the least-squares slope of
+/// the offset, cm/s), and the time from the start after which the offset stays within `tolerance` (cm) of
+/// that final offset (NaN if the track ends outside it). Throws for an empty track or a window not in (0, 1].
+struct LateralEquilibrium {
+  double offset = 0, drift = 0, settle_time = 0;
+};
+LateralEquilibrium lateral_equilibrium(const std::vector<std::pair<double, geometry::Vec3>>& track, int dir,
+                                       double mid, double tolerance, double window = 0.1);
+
 /// How far a closed curve (points in order, e.g. a membrane's mid-line sampled around) is from its mirror
 /// image about the line through `centre` along direction `axis` (0: x, 1: y): the mean distance from each
 /// mirrored point to the nearest point of the curve, over the curve's mean distance from the centre. 0 for a

@@ -244,6 +244,8 @@ const std::vector<SceneCase> kEveryScene = {
       "-solid_nucleus_elements", "0,0", "-dt", "5e-4", "-final_time", "1e-3", "-output_every", "0"}},
     {"capsule_pair_shear.yaml",
      {"-fluid_elements", "32,32", "-fluid_degree", "2", "-final_time", "1e-3", "-output_every", "0"}},
+    {"inertial_migration.yaml",
+     {"-fluid_elements", "16,16", "-fluid_degree", "2", "-final_time", "1e-5", "-output_every", "0"}},
     {"ctc_rbc_narrowing.yaml",
      {"-fluid_elements", "96,32", "-fluid_degree", "2", "-dt", "5e-4", "-final_time", "5e-4", "-output_every",
       "0"}},

@@ -55,6 +55,7 @@ class FakeFluid final : public fluid::ImmersedFluid {
   }
 
   void set_initial_velocity(const std::function<Vec3(const Vec3&)>&) override {}
+  void project_initial_velocity(const std::function<Vec3(const Vec3&)>&) override {}
   void setup() override {}
   fluid::StepStats step() override { throw std::logic_error("FakeFluid: no steps of its own"); }
   double time() const override { return steps_ * opt_.dt; }

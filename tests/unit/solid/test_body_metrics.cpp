@@ -317,6 +317,29 @@ TEST(LateralMigration, OffsetsAndTheTimeToTheCentreLine) {
   EXPECT_TRUE(std::isnan(solid::lateral_migration(track, 1, 5e-4).time_to_centreline));
 }
 
+TEST(LateralMigration, EquilibriumOfAnOffsetThatRelaxesToAValueOffTheCentreLine) {
+  // y(t) = mid - 0.2 + 0.1 exp(-t / 0.1) over t in [0, 1] (1001 records): the offset settles at -0.2.
+  std::vector<std::pair<double, cellfsi::geometry::Vec3>> track;
+  const double mid = 0.5;
+  for (int k = 0; k <= 1000; ++k) {
+    const double t = 1e-3 * k;
+    track.emplace_back(t, cellfsi::geometry::Vec3(3 * t, mid - 0.2 + 0.1 * std::exp(-t / 0.1), 0));
+  }
+  const solid::LateralEquilibrium e = solid::lateral_equilibrium(track, 1, mid, 1e-3);
+  // Over the last tenth (t in [0.9, 1]) the offset is -0.2 + ~1e-5 and its slope -exp(-9.5) ~ -7.5e-5.
+  EXPECT_NEAR(e.offset, -0.2, 2e-5);
+  EXPECT_NEAR(e.drift, -std::exp(-9.5), 1e-5);
+  // Within 1e-3 of the final offset from 0.1 ln(0.1 / 1e-3) = 0.46 s on (to the record, and to the window
+  // mean).
+  EXPECT_NEAR(e.settle_time, 0.1 * std::log(100.0), 2e-3);
+  // A track that ends still moving by more than the tolerance per record never settled.
+  for (auto& [t, c] : track) c[1] = mid + 0.05 * t;
+  EXPECT_NEAR(solid::lateral_equilibrium(track, 1, mid, 1e-3, 0.5).drift, 0.05, 1e-12);
+  EXPECT_TRUE(std::isnan(solid::lateral_equilibrium(track, 1, mid, 1e-5).settle_time));
+  EXPECT_THROW(solid::lateral_equilibrium({}, 1, mid, 1e-3), std::invalid_argument);
+  EXPECT_THROW(solid::lateral_equilibrium(track, 1, mid, 1e-3, 0.0), std::invalid_argument);
+}
+
 TEST(MirrorAsymmetry, TellsAnAlignedEllipseAnInclinedOneAndAParachuteApart) {
   // 400 points of each curve around the origin.
   auto curve = [](auto point) {

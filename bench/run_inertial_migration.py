@@ -1,0 +1,167 @@
+#!/usr/bin/env python3
+"""The rigid limit of sorting by inertia (scenes/inertial_migration.yaml): a neutrally buoyant stiff disk of
+diameter W / 4 in a plane channel of width W, periodic with period W, starting 0.4 W above the lower wall, at
+several channel Reynolds numbers and meshes. Per run: where the disk settles (its centre's distance from the
+nearer wall over W, averaged over the last tenth of the run), the drift left there, when it came within 1 % of W
+of it, the Reynolds number measured with the disk, and the cost; against Pan & Glowinski (2002) at the same
+blockage and period. Writes a table and a figure of the trajectories (y / W against the distance travelled x / W).
+
+    python3 bench/run_inertial_migration.py                         # Re 13.91, 30.25, 106.1 on 32x32 and 64x64
+    python3 bench/run_inertial_migration.py --reynolds 13.91 --meshes 32x32 --jobs 2
+    python3 bench/run_inertial_migration.py --report                # only the table and figure, from --runs
+
+Options: --reynolds RE,... (the plasma's rho u H / mu with u = f H^2 / (12 mu); 13.91,30.25,106.1, the forcing of
+the three reference runs) --meshes NXxNY,... (32x32,64x64) --cfl C (1: dt = C h / u_max of the plasma, 3
+significant digits) --travel N (40: run until the plasma's mean velocity has gone N widths) --extra "OPTIONS"
+--jobs N (1) --runs DIR (out/inertial_migration) --build DIR (build) --table FILE
+(docs/validation/inertial_migration.md) --figure FILE (docs/figures/inertial_migration.png). A run whose
+summary.json says "completed" with the same options is kept. Exit code 3 when a run did not complete."""
+import argparse
+import concurrent.futures
+import csv
+import math
+import os
+import re
+import shlex
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import bench_common  # noqa: E402
+from bench_common import ROOT, check_kept_runs, fmt, provenance, run_one, summary_of, write_table  # noqa: E402
+
+TOOL = "run_inertial_migration.py"
+SCENE = "inertial_migration.yaml"
+# Pan & Glowinski, J. Comput. Phys. 181 (2002) 260-279: d / W = 0.25, the disk's centre settles at y / W from
+# the nearer wall, for Re = rho u W / mu with u the mean velocity with the particle (12.78, 27.73, 96.74; the
+# forcing of each gives 13.91, 30.25, 106.1 for the plasma alone). Read from the digitised reference of the
+# replication in github.com/fradevita/FEN (test/small_test/fsi/Pan_Eulerian) and, for 96.74, a second
+# digitisation in github.com/NaokiHori/EllipsesInFlows (0.27231). Inamuro, Maeba & Ogino, Int. J. Multiphase
+# Flow 26 (2000), Table 2: 0.2745 at Re about 13 (a rough estimate, as quoted by waLBerla's Segre-Silberberg
+# test).
+REFERENCES = [(12.78, 0.2732), (27.73, 0.2725), (96.74, 0.2722)]
+
+
+def scene_numbers():
+    """W [cm], density, viscosity and the disk's start height from the scene file ('key: value' lines)."""
+    text = open(os.path.join(ROOT, "scenes", SCENE)).read()
+
+    def value(key):
+        m = re.search(rf"^\s*{key}:\s*(\S+)", text, re.M)
+        if not m:
+            sys.exit(f"{TOOL}: scenes/{SCENE} has no '{key}:'")
+        return [float(v) for v in m.group(1).split(",")]
+
+    size, centre = value("domain_size"), value("center")
+    return size[1], value("density")[0], value("viscosity")[0], centre[1]
+
+
+def trajectory(path, width):
+    """(x / W travelled, distance from the lower wall / W) of the disk's centroid from metrics.csv."""
+    out = []
+    with open(path) as f:
+        for r in csv.DictReader(f):
+            out.append((float(r["disk_centroid_x"]) / width, float(r["disk_centroid_y"]) / width))
+    return out
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--reynolds", default="13.91,30.25,106.1")
+    p.add_argument("--meshes", default="32x32,64x64")
+    p.add_argument("--cfl", type=float, default=1.0)
+    p.add_argument("--travel", type=float, default=40.0)
+    p.add_argument("--extra", default="")
+    p.add_argument("--jobs", type=int, default=1)
+    p.add_argument("--runs", default=os.path.join(ROOT, "out", "inertial_migration"))
+    p.add_argument("--build", default=os.path.join(ROOT, "build"))
+    p.add_argument("--table", default=os.path.join(ROOT, "docs", "validation", "inertial_migration.md"))
+    p.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "inertial_migration.png"))
+    p.add_argument("--report", action="store_true")
+    args = p.parse_args()
+    try:
+        reynolds = [float(v) for v in args.reynolds.split(",")]
+        if not all(0 < r <= 1000 for r in reynolds):
+            raise ValueError
+    except ValueError:
+        sys.exit(f"{TOOL}: --reynolds '{args.reynolds}' is invalid: give plasma Reynolds numbers in (0, 1000], "
+                 "e.g. 13.91,30.25")
+    if not (0 < args.cfl <= 10):
+        sys.exit(f"{TOOL}: --cfl {args.cfl} is invalid: give 0 < C <= 10")
+    if not (0 < args.travel <= 1000):
+        sys.exit(f"{TOOL}: --travel {args.travel} is invalid: give 0 < N <= 1000 channel widths")
+    if args.jobs < 1:
+        sys.exit(f"{TOOL}: --jobs {args.jobs} is invalid: give 1 or more")
+    meshes = [bench_common.mesh_of(TOOL, m, "--meshes") for m in args.meshes.split(",")]
+    width, rho, mu, _ = scene_numbers()
+    extra = shlex.split(args.extra)
+    runs = []
+    for re_p in reynolds:
+        u = re_p * mu / (rho * width)  # the plasma's mean velocity
+        force = 12 * mu * u / width ** 2
+        for nx, ny in meshes:
+            dt = float(f"{args.cfl * width / ny / (1.5 * u):.3g}")
+            steps = math.ceil(args.travel * width / u / dt)
+            options = ["-fluid_elements", f"{nx},{ny}", "-fluid_body_force", f"{force:.6g},0", "-dt", repr(dt),
+                       "-final_time", f"{steps * dt:.10g}", "-output_every", "0"] + extra
+            runs.append((f"re{re_p:g}_{nx}x{ny}", re_p, nx, dt, options))
+    os.makedirs(args.runs, exist_ok=True)
+    check_kept_runs(TOOL, args, [(tag, None, o) for tag, _, _, _, o in runs])
+    if not args.report:
+        with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
+            for tag, status in pool.map(lambda r: run_one(args, r[0], SCENE, r[4]), runs):
+                print(f"{TOOL}: {tag}: {status}")
+
+    rows, curves, failed = [], [], False
+    for tag, re_p, nx, dt, _ in runs:
+        js = summary_of(args, tag)
+        metrics = os.path.join(args.runs, tag, "metrics.csv")
+        if js is None or not os.path.isfile(metrics):
+            rows.append(f"| {re_p:g} | {tag.split('_')[1]} | - | - | - | - | - | - | - | no run |")
+            failed = True
+            continue
+        curves.append((tag, trajectory(metrics, width)))
+        steps = js.get("steps") or 0
+        status = js.get("status", "?")
+        failed = failed or status != "completed"
+        settle = js.get("disk_lateral_settle_time")
+        u = re_p * mu / (rho * width)
+        rows.append(
+            f"| {re_p:g} | {tag.split('_')[1]} | {fmt(js.get('channel_reynolds'), '.2f')} | {dt:.3g} | "
+            f"{fmt(js.get('disk_wall_distance_over_height'), '.4f')} | "
+            f"{fmt(abs(js.get('disk_lateral_drift_final', float('nan'))) / u, '.1e')} | "
+            f"{fmt(settle * u / width if settle is not None else None, '.1f')} | "
+            f"{fmt(js.get('coupling_iterations', 0) / steps if steps else None, '.2f')} | "
+            f"{fmt(js.get('wall_time_s', 0) / steps if steps else None, '.3f')} | {status} |")
+    lines = ["| Re (plasma) | mesh | Re (measured) | dt (s) | y_eq / W | drift / u | settled after (W travelled) | "
+             "coupling it./step | s/step | status |",
+             "|---|---|---|---|---|---|---|---|---|---|"] + rows + [
+        "", "Reference (Pan & Glowinski 2002, d / W = 0.25, period W, start 0.4 W): " +
+        ", ".join(f"y_eq / W = {y} at Re {r}" for r, y in REFERENCES) +
+        "; Inamuro et al. (2000): 0.2745 at Re about 13.", "",
+        f"y_eq / W: the disk's centre from the nearer wall over W, mean over the last tenth of the run; drift / u: "
+        f"its lateral velocity there over the plasma's mean velocity u; settled: within 1 % of W of y_eq for good, "
+        f"as u times that time over W. Measured Re: rho u H / mu with the mean velocity over the last tenth. "
+        f"dt = {args.cfl} h / (1.5 u), to {args.travel:g} widths of travel at u"
+        f"{', extra options: ' + args.extra if args.extra else ''}.", "",
+        provenance(args, "python3 bench/run_inertial_migration.py " + " ".join(shlex.quote(a) for a in sys.argv[1:]))]
+    write_table(args.table, lines)
+    plt = bench_common.pyplot(TOOL)
+    if plt and curves:
+        fig, ax = plt.subplots(figsize=(6.4, 3.8))
+        for tag, traj in curves:
+            ax.plot([x - traj[0][0] for x, _ in traj], [y for _, y in traj], label=tag.replace("_", ", "))
+        for r, y in REFERENCES:
+            ax.axhline(y, color="0.5", lw=0.8, ls="--")
+        ax.text(0.99, REFERENCES[0][1], " Pan & Glowinski 2002", transform=ax.get_yaxis_transform(), ha="right",
+                va="bottom", fontsize=8, color="0.4")
+        ax.set_xlabel("x / W travelled")
+        ax.set_ylabel("y / W (from the lower wall)")
+        ax.set_title("Stiff disk (d = W / 4) in a plane channel: inertial migration")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        bench_common.save_figure(fig, args.figure, TOOL)
+    return 3 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
