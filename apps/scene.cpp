@@ -331,12 +331,11 @@ Scene::Scene(MPI_Comm comm, const SceneSettings& settings) : s_(settings) {
             "must be along x, the channel's axis");
     const double y0 = s_.origin[wd], H = s_.size[wd], c = f[0] / (2 * fo.viscosity);
     undisturbed_ = [=](const Vec3& x) { return Vec3(c * (x[wd] - y0) * (H - (x[wd] - y0)), 0, 0); };
-  }
-  if (s_.flow_start == "developed")
     fluid_->project_initial_velocity(undisturbed_);  // (the parabola exactly, on degree >= 2)
-  else
+  } else {
     fluid_->set_initial_velocity(undisturbed_ ? undisturbed_
                                               : [](const Vec3&) { return Vec3(Vec3::Zero()); });
+  }
 }
 
 void Scene::attach_bodies(std::vector<solid::SolidSolver*> bodies) {

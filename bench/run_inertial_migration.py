@@ -1,18 +1,26 @@
 #!/usr/bin/env python3
-"""The rigid limit of sorting by inertia (scenes/inertial_migration.yaml): a neutrally buoyant stiff disk of
-diameter W / 4 in a plane channel of width W, periodic with period W, starting 0.4 W above the lower wall, at
-several channel Reynolds numbers and meshes. Per run: where the disk settles (its centre's distance from the
-nearer wall over W, averaged over the last tenth of the run), the drift left there, when it came within 1 % of W
-of it, the Reynolds number measured with the disk, and the cost; against Pan & Glowinski (2002) at the same
-blockage and period. Writes a table and a figure of the trajectories (y / W against the distance travelled x / W).
+"""Sorting by inertia (scenes/inertial_migration.yaml): a neutrally buoyant stiff disk of diameter W / 4 in a
+plane channel of width W, periodic with period W, starting 0.4 W above the lower wall, at several channel Reynolds
+numbers and meshes (the rigid limit, against Pan & Glowinski 2002 at the same blockage and period); and capsules
+of the same size at capillary numbers Ca = mu gammadot_w a / (G h) (gammadot_w = 6 u / W, the plasma's wall shear
+rate; a = W / 8, h = a / 400, the paper's capsule's ratio). Per run: where the body settles (its centre's
+distance from the nearer wall over W, averaged over the last tenth of the run), the drift left there, when it came
+within 1 % of W of it, its largest deformation, the Reynolds number measured with it, and the cost. Writes a table
+and a figure: the trajectories (y / W against the distance travelled x / W) and, with capsules, y_eq / W against
+Ca.
 
     python3 bench/run_inertial_migration.py                         # Re 13.91, 30.25, 106.1 on 32x32 and 64x64
     python3 bench/run_inertial_migration.py --reynolds 13.91 --meshes 32x32 --jobs 2
+    python3 bench/run_inertial_migration.py --meshes 128x128 --starts 0.3,0.25 --travel 10 --cfl 2 --jobs 2
+    python3 bench/run_inertial_migration.py --ca 0,0.05,0.2 --reynolds 13.91,106.1 --jobs 2
     python3 bench/run_inertial_migration.py --report                # only the table and figure, from --runs
 
 Options: --reynolds RE,... (the plasma's rho u H / mu with u = f H^2 / (12 mu); 13.91,30.25,106.1, the forcing of
-the three reference runs) --meshes NXxNY,... (32x32,64x64) --cfl C (1: dt = C h / u_max of the plasma, 3
-significant digits) --travel N (40: run until the plasma's mean velocity has gone N widths) --extra "OPTIONS"
+the three reference runs) --meshes NXxNY,... (32x32,64x64) --cfl C (2: dt = C h / u_max of the plasma, 3
+significant digits; 1 moves the position by 4e-4 W) --travel N (30: run until the plasma's mean velocity has gone
+N widths) --starts Y,... (0.4:
+the disk's start, its centre's height over W; two starts on either side of the equilibrium bracket it in a short
+run) --ca CA,... (0: the stiff disk; above 0, capsules at those capillary numbers) --extra "OPTIONS"
 --jobs N (1) --runs DIR (out/inertial_migration) --build DIR (build) --table FILE
 (docs/validation/inertial_migration.md) --figure FILE (docs/figures/inertial_migration.png). A run whose
 summary.json says "completed" with the same options is kept. Exit code 3 when a run did not complete."""
@@ -68,8 +76,10 @@ def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--reynolds", default="13.91,30.25,106.1")
     p.add_argument("--meshes", default="32x32,64x64")
-    p.add_argument("--cfl", type=float, default=1.0)
-    p.add_argument("--travel", type=float, default=40.0)
+    p.add_argument("--cfl", type=float, default=2.0)
+    p.add_argument("--travel", type=float, default=30.0)
+    p.add_argument("--starts", default="0.4")
+    p.add_argument("--ca", default="0")
     p.add_argument("--extra", default="")
     p.add_argument("--jobs", type=int, default=1)
     p.add_argument("--runs", default=os.path.join(ROOT, "out", "inertial_migration"))
@@ -91,74 +101,136 @@ def main():
         sys.exit(f"{TOOL}: --travel {args.travel} is invalid: give 0 < N <= 1000 channel widths")
     if args.jobs < 1:
         sys.exit(f"{TOOL}: --jobs {args.jobs} is invalid: give 1 or more")
+    try:
+        starts = [float(v) for v in args.starts.split(",")]
+        if not all(0.15 < y < 0.85 for y in starts):
+            raise ValueError
+    except ValueError:
+        sys.exit(f"{TOOL}: --starts '{args.starts}' is invalid: give heights over W in (0.15, 0.85), e.g. 0.3,0.25 "
+                 "(the disk of diameter W / 4 must clear the walls)")
+    try:
+        cas = [float(v) for v in args.ca.split(",")]
+        if not all(0 <= c <= 10 for c in cas):
+            raise ValueError
+    except ValueError:
+        sys.exit(f"{TOOL}: --ca '{args.ca}' is invalid: give capillary numbers in [0, 10] (0: the stiff disk), "
+                 "e.g. 0,0.05,0.2")
     meshes = [bench_common.mesh_of(TOOL, m, "--meshes") for m in args.meshes.split(",")]
-    width, rho, mu, _ = scene_numbers()
+    width, rho, mu, x0 = scene_numbers()
     extra = shlex.split(args.extra)
     runs = []
     for re_p in reynolds:
         u = re_p * mu / (rho * width)  # the plasma's mean velocity
         force = 12 * mu * u / width ** 2
-        for nx, ny in meshes:
+        for (nx, ny), y0, ca in ((m, y, c) for c in cas for m in meshes for y in starts):
             dt = float(f"{args.cfl * width / ny / (1.5 * u):.3g}")
             steps = math.ceil(args.travel * width / u / dt)
             options = ["-fluid_elements", f"{nx},{ny}", "-fluid_body_force", f"{force:.6g},0", "-dt", repr(dt),
-                       "-final_time", f"{steps * dt:.10g}", "-output_every", "0"] + extra
-            runs.append((f"re{re_p:g}_{nx}x{ny}", re_p, nx, dt, options))
+                       "-final_time", f"{steps * dt:.10g}", "-output_every", "0", "-solid_disk_center",
+                       f"{x0:g},{y0 * width:.6g}"]
+            if ca > 0:
+                # A capsule: its membrane's G from Ca = mu gammadot_w a / (G h).
+                a, h = width / 8, width / 3200
+                options += ["-solid_disk_shape", "hollow_ellipse", "-solid_disk_thickness", f"{h:.6g}",
+                            "-solid_disk_elements", "1,0", "-solid_disk_shear_modulus",
+                            f"{mu * 6 * u / width * a / (ca * h):.6g}"]
+            tag = f"re{re_p:g}_{nx}x{ny}" + (f"_y{y0:g}" if y0 != 0.4 else "") + (f"_ca{ca:g}" if ca > 0 else "")
+            runs.append((tag, re_p, nx, dt, y0, ca, options + extra))
     os.makedirs(args.runs, exist_ok=True)
-    check_kept_runs(TOOL, args, [(tag, None, o) for tag, _, _, _, o in runs])
+    check_kept_runs(TOOL, args, [(tag, None, o) for tag, _, _, _, _, _, o in runs])
     if not args.report:
         with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
-            for tag, status in pool.map(lambda r: run_one(args, r[0], SCENE, r[4]), runs):
+            for tag, status in pool.map(lambda r: run_one(args, r[0], SCENE, r[6]), runs):
                 print(f"{TOOL}: {tag}: {status}")
 
-    rows, curves, failed = [], [], False
-    for tag, re_p, nx, dt, _ in runs:
+    rows, curves, points, ends, failed = [], [], [], [], False
+    for tag, re_p, nx, dt, y0, ca, _ in runs:
+        mesh = tag.split("_")[1]
+        body = f"capsule Ca {ca:g}" if ca > 0 else "stiff disk"
         js = summary_of(args, tag)
         metrics = os.path.join(args.runs, tag, "metrics.csv")
         if js is None or not os.path.isfile(metrics):
-            rows.append(f"| {re_p:g} | {tag.split('_')[1]} | - | - | - | - | - | - | - | no run |")
+            rows.append(f"| {re_p:g} | {body} | {mesh} | {y0:g} | - | - | - | - | - | - | - | - | no run |")
             failed = True
             continue
         curves.append((tag, trajectory(metrics, width)))
         steps = js.get("steps") or 0
         status = js.get("status", "?")
         failed = failed or status != "completed"
+        u = re_p * mu / (rho * width)  # this run's plasma mean velocity
         settle = js.get("disk_lateral_settle_time")
-        u = re_p * mu / (rho * width)
+        # The drift's sign away from the nearer wall: the offset from the centre line grows toward the wall.
+        offset = js.get("disk_lateral_offset_equilibrium") or 0.0
+        away = -1.0 if offset > 0 else 1.0
+        drift = js.get("disk_lateral_drift_final")
+        drift_u = away * drift / u if drift is not None else None
+        # Settled: within 1 % of W for good and drifting less than 2e-4 W per width travelled.
+        settled = settle * u / width if settle is not None and drift_u is not None and abs(drift_u) <= 2e-4 else None
+        if status == "completed":
+            points.append((re_p, mesh, ca, js.get("disk_wall_distance_over_height")))
+            ends.append((re_p, mesh, ca, js.get("disk_wall_distance_over_height"), drift_u))
         rows.append(
-            f"| {re_p:g} | {tag.split('_')[1]} | {fmt(js.get('channel_reynolds'), '.2f')} | {dt:.3g} | "
-            f"{fmt(js.get('disk_wall_distance_over_height'), '.4f')} | "
-            f"{fmt(abs(js.get('disk_lateral_drift_final', float('nan'))) / u, '.1e')} | "
-            f"{fmt(settle * u / width if settle is not None else None, '.1f')} | "
+            f"| {re_p:g} | {body} | {mesh} | {y0:g} | {fmt(js.get('channel_reynolds'), '.2f')} | {dt:.3g} | "
+            f"{fmt(js.get('disk_wall_distance_over_height'), '.4f')} | {fmt(drift_u, '.1e')} | "
+            f"{fmt(settled, '.1f') if settled is not None else 'drifting'} | "
+            f"{fmt(js.get('disk_max_anisotropy'), '.3f')} | "
             f"{fmt(js.get('coupling_iterations', 0) / steps if steps else None, '.2f')} | "
             f"{fmt(js.get('wall_time_s', 0) / steps if steps else None, '.3f')} | {status} |")
-    lines = ["| Re (plasma) | mesh | Re (measured) | dt (s) | y_eq / W | drift / u | settled after (W travelled) | "
-             "coupling it./step | s/step | status |",
-             "|---|---|---|---|---|---|---|---|---|---|"] + rows + [
+    # Runs of one case from both sides of the equilibrium, still drifting toward it: where the drift,
+    # interpolated linearly in y, vanishes.
+    brackets = []
+    for case in sorted({e[:3] for e in ends}):
+        pts = sorted((y, d) for *c, y, d in ends if tuple(c) == case and y is not None and d is not None)
+        for (y0, d0), (y1, d1) in zip(pts, pts[1:]):
+            if d0 > 0 > d1:
+                re_p, mesh, ca = case
+                brackets.append(f"Re {re_p:g} (plasma), {mesh}, {'Ca ' + format(ca, 'g') if ca else 'stiff disk'}: "
+                                f"between {y0:.4f} and {y1:.4f}, zero drift at {y0 + (y1 - y0) * d0 / (d0 - d1):.4f}")
+    lines = ["| Re (plasma) | body | mesh | start y / W | Re (measured) | dt (s) | y_eq / W | drift / u | "
+             "settled after (W travelled) | largest anisotropy | coupling it./step | s/step | status |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"] + rows + [
         "", "Reference (Pan & Glowinski 2002, d / W = 0.25, period W, start 0.4 W): " +
         ", ".join(f"y_eq / W = {y} at Re {r}" for r, y in REFERENCES) +
-        "; Inamuro et al. (2000): 0.2745 at Re about 13.", "",
+        "; Inamuro et al. (2000): 0.2745 at Re about 13.", ""] + (
+        ["Bracketed (y_eq / W): " + "; ".join(brackets) + ".", ""] if brackets else []) + [
         f"y_eq / W: the disk's centre from the nearer wall over W, mean over the last tenth of the run; drift / u: "
-        f"its lateral velocity there over the plasma's mean velocity u; settled: within 1 % of W of y_eq for good, "
-        f"as u times that time over W. Measured Re: rho u H / mu with the mean velocity over the last tenth. "
+        f"its lateral velocity there over the plasma's mean velocity u (signed: > 0 away from the nearer wall; a "
+        f"run that ends still drifting brackets the equilibrium with one from the other side); settled: within 1 % "
+        f"of W of y_eq for good and drifting by less than 2e-4 W per width travelled, "
+        f"as u times that time over W. Largest anisotropy: the body's largest / smallest second moment - 1 over the "
+        f"run. Measured Re: rho u H / mu with the mean velocity over the last tenth. "
         f"dt = {args.cfl} h / (1.5 u), to {args.travel:g} widths of travel at u"
         f"{', extra options: ' + args.extra if args.extra else ''}.", "",
         provenance(args, "python3 bench/run_inertial_migration.py " + " ".join(shlex.quote(a) for a in sys.argv[1:]))]
     write_table(args.table, lines)
     plt = bench_common.pyplot(TOOL)
     if plt and curves:
-        fig, ax = plt.subplots(figsize=(6.4, 3.8))
-        for tag, traj in curves:
-            ax.plot([x - traj[0][0] for x, _ in traj], [y for _, y in traj], label=tag.replace("_", ", "))
+        with_ca = len({c for _, _, c, _ in points}) > 1
+        fig, axes = plt.subplots(1, 2 if with_ca else 1, figsize=(11 if with_ca else 6.4, 3.8), squeeze=False)
+        ax = axes[0][0]
+        colours = plt.cm.tab20.colors if len(curves) > 10 else plt.cm.tab10.colors
+        for k, (tag, traj) in enumerate(curves):
+            ax.plot([x - traj[0][0] for x, _ in traj], [y for _, y in traj], label=tag.replace("_", ", "),
+                    color=colours[k % len(colours)])
         for r, y in REFERENCES:
             ax.axhline(y, color="0.5", lw=0.8, ls="--")
         ax.text(0.99, REFERENCES[0][1], " Pan & Glowinski 2002", transform=ax.get_yaxis_transform(), ha="right",
                 va="bottom", fontsize=8, color="0.4")
         ax.set_xlabel("x / W travelled")
         ax.set_ylabel("y / W (from the lower wall)")
-        ax.set_title("Stiff disk (d = W / 4) in a plane channel: inertial migration")
+        ax.set_title("Inertial migration in a plane channel (d = W / 4)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
+        if with_ca:
+            bx = axes[0][1]
+            for re_p, mesh in sorted({(r, m) for r, m, _, _ in points}):
+                pts = sorted((c, y) for r, m, c, y in points if (r, m) == (re_p, mesh) and y is not None)
+                bx.plot([c for c, _ in pts], [y for _, y in pts], "o-", label=f"Re {re_p:g} (plasma), {mesh}")
+            bx.set_xlabel("Ca = mu gammadot_w a / (G h)  (0: the stiff disk)")
+            bx.set_ylabel("y_eq / W (from the nearer wall)")
+            bx.set_title("Where it settles, against Ca")
+            bx.grid(alpha=0.3)
+            bx.legend(fontsize=8)
         bench_common.save_figure(fig, args.figure, TOOL)
     return 3 if failed else 0
 
