@@ -68,8 +68,7 @@ struct SceneSettings {
   std::array<int, 3> elements{64, 32, 1};
   int degree = 3;
   std::string flow = "shear";  // shear | poiseuille | rest
-  std::string flow_start =
-      "rest";                  // poiseuille: rest | developed (the plasma's profile in a straight channel)
+  std::string flow_start = "rest";  // rest | developed (poiseuille in a straight channel)
   double shear_rate = 70.0;    // [1/s]
   double final_time = 0.05;    // [s]
   int output_every = 0;        // write fluid.pvd every N steps (0: never)
