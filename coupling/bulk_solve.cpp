@@ -29,16 +29,27 @@ bool BulkSolve::may_assemble(bool first_iteration) const {
   return first_iteration || (c_.options.refresh_lag > 0 && solves_since_refresh_ + 1 >= c_.options.refresh_lag);
 }
 
+bool BulkSolve::rebuild() {
+  if (!built_) return false;
+  built_ = false;
+  resplit_ = true;  // the next solve refreshes the Jacobian
+  return true;
+}
+
 std::optional<FallBack> BulkSolve::prepare(Vec X, bool, SolveCounts& counts) {
   if (built_) return std::nullopt;
   // Once per run, at the first iterate (the initial state: the undisturbed flow, uniform along x), as
-  // cellfsi_fourier's bulk solver; counted as the bulk's factorisation (its per-wave-number LUs).
+  // cellfsi_fourier's bulk solver; counted as the bulk's factorisation (its per-wave-number LUs). Again after
+  // a failed solve (rebuild()), at the flow then: its average along x (see FourierSolve::build_bulk), the
+  // cells' disturbance a deviation that the first build's check of the mesh does not apply to.
   EventScope ev(coupling_events().factor);
   std::optional<fluid::ImmersedFluid::OwnBulkInverse> inv = c_.fluid.bulk_inverse(X);
   if (!inv) throw std::logic_error("cellfsi_bulk: the fluid gave no bulk inverse");
   ++counts.bulk_factorizations;
   built_ = true;
-  if (!(inv->deviation <= c_.options.uniformity)) {
+  if (++builds_ > 1)
+    inv->description += " (built again, build " + std::to_string(builds_) + ", at the flow averaged along x)";
+  else if (!(inv->deviation <= c_.options.uniformity)) {
     char amount[32];
     std::snprintf(amount, sizeof amount, "%.2e", inv->deviation);
     throw std::invalid_argument(std::string("-coupling_pc_type cellfsi_bulk: the fluid operator without the cells "

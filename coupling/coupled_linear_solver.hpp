@@ -43,7 +43,7 @@ struct SolveCounts {
   // LU factorisations made in steps: of the whole Jacobian (a PETSc PC's rebuild), of cellfsi_band's kept
   // part and its Schur complement, of cellfsi_fourier's region.
   int factorizations = 0;
-  // The bulk operator's banded LUs (cellfsi_fourier, cellfsi_bulk), once per run.
+  // The bulk operator's banded LUs (cellfsi_fourier, cellfsi_bulk), once per run and after a failed solve.
   int bulk_factorizations = 0;
   int refreshes = 0;       // re-assemblies of the Jacobian with a new preconditioner set-up (cellfsi types)
 };
@@ -65,7 +65,9 @@ class CoupledLinearSolver {
   /// cells leave its region); any iteration of a PETSc PC (the Jacobian at every solve).
   bool may_assemble(bool first_iteration) const { return path_->may_assemble(first_iteration); }
   /// dX = K_MC(X)^{-1} F. first_iteration: the step's first. Returns the KSP's iterations; throws if the
-  /// solve failed (std::invalid_argument for bad input found at the first solve).
+  /// solve failed (std::invalid_argument for bad input found at the first solve). A failed solve of a path
+  /// with a bulk operator built once (cellfsi_fourier, cellfsi_bulk) is repeated once with the operator built
+  /// again from X (SolvePath::rebuild), and throws if it fails again.
   int solve(Vec X, Vec F, Vec dX, bool first_iteration, SolveCounts& counts);
 
   /// The PC type in use (it can change in the first step, see fell_back()).

@@ -62,6 +62,10 @@ class SolvePath {
   virtual std::optional<FallBack> prepare(Vec X, bool first_iteration, SolveCounts& counts) = 0;
   /// dX = K_MC(X)^{-1} F, after prepare. Returns the KSP's iterations.
   virtual int solve(Vec X, Vec F, Vec dX, bool first_iteration, SolveCounts& counts) = 0;
+  /// After a failed solve: whether the path built something once from an earlier state (a bulk operator)
+  /// that the next prepare() and solve() will build again from the state then, with the Jacobian refreshed.
+  /// False if it has nothing to rebuild.
+  virtual bool rebuild() { return false; }
   /// See CoupledLinearSolver::corrected_unknowns.
   virtual PetscInt corrected_unknowns() const { return 0; }
 
@@ -104,9 +108,10 @@ class FourierSolve final : public CellfsiSolve {
   bool may_assemble(bool first_iteration) const override;
   std::optional<FallBack> prepare(Vec X, bool first_iteration, SolveCounts& counts) override;
   PetscInt corrected_unknowns() const override;
+  bool rebuild() override;  // the bulk operator (not with the bulk stencil: the Jacobian was released)
 
  private:
-  std::optional<FallBack> build_bulk(Vec X);  // once
+  std::optional<FallBack> build_bulk(Vec X);  // once, and again after rebuild()
   void refresh_jacobian(Vec X) override;      // the region re-assembled, the rest kept
   void refresh_near_operator(Vec X);          // bulk_stencil: the near rows re-assembled
   /// bulk_stencil: the matrix of the rows of nodes on region_'s elements (the others hold one diagonal
@@ -117,6 +122,7 @@ class FourierSolve final : public CellfsiSolve {
   bool refresh_factorizes() const override;           // the region's LU, unless its PC type says otherwise
   std::shared_ptr<solvers::FourierBulkSolver> bulk_;  // made by start(), built by the first prepare()
   bool bulk_built_ = false;
+  int bulk_builds_ = 0;
   std::vector<char> region_;                // elements re-assembled at every refresh
   Mat J_fixed_ = nullptr;                   // the Jacobian of the other elements
   Mat near_ = nullptr, near_op_ = nullptr;  // bulk_stencil: the near rows, and the operator
@@ -152,12 +158,14 @@ class BulkSolve final : public CellfsiSolve {
   void start(const SolverSituation& s, bool seq_baij) override;
   bool may_assemble(bool first_iteration) const override;
   std::optional<FallBack> prepare(Vec X, bool first_iteration, SolveCounts& counts) override;
+  bool rebuild() override;  // the fluid's bulk inverse (and its stencil)
 
  private:
   void refresh_jacobian(Vec X) override;
   Mat operator_matrix() const override { return op_ ? op_ : c_.fluid.jacobian_matrix(); }
   bool refresh_factorizes() const override { return false; }
   bool built_ = false;
+  int builds_ = 0;
   Mat op_ = nullptr;  // bulk_stencil: the fluid's operator (its own; not destroyed here)
 };
 

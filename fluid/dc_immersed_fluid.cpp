@@ -327,9 +327,12 @@ std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X
   if (!has_bulk_inverse()) return std::nullopt;
   // The operator without the cells and without the pressure pin (not translation-invariant); the solver pins
   // wave 0's constant pressure itself.
+  // Of the flow averaged along the periodic directions: the initial state, uniform along them, stays as it
+  // is; a later one (a rebuild after a failed solve, coupling/bulk_solve.cpp) gives the operator of its mean
+  // flow, not of the cells' disturbance where the stencil's rows are taken (x index 0).
   fluid_->gather(X, work_);
   Mat J = fluid_->matrix();
-  fluid_->step_tangent(work_, J, false, false);
+  fluid_->bulk_tangent_of_mean(work_, J);
   bulk_ = std::make_unique<dc::DcFourierSolver>(*space_, comm_, fluid_->petsc_numbering());
   bulk_->build(J, true);
   OwnBulkInverse inv;

@@ -1066,6 +1066,16 @@ void DivConformingFluid::step_tangent(const std::vector<double>& U, Mat J, bool 
   zero_fixed_rows(J, pin_pressure, 1.0);
 }
 
+void DivConformingFluid::bulk_tangent_of_mean(const std::vector<double>& U, Mat J) {
+  const bool started = !Un_.empty();
+  std::vector<double> u = U, un = started ? Un_ : U_, rate = started ? Udotn_ : Udot_;
+  for (std::vector<double>* v : {&u, &un, &rate}) space_.average_periodic(*v);
+  Levels lv = step_levels(u, un, rate);
+  lv.viscosity_field = false;
+  assemble(lv, F_, J, false);
+  zero_fixed_rows(J, false, 1.0);
+}
+
 void DivConformingFluid::step_tangent_from(Mat bulk, const std::vector<double>& U, Mat J, bool pin_pressure) {
   const Levels lv = iterate_levels(U);
   CELLFSI_PETSC(MatCopy(bulk, J, SAME_NONZERO_PATTERN));

@@ -206,6 +206,10 @@ class DivConformingFluid {
   /// pin_pressure false: the pressure pin's row is left as assembled (a translation-invariant operator for
   /// DcFourierSolver::build).
   void step_tangent(const std::vector<double>& U, Mat J, bool with_immersed = true, bool pin_pressure = true);
+  /// step_tangent(U, J, false, false) with U and the step's start state (its velocity and rate) averaged
+  /// along the periodic directions (DivConformingSpace::average_periodic): the bulk operator of the mean
+  /// flow, translation-invariant whatever the cells did to the flow (DcFourierSolver::build). Collective.
+  void bulk_tangent_of_mean(const std::vector<double>& U, Mat J);
   /// J := bulk (a matrix of matrix()'s pattern holding step_tangent(..., with_immersed = false)) plus the
   /// immersed points' tangent at U, the fixed rows unit rows: the tangent with its bulk part kept from
   /// another state (the coupling loop's Jacobian: the bulk changes with the flow only through terms of the

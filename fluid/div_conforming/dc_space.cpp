@@ -85,6 +85,32 @@ Index3 DivConformingSpace::multi_index(int c, int global) const {
   return {local % n0, (local / n0) % n1, local / (n0 * n1)};
 }
 
+void DivConformingSpace::average_periodic(std::vector<double>& U) const {
+  if (static_cast<int>(U.size()) != n_dofs())
+    throw std::invalid_argument("average_periodic: " + std::to_string(U.size()) +
+                                " coefficients for a space of " + std::to_string(n_dofs()));
+  for (int c = 0; c <= dim_; ++c) {
+    const std::array<int, 3> n{n_basis(c, 0), n_basis(c, 1), n_basis(c, 2)};
+    std::array<int, 3> span{1, 1, 1};  // the functions averaged together per direction
+    for (int d = 0; d < dim_; ++d)
+      if (periodic_[d]) span[d] = n[d];
+    const double count = static_cast<double>(span[0]) * span[1] * span[2];
+    // Each class of functions (the same index in the non-periodic directions): its first member's index,
+    // stepping by the members of a period.
+    for (int b2 = 0; b2 < n[2]; b2 += (span[2] == 1 ? 1 : n[2]))
+      for (int b1 = 0; b1 < n[1]; b1 += (span[1] == 1 ? 1 : n[1]))
+        for (int b0 = 0; b0 < n[0]; b0 += (span[0] == 1 ? 1 : n[0])) {
+          double sum = 0;
+          for (int i2 = 0; i2 < span[2]; ++i2)
+            for (int i1 = 0; i1 < span[1]; ++i1)
+              for (int i0 = 0; i0 < span[0]; ++i0) sum += U[index(c, {b0 + i0, b1 + i1, b2 + i2})];
+          for (int i2 = 0; i2 < span[2]; ++i2)
+            for (int i1 = 0; i1 < span[1]; ++i1)
+              for (int i0 = 0; i0 < span[0]; ++i0) U[index(c, {b0 + i0, b1 + i1, b2 + i2})] = sum / count;
+        }
+  }
+}
+
 std::vector<int> DivConformingSpace::wall_normal_dofs() const {
   std::vector<int> dofs;
   for (int d = 0; d < dim_; ++d) {

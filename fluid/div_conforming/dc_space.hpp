@@ -90,6 +90,10 @@ class DivConformingSpace {
     return offset_[c] + i[0] + n_basis(c, 0) * (i[1] + n_basis(c, 1) * i[2]);
   }
   Index3 multi_index(int c, int global) const;
+  /// Replaces the coefficients U (natural numbering, n_dofs()) of each component by their mean over the
+  /// periodic directions, line by line across: the field averaged along those directions (their functions
+  /// are translates of one another on uniform elements, each of the same integral).
+  void average_periodic(std::vector<double>& U) const;
 
   /// The unknowns fixed strongly: the normal velocity on every wall (component d at the first and last
   /// function along a non-periodic direction d, the only ones nonzero there).
