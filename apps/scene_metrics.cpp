@@ -20,6 +20,16 @@ namespace cellfsi::app {
 
 using geometry::Vec3;
 
+namespace {
+
+/// The plasma's mean velocity f H^2 / (12 mu) in a plane channel of height H driven by the body force along
+/// x.
+double plasma_mean_velocity(const fluid::FluidOptions& fo, double H) {
+  return fo.body_force[0] * H * H / (12 * fo.viscosity);
+}
+
+}  // namespace
+
 void Scene::record_suspension() {
   solid::SuspensionRecord r;
   r.time = fluid_->time();
@@ -211,7 +221,7 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
   if (suspension_on_) {
     // The suspension's rheology over the window (paper Sec. 4.3).
     const fluid::FluidOptions& fo = fluid_->options();
-    const double H = s_.size[1], plasma_mean = fo.body_force[0] * H * H / (12 * fo.viscosity);
+    const double plasma_mean = plasma_mean_velocity(fo, s_.size[1]);
     const solid::SuspensionRheology r =
         solid::suspension_rheology(suspension_, s_.size[0] * s_.size[1], plasma_mean, from);
     if (r.records >= 2) {
@@ -237,8 +247,7 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     for (const auto& [t, rate] : flow_rates_)
       if (t >= from) q += rate, n += 1;
     m.emplace_back("channel_reynolds", fo.density * q / n / area * H / fo.viscosity);
-    m.emplace_back("channel_reynolds_plasma",
-                   fo.density * fo.body_force[0] * H * H * H / (12 * fo.viscosity * fo.viscosity));
+    m.emplace_back("channel_reynolds_plasma", fo.density * plasma_mean_velocity(fo, H) * H / fo.viscosity);
   }
   if (!flow_rates_.empty()) {
     // The flow rate through mid-length once the flow has developed from rest (after 5 viscous times H^2 / nu
@@ -487,7 +496,7 @@ std::vector<std::pair<std::string, double>> Scene::flow_metrics() {
     if (s_.domain == "rectangle" && s_.flow == "poiseuille" && wall_dir_ == 1) {
       // Plane Poiseuille: u_max = f H^2 / (8 mu), mean f H^2 / (12 mu) (f a force per volume).
       const double H = s_.size[1], f = fo.body_force[0];
-      const double exact = f * H * H / (8 * fo.viscosity), plasma_mean = f * H * H / (12 * fo.viscosity);
+      const double exact = f * H * H / (8 * fo.viscosity), plasma_mean = plasma_mean_velocity(fo, H);
       if (bodies_.empty()) {
         m.emplace_back("max_velocity_exact", exact);
         m.emplace_back("max_velocity_rel_error", std::abs(umax - exact) / std::abs(exact));
