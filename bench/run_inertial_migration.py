@@ -183,10 +183,15 @@ def main():
         js = summary_of(args, tag)
         metrics = os.path.join(args.runs, tag, "metrics.csv")
         if js is None or not os.path.isfile(metrics):
-            rows.append(f"| {re_p:g} | {body} | {mesh} | {y0:g} | - | - | - | - | - | - | - | - | no run |")
+            rows.append(f"| {re_p:g} | {body} | {mesh} | {y0:g} | - | - | - | - | - | - | - | - | - | no run |")
             failed = True
             continue
-        curves.append((tag, trajectory(metrics, width)))
+        traj = trajectory(metrics, width)
+        curves.append((tag, traj))
+        # Where it went over the second half of the run (a body that tumbles wanders about a band): the distance
+        # from the nearer wall over W, its mean and range.
+        half = [min(y, 1 - y) for _, y in traj[len(traj) // 2:]]
+        band = f"{sum(half) / len(half):.3f} ({min(half):.3f}-{max(half):.3f})" if half else "-"
         steps = js.get("steps") or 0
         status = js.get("status", "?")
         failed = failed or status != "completed"
@@ -205,7 +210,7 @@ def main():
         rows.append(
             f"| {re_p:g} | {body} | {mesh} | {y0:g} | {fmt(js.get('channel_reynolds'), '.2f')} | {dt:.3g} | "
             f"{fmt(js.get('disk_wall_distance_over_height'), '.4f')} | {fmt(drift_u, '.1e')} | "
-            f"{fmt(settled, '.1f') if settled is not None else 'drifting'} | "
+            f"{fmt(settled, '.1f') if settled is not None else 'drifting'} | {band} | "
             f"{fmt(js.get('disk_max_anisotropy'), '.3f')} | "
             f"{fmt(js.get('coupling_iterations', 0) / steps if steps else None, '.2f')} | "
             f"{fmt(js.get('wall_time_s', 0) / steps if steps else None, '.3f')} | {status} |")
@@ -229,8 +234,9 @@ def main():
             separations.append(f"Re {re_p:g}, {mesh}, Ca {ca:g}: {parts}, apart "
                                f"{max(settled.values()) - min(settled.values()):.4f}")
     lines = ["| Re (plasma) | body | mesh | start y / W | Re (measured) | dt (s) | y_eq / W | drift / u | "
-             "settled after (W travelled) | largest anisotropy | coupling it./step | s/step | status |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"] + rows + [
+             "settled after (W travelled) | second half: mean (range) | largest anisotropy | coupling it./step | "
+             "s/step | status |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"] + rows + [
         "", "Reference (Pan & Glowinski 2002, d / W = 0.25, period W, start 0.4 W): " +
         ", ".join(f"y_eq / W = {y} at Re {r}" for r, y in REFERENCES) +
         "; Inamuro et al. (2000): 0.2745 at Re about 13.", ""] + (
@@ -243,6 +249,8 @@ def main():
         f"of W of y_eq for good and drifting by less than 2e-4 W per width travelled, "
         f"as u times that time over W (one width of travel takes " +
         ", ".join(f"{width / (r * mu / (rho * width)) * 1e6:.3g} us at Re {r:g}" for r in reynolds) + "). "
+        f"Second half: the distance from the nearer wall over W over the run's second half, its mean and range "
+        f"(a body that tumbles wanders about a band). "
         f"Largest anisotropy: the body's largest / smallest second moment - 1 over the run" +
         (" (a red cell's undeformed section alone gives 15.5)" if "rbc" in cells else "") + ". "
         f"Measured Re: rho u H / mu with the mean velocity over the last tenth. "
