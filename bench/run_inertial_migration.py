@@ -278,14 +278,20 @@ def main():
         ax.legend(fontsize=8)
         if with_ca:
             bx = axes[0][1]
+            # Capillary numbers over more than a decade on a log axis, where the stiff disk (Ca 0) has no place.
+            positive = [c for _, _, c, _, _ in points if c > 0]
+            log_ca = bool(positive) and max(positive) >= 20 * min(positive)
             for kind in CELLS:
                 for re_p, mesh in sorted({(r, m) for r, m, _, k, _ in points if k == kind}):
-                    # The stiff disk (Ca 0) starts each curve.
+                    # The stiff disk (Ca 0) starts each curve on a linear axis.
                     pts = sorted((c, y) for r, m, c, k, y in points
-                                 if (r, m) == (re_p, mesh) and k in (kind, "disk") and y is not None)
+                                 if (r, m) == (re_p, mesh) and (k == kind or (k == "disk" and not log_ca))
+                                 and y is not None)
                     bx.plot([c for c, _ in pts], [y for _, y in pts], "o-" if kind == "capsule" else "s--",
                             label=f"{CELL_NAMES[kind]}, Re {re_p:g} (plasma), {mesh}")
-            bx.set_xlabel("Ca = mu gammadot_w a / (G h)  (0: the stiff disk)")
+            if log_ca:
+                bx.set_xscale("log")
+            bx.set_xlabel("Ca = mu gammadot_w a / (G h)" + ("" if log_ca else "  (0: the stiff disk)"))
             bx.set_ylabel("y_eq / W (from the nearer wall)")
             bx.set_title("Where it settles, against Ca")
             bx.grid(alpha=0.3)
