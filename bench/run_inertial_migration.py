@@ -275,7 +275,7 @@ def main():
         ax.set_ylabel("y / W (from the lower wall)")
         ax.set_title("Inertial migration in a plane channel (d = W / 4)")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8 if len(curves) <= 8 else 6, ncol=1 if len(curves) <= 8 else 2)
         if with_ca:
             bx = axes[0][1]
             # Capillary numbers over more than a decade on a log axis, where the stiff disk (Ca 0) has no place.
