@@ -147,7 +147,7 @@ def main():
     except ValueError:
         sys.exit(f"{TOOL}: --ca '{args.ca}' is invalid: give capillary numbers in [0, 10] (0: the stiff disk), "
                  "e.g. 0,0.05,0.2")
-    cells = args.cells.split(",")
+    cells = list(dict.fromkeys(args.cells.split(",")))  # (each kind once)
     if not cells or any(c not in CELLS for c in cells):
         sys.exit(f"{TOOL}: --cells '{args.cells}' is invalid: give a list of {', '.join(CELLS)}, e.g. rbc,ctc")
     meshes = [bench_common.mesh_of(TOOL, m, "--meshes") for m in args.meshes.split(",")]

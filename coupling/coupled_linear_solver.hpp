@@ -65,9 +65,10 @@ class CoupledLinearSolver {
   /// cells leave its region); any iteration of a PETSc PC (the Jacobian at every solve).
   bool may_assemble(bool first_iteration) const { return path_->may_assemble(first_iteration); }
   /// dX = K_MC(X)^{-1} F. first_iteration: the step's first. Returns the KSP's iterations; throws if the
-  /// solve failed (std::invalid_argument for bad input found at the first solve). A failed solve of a path
-  /// with a bulk operator built once (cellfsi_fourier, cellfsi_bulk) is repeated once with the operator built
-  /// again from X (SolvePath::rebuild), and throws if it fails again.
+  /// solve failed (std::invalid_argument for bad input found at the first solve). A KSP that did not converge
+  /// (LinearSolveFailed; not a PETSc error) on a path with a bulk operator built once (cellfsi_fourier,
+  /// cellfsi_bulk) is repeated once with the operator built again from X (SolvePath::rebuild), and throws if
+  /// it fails again.
   int solve(Vec X, Vec F, Vec dX, bool first_iteration, SolveCounts& counts);
 
   /// The PC type in use (it can change in the first step, see fell_back()).

@@ -30,13 +30,22 @@ inline const CouplingEvents& coupling_events() {
   return e;
 }
 
-/// The iterations of the KSP's last solve; throws if it failed.
+/// A KSP solve that ended with a negative converged reason (not a PETSc error): what CoupledLinearSolver may
+/// repeat with a rebuilt bulk operator. iterations: the failed solve's.
+struct LinearSolveFailed : std::runtime_error {
+  LinearSolveFailed(const std::string& what, int its) : std::runtime_error(what), iterations(its) {}
+  int iterations;
+};
+
+/// The iterations of the KSP's last solve; throws LinearSolveFailed if it failed.
 inline int iterations_or_throw(KSP ksp) {
   KSPConvergedReason kr;
   CELLFSI_PETSC(KSPGetConvergedReason(ksp, &kr));
   PetscInt lits = 0;
   CELLFSI_PETSC(KSPGetIterationNumber(ksp, &lits));
-  if (kr < 0) throw std::runtime_error("linear solve failed: " + fluid::linear_solve_failure(ksp));
+  if (kr < 0)
+    throw LinearSolveFailed("linear solve failed: " + fluid::linear_solve_failure(ksp),
+                            static_cast<int>(lits));
   return static_cast<int>(lits);
 }
 

@@ -198,8 +198,10 @@ CapsuleRun run_capsule(const std::string& pc_type, int steps, int refresh_steps 
 }
 
 /// The capsule of run_capsule on the divergence-conforming fluid (k' = 2, 48 x 24, the automatic PC:
-/// cellfsi_bulk), as run_capsule with its defaults; the fluid's unknowns in its PETSc numbering.
-CapsuleRun run_dc_capsule(int steps, int fail_at_step) {
+/// cellfsi_bulk), as run_capsule with its defaults; the fluid's unknowns in its PETSc numbering. stencil:
+/// -coupling_bulk_stencil (the default true; false: the Jacobian's bulk part assembled and kept).
+CapsuleRun run_dc_capsule(int steps, int fail_at_step, bool stencil = true) {
+  if (!stencil) PetscOptionsSetValue(nullptr, "-coupling_bulk_stencil", "false");
   const geometry::Patch box = geometry::rectangle(ShearBox::lx, ShearBox::ly, 48, 24, 2, {true, false});
   fluid::FluidOptions fo = ShearBox::options(1e-3);
   fo.space = "div_conforming";
@@ -211,6 +213,7 @@ CapsuleRun run_dc_capsule(int steps, int fail_at_step) {
       "membrane", geometry::hollow_ellipse(2e-4, 1e-4, 5e-7, 24, 2, ShearBox::center(), std::numbers::pi / 2),
       std::make_shared<solid::DeviatoricNeoHookean>(7500.0), 1.1);
   coupling::FsiCoupler fsi(*fluid, {&membrane}, {});
+  if (!stencil) PetscOptionsClearValue(nullptr, "-coupling_bulk_stencil");
   fsi.initialize();
   CapsuleRun r = run_steps(fsi, membrane, steps, fail_at_step);
   Vec all;
@@ -385,16 +388,18 @@ TEST(FsiCoupler, AutoFallsBackToTheBandSolverWhereTheBulkIsNotUniform) {
 // docs/notes/2026-11-28-inertial-migration.md). The run goes on: the step converges, the bulk is factorised
 // in steps 1 and 3 only, and the steps equal the unbroken run's to the linear solves' tolerance, as the
 // repeated solve solves the same system to the same tolerance with another preconditioner. Measured: fluid
-// unknowns 4.9e-12 and membrane 2.7e-15 apart (equal-order), 2.4e-11 and 3.9e-14 (divergence-conforming);
-// bounds 1e-8 and 1e-10.
+// unknowns 4.9e-12 and membrane 2.7e-15 apart (equal-order), 2.4e-11 and 3.9e-14 (divergence-conforming, the
+// bulk part by its stencil or assembled); bounds 1e-8 and 1e-10.
 TEST(FsiCoupler, AFailedFourierSolveIsRepeatedWithTheBulkBuiltAgain) {
   const int steps = 4;
   // Equal-order with cellfsi_fourier, and the divergence-conforming fluid's own bulk inverse (cellfsi_bulk,
   // the automatic choice there), which is built again at the flow averaged along x
-  // (DivConformingSpace::average_periodic).
+  // (DivConformingSpace::average_periodic), with the Jacobian's bulk part as its stencil (the default) and
+  // assembled (then re-assembled at that flow too).
   const std::pair<CapsuleRun, CapsuleRun> runs[] = {
       {run_capsule("cellfsi_fourier", steps), run_capsule("cellfsi_fourier", steps, 10, 1e-2, 0, 3)},
-      {run_dc_capsule(steps, 0), run_dc_capsule(steps, 3)}};
+      {run_dc_capsule(steps, 0), run_dc_capsule(steps, 3)},
+      {run_dc_capsule(steps, 0, false), run_dc_capsule(steps, 3, false)}};
   for (const auto& [unbroken, broken] : runs) {
     EXPECT_EQ(unbroken.bulk_factorizations, (std::vector<int>{1, 0, 0, 0})) << unbroken.pc_type;
     EXPECT_EQ(broken.bulk_factorizations, (std::vector<int>{1, 0, 1, 0})) << broken.pc_type;
@@ -408,6 +413,7 @@ TEST(FsiCoupler, AFailedFourierSolveIsRepeatedWithTheBulkBuiltAgain) {
     EXPECT_LT(dx, 1e-10);
   }
   EXPECT_EQ(runs[1].first.pc_type, "cellfsi_bulk");
+  EXPECT_EQ(runs[2].first.pc_type, "cellfsi_bulk");
   // A path with nothing to rebuild (a PETSc PC) lets the failure through: the step fails with the reason.
   EXPECT_NONFATAL_FAILURE(run_capsule("asm", 1, 10, 1e-2, 0, 1), "linear solve failed");
 }
