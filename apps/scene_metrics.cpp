@@ -28,6 +28,15 @@ double plasma_mean_velocity(const fluid::FluidOptions& fo, double H) {
   return fo.body_force[0] * H * H / (12 * fo.viscosity);
 }
 
+/// Points on both faces of a 2D membrane (its inner and outer boundary curves), n around each.
+std::vector<Vec3> membrane_face_points(const geometry::Patch& p, int n) {
+  std::vector<Vec3> out;
+  const geometry::KnotVector &k0 = p.knots(0), &k1 = p.knots(1);
+  for (double xi0 : {k0.a(), k0.b()})
+    for (int i = 0; i < n; ++i) out.push_back(p.point({xi0, k1.a() + (k1.b() - k1.a()) * i / n, 0}));
+  return out;
+}
+
 }  // namespace
 
 void Scene::record_suspension() {
@@ -44,13 +53,10 @@ void Scene::record_suspension() {
     r.cell_area += m.enclosed;
     r.cell_x.push_back(m.moments.centroid[0]);
     // The membrane's extent across the channel: both faces sampled around.
-    const geometry::KnotVector &k0 = p.knots(0), &k1 = p.knots(1);
-    for (double xi0 : {k0.a(), k0.b()})
-      for (int i = 0; i < 256; ++i) {
-        const double y = p.point({xi0, k1.a() + (k1.b() - k1.a()) * i / 256, 0})[1];
-        r.gap_low = std::min(r.gap_low, y - y0);
-        r.gap_high = std::min(r.gap_high, y1 - y);
-      }
+    for (const Vec3& x : membrane_face_points(p, 256)) {
+      r.gap_low = std::min(r.gap_low, x[1] - y0);
+      r.gap_high = std::min(r.gap_high, y1 - x[1]);
+    }
   }
   suspension_.push_back(std::move(r));
 }
@@ -414,6 +420,16 @@ std::vector<std::pair<std::string, double>> Scene::metrics() {
       last_.emplace_back("contact_overlap_points", overlaps);
     }
     if (s_.coupling.repulsion.walls) last_.emplace_back("contact_wall_gap", contact_last_.wall_gap);
+  }
+  if (s_.domain == "narrowing") {
+    // Red cells in the narrowing: the cell-free layer in the throat, from its walls to the nearest red-cell
+    // membrane inside it [cm] (NaN while none is there).
+    std::vector<Vec3> red;
+    for (const solid::SolidSolver* b : bodies_)
+      if (body_settings(b->name()).biconcave())
+        for (const Vec3& x : membrane_face_points(b->current_patch(), 256)) red.push_back(x);
+    if (!red.empty())
+      last_.emplace_back("throat_cell_free_layer", solid::throat_gaps(red, s_.channel).mean());
   }
   for (size_t b = 0; b < bodies_.size(); ++b) {
     for (const auto& [k, v] : trackers_[b].metrics()) last_.emplace_back(bodies_[b]->name() + "_" + k, v);

@@ -1,5 +1,7 @@
 #include "solid/suspension_metrics.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace cellfsi::solid {
@@ -35,6 +37,22 @@ SuspensionRheology suspension_rheology(const std::vector<SuspensionRecord>& reco
     out.relative_viscosity = plasma_mean_velocity / out.mean_velocity;
   }
   return out;
+}
+
+ThroatGaps throat_gaps(const std::vector<geometry::Vec3>& points, const geometry::NarrowingChannel& channel) {
+  const double x_in = channel.throat_center - 0.5 * channel.throat_length,
+               x_out = channel.throat_center + 0.5 * channel.throat_length;
+  ThroatGaps g;
+  for (const geometry::Vec3& p : points) {
+    const double x = p[0] - channel.length * std::floor(p[0] / channel.length);  // into [0, length)
+    if (x < x_in || x > x_out) continue;
+    const double wall = 0.5 * channel.height - channel.wall_offset(x);  // the walls at y = -wall and +wall
+    const double low = p[1] + wall, high = wall - p[1];
+    g.low = g.points == 0 ? low : std::min(g.low, low);
+    g.high = g.points == 0 ? high : std::min(g.high, high);
+    ++g.points;
+  }
+  return g;
 }
 
 }  // namespace cellfsi::solid

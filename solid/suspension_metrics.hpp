@@ -9,7 +9,10 @@
 //   eta  relative apparent viscosity v_P / v_m, v_P the plasma's mean velocity at the same forcing (Eq. 24);
 //   h_cf cell-free layer: the gap between each wall and the nearest membrane point, averaged over both walls
 //        and the window.
+#include <limits>
 #include <vector>
+
+#include "geometry/builders.hpp"
 
 namespace cellfsi::solid {
 
@@ -38,5 +41,17 @@ struct SuspensionRheology {
 /// non-positive channel area or records whose cell counts differ.
 SuspensionRheology suspension_rheology(const std::vector<SuspensionRecord>& records, double channel_area,
                                        double plasma_mean_velocity, double from);
+
+/// The cell-free layer in a channel narrowing's straight throat (paper Sec. 4.4 with red cells; issue 46): of
+/// the points (the red cells' membrane faces) whose x, taken modulo the channel's period, lies in the throat
+/// [throat_center - throat_length / 2, throat_center + throat_length / 2], the gap from the lower wall
+/// y = -(height / 2 - offset(x)) to the nearest one and from the upper wall to the nearest one.
+struct ThroatGaps {
+  int points = 0;  // points in the throat (0: no gap, low and high NaN)
+  double low = std::numeric_limits<double>::quiet_NaN();
+  double high = std::numeric_limits<double>::quiet_NaN();
+  double mean() const { return 0.5 * (low + high); }  // h_cf at the throat
+};
+ThroatGaps throat_gaps(const std::vector<geometry::Vec3>& points, const geometry::NarrowingChannel& channel);
 
 }  // namespace cellfsi::solid

@@ -1,5 +1,7 @@
 // Rheology of a suspension in a channel (solid/suspension_metrics.hpp) on prescribed records: a plug of cells
 // moving at a known speed gives the known zeta and H_d; the plasma flow gives eta = 1.
+#include <cmath>
+
 #include <gtest/gtest.h>
 
 #include "solid/suspension_metrics.hpp"
@@ -53,4 +55,22 @@ TEST(SuspensionRheology, PlasmaFlowGivesUnitViscosityAndShortWindowsNothing) {
   auto bad = plug(vp, vp, 5, 0.01);
   bad[3].cell_x.pop_back();
   EXPECT_THROW(suspension_rheology(bad, 3e-6, vp, 0.0), std::invalid_argument);
+}
+
+// The throat of the default narrowing (0.002 cm high, 0.0008 at the throat, [0.0025, 0.0035]): its walls at
+// y = +-0.0004. Points outside the throat do not count, a point a period further along does.
+TEST(ThroatGaps, GapsFromTheThroatWallsToTheNearestPointsInsideIt) {
+  const cellfsi::geometry::NarrowingChannel c;
+  using V = cellfsi::geometry::Vec3;
+  const std::vector<V> pts{V(0.0027, -0.0004 + 1e-5, 0), V(0.0030, -0.0004 + 2e-5, 0),
+                           V(0.0033 + c.length, 0.0004 - 3e-5, 0),          // a period along: in the throat
+                           V(0.0010, -0.00099, 0), V(0.0040, 0.00099, 0)};  // outside it: nearer the walls
+  const cellfsi::solid::ThroatGaps g = cellfsi::solid::throat_gaps(pts, c);
+  EXPECT_EQ(g.points, 3);
+  EXPECT_NEAR(g.low, 1e-5, 1e-15);
+  EXPECT_NEAR(g.high, 3e-5, 1e-15);
+  EXPECT_NEAR(g.mean(), 2e-5, 1e-15);
+  const cellfsi::solid::ThroatGaps none = cellfsi::solid::throat_gaps({V(0.001, 0, 0)}, c);
+  EXPECT_EQ(none.points, 0);
+  EXPECT_TRUE(std::isnan(none.mean()));
 }

@@ -1,0 +1,325 @@
+#!/usr/bin/env python3
+"""A CTC among red cells through the channel narrowing (the paper's future work, its Sec. 5; issue 46): the
+compound-capsule CTC of scenes/ctc_rbc_narrowing.yaml alone and with red cells scattered around it at each asked
+haematocrit and seed (scenes/ctc_narrowing.yaml for the CTC alone), run to the end, then per run and per haematocrit (mean and range over the seeds) the CTC's
+throat entry, exit and transit time, its membrane's and nucleus's largest anisotropy, its lateral path, the red
+cells' cell-free layer in the throat, and the cost; a figure of those against haematocrit and one of snapshots
+(the flow's speed and the cells) as the CTC enters, crosses and leaves the throat, one row per haematocrit.
+
+    python3 bench/run_ctc_among_rbcs.py --mesh 96x32 --hematocrits 0,15,30 --seeds 3,4,5 --jobs 2
+
+A haematocrit H (per cent of the channel's area, 9.6e-6 cm^2) asks for round(H / 100 * area / a_rbc) red cells
+(a_rbc the scene's red cell's area, 1.28e-7 cm^2; 11 cells are 14.7 %, 22 are 29.5 %); the table gives the
+haematocrit the run had. The cells are placed at random (-solid_rbc_seed) at least a fluid element from the
+walls and each other; a seed with no room for that many is reported and left out. Haematocrit 0 is the CTC alone,
+one run (no seed). Runs are kept in --runs (a completed one is not run again; one made with other options is
+refused). The cell-free layer in the throat: from each throat wall to the nearest red-cell membrane point inside
+the straight throat, averaged over both walls and over the steps after the flow developed (metrics.csv's
+throat_cell_free_layer; steps with no red cell in the throat do not count). Early in the run, at --early T (before
+the CTC reaches the narrowing), the flow rate through the throat and the distance the CTC travelled, against the
+CTC alone on the same mesh: how much the red cells hold the flow back, which is what a mesh study of the
+suspension can compare in a short run.
+
+--mesh NXxNY (96x32) --degree P (3) --dt DT (2.5e-4) --final-time T (0.3) --output-every N (20)
+--hematocrits LIST (0,15,30) --seeds LIST (3,4,5) --jobs N (1) --runs DIR (out/ctc_among_rbcs) --build DIR (build)
+--table FILE (docs/validation/ctc_among_rbcs.md) --figure FILE (docs/figures/ctc_among_rbcs.png)
+--snapshots FILE (docs/figures/ctc_among_rbcs_snapshots.png) --snapshot-seed S (the first seed) --early T (0.04)
+--extra "OPTIONS" (more cellfsi options for every run). Needs python3-matplotlib and python3-vtk9
+(scripts/install-deps.sh; Debian's /usr/bin/python3)."""
+import argparse
+import concurrent.futures
+import csv
+import math
+import os
+import shlex
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_common import (ROOT, check_kept_runs, fmt, mesh_of, provenance, pyplot, run_one,  # noqa: E402
+                          save_figure, summary_of, write_table)
+
+TOOL = "run_ctc_among_rbcs"
+SCENE = "ctc_rbc_narrowing.yaml"
+ALONE = "ctc_narrowing.yaml"  # the CTC without red cells (haematocrit 0)
+DEVELOPED = 1.7e-3  # s: 5 viscous times H^2 / nu of the scene's channel (bench/plot_ctc_passage.py)
+
+
+def scene_channel():
+    """The scene's channel numbers (cm) and its red cell's area (cm^2), read from the scene file."""
+    values = {}
+    with open(os.path.join(ROOT, "scenes", SCENE)) as f:
+        for line in f:
+            if ":" in line and not line.lstrip().startswith("#") and not line.startswith(" "):
+                k, v = line.split(":", 1)
+                values[k.strip()] = v.strip()
+    c = {k: float(values[k]) for k in ("channel_length", "channel_height", "channel_throat_height",
+                                        "channel_throat_length", "channel_transition_length")}
+    # The walls' offset is (H - h) / 2 over the throat and a step symmetric about its mid-value over each
+    # transition: the narrowing takes (H - h) (throat + transition) of the area.
+    c["area"] = (c["channel_length"] * c["channel_height"] - (c["channel_height"] - c["channel_throat_height"])
+                 * (c["channel_throat_length"] + c["channel_transition_length"]))
+    return c
+
+
+RBC_AREA = 1.2868e-7  # cm^2: the scene's 2D red cell (the area its mid-line encloses, Delta pi R0^2)
+
+
+def parse_list(text, kind, what, low):
+    try:
+        vals = [kind(v) for v in text.split(",") if v.strip()]
+        if not vals or any(v < low for v in vals):
+            raise ValueError
+        return vals
+    except ValueError:
+        sys.exit(f"{TOOL}: {what} '{text}' is invalid: give a comma-separated list of numbers >= {low}")
+
+
+def read_rows(run):
+    try:
+        with open(os.path.join(run, "metrics.csv")) as f:
+            return list(csv.DictReader(f))
+    except OSError:
+        return []
+
+
+def number(x):
+    try:
+        v = float(x)
+        return v if math.isfinite(v) else None
+    except (TypeError, ValueError):
+        return None
+
+
+def measures(args, tag, area):
+    """One run's measures (None where not reached), or None when the run has no summary."""
+    s = summary_of(args, tag)
+    if s is None:
+        return None
+    rows = read_rows(os.path.join(args.runs, tag))
+    rbcs = [k[:-len("_R0")] for k in s if k.startswith("rbc_") and k.endswith("_R0")]
+    m = {"status": s.get("status"), "steps": s.get("steps"), "wall": s.get("wall_time_s"),
+         "cells": len(rbcs), "hct": 100 * sum(s[b + "_Delta"] * math.pi * s[b + "_R0"] ** 2 for b in rbcs) / area}
+    for key in ("entry", "exit", "transit"):
+        m[key] = number(s.get(f"membrane_throat_{key}_time"))
+    for body in ("membrane", "nucleus"):
+        m[body + "_anisotropy"] = number(s.get(body + "_max_anisotropy"))
+    y = [(number(r["time"]), number(r["membrane_centroid_y"])) for r in rows]
+    y = [(t, v) for t, v in y if t is not None and v is not None]
+    m["lateral_max"] = max((abs(v) for _, v in y), default=None)  # from the centre line y = 0
+    m["lateral_entry"] = next((v for t, v in y if m["entry"] is not None and t >= m["entry"]), None)
+    m["lateral_exit"] = next((v for t, v in y if m["exit"] is not None and t >= m["exit"]), None)
+    cfl = [number(r.get("throat_cell_free_layer")) for r in rows if (number(r["time"]) or 0) >= DEVELOPED]
+    cfl = [v for v in cfl if v is not None]
+    m["cfl"] = sum(cfl) / len(cfl) if cfl else None
+    m["cfl_steps"] = len(cfl)
+    m["s_per_step"] = m["wall"] / m["steps"] if m["wall"] and m["steps"] else None
+    m["overlap"] = s.get("contact_overlap_points_max")
+    # Early, before the CTC reaches the narrowing: the flow rate and the distance the CTC travelled by --early.
+    early = next((r for r in rows if (number(r["time"]) or 0) >= args.early * (1 - 1e-9)), None)
+    m["early_flow"] = number(early["flow_rate"]) if early else None
+    m["early_travel"] = (number(early["membrane_centroid_x"]) - number(rows[0]["membrane_centroid_x"])
+                         if early else None)
+    return m
+
+
+def spread(vals, f, scale=1.0):
+    vals = [v * scale for v in vals if v is not None]
+    if not vals:
+        return "-"
+    mean = sum(vals) / len(vals)
+    if len(vals) == 1:
+        return format(mean, f)
+    return f"{format(mean, f)} ({format(min(vals), f)}-{format(max(vals), f)})"
+
+
+def table(args, runs, results, channel, command):
+    um = 1e4
+    lines = [provenance(args, command), "",
+             f"Mesh {args.mesh} of degree {args.degree}, dt {args.dt:g} s, to {args.final_time:g} s; channel area "
+             f"{channel['area']:.3g} cm^2, throat {channel['channel_throat_height'] * um:g} um high. Times in s, "
+             "lengths in um (lateral: the CTC membrane's centroid from the centre line).", "",
+             "| haematocrit asked (%) | seed | red cells | haematocrit (%) | status | throat entry / exit | transit "
+             "| membrane anisotropy max | nucleus anisotropy max | lateral at entry / exit, max | cell-free layer in "
+             f"the throat (steps) | at {args.early:g} s: flow rate (1e-6 cm^2/s), CTC travel (um); (their ratios to the "
+             "CTC alone's) | s/step |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    alone = next((m for (_, h, _, _), m in zip(runs, results) if h == 0 and m is not None), None)
+    for (tag, h, seed, _), m in zip(runs, results):
+        if m is None:
+            lines.append(f"| {h:g} | {seed if h else '-'} | - | - | {results_missing(args, tag)} "
+                         "| - | - | - | - | - | - | - | - |")
+            continue
+        early = "-"
+        if m["early_flow"] is not None:
+            early = f"{m['early_flow'] * 1e6:.2f}, {m['early_travel'] * um:.2f}"
+            if alone is not None and alone["early_flow"] and alone["early_travel"]:
+                early += (f" ({m['early_flow'] / alone['early_flow']:.2f}, "
+                          f"{m['early_travel'] / alone['early_travel']:.2f})")
+        lines.append(
+            f"| {h:g} | {seed if h else '-'} | {m['cells']} | {m['hct']:.1f} | {m['status']} | "
+            f"{fmt(m['entry'], '.4f')} / {fmt(m['exit'], '.4f')} | {fmt(m['transit'], '.4f')} | "
+            f"{fmt(m['membrane_anisotropy'], '.2f')} | {fmt(m['nucleus_anisotropy'], '.3f')} | "
+            f"{fmt(m['lateral_entry'] and m['lateral_entry'] * um, '+.2f')} / "
+            f"{fmt(m['lateral_exit'] and m['lateral_exit'] * um, '+.2f')}, {fmt(m['lateral_max'] and m['lateral_max'] * um, '.2f')} | "
+            f"{fmt(m['cfl'] and m['cfl'] * um, '.2f')} ({m['cfl_steps']}) | {early} | {fmt(m['s_per_step'], '.2f')} |")
+    lines += ["", "Per haematocrit, over the seeds that ran through the throat: mean (range).", "",
+              "| haematocrit asked (%) | runs | haematocrit (%) | throat transit | throat exit | membrane anisotropy "
+              "max | nucleus anisotropy max | lateral max | cell-free layer in the throat |",
+              "|---|---|---|---|---|---|---|---|---|"]
+    for h in args.hematocrits:
+        ms = [m for (_, hh, _, _), m in zip(runs, results) if hh == h and m is not None
+              and m["transit"] is not None]
+        lines.append(f"| {h:g} | {len(ms)} | {spread([m['hct'] for m in ms], '.1f')} | "
+                     f"{spread([m['transit'] for m in ms], '.4f')} | {spread([m['exit'] for m in ms], '.4f')} | "
+                     f"{spread([m['membrane_anisotropy'] for m in ms], '.2f')} | "
+                     f"{spread([m['nucleus_anisotropy'] for m in ms], '.3f')} | "
+                     f"{spread([m['lateral_max'] for m in ms], '.2f', um)} | "
+                     f"{spread([m['cfl'] for m in ms], '.2f', um)} |")
+    return lines
+
+
+def results_missing(args, tag):
+    log = os.path.join(args.runs, tag + ".log")
+    if os.path.isfile(log):
+        with open(log) as f:
+            errors = [line.strip() for line in f if "error" in line]
+        if errors:
+            return "failed: " + errors[-1].replace("|", "/")[:160]
+    return "not run"
+
+
+def figure(args, runs, results):
+    plt = pyplot(TOOL)
+    if plt is None:
+        return
+    panels = [("transit", "throat transit time (s)", 1), ("membrane_anisotropy", "membrane anisotropy, max", 1),
+              ("nucleus_anisotropy", "nucleus anisotropy, max", 1), ("lateral_max", "lateral path, max (um)", 1e4),
+              ("cfl", "cell-free layer in the throat (um)", 1e4)]
+    fig, axes = plt.subplots(1, len(panels), figsize=(3.3 * len(panels), 3.2))
+    for ax, (key, label, scale) in zip(axes, panels):
+        means = []
+        for h in args.hematocrits:
+            pts = [(m["hct"], m[key] * scale) for (_, hh, _, _), m in zip(runs, results)
+                   if hh == h and m is not None and m[key] is not None and m["transit"] is not None]
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], "o", color="tab:blue", ms=4)
+            if pts:
+                means.append((sum(p[0] for p in pts) / len(pts), sum(p[1] for p in pts) / len(pts)))
+        if means:
+            ax.plot([p[0] for p in means], [p[1] for p in means], "-", color="k", lw=1)
+        ax.set_xlabel("haematocrit (% of the area)")
+        ax.set_title(label, fontsize=9)
+        ax.grid(True, lw=0.3)
+    fig.suptitle(f"A CTC among red cells through the narrowing ({args.mesh}, degree {args.degree}): each seed a "
+                 "dot, the line their mean", fontsize=9)
+    fig.tight_layout()
+    save_figure(fig, args.figure, TOOL)
+
+
+def snapshots(args, runs, results):
+    """One row per haematocrit (the --snapshot-seed run): the flow's speed and the bodies as the CTC enters,
+    crosses and leaves the throat."""
+    try:
+        import numpy as np
+        import vtk  # noqa: F401
+        from plot_velocity_snapshot import read_grid, series
+    except ImportError:
+        print(f"{TOOL}: the snapshots need python3-vtk9 and python3-numpy", file=sys.stderr)
+        return
+    plt = pyplot(TOOL)
+    if plt is None:
+        return
+    chosen = [(tag, h, m) for (tag, h, seed, _), m in zip(runs, results)
+              if m is not None and m["transit"] is not None and (h == 0 or seed == args.snapshot_seed)]
+    if not chosen:
+        return
+    fig, axes = plt.subplots(len(chosen), 3, figsize=(13, 1.9 * len(chosen) + 0.4), squeeze=False)
+    for row, (tag, h, m) in zip(axes, chosen):
+        run = os.path.join(args.runs, tag)
+        fluid, solid = series(os.path.join(run, "fluid.pvd")), series(os.path.join(run, "solid.pvd"))
+        for ax, (t_want, what) in zip(row, ((m["entry"], "entry"), (0.5 * (m["entry"] + m["exit"]), "mid-throat"),
+                                            (m["exit"], "exit"))):
+            t, f, _ = min(fluid, key=lambda e: abs(e[0] - t_want))
+            xyz, arrays = read_grid(os.path.join(run, f))
+            ax.pcolormesh(xyz[..., 0] * 1e4, xyz[..., 1] * 1e4, np.linalg.norm(arrays["velocity"], axis=-1),
+                          shading="gouraud", cmap="viridis")
+            for time, sf, name in solid:
+                if abs(time - t) > 1e-9 * max(1.0, abs(t)):
+                    continue
+                s = read_grid(os.path.join(run, sf))[0]
+                colour = "w" if name.startswith("rbc") else "r"
+                for curve in (s[0], s[-1]):
+                    ax.plot(curve[:, 0] * 1e4, curve[:, 1] * 1e4, color=colour, lw=0.6)
+            ax.set_aspect("equal")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.set_title(f"{m['hct']:.1f} %: CTC at the throat's {what}, t = {t:.3f} s", fontsize=8)
+    fig.suptitle(f"A CTC (red) among red cells (white) through the narrowing ({args.mesh}); colour: the flow's "
+                 "speed", fontsize=9)
+    fig.tight_layout()
+    save_figure(fig, args.snapshots, TOOL)
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--mesh", default="96x32")
+    p.add_argument("--degree", type=int, default=3)
+    p.add_argument("--dt", type=float, default=2.5e-4)
+    p.add_argument("--final-time", type=float, default=0.3)
+    p.add_argument("--output-every", type=int, default=20)
+    p.add_argument("--hematocrits", default="0,15,30")
+    p.add_argument("--seeds", default="3,4,5")
+    p.add_argument("--snapshot-seed", type=int, default=None)
+    p.add_argument("--jobs", type=int, default=1)
+    p.add_argument("--runs", default=os.path.join(ROOT, "out", "ctc_among_rbcs"))
+    p.add_argument("--build", default=os.path.join(ROOT, "build"))
+    p.add_argument("--table", default=os.path.join(ROOT, "docs", "validation", "ctc_among_rbcs.md"))
+    p.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "ctc_among_rbcs.png"))
+    p.add_argument("--snapshots", default=os.path.join(ROOT, "docs", "figures", "ctc_among_rbcs_snapshots.png"))
+    p.add_argument("--extra", default="")
+    p.add_argument("--early", type=float, default=0.04)
+    args = p.parse_args()
+    nx, ny = mesh_of(TOOL, args.mesh, "--mesh")
+    args.hematocrits = parse_list(args.hematocrits, float, "--hematocrits", 0)
+    args.seeds = parse_list(args.seeds, int, "--seeds", 0)
+    if args.snapshot_seed is None:
+        args.snapshot_seed = args.seeds[0]
+    for name, v, low in (("--jobs", args.jobs, 1), ("--degree", args.degree, 2), ("--output-every",
+                                                                                 args.output_every, 1)):
+        if v < low:
+            sys.exit(f"{TOOL}: {name} {v} is invalid: give {low} or more")
+    for name, v in (("--dt", args.dt), ("--final-time", args.final_time), ("--early", args.early)):
+        if not v > 0:
+            sys.exit(f"{TOOL}: {name} {v:g} is invalid: give a time > 0 in s")
+    if not os.path.isfile(os.path.join(args.build, "apps", "cellfsi")):
+        sys.exit(f"{TOOL}: no {args.build}/apps/cellfsi: build it first (bash scripts/build.sh cellfsi)")
+    channel = scene_channel()
+    os.makedirs(args.runs, exist_ok=True)
+    common = ["-fluid_elements", f"{nx},{ny}", "-fluid_degree", str(args.degree), "-dt", f"{args.dt:g}",
+              "-final_time", f"{args.final_time:g}", "-output_every", str(args.output_every)] + shlex.split(args.extra)
+    runs = []
+    for h in args.hematocrits:
+        count = round(h / 100 * channel["area"] / RBC_AREA)
+        if count == 0:
+            # The CTC alone: scenes/ctc_narrowing.yaml, whose bodies are this scene's but for the red cells,
+            # with the element counts chosen the same way.
+            runs.append((f"{args.mesh}_h0", h, None, common + ["-solid_membrane_elements", "1,0",
+                                                                "-solid_nucleus_elements", "0,0"]))
+            continue
+        if count > 64:
+            sys.exit(f"{TOOL}: --hematocrits {h:g} asks for {count} red cells; at most 64 (-solid_rbc_count)")
+        for seed in args.seeds:
+            runs.append((f"{args.mesh}_h{h:g}_s{seed}", h, seed,
+                         common + ["-solid_rbc_count", str(count), "-solid_rbc_seed", str(seed)]))
+    check_kept_runs(TOOL, args, [(tag, None, opts) for tag, _, _, opts in runs])
+    with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
+        for tag, what in pool.map(lambda r: run_one(args, r[0], SCENE if r[1] else ALONE, r[3]), runs):
+            print(f"{TOOL}: {tag}: {what}", flush=True)
+    results = [measures(args, tag, channel["area"]) for tag, _, _, _ in runs]
+    command = "python3 bench/run_ctc_among_rbcs.py " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+    write_table(args.table, table(args, runs, results, channel, command))
+    figure(args, runs, results)
+    snapshots(args, runs, results)
+
+
+if __name__ == "__main__":
+    main()
