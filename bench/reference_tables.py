@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
-"""The reference tables of docs/validation.md and docs/performance.md, generated from the kept results.
+"""The reference tables of docs/validation.md, docs/validation-future-work.md and docs/performance.md, generated
+from the kept results.
 
 One table per scene (mesh, degree, dt, the error against the paper or the truth, s/step, memory, commit,
-command), written between marker comments in the two pages:
+command), written between marker comments in those pages:
 
     <!-- BEGIN TABLE name -->  ...generated...  <!-- END TABLE name -->
 
@@ -29,7 +30,7 @@ import sys
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 VAL = os.path.join(ROOT, "docs", "validation")
 PERF = os.path.join(ROOT, "docs", "performance")
-PAGES = ["docs/validation.md", "docs/performance.md"]
+PAGES = ["docs/validation.md", "docs/validation-future-work.md", "docs/performance.md"]
 
 # ---------------------------------------------------------------------------------------------------------
 # Values that exist only as prose: (commit, note in docs/notes/) for each.
