@@ -67,11 +67,11 @@ RBC_AREA = 1.2868e-7  # cm^2: the scene's 2D red cell (the area its mid-line enc
 def parse_list(text, kind, what, low):
     try:
         vals = [kind(v) for v in text.split(",") if v.strip()]
-        if not vals or any(v < low for v in vals):
+        if not vals or any(not math.isfinite(v) or v < low for v in vals) or len(set(vals)) != len(vals):
             raise ValueError
         return vals
     except ValueError:
-        sys.exit(f"{TOOL}: {what} '{text}' is invalid: give a comma-separated list of numbers >= {low}")
+        sys.exit(f"{TOOL}: {what} '{text}' is invalid: give a comma-separated list of distinct numbers >= {low}")
 
 
 def read_rows(run):
@@ -80,6 +80,18 @@ def read_rows(run):
             return list(csv.DictReader(f))
     except OSError:
         return []
+
+
+def start_x(run):
+    """The CTC membrane's centre x at the start, from the run's options.yaml (None when it is not there)."""
+    try:
+        with open(os.path.join(run, "options.yaml")) as f:
+            for line in f:
+                if line.startswith("solid_membrane_center:"):
+                    return float(line.split(":", 1)[1].split(",")[0])
+    except (OSError, ValueError):
+        pass
+    return None
 
 
 def number(x):
@@ -117,8 +129,9 @@ def measures(args, tag, area):
     # Early, before the CTC reaches the narrowing: the flow rate and the distance the CTC travelled by --early.
     early = next((r for r in rows if (number(r["time"]) or 0) >= args.early * (1 - 1e-9)), None)
     m["early_flow"] = number(early["flow_rate"]) if early else None
-    m["early_travel"] = (number(early["membrane_centroid_x"]) - number(rows[0]["membrane_centroid_x"])
-                         if early else None)
+    start = start_x(os.path.join(args.runs, tag))
+    x = number(early["membrane_centroid_x"]) if early else None
+    m["early_travel"] = x - start if x is not None and start is not None else None
     return m
 
 
@@ -156,7 +169,7 @@ def table(args, runs, results, channel, command):
                 early += (f" ({m['early_flow'] / alone['early_flow']:.2f}, "
                           f"{m['early_travel'] / alone['early_travel']:.2f})")
         lines.append(
-            f"| {h:g} | {seed if h else '-'} | {m['cells']} | {m['hct']:.1f} | {m['status']} | "
+            f"| {h:g} | {seed if h else '-'} | {m['cells']} | {m['hct']:.1f} | {str(m['status']).replace('|', '/')} | "
             f"{fmt(m['entry'], '.4f')} / {fmt(m['exit'], '.4f')} | {fmt(m['transit'], '.4f')} | "
             f"{fmt(m['membrane_anisotropy'], '.2f')} | {fmt(m['nucleus_anisotropy'], '.3f')} | "
             f"{fmt(m['lateral_entry'] and m['lateral_entry'] * um, '+.2f')} / "
@@ -247,7 +260,9 @@ def snapshots(args, runs, results):
                     continue
                 s = read_grid(os.path.join(run, sf))[0]
                 colour = "w" if name.startswith("rbc") else "r"
-                for curve in (s[0], s[-1]):
+                # A body's grid runs along its first parametric direction fastest (a membrane's thickness, a
+                # nucleus's radius): its first and last columns are its inner and outer curves.
+                for curve in (s[:, 0], s[:, -1]):
                     ax.plot(curve[:, 0] * 1e4, curve[:, 1] * 1e4, color=colour, lw=0.6)
             ax.set_aspect("equal")
             ax.set_xticks([])
@@ -299,20 +314,23 @@ def main():
     runs = []
     for h in args.hematocrits:
         count = round(h / 100 * channel["area"] / RBC_AREA)
+        # Scattered copies need two or more; the scene's CTC takes two of the 64 bodies a run may have.
+        if h > 0 and not 2 <= count <= 62:
+            sys.exit(f"{TOOL}: --hematocrits {h:g} is invalid: it asks for {count} red cells; valid: 0 (the CTC "
+                     f"alone) or {200 * RBC_AREA / channel['area']:.1f}-{6200 * RBC_AREA / channel['area']:.1f} % "
+                     "(2 to 62 cells)")
         if count == 0:
             # The CTC alone: scenes/ctc_narrowing.yaml, whose bodies are this scene's but for the red cells,
             # with the element counts chosen the same way.
             runs.append((f"{args.mesh}_h0", h, None, common + ["-solid_membrane_elements", "1,0",
                                                                 "-solid_nucleus_elements", "0,0"]))
             continue
-        if count > 64:
-            sys.exit(f"{TOOL}: --hematocrits {h:g} asks for {count} red cells; at most 64 (-solid_rbc_count)")
         for seed in args.seeds:
             runs.append((f"{args.mesh}_h{h:g}_s{seed}", h, seed,
                          common + ["-solid_rbc_count", str(count), "-solid_rbc_seed", str(seed)]))
     check_kept_runs(TOOL, args, [(tag, None, opts) for tag, _, _, opts in runs])
     with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
-        for tag, what in pool.map(lambda r: run_one(args, r[0], SCENE if r[1] else ALONE, r[3]), runs):
+        for tag, what in pool.map(lambda r: run_one(args, r[0], SCENE if r[1] > 0 else ALONE, r[3]), runs):
             print(f"{TOOL}: {tag}: {what}", flush=True)
     results = [measures(args, tag, channel["area"]) for tag, _, _, _ in runs]
     command = "python3 bench/run_ctc_among_rbcs.py " + " ".join(shlex.quote(a) for a in sys.argv[1:])

@@ -40,13 +40,13 @@ SuspensionRheology suspension_rheology(const std::vector<SuspensionRecord>& reco
 }
 
 ThroatGaps throat_gaps(const std::vector<geometry::Vec3>& points, const geometry::NarrowingChannel& channel) {
-  const double x_in = channel.throat_center - 0.5 * channel.throat_length,
-               x_out = channel.throat_center + 0.5 * channel.throat_length;
   ThroatGaps g;
   for (const geometry::Vec3& p : points) {
-    const double x = p[0] - channel.length * std::floor(p[0] / channel.length);  // into [0, length)
-    if (x < x_in || x > x_out) continue;
-    const double wall = 0.5 * channel.height - channel.wall_offset(x);  // the walls at y = -wall and +wall
+    // Along x from the throat's centre, to the nearest periodic image (a throat may straddle x = 0).
+    double dx = p[0] - channel.throat_center;
+    dx -= channel.length * std::round(dx / channel.length);
+    if (std::abs(dx) > 0.5 * channel.throat_length) continue;
+    const double wall = 0.5 * channel.height - channel.wall_offset(p[0]);  // the walls at y = -wall and +wall
     const double low = p[1] + wall, high = wall - p[1];
     g.low = g.points == 0 ? low : std::min(g.low, low);
     g.high = g.points == 0 ? high : std::min(g.high, high);

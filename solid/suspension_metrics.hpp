@@ -43,8 +43,8 @@ SuspensionRheology suspension_rheology(const std::vector<SuspensionRecord>& reco
                                        double plasma_mean_velocity, double from);
 
 /// The cell-free layer in a channel narrowing's straight throat (paper Sec. 4.4 with red cells; issue 46): of
-/// the points (the red cells' membrane faces) whose x, taken modulo the channel's period, lies in the throat
-/// [throat_center - throat_length / 2, throat_center + throat_length / 2], the gap from the lower wall
+/// the points (the red cells' membrane faces) whose x lies in the throat, within throat_length / 2 of
+/// throat_center or of one of its periodic images, the gap from the lower wall
 /// y = -(height / 2 - offset(x)) to the nearest one and from the upper wall to the nearest one.
 struct ThroatGaps {
   int points = 0;  // points in the throat (0: no gap, low and high NaN)

@@ -73,4 +73,12 @@ TEST(ThroatGaps, GapsFromTheThroatWallsToTheNearestPointsInsideIt) {
   const cellfsi::solid::ThroatGaps none = cellfsi::solid::throat_gaps({V(0.001, 0, 0)}, c);
   EXPECT_EQ(none.points, 0);
   EXPECT_TRUE(std::isnan(none.mean()));
+  // A throat centred at x = 0 straddles the period's ends: points on both sides of it count.
+  cellfsi::geometry::NarrowingChannel wrapped;
+  wrapped.throat_center = 0;
+  const cellfsi::solid::ThroatGaps w = cellfsi::solid::throat_gaps(
+      {V(0.0003, -0.0004 + 1e-5, 0), V(wrapped.length - 0.0003, 0.0004 - 2e-5, 0), V(0.003, 0, 0)}, wrapped);
+  EXPECT_EQ(w.points, 2);
+  EXPECT_NEAR(w.low, 1e-5, 1e-15);
+  EXPECT_NEAR(w.high, 2e-5, 1e-15);
 }
