@@ -24,7 +24,8 @@ suspension can compare in a short run.
 --hematocrits LIST (0,15,30) --seeds LIST (3,4,5) --jobs N (1) --runs DIR (out/ctc_among_rbcs) --build DIR (build)
 --table FILE (docs/validation/ctc_among_rbcs.md) --figure FILE (docs/figures/ctc_among_rbcs.png)
 --snapshots FILE (docs/figures/ctc_among_rbcs_snapshots.png) --snapshot-seed S (the first seed) --early T (0.04)
---extra "OPTIONS" (more cellfsi options for every run). Needs python3-matplotlib and python3-vtk9
+--extra "OPTIONS" (more cellfsi options for every run) --report (only the tables and figures, from the runs kept in
+--runs: a run stopped and continued by hand with -restart and a later -final_time is reported as it stands). Needs python3-matplotlib and python3-vtk9
 (scripts/install-deps.sh; Debian's /usr/bin/python3)."""
 import argparse
 import concurrent.futures
@@ -109,7 +110,8 @@ def measures(args, tag, area):
         return None
     rows = read_rows(os.path.join(args.runs, tag))
     rbcs = [k[:-len("_R0")] for k in s if k.startswith("rbc_") and k.endswith("_R0")]
-    m = {"status": s.get("status"), "steps": s.get("steps"), "wall": s.get("wall_time_s"),
+    last = number(rows[-1]["time"]) if rows else None
+    m = {"status": f"{s.get('status')}, to {fmt(last, 'g')} s", "steps": s.get("steps"), "wall": s.get("wall_time_s"),
          "cells": len(rbcs), "hct": 100 * sum(s[b + "_Delta"] * math.pi * s[b + "_R0"] ** 2 for b in rbcs) / area}
     for key in ("entry", "exit", "transit"):
         m[key] = number(s.get(f"membrane_throat_{key}_time"))
@@ -292,6 +294,7 @@ def main():
     p.add_argument("--snapshots", default=os.path.join(ROOT, "docs", "figures", "ctc_among_rbcs_snapshots.png"))
     p.add_argument("--extra", default="")
     p.add_argument("--early", type=float, default=0.04)
+    p.add_argument("--report", action="store_true", help="only the tables and figures, from the runs in --runs")
     args = p.parse_args()
     nx, ny = mesh_of(TOOL, args.mesh, "--mesh")
     args.hematocrits = parse_list(args.hematocrits, float, "--hematocrits", 0)
@@ -305,7 +308,7 @@ def main():
     for name, v in (("--dt", args.dt), ("--final-time", args.final_time), ("--early", args.early)):
         if not v > 0:
             sys.exit(f"{TOOL}: {name} {v:g} is invalid: give a time > 0 in s")
-    if not os.path.isfile(os.path.join(args.build, "apps", "cellfsi")):
+    if not args.report and not os.path.isfile(os.path.join(args.build, "apps", "cellfsi")):
         sys.exit(f"{TOOL}: no {args.build}/apps/cellfsi: build it first (bash scripts/build.sh cellfsi)")
     channel = scene_channel()
     os.makedirs(args.runs, exist_ok=True)
@@ -328,10 +331,11 @@ def main():
         for seed in args.seeds:
             runs.append((f"{args.mesh}_h{h:g}_s{seed}", h, seed,
                          common + ["-solid_rbc_count", str(count), "-solid_rbc_seed", str(seed)]))
-    check_kept_runs(TOOL, args, [(tag, None, opts) for tag, _, _, opts in runs])
-    with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
-        for tag, what in pool.map(lambda r: run_one(args, r[0], SCENE if r[1] > 0 else ALONE, r[3]), runs):
-            print(f"{TOOL}: {tag}: {what}", flush=True)
+    if not args.report:
+        check_kept_runs(TOOL, args, [(tag, None, opts) for tag, _, _, opts in runs])
+        with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
+            for tag, what in pool.map(lambda r: run_one(args, r[0], SCENE if r[1] > 0 else ALONE, r[3]), runs):
+                print(f"{TOOL}: {tag}: {what}", flush=True)
     results = [measures(args, tag, channel["area"]) for tag, _, _, _ in runs]
     command = "python3 bench/run_ctc_among_rbcs.py " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     write_table(args.table, table(args, runs, results, channel, command))
