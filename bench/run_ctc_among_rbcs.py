@@ -126,7 +126,9 @@ def measures(args, tag, area):
     cfl = [v for v in cfl if v is not None]
     m["cfl"] = sum(cfl) / len(cfl) if cfl else None
     m["cfl_steps"] = len(cfl)
-    m["s_per_step"] = m["wall"] / m["steps"] if m["wall"] and m["steps"] else None
+    # After a -restart the wall time is that of the steps after resumed_from_step.
+    ran = (m["steps"] or 0) - (s.get("resumed_from_step") or 0)
+    m["s_per_step"] = m["wall"] / ran if m["wall"] and ran > 0 else None
     m["overlap"] = s.get("contact_overlap_points_max")
     # Early, before the CTC reaches the narrowing: the flow rate and the distance the CTC travelled by --early.
     early = next((r for r in rows if (number(r["time"]) or 0) >= args.early * (1 - 1e-9)), None)
@@ -255,6 +257,7 @@ def snapshots(args, runs, results):
                                             (m["exit"], "exit"))):
             t, f, _ = min(fluid, key=lambda e: abs(e[0] - t_want))
             xyz, arrays = read_grid(os.path.join(run, f))
+            x0, period = xyz[..., 0].min(), xyz[..., 0].max() - xyz[..., 0].min()
             ax.pcolormesh(xyz[..., 0] * 1e4, xyz[..., 1] * 1e4, np.linalg.norm(arrays["velocity"], axis=-1),
                           shading="gouraud", cmap="viridis")
             for time, sf, name in solid:
@@ -264,8 +267,13 @@ def snapshots(args, runs, results):
                 colour = "w" if name.startswith("rbc") else "r"
                 # A body's grid runs along its first parametric direction fastest (a membrane's thickness, a
                 # nucleus's radius): its first and last columns are its inner and outer curves.
+                # Bodies drift by whole periods (their x is not wrapped): each drawn at its image whose centre
+                # is in the channel, and that image's neighbours across the ends.
+                shift = period * math.floor((s[..., 0].mean() - x0) / period)
                 for curve in (s[:, 0], s[:, -1]):
-                    ax.plot(curve[:, 0] * 1e4, curve[:, 1] * 1e4, color=colour, lw=0.6)
+                    for image in (-period, 0.0, period):
+                        ax.plot((curve[:, 0] - shift + image) * 1e4, curve[:, 1] * 1e4, color=colour, lw=0.6)
+            ax.set_xlim(x0 * 1e4, (x0 + period) * 1e4)
             ax.set_aspect("equal")
             ax.set_xticks([])
             ax.set_yticks([])
