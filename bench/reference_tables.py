@@ -570,7 +570,8 @@ def t_ctc_among_rbcs_early():
         si = re.search(r"-s_interface (\S+?)'?(\s|$)", cmd)
         for r in runs:
             early = next((v for k, v in r.items() if k.startswith("at ")), "-")
-            if not r["status"].startswith("completed") or r["red cells"] in ("0", "-") or "(" not in early:
+            # Any run that got past the early time (a passage run stopped by hand too).
+            if r["red cells"] in ("0", "-") or "(" not in early:
                 continue
             key = next(k for k in r if k.startswith("at "))
             t_early = re.match(r"at (\S+) s", key).group(1)
@@ -579,15 +580,20 @@ def t_ctc_among_rbcs_early():
             rows.append([mesh, si.group(1) if si else "auto", r["red cells"], r["haematocrit (%)"], r["seed"],
                          t_early, flow, ratio_q, travel, ratio_x, r["s/step"], commit_of(path), code(cmd)])
         sources.append(link_from_page(path))
-    rows.sort(key=lambda r: (int(r[0].split("x")[0]), r[1] != "auto", -float(r[1]) if r[1] != "auto" else 0))
+    def order(r):
+        nx = re.match(r"\d+", r[0])
+        si = re.match(r"[0-9.eE+-]+", r[1])
+        return (int(nx.group()) if nx else 0, r[1] != "auto", -float(si.group()) if si and r[1] != "auto" else 0,
+                r[2], r[4])
+    rows.sort(key=order)
     return table(rows, sources, ["mesh", "s_I", "red cells", "haematocrit (%)", "seed", "at t (s)",
                                  "flow rate (1e-6 cm^2/s)", "against the CTC alone", "CTC travel (um)",
                                  "against the CTC alone", "s/step", "commit", "command"])
 
 
 def t_ctc_among_rbcs():
-    """The CTC's passage through the throat alone and among red cells (bench/run_ctc_among_rbcs.py's runs that
-    went to the end of the throat or past the early window)."""
+    """The CTC's passage through the throat alone and among red cells (bench/run_ctc_among_rbcs.py's kept tables
+    named ctc_among_rbcs_passage_*: their runs that completed or were stopped by hand)."""
     rows, sources = [], []
     for path, runs, mesh, cmd in ctc_among_rbcs_files("ctc_among_rbcs_passage"):
         for r in runs:
