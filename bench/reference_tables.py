@@ -562,11 +562,24 @@ def ctc_among_rbcs_files(prefix):
     return out
 
 
+def early_row_order(r):
+    """Mesh, then the automatic s_I before given ones (largest first), then red cells and seed (numbers where the
+    cells are numbers)."""
+    def value(text):
+        m = re.match(r"[0-9.eE+-]+", text)
+        try:
+            return float(m.group()) if m else 0.0
+        except ValueError:
+            return 0.0
+    return (value(r[0]), r[1] != "auto", -value(r[1]) if r[1] != "auto" else 0.0, value(r[2]), value(r[4]))
+
+
 def t_ctc_among_rbcs_early():
     """How much the red cells hold the flow back early in the run (before the CTC reaches the narrowing), against
     the CTC alone on the same mesh, per mesh and s_I: a mesh study a short run can make."""
     rows, sources = [], []
     for path, runs, mesh, cmd in ctc_among_rbcs_files("ctc_among_rbcs"):
+        used = False
         si = re.search(r"-s_interface (\S+?)'?(\s|$)", cmd)
         for r in runs:
             early = next((v for k, v in r.items() if k.startswith("at ")), "-")
@@ -579,13 +592,10 @@ def t_ctc_among_rbcs_early():
             ratio_q, ratio_x = early.split("(")[1].rstrip(")").split(", ")
             rows.append([mesh, si.group(1) if si else "auto", r["red cells"], r["haematocrit (%)"], r["seed"],
                          t_early, flow, ratio_q, travel, ratio_x, r["s/step"], commit_of(path), code(cmd)])
-        sources.append(link_from_page(path))
-    def order(r):
-        nx = re.match(r"\d+", r[0])
-        si = re.match(r"[0-9.eE+-]+", r[1])
-        return (int(nx.group()) if nx else 0, r[1] != "auto", -float(si.group()) if si and r[1] != "auto" else 0,
-                r[2], r[4])
-    rows.sort(key=order)
+            used = True
+        if used:
+            sources.append(link_from_page(path))
+    rows.sort(key=early_row_order)
     return table(rows, sources, ["mesh", "s_I", "red cells", "haematocrit (%)", "seed", "at t (s)",
                                  "flow rate (1e-6 cm^2/s)", "against the CTC alone", "CTC travel (um)",
                                  "against the CTC alone", "s/step", "commit", "command"])

@@ -293,8 +293,7 @@ void DcImmersedFluid::jacobian(Vec X, Mat J) {
     fluid_->step_tangent(work_, J, true, false);
     return;
   }
-  if (!bulk_matrix_) {  // the bulk part at the first iterate asked for (its mean flow, as bulk_inverse's),
-                        // kept
+  if (!bulk_matrix_) {  // the bulk part at the first iterate's mean flow (as bulk_inverse's), kept
     CELLFSI_PETSC(MatDuplicate(J, MAT_DO_NOT_COPY_VALUES, &bulk_matrix_));
     fluid_->bulk_tangent_of_mean(work_, bulk_matrix_);
   }
@@ -334,8 +333,8 @@ std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X
   fluid_->gather(X, work_);
   Mat J = fluid_->matrix();
   fluid_->bulk_tangent_of_mean(work_, J);
-  MatDestroy(
-      &bulk_matrix_);  // the Jacobian's kept bulk part (no stencil) follows: the next jacobian() makes it
+  // The Jacobian's kept bulk part (-coupling_bulk_stencil false) follows: the next jacobian() makes it again.
+  MatDestroy(&bulk_matrix_);
   bulk_ = std::make_unique<dc::DcFourierSolver>(*space_, comm_, fluid_->petsc_numbering());
   bulk_->build(J, true);
   OwnBulkInverse inv;
