@@ -34,10 +34,14 @@ const std::vector<std::string> kSolidTangents{"isotropic", "consistent", "colloc
 const std::vector<std::string> kShapes{"hollow_ellipse",   "ellipse",   "rbc",
                                        "hollow_ellipsoid", "ellipsoid", "rbc_3d"};
 const std::vector<std::string> kArrangements{"even", "staggered", "random", "scattered"};
-const std::vector<std::string> kMaterials{"neo_hookean", "mooney_rivlin", "strain_hardening"};
+const std::vector<std::string> kMaterials{"neo_hookean", "mooney_rivlin", "strain_hardening", "skalak"};
 // C3 / G of the strain-hardening law: Mills et al. (2004) fitted 1/30; 100 makes the law 600 times stiffer
 // than neo-Hookean at I1 - 3 = 1 (a stretch of 1.9), far beyond any cell.
 constexpr double kMaxHardening = 100;
+// Skalak's C (area-dilation modulus G h (1 + 2C)): a red cell's membrane is about 1e4 times stiffer in area
+// than in shear; 1e4 is that limit, and the stiffer the law, the smaller the step it needs
+// (docs/materials.md).
+constexpr double kMaxAreaRatio = 1e4;
 constexpr double kMaxOriginOverSize = 1e6;     // |domain origin| / domain extent
 // G [dyn/cm^2]: cells are 1e1 ... 1e5, rubber 1e7; the capsule at 48 x 24, dt 5e-4 ran at 1e9, its coupling
 // diverged at 1e10 and its membrane inverted at 1e11.
@@ -291,6 +295,10 @@ void declare_body_options(OptionTable& t, BodySettings& b, BodyOptionValues& v, 
       .real("hardening_c3", b.hardening_c3,
             "strain_hardening: C3 / G in W = G/2 (I1 - 3) + C3 (I1 - 3)^3 (Mills et al. 2004: 1/30)",
             between(0, kMaxHardening, "", "(0: neo-Hookean)"))
+      .real("area_dilation", b.area_dilation,
+            "skalak: C in Skalak's W_s = G h / 4 (I1^2 + 2 I1 - 2 I2 + C I2^2), the area-dilation modulus "
+            "G h (1 + 2C) (3D membranes; docs/materials.md)",
+            between(0, kMaxAreaRatio, "", "(0: no area term)"))
       .real("density", b.density, "rho_2 [g/cm^3]", material(1e-6, 1e3, "[g/cm^3]"))
       .real("inner_viscosity", b.inner_viscosity,
             "Membranes: viscosity mu of the fluid inside (a cytosol; for a compound cell, around the "
@@ -406,6 +414,15 @@ void check_law_and_elements(OptionTable& t, BodySettings& b, const BodyOptionVal
   if (t.given("hardening_c3") && b.material != "strain_hardening")
     t.bad("hardening_c3", option_value_text(b.hardening_c3),
           "only with -" + pre + "material strain_hardening" + law_now);
+  if (t.given("area_dilation") && b.material != "skalak")
+    t.bad("area_dilation", option_value_text(b.area_dilation),
+          "only with -" + pre + "material skalak" + law_now);
+  // Skalak's is a law of a membrane's surface: it needs the membrane's normal, which a bulky body has not,
+  // and in 2D (plane strain) its two constants cannot be told apart (docs/materials.md).
+  if (b.material == "skalak" && !(D == 3 && b.membrane()))
+    t.bad("material", b.material,
+          "neo_hookean, mooney_rivlin or strain_hardening for " +
+              std::string(D == 3 ? "a bulky body" : "a 2D body") + " (skalak: 3D membranes only)");
   const std::vector<int>& elements = v.elements;
   if (b.membrane() && elements[0] > 1)
     t.bad("elements", std::to_string(elements[0]), "1 element through a membrane's thickness");

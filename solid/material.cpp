@@ -176,4 +176,46 @@ double DeviatoricStrainHardening::strain_energy(const Mat3& F, int dim) const {
   return G_ * (0.5 * e + r_ * e * e * e);
 }
 
+SkalakMembrane::SkalakMembrane(double shear_modulus, double area_ratio) : G_(shear_modulus), C_(area_ratio) {
+  if (!(shear_modulus > 0) || !std::isfinite(shear_modulus))
+    throw std::invalid_argument("shear modulus G = " + number_text(shear_modulus) +
+                                " is invalid; valid: > 0");
+  // The area-dilation modulus G h (1 + 2C) must be positive; C >= 0 also keeps W convex in the area.
+  if (!(area_ratio >= 0) || !std::isfinite(area_ratio))
+    throw std::invalid_argument("Skalak area-dilation ratio C = " + number_text(area_ratio) +
+                                " is invalid; valid: >= 0");
+}
+
+namespace {
+/// C = F^T F of a 3D deformation, refused where the element is inverted.
+Mat3 right_cauchy_green_3d(const Mat3& F, int dim, const char* law) {
+  if (dim != 3)
+    throw std::invalid_argument(std::string(law) +
+                                " is a law of a 3D membrane's surface; dim = " + std::to_string(dim));
+  double J = 0;
+  const Mat3 Fd = deformation_block(F, 3, J);
+  return Fd.transpose() * Fd;
+}
+}  // namespace
+
+Mat3 SkalakMembrane::second_piola(const Mat3& F, int dim) const {
+  const Mat3 C = right_cauchy_green_3d(F, dim, "the Skalak law");
+  const double i1 = C(0, 0) + C(1, 1) - 2, i2 = C(0, 0) * C(1, 1) - C(0, 1) * C(0, 1) - 1;
+  const double a = i1 + 1, b = C_ * i2 - 1;
+  Mat3 S = Mat3::Zero();
+  S(0, 0) = G_ * (a + b * C(1, 1));
+  S(1, 1) = G_ * (a + b * C(0, 0));
+  S(0, 1) = S(1, 0) = -G_ * b * C(0, 1);
+  S(0, 2) = S(2, 0) = G_ * C(0, 2);
+  S(1, 2) = S(2, 1) = G_ * C(1, 2);
+  return S;
+}
+
+double SkalakMembrane::strain_energy(const Mat3& F, int dim) const {
+  const Mat3 C = right_cauchy_green_3d(F, dim, "the Skalak law");
+  const double i1 = C(0, 0) + C(1, 1) - 2, i2 = C(0, 0) * C(1, 1) - C(0, 1) * C(0, 1) - 1;
+  return 0.25 * G_ * (i1 * i1 + 2 * i1 - 2 * i2 + C_ * i2 * i2) +
+         0.5 * G_ * (C(0, 2) * C(0, 2) + C(1, 2) * C(1, 2));
+}
+
 }  // namespace cellfsi::solid

@@ -33,6 +33,12 @@ class Material {
   /// central differences (12 evaluations, relative error about 1e-9); a law with an exact expression
   /// overrides it. The coupling's consistent tangent (coupling::SolidTangent) uses it.
   virtual Voigt6 spatial_tangent(const Mat3& F, int dim) const;
+  /// True for a law of a membrane's surface (SkalakMembrane), whose energy depends on the membrane's
+  /// reference normal N. Such a law is given F in a reference frame whose third axis is N: F Q, with Q's
+  /// columns an orthonormal T1, T2, N, which the solid computes at each of its points (NurbsSolid). The
+  /// Kirchhoff stress F S F^T and the spatial tangent are the same in any reference frame, so the result
+  /// needs no turning back. The isotropic laws do not depend on the frame and are given F as it is.
+  virtual bool membrane_surface_law() const { return false; }
 };
 
 /// The Kirchhoff stress tau = F S F^T of a material.
@@ -99,6 +105,32 @@ class DeviatoricStrainHardening final : public Material {
  private:
   double G_, r_;
   DeviatoricNeoHookean neo_hookean_;
+};
+
+/// Skalak, Tozeren, Zarda & Chien's (1973) surface law, written for this code's thick membrane (3D only; F in
+/// the membrane's frame, axis 3 along the reference normal, membrane_surface_law()):
+///   W = G/4 (I1s^2 + 2 I1s - 2 I2s + C I2s^2) + G/2 (C13^2 + C23^2),
+/// I1s = C11 + C22 - 2 = lambda1^2 + lambda2^2 - 2 and I2s = C11 C22 - C12^2 - 1 = lambda1^2 lambda2^2 - 1
+/// the in-plane invariants. W is Skalak's W_s / h per reference volume: G h is his surface shear modulus G_s
+/// and G h (1 + 2C) the area-dilation modulus, C = `area_ratio`. The energy leaves the thickness direction
+/// free (the fluid's incompressibility ties it to the area); the second term holds the transverse shear,
+/// which Skalak's surface energy leaves free and without which a thick shell would lose its bending stiffness
+/// to layers sliding over one another (docs/materials.md). In the frame, with cof(C_s) = [C22, -C12; -C12,
+/// C11]:
+///   S_ab = G [(I1s + 1) delta_ab + (C I2s - 1) cof(C_s)_ab] (a, b in-plane), S_a3 = G C_a3, S_33 = 0.
+class SkalakMembrane final : public Material {
+ public:
+  SkalakMembrane(double shear_modulus, double area_ratio);
+  /// dim must be 3 (a surface law has no meaning in plane strain: docs/materials.md).
+  Mat3 second_piola(const Mat3& F, int dim) const override;
+  double strain_energy(const Mat3& F, int dim) const override;
+  std::string name() const override { return "skalak_membrane"; }
+  double tangent_shear_modulus() const override { return G_; }
+  bool membrane_surface_law() const override { return true; }
+  double area_ratio() const { return C_; }
+
+ private:
+  double G_, C_;
 };
 
 }  // namespace cellfsi::solid

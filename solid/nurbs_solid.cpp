@@ -87,6 +87,10 @@ NurbsSolid::NurbsSolid(std::string name, geometry::Patch reference, std::shared_
     }
   }
   membrane_ = !degenerate;
+  if (material_->membrane_surface_law() && !(membrane_ && dim_ == 3))
+    throw std::invalid_argument("NurbsSolid '" + name_ + "': the " + material_->name() +
+                                " law is a law of a 3D membrane's surface; this body is " +
+                                (membrane_ ? "a 2D membrane" : "not a membrane"));
   collocation_.resize(n_reduced_, n_reduced_);
   collocation_.setFromTriplets(trip.begin(), trip.end());
   factor_.compute(collocation_);
@@ -100,6 +104,21 @@ NurbsSolid::NurbsSolid(std::string name, geometry::Patch reference, std::shared_
   c_n_ = c_;
   tabulate_quadrature();
 }
+
+namespace {
+/// A membrane's reference frame at a point (columns T1, T2, N): N the unit normal of the surface of constant
+/// xi_0 through it (direction 0 runs through the thickness: N is grad xi_0, row 0 of d xi / d X, normalised),
+/// T1, T2 any orthonormal pair across it (a membrane surface law is isotropic in its plane).
+Mat3 membrane_frame(const Mat3& dXdxi) {
+  const Vec3 N = dXdxi.inverse().row(0).transpose().normalized();
+  const Vec3 t1 = N.unitOrthogonal();
+  Mat3 Q;
+  Q.col(0) = t1;
+  Q.col(1) = N.cross(t1);
+  Q.col(2) = N;
+  return Q;
+}
+}  // namespace
 
 void NurbsSolid::tabulate_quadrature() {
   std::vector<geometry::QuadraturePoint> qp;
@@ -143,6 +162,7 @@ void NurbsSolid::tabulate_quadrature() {
       q_X_.push_back(mv.x);
       q_weight_.push_back(q.weight * std::abs(dXdxi.topLeftCorner(dim_, dim_).determinant()));
       if (membrane_) q_area_.push_back(q_weight_.back() / (dXdxi.col(0).norm() * range0));
+      if (material_->membrane_surface_law()) q_frame_.push_back(membrane_frame(dXdxi));
     }
   }
 }
@@ -282,7 +302,7 @@ bool NurbsSolid::basis_gradients(std::vector<int>& begin, std::vector<int>& unkn
 Eigen::MatrixXd NurbsSolid::displacement_control_alpha() const { return c_n_ + time_.alpha_f * (c_ - c_n_); }
 
 void NurbsSolid::kinematics(const Eigen::MatrixXd& c, const Param& xi, const Index3* element, Vec3& x,
-                            Mat3& F, double& ref_jacobian) const {
+                            Mat3& F, double& ref_jacobian, Mat3* frame) const {
   thread_local BasisValues bv;
   thread_local MapValues mv;
   reference_.basis(xi, 1, bv, element);
@@ -301,6 +321,7 @@ void NurbsSolid::kinematics(const Eigen::MatrixXd& c, const Param& xi, const Ind
   F.topLeftCorner(dim_, dim_) += dudxi.topLeftCorner(dim_, dim_) * dXdxi.inverse();
   x = mv.x + u;
   ref_jacobian = dXdxi.determinant();
+  if (frame) *frame = membrane_ && dim_ == 3 ? membrane_frame(mv.dx) : Mat3(Mat3::Identity());
 }
 
 namespace {
@@ -380,23 +401,26 @@ std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density, bo
   const double beta = 1.0 - density_ / fluid_density;
   std::vector<QuadratureData> out;
   out.reserve(q_X_.size());
-  for_each_quadrature_point(displacement_control_alpha(), [&](const Vec3& x, const Mat3& F, double weight) {
-    QuadratureData d;
-    d.x = x;
-    d.weight = weight;
-    d.stress = F * material_->second_piola(F, dim_) * F.transpose() / fluid_density;
-    d.beta = beta;
-    d.shear_modulus = material_->tangent_shear_modulus();
-    if (with_tangent) {
-      d.has_tangent = true;
-      const Voigt6 c = material_->spatial_tangent(F, dim_);
-      for (int r = 0, t = 0; r < 6; ++r)
-        for (int k = r; k < 6; ++k, ++t) d.tangent[t] = c(r, k) / fluid_density;
-    }
-    if (!load_density_.empty()) d.force = load_density_[out.size()] / fluid_density;
-    if (membrane_) d.area = q_area_[out.size()];
-    out.push_back(d);
-  });
+  for_each_quadrature_point(
+      displacement_control_alpha(), [&](const Vec3& x, const Mat3& F_global, double weight) {
+        QuadratureData d;
+        d.x = x;
+        d.weight = weight;
+        // A membrane surface law takes F in the membrane's frame; tau and c come out the same (Material).
+        const Mat3 F = q_frame_.empty() ? F_global : Mat3(F_global * q_frame_[out.size()]);
+        d.stress = F * material_->second_piola(F, dim_) * F.transpose() / fluid_density;
+        d.beta = beta;
+        d.shear_modulus = material_->tangent_shear_modulus();
+        if (with_tangent) {
+          d.has_tangent = true;
+          const Voigt6 c = material_->spatial_tangent(F, dim_);
+          for (int r = 0, t = 0; r < 6; ++r)
+            for (int k = r; k < 6; ++k, ++t) d.tangent[t] = c(r, k) / fluid_density;
+        }
+        if (!load_density_.empty()) d.force = load_density_[out.size()] / fluid_density;
+        if (membrane_) d.area = q_area_[out.size()];
+        out.push_back(d);
+      });
   return out;
 }
 
@@ -430,9 +454,10 @@ std::vector<Mat3> NurbsSolid::cauchy_stress(const std::vector<Param>& xi) const 
   std::vector<Mat3> out(xi.size());
   for (size_t i = 0; i < xi.size(); ++i) {
     Vec3 x;
-    Mat3 F;
+    Mat3 F, frame;
     double jac0 = 0;
-    kinematics(c_n_, xi[i], nullptr, x, F, jac0);
+    kinematics(c_n_, xi[i], nullptr, x, F, jac0, &frame);
+    if (!q_frame_.empty()) F = F * frame;
     const double J = F.topLeftCorner(dim_, dim_).determinant();
     // Output only: NaN where F is undefined (a degenerate point) or inverted, instead of stopping the run.
     out[i] = J > 0 && std::isfinite(J) ? Mat3(F * material_->second_piola(F, dim_) * F.transpose() / J)

@@ -82,9 +82,10 @@ class NurbsSolid final : public SolidSolver {
   /// The text appended to an inverted element's error: the body, the element, the point and the stretches.
   std::string where_inverted(const geometry::Index3& element, const geometry::Param& xi, const Vec3& x,
                              const Mat3& F) const;
-  /// Position and deformation gradient at xi for displacement control variables c.
+  /// Position and deformation gradient at xi for displacement control variables c; frame (if given): a 3D
+  /// membrane's reference frame there (T1, T2, N, for a membrane surface law), else the identity.
   void kinematics(const Eigen::MatrixXd& c, const geometry::Param& xi, const geometry::Index3* element,
-                  Vec3& x, Mat3& F, double& ref_jacobian) const;
+                  Vec3& x, Mat3& F, double& ref_jacobian, Mat3* frame = nullptr) const;
   /// The quadrature points in their fixed order (elements in turn, Gauss points within each): position,
   /// deformation gradient for displacement control variables c, and reference volume weight.
   void for_each_quadrature_point(const Eigen::MatrixXd& c,
@@ -117,6 +118,7 @@ class NurbsSolid final : public SolidSolver {
   std::vector<double> q_N_, q_dN_, q_weight_;  // q_weight_: Gauss weight times |det dX / dxi|
   std::vector<double> q_area_;  // a membrane's: q_weight_ over the thickness there (QuadratureData::area)
   std::vector<Vec3> q_X_;                      // reference position
+  std::vector<Mat3> q_frame_;  // a membrane surface law's reference frame (T1, T2, N; else empty)
   void tabulate_quadrature();
 };
 

@@ -404,8 +404,15 @@ TEST_F(CellfsiApp, BadMaterialLawsAndTheirConstantsAreRejected) {
   // Issue 28: the law's name, its constant's range, and a constant given to another law (it would do
   // nothing).
   const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"-solid_membrane_material", "hooke"},
+       "-solid_membrane_material = hooke is invalid; valid: neo_hookean, mooney_rivlin, strain_hardening or "
+       "skalak"},
       {{"-solid_membrane_material", "skalak"},
-       "-solid_membrane_material = skalak is invalid; valid: neo_hookean, mooney_rivlin or strain_hardening"},
+       "-solid_membrane_material = skalak is invalid; valid: neo_hookean, mooney_rivlin or strain_hardening "
+       "for a 2D body (skalak: 3D membranes only)"},
+      {{"-solid_membrane_area_dilation", "5"},
+       "-solid_membrane_area_dilation = 5 is invalid; valid: only with -solid_membrane_material skalak (the "
+       "material is neo_hookean)"},
       {{"-solid_membrane_material", "mooney_rivlin", "-solid_membrane_mooney_rivlin_fraction", "1.5"},
        "-solid_membrane_mooney_rivlin_fraction = 1.5 is invalid; valid: 0 ... 1 (0: neo-Hookean)"},
       {{"-solid_membrane_material", "strain_hardening", "-solid_membrane_hardening_c3", "-0.1"},

@@ -256,6 +256,35 @@ TEST_F(CellfsiApp, StretchedRbcElongatesStaysPutAndStopsAtEquilibrium) {
   }
 }
 
+TEST_F(CellfsiApp, StretchedRbcWithSkalaksLawKeepsItsArea) {
+  // Issue 47, item 1: the same pull (190 pN, 2 um fluid elements) on the area-preserving law
+  // (-solid_rbc_material skalak, C = 100): the membrane's area grows by under 2 % at equilibrium (measured
+  // 1.61 %, D_A 10.35 um, D_T 6.13 um, at 24 ms), where the neo-Hookean shell has grown by 5.7 % after 4 ms,
+  // less stretched (D_A 11.68 um) than it will be. The summary carries C and the shell's bending modulus
+  // G (1 + C) h^3 / 6 (docs/materials.md).
+  const std::vector<std::string> base = {
+      scene("rbc_stretch_3d.yaml"), "-fluid_elements", "12,4,6", "-output_every", "0",
+      "-solid_rbc_stretch_force",   "1.9e-5"};
+  ASSERT_EQ(cellfsi(with(base, {"-final_time", "4e-3"}), 120).exit_code, 0) << last_output_;
+  const double neo_growth = json_number(summary(), "rbc_r_P").value_or(0);
+  EXPECT_NEAR(neo_growth, 0.0573, 0.005) << summary();
+  const RunResult r =
+      cellfsi(with(base, {"-solid_rbc_material", "skalak", "-solid_rbc_area_dilation", "100"}), 120);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string js = summary();
+  EXPECT_EQ(json_string(js, "rbc_material").value_or(""), "skalak") << js;
+  EXPECT_EQ(json_number(js, "rbc_area_dilation"), 100.0) << js;
+  const double bending = 189.74 * 101 / 6 * std::pow(3.1623e-5, 3);
+  EXPECT_NEAR(json_number(js, "rbc_bending_modulus").value_or(0), bending, 1e-9 * bending) << js;
+  ASSERT_TRUE(json_number(js, "rbc_equilibrium_time").has_value()) << js;
+  const double growth = json_number(js, "rbc_r_P").value_or(1);
+  EXPECT_GT(growth, 0.0);
+  EXPECT_LT(growth, 0.02) << js;
+  EXPECT_LT(growth, neo_growth / 3) << js;
+  EXPECT_NEAR(json_number(js, "rbc_axial_diameter").value_or(0), 10.35e-4, 0.1e-4) << js;
+  EXPECT_NEAR(json_number(js, "rbc_transverse_diameter").value_or(0), 6.13e-4, 0.1e-4) << js;
+}
+
 TEST_F(CellfsiApp, RunFailingInItsFirstStepSaysWhereAndKeepsTheColumns) {
   // Issue 10: a step too long for the membrane at 192 x 96 (dt 4e-3 inverts an element in step 1 with the
   // paper's iteration; the Anderson-accelerated one, the default, gets through it). The run exits with 2, the

@@ -94,16 +94,18 @@ TEST(SceneBody, RotatedHollowEllipsoidEnclosesItsVolumeWithItsAxes) {
 
 TEST(SceneBody, MaterialOptionChoosesTheLawWithItsConstants) {
   // -solid_NAME_material and its constants reach the law: the same stress as the law built directly, at a 3D
-  // stretch where the three laws differ.
+  // stretch where the laws differ.
   app::BodySettings b;
   b.shear_modulus = 40;
   b.mooney_rivlin_fraction = 0.25;
   b.hardening_c3 = 0.2;
+  b.area_dilation = 7;
   const solid::Mat3 F = Eigen::Vector3d(1.6, 0.8, 1 / 1.28).asDiagonal();
   const std::vector<std::pair<std::string, std::shared_ptr<const solid::Material>>> laws = {
       {"neo_hookean", std::make_shared<solid::DeviatoricNeoHookean>(40)},
       {"mooney_rivlin", std::make_shared<solid::DeviatoricMooneyRivlin>(40, 0.25)},
-      {"strain_hardening", std::make_shared<solid::DeviatoricStrainHardening>(40, 0.2)}};
+      {"strain_hardening", std::make_shared<solid::DeviatoricStrainHardening>(40, 0.2)},
+      {"skalak", std::make_shared<solid::SkalakMembrane>(40, 7)}};
   for (const auto& [word, law] : laws) {
     b.material = word;
     const std::shared_ptr<const solid::Material> m = app::make_material(b);
@@ -113,6 +115,7 @@ TEST(SceneBody, MaterialOptionChoosesTheLawWithItsConstants) {
   }
   EXPECT_NE(laws[0].second->second_piola(F, 3), laws[1].second->second_piola(F, 3));
   EXPECT_NE(laws[0].second->second_piola(F, 3), laws[2].second->second_piola(F, 3));
-  b.material = "skalak";
+  EXPECT_NE(laws[0].second->second_piola(F, 3), laws[3].second->second_piola(F, 3));
+  b.material = "hooke";
   EXPECT_THROW(app::make_material(b), std::invalid_argument);
 }

@@ -335,3 +335,164 @@ TEST(Material, BadConstantsAndInvertedElementsAreRefused) {
     EXPECT_STREQ(e.what(), "inverted solid element: det F = -1e+300 <= 0");
   }
 }
+
+// Skalak's surface law for a 3D membrane (solid::SkalakMembrane): F is given in the membrane's frame, axis 3
+// along the reference normal (the solid turns it there: test_solid.cpp checks that part).
+namespace {
+
+constexpr double kAreaRatio = 10.0;  // Skalak's C
+
+/// Skalak et al.'s tension of a free-edged strip, T1 / G_s = (lambda1 / lambda2) [lambda1^2 - 1 + C
+/// lambda2^2 (lambda1^2 lambda2^2 - 1)], with the lateral stretch that zeroes T2: lambda2^2 = (1 + C
+/// lambda1^2) / (1 + C lambda1^4) (Barthes-Biesel, Diaz & Dhenin 2002, their Eq. for the SK law).
+double skalak_lateral(double l, double C) { return std::sqrt((1 + C * l * l) / (1 + C * std::pow(l, 4))); }
+double skalak_tension(double l, double C) {
+  const double l2 = skalak_lateral(l, C);
+  return l / l2 * (l * l - 1 + C * l2 * l2 * (l * l * l2 * l2 - 1));
+}
+
+/// Random deformations near the identity in 3D, det F >= 0.3.
+Mat3 random_3d(std::mt19937& rng, double size) {
+  Mat3 F = random_deformation(rng, 3, size);
+  if (F.determinant() < 0.3) F += Mat3::Identity();
+  return F;
+}
+
+}  // namespace
+
+TEST(SkalakMembrane, FreeEdgedStripGivesSkalaksTensionAndKeepsItsArea) {
+  // A thick sheet of the law with its normal along x3, stretched by lambda along x1: the lateral stretch that
+  // frees the edges (found by bisection from the law's stress alone) and T1 / (G h) against Skalak's exact
+  // answers; the area lambda1 lambda2 stays near 1 when C is large, as a red cell's membrane does.
+  for (double C : {0.0, 1.0, kAreaRatio, 100.0}) {
+    const solid::SkalakMembrane m(kG, C);
+    double worst = 0;
+    for (double e1 : {0.01, 0.1, 0.5, 1.0, 2.0}) {
+      const double lambda = std::sqrt(1 + 2 * e1);
+      double lateral = 0;
+      const double t = strip_tension(m, lambda, 3, &lateral);
+      const double exact = skalak_tension(lambda, C);
+      worst = std::max(worst, std::abs(t - exact) / exact);
+      EXPECT_NEAR(t, exact, 1e-10 * exact) << "C = " << C << " e1 = " << e1;
+      EXPECT_NEAR(lateral, skalak_lateral(lambda, C), 1e-12) << "C = " << C << " e1 = " << e1;
+      if (C == 100.0) {
+        EXPECT_NEAR(lambda * lateral, 1.0, 0.01) << "area stretch at e1 = " << e1;
+      }
+    }
+    std::printf(
+        "Skalak C = %5g: largest relative error of T1 %.1e; area stretch at e1 = 1: %.4f (neo-Hookean "
+        "sheet %.4f)\n",
+        C, worst, std::sqrt(3.0) * skalak_lateral(std::sqrt(3.0), C), std::pow(3.0, 0.25));
+  }
+  // C = 1 is the incompressible neo-Hookean sheet at small strain (T1 = 3 G h e1); C = 10 is stiffer.
+  const double small = std::sqrt(1 + 2e-5);
+  EXPECT_NEAR(strip_tension(solid::SkalakMembrane(kG, 1.0), small, 3) / 1e-5, 3.0, 1e-3);
+  EXPECT_NEAR(strip_tension(solid::SkalakMembrane(kG, kAreaRatio), small, 3) / 1e-5,
+              2 * (1 + 2 * kAreaRatio) / (1 + kAreaRatio), 1e-3);
+}
+
+TEST(SkalakMembrane, StressIsTheDerivativeOfTheEnergyAndTheTangentItsOwn) {
+  // F S = dW/dF by central differences; the spatial tangent (the base class's numerical one) against a
+  // perturbed deformation's stress; stress-free at rest, symmetric, objective, and turning the reference
+  // frame about the normal (axis 3) changes nothing while turning it about another axis does.
+  const solid::SkalakMembrane m(kG, kAreaRatio);
+  EXPECT_LT(m.second_piola(Mat3::Identity(), 3).norm(), 1e-12 * kG);
+  EXPECT_EQ(m.strain_energy(Mat3::Identity(), 3), 0.0);
+  EXPECT_EQ(m.tangent_shear_modulus(), kG);
+  EXPECT_TRUE(m.membrane_surface_law());
+  EXPECT_FALSE(solid::DeviatoricNeoHookean(kG).membrane_surface_law());
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> U(-1, 1);
+  const double h = 1e-6;
+  double worst_energy = 0, worst_tangent = 0;
+  for (double size : {0.1, 0.3, 0.6})
+    for (int k = 0; k < 4; ++k) {
+      const Mat3 F = random_3d(rng, size);
+      const Mat3 S = m.second_piola(F, 3), P = F * S;
+      Mat3 fd;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+          Mat3 Fp = F, Fm = F;
+          Fp(i, j) += h;
+          Fm(i, j) -= h;
+          fd(i, j) = (m.strain_energy(Fp, 3) - m.strain_energy(Fm, 3)) / (2 * h);
+        }
+      worst_energy = std::max(worst_energy, (fd - P).norm() / P.norm());
+      EXPECT_LT((S - S.transpose()).norm(), 1e-12 * S.norm());
+      EXPECT_GE(m.strain_energy(F, 3), 0.0);
+      const Mat3 Q = rotation(3, 0.7);
+      EXPECT_LT((m.second_piola(Q * F, 3) - S).norm(), 1e-10 * S.norm());
+      const Mat3 about_normal = Eigen::AngleAxisd(0.9, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      EXPECT_NEAR(m.strain_energy(F * about_normal, 3), m.strain_energy(F, 3), 1e-10 * kG);
+      const Mat3 about_x = Eigen::AngleAxisd(0.9, Eigen::Vector3d::UnitX()).toRotationMatrix();
+      EXPECT_GT(std::abs(m.strain_energy(F * about_x, 3) - m.strain_energy(F, 3)), 1e-3 * kG * size * size);
+      Mat3 L;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) L(i, j) = U(rng);
+      const Mat3 tau = solid::kirchhoff_stress(m, F, 3);
+      const Mat3 dtau = (solid::kirchhoff_stress(m, (Mat3::Identity() + h * L) * F, 3) -
+                         solid::kirchhoff_stress(m, (Mat3::Identity() - h * L) * F, 3)) /
+                        (2 * h);
+      const Mat3 D = 0.5 * (L + L.transpose());
+      Eigen::Matrix<double, 6, 1> strain;
+      strain << D(0, 0), D(1, 1), D(2, 2), 2 * D(1, 2), 2 * D(0, 2), 2 * D(0, 1);
+      const solid::Voigt6 c = m.spatial_tangent(F, 3);
+      const double e = (solid::voigt(dtau - L * tau - tau * L.transpose()) - c * strain).norm() /
+                       (kG * (1 + kAreaRatio) * L.norm() * std::max(1.0, F.squaredNorm() * F.squaredNorm()));
+      worst_tangent = std::max(worst_tangent, e);
+      EXPECT_LT(e, 1e-7);
+    }
+  EXPECT_LT(worst_energy, 1e-7);
+  std::printf("Skalak C = %g: largest |dW/dF - F S| / |F S| = %.1e; tangent error %.1e\n", kAreaRatio,
+              worst_energy, worst_tangent);
+}
+
+TEST(SkalakMembrane, TransverseShearAndBendingOfTheThickShellCostEnergy) {
+  // Shear across the thickness, F = I + gamma e1 (x) e3, leaves the in-plane block of C as it is, so Skalak's
+  // surface energy alone would not see it (layers sliding freely); the transverse term gives it G gamma^2 / 2
+  // and the shear stress G gamma, as an isotropic solid of shear modulus G would.
+  const solid::SkalakMembrane m(kG, kAreaRatio);
+  for (double gamma : {1e-3, 0.1, 0.5}) {
+    Mat3 F = Mat3::Identity();
+    F(0, 2) = gamma;
+    EXPECT_NEAR(m.strain_energy(F, 3), 0.5 * kG * gamma * gamma, 1e-12 * kG);
+    EXPECT_NEAR(cauchy(m, F, 3)(0, 2), kG * gamma, 1e-10 * kG);
+  }
+  // Cylindrical bending of a flat shell of thickness h by curvature kappa (x1 stretched by 1 + kappa z, x2
+  // held, J = 1): the energy per unit area, by Gauss quadrature of the law through the thickness, against
+  // G (1 + C) kappa^2 h^3 / 12 (the law's small-strain bending stiffness; the neo-Hookean sheet's is
+  // G kappa^2 h^3 / 6: C = 1 gives the same).
+  const double h = 3.1623e-5, kappa = 1.0;  // kappa h = 3e-5: small strain
+  const double gauss[3] = {-std::sqrt(0.6), 0.0, std::sqrt(0.6)}, weight[3] = {5.0 / 9, 8.0 / 9, 5.0 / 9};
+  for (double C : {1.0, kAreaRatio}) {
+    const solid::SkalakMembrane law(kG, C);
+    double energy = 0, neo = 0;
+    for (int g = 0; g < 3; ++g) {
+      const double z = 0.5 * h * gauss[g], l = 1 + kappa * z;
+      const Mat3 F = diagonal(l, 1, 1 / l);
+      energy += 0.5 * h * weight[g] * law.strain_energy(F, 3);
+      neo += 0.5 * h * weight[g] * solid::DeviatoricNeoHookean(kG).strain_energy(F, 3);
+    }
+    EXPECT_NEAR(energy / (kG * (1 + C) * kappa * kappa * h * h * h / 12), 1.0, 1e-4) << "C = " << C;
+    if (C == 1.0) {
+      EXPECT_NEAR(energy / neo, 1.0, 1e-4);
+    }
+  }
+}
+
+TEST(SkalakMembrane, BadConstantsTwoDimensionsAndInvertedElementsAreRefused) {
+  for (double C : {-0.1, double(INFINITY), double(NAN)})
+    EXPECT_THROW(solid::SkalakMembrane(kG, C), std::invalid_argument) << C;
+  EXPECT_THROW(solid::SkalakMembrane(0.0, 1.0), std::invalid_argument);
+  const solid::SkalakMembrane m(kG, kAreaRatio);
+  try {
+    m.second_piola(Mat3::Identity(), 2);
+    ADD_FAILURE() << "2D accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "the Skalak law is a law of a 3D membrane's surface; dim = 2");
+  }
+  Mat3 inverted = Mat3::Identity();
+  inverted(2, 2) = -1;
+  EXPECT_THROW(m.second_piola(inverted, 3), std::runtime_error);
+  EXPECT_THROW(m.strain_energy(inverted, 3), std::runtime_error);
+}

@@ -21,6 +21,30 @@ namespace {
 std::shared_ptr<const solid::Material> membrane_material() {
   return std::make_shared<solid::DeviatoricNeoHookean>(7500.0);
 }
+
+/// One step of 1e-3 s in the homogeneous velocity v = L (x - c): every collocation point gets the same linear
+/// displacement, which the collocation reproduces exactly.
+void step_homogeneously(solid::NurbsSolid& s, const Mat3& L, const Vec3& c) {
+  s.begin_step(solid::TimeParameters::from_rho_inf(0.5, 1e-3));
+  std::vector<solid::VelocitySample> vs(s.n_points());
+  const std::vector<Vec3> x = s.collocation_points();
+  for (int i = 0; i < s.n_points(); ++i) vs[i].v = L * (x[i] - c), vs[i].grad_v = L;
+  s.kinematic_update(vs);
+  s.end_step();
+}
+
+/// The deformation gradient I + A of the least-squares map A of (X - c) to the displacement x - X over the
+/// quadrature points (q0: the reference ones, q: the moved ones).
+Mat3 fitted_deformation(const std::vector<solid::QuadratureData>& q0,
+                        const std::vector<solid::QuadratureData>& q, const Vec3& c) {
+  Eigen::Matrix3d XtX = Eigen::Matrix3d::Zero(), XtU = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < q.size(); ++i) {
+    const Vec3 X = q0[i].x - c, u = q[i].x - q0[i].x;
+    XtX += X * X.transpose();
+    XtU += X * u.transpose();
+  }
+  return Mat3::Identity() + XtX.ldlt().solve(XtU).transpose();
+}
 }  // namespace
 
 TEST(NurbsSolid, CollocationRoundTripIsExact) {
@@ -303,25 +327,13 @@ TEST(NurbsSolid, QuadratureDataOfAHomogeneousDeformationIn3DIsExact) {
   const std::vector<solid::QuadratureData> q0 = s.quadrature_data(1.025, false);
   Mat3 L;
   L << 30, 70, 0, -10, 20, 15, 5, 0, -40;
-  s.begin_step(solid::TimeParameters::from_rho_inf(0.5, 1e-3));
-  std::vector<solid::VelocitySample> vs(s.n_points());
-  const std::vector<Vec3> x = s.collocation_points();
-  for (int i = 0; i < s.n_points(); ++i) vs[i].v = L * (x[i] - c), vs[i].grad_v = L;
-  s.kinematic_update(vs);
-  s.end_step();  // the quadrature data at t_{n+1} = t_{n+alpha_f} of the next step
-  s.begin_step(solid::TimeParameters::from_rho_inf(0.5, 1e-3));
+  step_homogeneously(s, L, c);
+  s.begin_step(solid::TimeParameters::from_rho_inf(0.5, 1e-3));  // t_{n+1} = t_{n+alpha_f} of the next step
   const std::vector<solid::QuadratureData> q = s.quadrature_data(1.025, true);
   ASSERT_EQ(q.size(), q0.size());
-  // A: the least-squares map of (X - c) to the displacement x - X over all points.
-  Eigen::Matrix3d XtX = Eigen::Matrix3d::Zero(), XtU = Eigen::Matrix3d::Zero();
-  for (size_t i = 0; i < q.size(); ++i) {
-    const Vec3 X = q0[i].x - c, u = q[i].x - q0[i].x;
-    XtX += X * X.transpose();
-    XtU += X * u.transpose();
-  }
-  const Mat3 A = XtX.ldlt().solve(XtU).transpose();  // u = A (X - c)
-  ASSERT_GT(A.norm(), 1e-2);  // it moved
-  const Mat3 F = Mat3::Identity() + A;
+  const Mat3 F = fitted_deformation(q0, q, c);
+  const Mat3 A = F - Mat3::Identity();  // u = A (X - c)
+  ASSERT_GT(A.norm(), 1e-2);            // it moved
   const Mat3 stress = F * material->second_piola(F, 3) * F.transpose() / 1.025;
   double worst_x = 0, worst_stress = 0, worst_w = 0;
   for (size_t i = 0; i < q.size(); ++i) {
@@ -385,4 +397,53 @@ TEST(NurbsSolid, MembranesAndBulkyBodiesAreTold) {
   EXPECT_TRUE(
       solid::NurbsSolid("cap", geometry::hollow_ellipse(2e-4, 1e-4, 5e-7, 32, 2, c, 1.5707963), m, 1.1)
           .is_membrane());
+}
+
+TEST(NurbsSolid, AMembraneSurfaceLawSeesEachPointInItsMembranesFrame) {
+  // A spherical membrane moved by a homogeneous deformation F (v = L (x - c), as above): at every quadrature
+  // point the stress must be the Skalak law's for F in the point's own frame, whose normal is the sphere's
+  // radial direction (X - c) / |X - c| there; and cauchy_stress() the same at a point given by xi. The law
+  // given F without the frame (the global axes) would give another stress, checked to differ.
+  const Vec3 c(5e-4, 5e-4, 5e-4);
+  const double a = 1e-4;
+  const auto skalak = std::make_shared<solid::SkalakMembrane>(189.74, 10.0);
+  solid::NurbsSolid s("rbc", geometry::hollow_ellipsoid(a, a, a, 3e-6, 8, 16, 2, c), skalak, 1.1);
+  const std::vector<solid::QuadratureData> q0 = s.quadrature_data(1.025, false);
+  Mat3 L;
+  L << 30, 70, 0, -10, 20, 15, 5, 0, -40;
+  step_homogeneously(s, L, c);  // the quadrature data and cauchy_stress() at t_{n+1}, the end of the step
+  const std::vector<solid::QuadratureData> q = s.quadrature_data(1.025, true);
+  const Mat3 F = fitted_deformation(q0, q, c);
+  ASSERT_GT((F - Mat3::Identity()).norm(), 1e-2);
+  double worst = 0, scale = 0, largest_gap = 0;
+  for (size_t i = 0; i < q.size(); ++i) {
+    const Vec3 N = (q0[i].x - c).normalized();
+    const Vec3 t1 = N.unitOrthogonal();
+    Mat3 Q;
+    Q << t1, N.cross(t1), N;
+    const Mat3 FQ = F * Q;
+    const Mat3 expected = FQ * skalak->second_piola(FQ, 3) * FQ.transpose() / 1.025;
+    worst = std::max(worst, (q[i].stress - expected).norm());
+    scale = std::max(scale, expected.norm());
+    largest_gap = std::max(largest_gap, (solid::kirchhoff_stress(*skalak, F, 3) / 1.025 - expected).norm());
+    ASSERT_TRUE(q[i].has_tangent);
+  }
+  EXPECT_LT(worst, 1e-8 * scale);       // the frame's normal to the geometry's accuracy (exact conics)
+  EXPECT_GT(largest_gap, 0.1 * scale);  // the global axes as the frame: another stress
+  // cauchy_stress at a point on the mid-surface (xi_0 mid-way), its normal the radial direction there.
+  const geometry::Patch ref = s.reference();
+  const geometry::Param xi{0.5 * (ref.knots(0).a() + ref.knots(0).b()), 0.37 * ref.knots(1).b(),
+                           0.61 * ref.knots(2).b()};
+  const Vec3 N = (ref.point(xi) - c).normalized(), t1 = N.unitOrthogonal();
+  Mat3 Q;
+  Q << t1, N.cross(t1), N;
+  const Mat3 FQ = F * Q;
+  const Mat3 sigma = s.cauchy_stress({xi})[0];
+  EXPECT_LT((sigma - FQ * skalak->second_piola(FQ, 3) * FQ.transpose() / FQ.determinant()).norm(),
+            1e-6 * sigma.norm());
+  // A bulky body or a 2D membrane cannot take a surface law.
+  EXPECT_THROW(solid::NurbsSolid("n", geometry::solid_ellipsoid(a, a, a, 3, 4, 8, 2, c), skalak, 1.1),
+               std::invalid_argument);
+  EXPECT_THROW(solid::NurbsSolid("m", geometry::hollow_ellipse(a, a, 3e-6, 16, 2, c), skalak, 1.1),
+               std::invalid_argument);
 }
