@@ -140,7 +140,7 @@ std::vector<std::unique_ptr<solid::NurbsSolid>> build_bodies(const SceneSettings
     const std::vector<solid::PatchLoad> loads = stretch_loads(b, patch);
     out.push_back(std::make_unique<solid::NurbsSolid>(b.name, std::move(patch), make_material(b), b.density));
     try {
-      out.back()->set_loads(loads);
+      out.back()->set_loads(loads, b.stretch_ramp);
     } catch (const std::invalid_argument& e) {
       bad_option("solid_" + b.name + "_stretch_patch", option_value_text(b.stretch_patch),
                  std::string("a contact diameter whose two patches hold material and do not overlap (") +
@@ -357,7 +357,8 @@ void Scene::attach_bodies(std::vector<solid::SolidSolver*> bodies) {
     trackers_.back().record(fluid_->time(), b->current_patch());
     equilibrium_.emplace_back();
     if (body_settings(b->name()).stretched)
-      equilibrium_.back().emplace(s_.equilibrium_tolerance, s_.equilibrium_window);
+      equilibrium_.back().emplace(s_.equilibrium_tolerance, s_.equilibrium_window,
+                                  body_settings(b->name()).stretch_ramp);
   }
   record_diameters();
   suspension_on_ =

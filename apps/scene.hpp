@@ -49,6 +49,7 @@ struct BodySettings {
   bool stretched = false;
   double stretch_force = 0;
   double stretch_patch = 2e-4;
+  double stretch_ramp = 0;  // [s]: the force grows linearly from 0 to stretch_force over it (0: at once)
   geometry::Vec3 stretch_axis = geometry::Vec3::UnitX();
   // A copy of -solid_NAME_arrangement scattered: its centre is drawn at random (place_scattered_copies), from
   // this seed (the row's -seed and the copy's number).

@@ -352,6 +352,7 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
       // The stretching test: the pull, the final diameters and when equilibrium came (NaN: not reached).
       m.emplace_back(name + "_stretch_force", bs.stretch_force);
       m.emplace_back(name + "_stretch_patch", bs.stretch_patch);
+      m.emplace_back(name + "_stretch_ramp", bs.stretch_ramp);
       m.emplace_back(name + "_axial_diameter", equilibrium_[b]->last().axial);
       m.emplace_back(name + "_transverse_diameter", equilibrium_[b]->last().transverse);
       m.emplace_back(name + "_equilibrium_time", equilibrium_[b]->time());

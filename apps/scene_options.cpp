@@ -316,6 +316,11 @@ void declare_body_options(OptionTable& t, BodySettings& b, BodyOptionValues& v, 
             "the end of the mid-surface",
             positive("[cm]"))
       .reals("stretch_axis", v.stretch_axis, "Direction x,y,z of the stretch (normalised)", nullptr, finite())
+      .real(
+          "stretch_ramp", b.stretch_ramp,
+          "Time [s] over which the force grows linearly from 0 to -stretch_force (0: in full from the first "
+          "step; a sudden large pull may invert an element or stall the coupling in the first steps)",
+          non_negative("[s]"))
       .integer("count", v.count,
                "Copies of the body (NAME_1 ... NAME_N) spread evenly along x, the periodic flow direction; "
                "-center gives the row's y (and z)",
@@ -397,6 +402,8 @@ void check_stretching(OptionTable& t, BodySettings& b, const BodyOptionValues& v
   if (t.given("stretch_patch") && !b.stretched)
     t.bad("stretch_patch", option_value_text(b.stretch_patch), only_stretched);
   if (t.given("stretch_axis") && !b.stretched) t.bad("stretch_axis", axis_text, only_stretched);
+  if (t.given("stretch_ramp") && !b.stretched)
+    t.bad("stretch_ramp", option_value_text(b.stretch_ramp), only_stretched);
   if (v.stretch_axis.size() != 3) t.bad("stretch_axis", axis_text, "3 values x,y,z");
   const Vec3 sa(v.stretch_axis[0], v.stretch_axis[1], v.stretch_axis[2]);
   if (!(sa.norm() > 0)) t.bad("stretch_axis", axis_text, "a nonzero direction");

@@ -7,22 +7,23 @@ and a figure of the axial and transverse diameters D_A, D_T against the force wi
     python3 bench/run_stretching.py                  # both laws, the default forces, the scene's mesh and dt
     python3 bench/run_stretching.py --mesh 24x8x12 --runs out/stretching_24x8x12 --table T.md --figure F.png
 
-The fit. At a fixed thickness h every stress of a law scales with G (strain_hardening: with C3 / G fixed; skalak: C), and the
-fluid changes only how fast the cell comes to rest, so the equilibrium diameters depend on F / (G h) alone: the
-runs at the scene's G h (6 uN/m) and forces F give D(F) at any other G h' as D(F G h / G h'), read off the runs'
-curve by linear interpolation. The fitted G h' of a law minimises the squared differences from Mills' means of D_A
-(and, in a second fit, of D_A and D_T together) over their forces (a search over G h' on a grid 0.01 uN/m fine);
-only the G h' for which every data force maps inside the simulated range are considered. The figure draws each
-law at its G h fitted to D_A.
+The fit. At a fixed thickness h every stress of a law scales with G (strain_hardening: with C3 / G fixed;
+skalak: with C fixed), and the fluid changes only how fast the cell comes to rest, so the equilibrium diameters
+depend on F / (G h) alone: the runs at the scene's G h (6 uN/m) and forces F give D(F) at any other G h' as
+D(F G h / G h'), read off the runs' curve by linear interpolation. The fitted G h' of a law minimises the squared
+differences from Mills' means of D_A (and, in a second fit, of D_A and D_T together) over their forces (a search
+over G h' on a grid 0.01 uN/m fine); only the G h' for which every data force maps inside the simulated range are
+considered. The figure draws each law at its G h fitted to D_A.
 
-Options: --forces PN,PN (every law; default per law, FORCES below) --laws LAW,LAW (neo_hookean,strain_hardening; or skalak) --mesh NXxNYxNZ
-  (36x12x18, the scene's) --dt S (the scene's, 1e-3; a run whose membrane inverts is run again at dt / 2, then
-  dt / 4) --final-time S (the scene's) --extra 'OPTIONS' (to every run)
+Options: --forces PN,PN (every law; default per law, FORCES below) --laws LAW,LAW (neo_hookean,strain_hardening;
+  or skalak) --mesh NXxNYxNZ (36x12x18, the scene's) --dt S (the scene's, 1e-3; a run whose membrane inverts or
+  whose coupling diverges runs again at dt / 2, then dt / 4) --final-time S (the scene's) --extra 'OPTIONS' (to
+  every run; e.g. '-solid_rbc_stretch_ramp 0.005', the force grown over 5 ms)
   --runs DIR (out/stretching) --build DIR (build) --results FILE (docs/validation/stretching.json)
   --table FILE (docs/validation/stretching.md) --figure FILE (docs/figures/stretching.png) --report (no runs)
-A run whose summary.json says "completed", or that inverted (then the next dt runs), is not run again (one made
-with other options is refused). Exit code 3
-when a run did not complete."""
+A run whose summary.json says "completed", or that inverted or whose coupling diverged (then the next dt runs: a
+sudden pull's first steps are the hard ones), is not run again (one made with other options is refused). Exit
+code 3 when a run did not complete."""
 import argparse
 import json
 import os
@@ -74,7 +75,7 @@ def numbers(text, what, cast=float, positive=True):
                  "comma-separated")
 
 
-RETRIES = 2  # a run whose membrane inverted is run again with dt halved, at most this many times
+RETRIES = 2  # a run whose membrane inverted or coupling diverged is run again with dt halved, at most this often
 
 
 def runs_of(args):
@@ -122,8 +123,9 @@ def scene_mesh():
 
 
 def inverted(args, tag):
+    """The run failed in a way a smaller step cures: an inverted element or a diverged coupling iteration."""
     s = summary_of(args, tag)
-    return bool(s) and "inverted" in str(s.get("status"))
+    return bool(s) and any(w in str(s.get("status")) for w in ("inverted", "diverged"))
 
 
 def chosen(args, attempts):
@@ -340,8 +342,8 @@ def main():
     if not args.report:
         for _, _, attempts in runs:  # one at a time: each run takes the machine's share of one core
             for tag, scene, options in attempts:
-                # An attempt that inverted is not run again: the next, at half its dt, is.
-                status = "kept (inverted)" if inverted(args, tag) else run_one(args, tag, scene, options)[1]
+                # An attempt that inverted (or diverged) is not run again: the next, at half its dt, is.
+                status = "kept (failed)" if inverted(args, tag) else run_one(args, tag, scene, options)[1]
                 print(f"{TOOL}: {tag}: {status}", flush=True)
                 if not inverted(args, tag):
                     break

@@ -286,7 +286,7 @@ void FsiCoupler::restart() {
 CouplerStats FsiCoupler::step() {
   CouplerStats st;
   const fluid::FluidOptions& fo = fluid_.options();
-  const solid::TimeParameters tp = solid::TimeParameters::from_rho_inf(fo.rho_inf, fo.dt);
+  const solid::TimeParameters tp = solid::TimeParameters::from_rho_inf(fo.rho_inf, fo.dt, fluid_.time());
   tp_ = tp;
   // The cells' insides from the configuration at t_n (once per step, like s^h; the bodies' current_patch()
   // is valid between steps only).

@@ -256,7 +256,7 @@ void RemoteSolid::hello() {
 }
 
 void RemoteSolid::begin_step(const solid::TimeParameters& t) {
-  call(SolidOp::begin_step, {t.dt, t.alpha_m, t.alpha_f, t.gamma});
+  call(SolidOp::begin_step, {t.dt, t.alpha_m, t.alpha_f, t.gamma, t.t_n});
 }
 
 std::vector<solid::Vec3> RemoteSolid::collocation_points() const {
@@ -318,7 +318,7 @@ void serve_solids(Exchange& ex, const std::vector<solid::SolidSolver*>& bodies) 
           break;
         case SolidOp::begin_step: {
           solid::TimeParameters t;
-          t.dt = d.at(0), t.alpha_m = d.at(1), t.alpha_f = d.at(2), t.gamma = d.at(3);
+          t.dt = d.at(0), t.alpha_m = d.at(1), t.alpha_f = d.at(2), t.gamma = d.at(3), t.t_n = d.at(4);
           b.begin_step(t);
           break;
         }

@@ -92,7 +92,8 @@ void EquilibriumMonitor::record(double time, const StretchDiameters& d) {
   if (!past) return;
   last_change_ = std::max(std::abs(d.axial - past->d.axial) / d.axial,
                           std::abs(d.transverse - past->d.transverse) / d.transverse);
-  if (reached_ < 0 && last_change_ <= tolerance_) reached_ = static_cast<int>(records_.size()) - 1;
+  if (reached_ < 0 && last_change_ <= tolerance_ && time >= not_before_ * (1 - 1e-9))
+    reached_ = static_cast<int>(records_.size()) - 1;
 }
 
 double EquilibriumMonitor::time() const {

@@ -52,10 +52,12 @@ StretchDiameters stretch_diameters(const std::vector<geometry::Vec3>& points, co
 
 /// When a stretched body has come to rest: the first record at which neither diameter has changed by more
 /// than `tolerance` of itself over the last `window` seconds (compared with the latest record at least
-/// `window` before it).
+/// `window` before it), and no earlier than `not_before` (while the force still grows, a slow ramp's: a body
+/// that follows it closely changes little over a window without being at rest).
 class EquilibriumMonitor {
  public:
-  EquilibriumMonitor(double tolerance, double window) : tolerance_(tolerance), window_(window) {}
+  EquilibriumMonitor(double tolerance, double window, double not_before = 0)
+      : tolerance_(tolerance), window_(window), not_before_(not_before) {}
   void record(double time, const StretchDiameters& d);
   bool reached() const { return reached_ >= 0; }
   /// The diameters at the last record (zero before the first).
@@ -74,7 +76,7 @@ class EquilibriumMonitor {
     double time = 0;
     StretchDiameters d;
   };
-  double tolerance_, window_;
+  double tolerance_, window_, not_before_;
   std::vector<Record> records_;
   int reached_ = -1;  // index of the first record at equilibrium
   double last_change_ = std::numeric_limits<double>::quiet_NaN();

@@ -1,5 +1,6 @@
 #include "solid/nurbs_solid.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -380,7 +381,15 @@ void NurbsSolid::for_each_quadrature_point(
   }
 }
 
-void NurbsSolid::set_loads(const std::vector<PatchLoad>& loads) {
+double NurbsSolid::load_factor() const {
+  if (!(load_ramp_ > 0)) return 1.0;
+  return std::clamp((time_.t_n + time_.alpha_f * time_.dt) / load_ramp_, 0.0, 1.0);
+}
+
+void NurbsSolid::set_loads(const std::vector<PatchLoad>& loads, double ramp) {
+  if (!(ramp >= 0) || !std::isfinite(ramp))
+    throw std::invalid_argument("body '" + name_ + "': the loads' ramp time must be >= 0 s");
+  load_ramp_ = ramp;
   // The quadrature points in the reference configuration (zero displacement), in quadrature_data()'s order.
   std::vector<Vec3> X;
   std::vector<double> w;
@@ -417,7 +426,7 @@ std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density, bo
           for (int r = 0, t = 0; r < 6; ++r)
             for (int k = r; k < 6; ++k, ++t) d.tangent[t] = c(r, k) / fluid_density;
         }
-        if (!load_density_.empty()) d.force = load_density_[out.size()] / fluid_density;
+        if (!load_density_.empty()) d.force = load_factor() * load_density_[out.size()] / fluid_density;
         if (membrane_) d.area = q_area_[out.size()];
         out.push_back(d);
       });

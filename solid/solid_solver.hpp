@@ -21,8 +21,17 @@ namespace cellfsi::solid {
 using Vec3 = Eigen::Vector3d;
 using Mat3 = Eigen::Matrix3d;
 
-/// Generalized-alpha parameters shared with the fluid (docs/design.md §3).
-using TimeParameters = GeneralizedAlpha;
+/// Generalized-alpha parameters shared with the fluid (docs/design.md §3), and the time t_n at the step's
+/// start (for a load that changes in time: the stretching force's ramp).
+struct TimeParameters : GeneralizedAlpha {
+  double t_n = 0;
+  TimeParameters() = default;
+  // Implicit: a GeneralizedAlpha is the parameters of a step that starts at t = 0.
+  TimeParameters(const GeneralizedAlpha& a, double t = 0) : GeneralizedAlpha(a), t_n(t) {}  // NOLINT
+  static TimeParameters from_rho_inf(double rho_inf, double dt, double t = 0) {
+    return {GeneralizedAlpha::from_rho_inf(rho_inf, dt), t};
+  }
+};
 
 /// The fluid velocity and its gradient at one point (grad_v(i, j) = d v_i / d x_j).
 struct VelocitySample {

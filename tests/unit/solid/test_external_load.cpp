@@ -58,9 +58,23 @@ TEST(ExternalLoad, PatchForcesAddUpToTheGivenForceAtTheEnds) {
   EXPECT_NEAR(plus[0], F, 1e-12 * F);
   EXPECT_NEAR(minus[0], -F, 1e-12 * F);
   EXPECT_NEAR((plus + minus).norm(), 0, 1e-12 * F);  // no net force
+  // A ramp: the forces grow linearly to their size at t = ramp, taken at the step's t_{n+alpha_f}.
+  const std::vector<solid::QuadratureData> full = s.quadrature_data(rho1, false);
+  s.set_loads({{ends[0], r, -F * Vec3::UnitX()}, {ends[1], r, F * Vec3::UnitX()}}, 4e-3);
+  const solid::TimeParameters tp = solid::TimeParameters::from_rho_inf(0.5, 1e-3);  // alpha_f = 2/3
+  for (const auto& [t_n, share] :
+       {std::pair{0.0, 1.0 / 6}, std::pair{2e-3, 2.0 / 3}, std::pair{4e-3, 1.0}, std::pair{9e-3, 1.0}}) {
+    s.begin_step({tp, t_n});
+    EXPECT_NEAR(s.load_factor(), share, 1e-12) << "t_n = " << t_n;
+    const std::vector<solid::QuadratureData> q = s.quadrature_data(rho1, false);
+    for (size_t i = 0; i < q.size(); ++i)
+      EXPECT_NEAR((q[i].force - share * full[i].force).norm(), 0, 1e-12 * density);
+  }
+  EXPECT_THROW(s.set_loads({}, -1.0), std::invalid_argument);
   // Loads are replaced, not added; none clears them.
   s.set_loads({});
   EXPECT_TRUE(s.load_densities().empty());
+  EXPECT_EQ(s.load_factor(), 1.0);
 }
 
 TEST(ExternalLoad, PatchesWithoutMaterialOrOverlappingAreRefused) {
@@ -124,4 +138,8 @@ TEST(ExternalLoad, EquilibriumIsTheFirstRecordStillForAWindow) {
   EXPECT_EQ(again.state(), m.state());
   EXPECT_DOUBLE_EQ(again.time(), 7.0);
   EXPECT_THROW(again.restore({1.0}), std::invalid_argument);
+  // Not before the force's ramp has ended: a body that follows a slow ramp closely is not at rest.
+  solid::EquilibriumMonitor ramped(1e-3, 2.0, 8.0);
+  for (int k = 0; k <= 10; ++k) ramped.record(k, {k < 5 ? 10.0 - (5 - k) : 10.0, 5.0});
+  EXPECT_DOUBLE_EQ(ramped.time(), 8.0);
 }
