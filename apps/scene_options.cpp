@@ -39,7 +39,7 @@ const std::vector<std::string> kMaterials{"neo_hookean", "mooney_rivlin", "strai
 // than neo-Hookean at I1 - 3 = 1 (a stretch of 1.9), far beyond any cell.
 constexpr double kMaxHardening = 100;
 // Skalak's C (area-dilation modulus G h (1 + 2C)): a red cell's membrane is about 1e4 times stiffer in area
-// than in shear; 1e4 is that limit, and the stiffer the law, the smaller the step it needs
+// than in shear, and K / G h = 1 + 2C = 2e4 at this bound; the stiffer the law, the smaller the step it needs
 // (docs/materials.md).
 constexpr double kMaxAreaRatio = 1e4;
 constexpr double kMaxOriginOverSize = 1e6;     // |domain origin| / domain extent
@@ -298,7 +298,7 @@ void declare_body_options(OptionTable& t, BodySettings& b, BodyOptionValues& v, 
       .real("area_dilation", b.area_dilation,
             "skalak: C in Skalak's W_s = G h / 4 (I1^2 + 2 I1 - 2 I2 + C I2^2), the area-dilation modulus "
             "G h (1 + 2C) (3D membranes; docs/materials.md)",
-            between(0, kMaxAreaRatio, "", "(0: no area term)"))
+            between(0, kMaxAreaRatio, "", "(0: area modulus G h, the C term off)"))
       .real("density", b.density, "rho_2 [g/cm^3]", material(1e-6, 1e3, "[g/cm^3]"))
       .real("inner_viscosity", b.inner_viscosity,
             "Membranes: viscosity mu of the fluid inside (a cytosol; for a compound cell, around the "

@@ -5,7 +5,8 @@ surface shear modulus G h of each law to the experimental means of Mills et al. 
 and a figure of the axial and transverse diameters D_A, D_T against the force with the data's spread.
 
     python3 bench/run_stretching.py                  # both laws, the default forces, the scene's mesh and dt
-    python3 bench/run_stretching.py --mesh 24x8x12 --runs out/stretching_24x8x12 --table T.md --figure F.png
+    python3 bench/run_stretching.py --mesh 24x8x12   # into docs/validation/stretching_24x8x12.md
+    python3 bench/run_stretching.py --laws skalak --extra '-solid_rbc_stretch_ramp 0.005'   # stretching_skalak.md
 
 The fit. At a fixed thickness h every stress of a law scales with G (strain_hardening: with C3 / G fixed;
 skalak: with C fixed), and the fluid changes only how fast the cell comes to rest, so the equilibrium diameters
@@ -19,8 +20,9 @@ Options: --forces PN,PN (every law; default per law, FORCES below) --laws LAW,LA
   or skalak) --mesh NXxNYxNZ (36x12x18, the scene's) --dt S (the scene's, 1e-3; a run whose membrane inverts or
   whose coupling diverges runs again at dt / 2, then dt / 4) --final-time S (the scene's) --extra 'OPTIONS' (to
   every run; e.g. '-solid_rbc_stretch_ramp 0.005', the force grown over 5 ms)
-  --runs DIR (out/stretching) --build DIR (build) --results FILE (docs/validation/stretching.json)
-  --table FILE (docs/validation/stretching.md) --figure FILE (docs/figures/stretching.png) --report (no runs)
+  --runs DIR (out/STEM) --build DIR (build) --results FILE (docs/validation/STEM.json)
+  --table FILE (docs/validation/STEM.md) --figure FILE (docs/figures/STEM.png) --report (no runs); STEM is
+  stretching, with _skalak when --laws has skalak and _MESH for a mesh other than the scene's
 A run whose summary.json says "completed", or that inverted or whose coupling diverged (then the next dt runs: a
 sudden pull's first steps are the hard ones), is not run again (one made with other options is refused). Exit
 code 3 when a run did not complete."""
@@ -324,11 +326,11 @@ def main():
     p.add_argument("--final-time", type=float, default=0)
     p.add_argument("--extra", default="")
     p.add_argument("--jobs", type=int, default=1)
-    p.add_argument("--runs", default=os.path.join(ROOT, "out", "stretching"))
+    p.add_argument("--runs", default="")
     p.add_argument("--build", default=os.path.join(ROOT, "build"))
-    p.add_argument("--results", default=os.path.join(ROOT, "docs", "validation", "stretching.json"))
-    p.add_argument("--table", default=os.path.join(ROOT, "docs", "validation", "stretching.md"))
-    p.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "stretching.png"))
+    p.add_argument("--results", default="")
+    p.add_argument("--table", default="")
+    p.add_argument("--figure", default="")
     p.add_argument("--report", action="store_true")
     args = p.parse_args()
     args.forces = sorted(numbers(args.forces, "--forces")) if args.forces else None
@@ -336,6 +338,14 @@ def main():
     for law in args.laws:
         if law not in LAWS:
             sys.exit(f"{TOOL}: --laws '{law}' is invalid: give {', '.join(LAWS)}, comma-separated")
+    # Default outputs: stretching[_skalak][_MESH] (a sweep with Skalak's law and a mesh other than the scene's have
+    # pages of their own, so that one sweep does not overwrite another's).
+    stem = "stretching" + ("_skalak" if "skalak" in args.laws else "") + \
+        ("" if args.mesh == "36x12x18" else f"_{args.mesh}")
+    args.runs = args.runs or os.path.join(ROOT, "out", stem)
+    args.results = args.results or os.path.join(ROOT, "docs", "validation", stem + ".json")
+    args.table = args.table or os.path.join(ROOT, "docs", "validation", stem + ".md")
+    args.figure = args.figure or os.path.join(ROOT, "docs", "figures", stem + ".png")
     runs = runs_of(args)
     os.makedirs(args.runs, exist_ok=True)
     check_kept_runs(TOOL, args, [a for _, _, attempts in runs for a in attempts])
@@ -351,7 +361,7 @@ def main():
     os.makedirs(os.path.dirname(args.results) or ".", exist_ok=True)
     with open(args.results, "w") as f:
         json.dump(res, f, indent=1)
-    complete = table(args, runs, res, "python3 bench/run_stretching.py " + " ".join(sys.argv[1:]))
+    complete = table(args, runs, res, "python3 bench/run_stretching.py " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
     figure(args, res)
     sys.exit(0 if complete else 3)
 

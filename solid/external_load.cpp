@@ -92,7 +92,8 @@ void EquilibriumMonitor::record(double time, const StretchDiameters& d) {
   if (!past) return;
   last_change_ = std::max(std::abs(d.axial - past->d.axial) / d.axial,
                           std::abs(d.transverse - past->d.transverse) / d.transverse);
-  if (reached_ < 0 && last_change_ <= tolerance_ && time >= not_before_ * (1 - 1e-9))
+  // The whole window after the ramp's end (its start record at or after not_before).
+  if (reached_ < 0 && last_change_ <= tolerance_ && past->time >= not_before_ * (1 - 1e-9))
     reached_ = static_cast<int>(records_.size()) - 1;
 }
 

@@ -52,8 +52,8 @@ StretchDiameters stretch_diameters(const std::vector<geometry::Vec3>& points, co
 
 /// When a stretched body has come to rest: the first record at which neither diameter has changed by more
 /// than `tolerance` of itself over the last `window` seconds (compared with the latest record at least
-/// `window` before it), and no earlier than `not_before` (while the force still grows, a slow ramp's: a body
-/// that follows it closely changes little over a window without being at rest).
+/// `window` before it), with the whole window after `not_before` (the end of a force's ramp: while the force
+/// still grows, a body that follows a slow ramp closely changes little over a window without being at rest).
 class EquilibriumMonitor {
  public:
   EquilibriumMonitor(double tolerance, double window, double not_before = 0)

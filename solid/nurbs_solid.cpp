@@ -209,6 +209,7 @@ void NurbsSolid::set_state(const std::vector<double>& state) {
 
 void NurbsSolid::begin_step(const TimeParameters& time) {
   time_ = time;
+  stepping_ = true;
   u_ = u_n_ +
        time.dt * rate_n_;  // predictor with unchanged rate: consistent with the generalized-alpha update
   c_ = control_from_points(u_);
@@ -383,6 +384,7 @@ void NurbsSolid::for_each_quadrature_point(
 
 double NurbsSolid::load_factor() const {
   if (!(load_ramp_ > 0)) return 1.0;
+  if (!stepping_) return 0.0;  // before the first step: t = 0, where a ramp starts from nothing
   return std::clamp((time_.t_n + time_.alpha_f * time_.dt) / load_ramp_, 0.0, 1.0);
 }
 

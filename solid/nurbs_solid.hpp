@@ -59,7 +59,8 @@ class NurbsSolid final : public SolidSolver {
   /// t_{n+alpha_f} (TimeParameters::t_n); 0: in full from the start. Throws std::invalid_argument when a
   /// patch holds no quadrature point, two patches overlap or ramp < 0.
   void set_loads(const std::vector<PatchLoad>& loads, double ramp = 0);
-  /// The loads' share of their full size in the current step (1 without a ramp).
+  /// The loads' share of their full size in the current step (1 without a ramp; with one, 0 before the first
+  /// step).
   double load_factor() const;
   /// The external force per unit reference volume at each quadrature point, in quadrature_data()'s order
   /// [dyn/cm^3] (empty: no load).
@@ -115,6 +116,7 @@ class NurbsSolid final : public SolidSolver {
   std::vector<Mat3> kinematic_inverse_;
   std::vector<Vec3> load_density_;    // external force per reference volume at the quadrature points
   double load_ramp_ = 0;              // [s]: the loads grow from 0 to full over it (0: full at once)
+  bool stepping_ = false;  // a step has begun (time_ is a step's, not the constructor's placeholder)
   // The quadrature points' reference data, tabulated once (the basis at a fixed parametric point does not
   // change, only the control variables do), so that for_each_quadrature_point, at every coupling iteration,
   // only sums: point q's functions are [q_begin_[q], q_begin_[q + 1]) of q_unknown_ (reduced unknown), q_N_

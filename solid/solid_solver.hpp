@@ -26,8 +26,7 @@ using Mat3 = Eigen::Matrix3d;
 struct TimeParameters : GeneralizedAlpha {
   double t_n = 0;
   TimeParameters() = default;
-  // Implicit: a GeneralizedAlpha is the parameters of a step that starts at t = 0.
-  TimeParameters(const GeneralizedAlpha& a, double t = 0) : GeneralizedAlpha(a), t_n(t) {}  // NOLINT
+  TimeParameters(const GeneralizedAlpha& a, double t) : GeneralizedAlpha(a), t_n(t) {}
   static TimeParameters from_rho_inf(double rho_inf, double dt, double t = 0) {
     return {GeneralizedAlpha::from_rho_inf(rho_inf, dt), t};
   }

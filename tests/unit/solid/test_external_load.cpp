@@ -61,6 +61,7 @@ TEST(ExternalLoad, PatchForcesAddUpToTheGivenForceAtTheEnds) {
   // A ramp: the forces grow linearly to their size at t = ramp, taken at the step's t_{n+alpha_f}.
   const std::vector<solid::QuadratureData> full = s.quadrature_data(rho1, false);
   s.set_loads({{ends[0], r, -F * Vec3::UnitX()}, {ends[1], r, F * Vec3::UnitX()}}, 4e-3);
+  EXPECT_EQ(s.load_factor(), 0.0);                                                  // no step yet: t = 0
   const solid::TimeParameters tp = solid::TimeParameters::from_rho_inf(0.5, 1e-3);  // alpha_f = 2/3
   for (const auto& [t_n, share] :
        {std::pair{0.0, 1.0 / 6}, std::pair{2e-3, 2.0 / 3}, std::pair{4e-3, 1.0}, std::pair{9e-3, 1.0}}) {
@@ -138,8 +139,9 @@ TEST(ExternalLoad, EquilibriumIsTheFirstRecordStillForAWindow) {
   EXPECT_EQ(again.state(), m.state());
   EXPECT_DOUBLE_EQ(again.time(), 7.0);
   EXPECT_THROW(again.restore({1.0}), std::invalid_argument);
-  // Not before the force's ramp has ended: a body that follows a slow ramp closely is not at rest.
+  // Not with a window that starts before the force's ramp has ended (t = 8: the first window wholly after it
+  // ends at 10): a body that follows a slow ramp closely is not at rest.
   solid::EquilibriumMonitor ramped(1e-3, 2.0, 8.0);
-  for (int k = 0; k <= 10; ++k) ramped.record(k, {k < 5 ? 10.0 - (5 - k) : 10.0, 5.0});
-  EXPECT_DOUBLE_EQ(ramped.time(), 8.0);
+  for (int k = 0; k <= 12; ++k) ramped.record(k, {k < 5 ? 10.0 - (5 - k) : 10.0, 5.0});
+  EXPECT_DOUBLE_EQ(ramped.time(), 10.0);
 }

@@ -415,7 +415,7 @@ TEST(NurbsSolid, AMembraneSurfaceLawSeesEachPointInItsMembranesFrame) {
   const std::vector<solid::QuadratureData> q = s.quadrature_data(1.025, true);
   const Mat3 F = fitted_deformation(q0, q, c);
   ASSERT_GT((F - Mat3::Identity()).norm(), 1e-2);
-  double worst = 0, scale = 0, largest_gap = 0;
+  double worst = 0, scale = 0, largest_gap = 0, worst_c = 0, scale_c = 0;
   for (size_t i = 0; i < q.size(); ++i) {
     const Vec3 N = (q0[i].x - c).normalized();
     const Vec3 t1 = N.unitOrthogonal();
@@ -427,7 +427,13 @@ TEST(NurbsSolid, AMembraneSurfaceLawSeesEachPointInItsMembranesFrame) {
     scale = std::max(scale, expected.norm());
     largest_gap = std::max(largest_gap, (solid::kirchhoff_stress(*skalak, F, 3) / 1.025 - expected).norm());
     ASSERT_TRUE(q[i].has_tangent);
+    // The tangent in the same frame (upper triangle, row by row).
+    const solid::Voigt6 c6 = skalak->spatial_tangent(FQ, 3) / 1.025;
+    for (int r = 0, t = 0; r < 6; ++r)
+      for (int k = r; k < 6; ++k, ++t) worst_c = std::max(worst_c, std::abs(q[i].tangent[t] - c6(r, k)));
+    scale_c = std::max(scale_c, c6.norm());
   }
+  EXPECT_LT(worst_c, 1e-6 * scale_c);   // the numerical tangent's own differences (h = 1e-5) of nearby F
   EXPECT_LT(worst, 1e-8 * scale);       // the frame's normal to the geometry's accuracy (exact conics)
   EXPECT_GT(largest_gap, 0.1 * scale);  // the global axes as the frame: another stress
   // cauchy_stress at a point on the mid-surface (xi_0 mid-way), its normal the radial direction there.
