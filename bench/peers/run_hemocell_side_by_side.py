@@ -1,0 +1,190 @@
+#!/usr/bin/env python3
+"""Side by side with HemoCell (issue 47, item 4; bench/peers/README.md): the optical-tweezers stretch of one red
+cell in HemoCell's examples/stretchCell and in cellfsi, in the same box (26 x 13 x 13 um, periodic in every
+direction), at the same forces, each run on one core of this machine: the axial and transverse diameters D_A,
+D_T against Mills et al. (2004), the wall time and the peak memory.
+
+    python3 bench/peers/run_hemocell_side_by_side.py --hemocell out/peers/hemocell --forces 37.9,87,173
+
+HemoCell runs its example as shipped (its own red-cell model and constants, dx 0.5 um, dt 1e-7 s, 40000 steps =
+4 ms) with `<stretchForce>` set to each force; its diameters are the cell's bounding box along x and y (the
+example's own stretch-F.log). cellfsi runs scenes/rbc_stretch_3d.yaml in that box (-domain_size
+0.0026,0.0013,0.0013 -domain_periodic 1,1,1) at --mesh (39x20x20 quadratic: 2/3 um), each --laws law at its G h
+fitted to Mills' D_A by bench/run_stretching.py (docs/validation/stretching*.md: skalak 3.38, strain_hardening
+7.32 uN/m), the force grown over 5 ms, to equilibrium. Wall time and peak resident memory of every run are read
+by GNU time (/usr/bin/time).
+
+Options: --hemocell DIR (out/peers/hemocell; bench/peers/build_hemocell.sh builds it) --forces PN,PN (37.9,87,173,
+HemoCell's documented ones) --laws LAW,LAW (skalak,strain_hardening) --mesh NXxNYxNZ (39x20x20) --runs DIR
+(out/peers/stretch) --build DIR (build) --table FILE (docs/validation/hemocell_stretch.md) --report (no runs).
+A run whose result is kept is not run again."""
+import argparse
+import json
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+import tempfile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.dirname(HERE))
+from bench_common import ROOT, blas_kernels, commit_of_head, fmt, write_table  # noqa: E402
+from run_stretching import MILLS_AXIAL, MILLS_TRANSVERSE, interpolate  # noqa: E402
+
+TOOL = "run_hemocell_side_by_side.py"
+PN = 1e-7  # dyn
+THICKNESS = 3.1623e-5  # the scene's shell [cm]
+# G h [uN/m] fitted to Mills' D_A at 2/3 um elements (docs/validation/stretching_skalak.md, stretching.md).
+FITTED_GH = {"skalak": 3.38, "strain_hardening": 7.32, "neo_hookean": 10.49}
+
+
+def timed(cmd, cwd, log, env):
+    """Runs cmd under GNU time in cwd, its output into log: (exit code, wall s, peak resident MB)."""
+    with tempfile.NamedTemporaryFile("r", suffix=".time") as t, open(log, "w") as out:
+        out.write(" ".join(shlex.quote(c) for c in cmd) + "\n")
+        out.flush()
+        rc = subprocess.call(["/usr/bin/time", "-f", "%e %M", "-o", t.name] + cmd, cwd=cwd, stdout=out,
+                             stderr=subprocess.STDOUT, env=env)
+        words = t.read().split()
+    wall, kb = (float(words[-2]), float(words[-1])) if len(words) >= 2 else (None, None)
+    return rc, wall, kb / 1024 if kb else None
+
+
+def mpi_env():
+    return dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1",
+                OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_ess_singleton_isolated="1", OMPI_MCA_pml="ob1")
+
+
+def run_hemocell(args, force):
+    """HemoCell's stretchCell at force [pN] in its own folder: its result dict (kept in result.json)."""
+    folder = os.path.join(args.runs, f"hemocell_F{force:g}")
+    kept = os.path.join(folder, "result.json")
+    if os.path.isfile(kept):
+        return json.load(open(kept))
+    if args.report:
+        return None
+    example = os.path.join(args.hemocell, "examples", "stretchCell")
+    exe = os.path.join(example, "stretchCell")
+    if not os.access(exe, os.X_OK):
+        sys.exit(f"{TOOL}: --hemocell '{args.hemocell}' has no built examples/stretchCell/stretchCell "
+                 "(bash bench/peers/build_hemocell.sh)")
+    shutil.rmtree(folder, ignore_errors=True)
+    os.makedirs(folder)
+    for name in ("RBC.pos", "RBC.xml"):
+        shutil.copy(os.path.join(example, name), folder)
+    config = open(os.path.join(example, "config.xml")).read()
+    config = re.sub(r"<stretchForce>[^<]*</stretchForce>", f"<stretchForce> {force:g} </stretchForce>", config)
+    open(os.path.join(folder, "config.xml"), "w").write(config)
+    rc, wall, mb = timed([exe, "config.xml"], folder, os.path.join(folder, "run.log"), mpi_env())
+    logs = [f for f in os.listdir(folder) if re.fullmatch(r"stretch-\d+\.log", f)]
+    rows = [line.split() for line in open(os.path.join(folder, logs[0]))][1:] if logs else []
+    result = {"code": "HemoCell v2.7", "force_pN": force, "exit": rc, "wall_s": wall, "peak_MB": mb,
+              "axial_um": float(rows[-1][1]) if rows else None, "transverse_um": float(rows[-1][2]) if rows else None,
+              "time_ms": int(rows[-1][0]) * 1e-4 if rows else None}  # dt 1e-7 s
+    if rc == 0 and rows:
+        json.dump(result, open(kept, "w"), indent=1)
+    return result
+
+
+def run_cellfsi(args, law, force):
+    """cellfsi in HemoCell's box at force [pN] with law at its fitted G h: its result dict."""
+    tag = f"cellfsi_{law}_F{force:g}"
+    folder = os.path.join(args.runs, tag)
+    summary = os.path.join(folder, "summary.json")
+    kept = os.path.join(args.runs, tag + ".json")
+    if os.path.isfile(kept):
+        return json.load(open(kept))
+    if args.report:
+        return None
+    G = FITTED_GH[law] * 1e-3 / THICKNESS  # uN/m = 1e-3 dyn/cm
+    cmd = [os.path.join(args.build, "apps", "cellfsi"), os.path.join(ROOT, "scenes", "rbc_stretch_3d.yaml"),
+           "-output_dir", folder, "-output_every", "0", "-domain_size", "0.0026,0.0013,0.0013",
+           "-domain_periodic", "1,1,1", "-fluid_elements", args.mesh.replace("x", ","),
+           "-solid_rbc_material", law, "-solid_rbc_shear_modulus", f"{G:.6g}",
+           "-solid_rbc_stretch_force", f"{force * PN:g}", "-solid_rbc_stretch_ramp", "0.005"]
+    with tempfile.TemporaryDirectory(prefix="cellfsi-ompi-") as session:
+        env = dict(mpi_env(), OMPI_MCA_orte_tmpdir_base=session)
+        rc, wall, mb = timed(cmd, ROOT, os.path.join(args.runs, tag + ".log"), env)
+    try:
+        s = json.load(open(summary))
+    except (OSError, ValueError):
+        s = {}
+    result = {"code": f"cellfsi {law}", "force_pN": force, "exit": rc, "wall_s": wall, "peak_MB": mb,
+              "axial_um": s.get("rbc_axial_diameter", 0) * 1e4 or None,
+              "transverse_um": s.get("rbc_transverse_diameter", 0) * 1e4 or None,
+              "time_ms": (s.get("rbc_equilibrium_time") or 0) * 1e3 or None, "steps": s.get("steps"),
+              "status": s.get("status")}
+    if rc == 0 and s.get("status") == "completed":
+        json.dump(result, open(kept, "w"), indent=1)
+    return result
+
+
+def mills(data, force):
+    return interpolate(force, [f for f, *_ in data], [m for _, m, _, _ in data])
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--hemocell", default=os.path.join(ROOT, "out", "peers", "hemocell"))
+    p.add_argument("--forces", default="37.9,87,173")
+    p.add_argument("--laws", default="skalak,strain_hardening")
+    p.add_argument("--mesh", default="39x20x20")
+    p.add_argument("--runs", default=os.path.join(ROOT, "out", "peers", "stretch"))
+    p.add_argument("--build", default=os.path.join(ROOT, "build"))
+    p.add_argument("--table", default=os.path.join(ROOT, "docs", "validation", "hemocell_stretch.md"))
+    p.add_argument("--report", action="store_true")
+    args = p.parse_args()
+    # The runs change folders (HemoCell writes into its own): every path absolute.
+    args.hemocell, args.runs, args.build, args.table = (os.path.abspath(x) for x in
+                                                        (args.hemocell, args.runs, args.build, args.table))
+    try:
+        forces = [float(v) for v in args.forces.split(",") if v]
+        if not forces or min(forces) <= 0 or max(forces) > MILLS_AXIAL[-1][0]:
+            raise ValueError
+    except ValueError:
+        sys.exit(f"{TOOL}: --forces '{args.forces}' is invalid: give pN in (0, {MILLS_AXIAL[-1][0]}], comma-separated")
+    laws = [w for w in args.laws.split(",") if w]
+    for law in laws:
+        if law not in FITTED_GH:
+            sys.exit(f"{TOOL}: --laws '{law}' is invalid: give {', '.join(FITTED_GH)}, comma-separated")
+    if not re.fullmatch(r"\d+x\d+x\d+", args.mesh):
+        sys.exit(f"{TOOL}: --mesh '{args.mesh}' is invalid: give NXxNYxNZ (e.g. 39x20x20)")
+    os.makedirs(args.runs, exist_ok=True)
+    results = []
+    for force in forces:
+        r = run_hemocell(args, force)
+        print(f"{TOOL}: HemoCell {force:g} pN: {r}", flush=True)
+        results.append(r)
+        for law in laws:
+            r = run_cellfsi(args, law, force)
+            print(f"{TOOL}: cellfsi {law} {force:g} pN: {r}", flush=True)
+            results.append(r)
+    command = "python3 bench/peers/" + TOOL + " " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+    load = open("/proc/loadavg").read().split()[:3]
+    lines = [f"Generated by `{command}` on git {commit_of_head()}, {os.cpu_count()} cores, one run at a time on one "
+             f"core, load average {' '.join(load)}, {blas_kernels()}. Runs kept in "
+             f"`{os.path.relpath(args.runs, ROOT)}`.", "",
+             f"Box 26 x 13 x 13 um, periodic. HemoCell: its stretchCell example as shipped (dx 0.5 um, dt 1e-7 s, "
+             f"4 ms). cellfsi: fluid {args.mesh} quadratic elements, dt 1e-3 s, force grown over 5 ms, to "
+             "equilibrium, each law at its G h fitted to Mills' D_A (" +
+             ", ".join(f"{law} {FITTED_GH[law]} uN/m" for law in laws) + "). Diameters in um; error: against "
+             "Mills et al.'s mean at the force (linear between their forces).", "",
+             "| F pN | code | D_A | D_T | D_A - Mills | D_T - Mills | simulated ms | wall s | peak MB | status |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in results:
+        if r is None:
+            continue
+        ma, mt = mills(MILLS_AXIAL, r["force_pN"]), mills(MILLS_TRANSVERSE, r["force_pN"])
+        a, t = r.get("axial_um"), r.get("transverse_um")
+        lines.append(f"| {r['force_pN']:g} | {r['code']} | {fmt(a, '.2f')} | {fmt(t, '.2f')} | "
+                     f"{fmt(a - ma if a and ma else None, '+.2f')} | {fmt(t - mt if t and mt else None, '+.2f')} | "
+                     f"{fmt(r.get('time_ms'), '.1f')} | {fmt(r.get('wall_s'), '.0f')} | "
+                     f"{fmt(r.get('peak_MB'), '.0f')} | "
+                     f"{r.get('status') or ('exit ' + str(r.get('exit')))} |")
+    write_table(args.table, lines)
+
+
+if __name__ == "__main__":
+    main()
