@@ -596,7 +596,7 @@ def early_row_order(r):
 def t_ctc_among_rbcs_early():
     """How much the red cells hold the flow back early in the run (before the CTC reaches the narrowing), against
     the CTC alone on the same mesh, per mesh and s_I: a mesh study a short run can make."""
-    rows, sources = [], []
+    rows, sources, seen = [], [], set()
     for path, runs, mesh, cmd in ctc_among_rbcs_files("ctc_among_rbcs"):
         used = False
         si = re.search(r"-s_interface (\S+?)'?(\s|$)", cmd)
@@ -607,6 +607,12 @@ def t_ctc_among_rbcs_early():
                 continue
             key = next(k for k in r if k.startswith("at "))
             t_early = re.match(r"at (\S+) s", key).group(1)
+            # One row per run: a run kept in an early table and continued into a passage table is the same run
+            # (the early table, first by name, gives it).
+            run = (mesh, si.group(1) if si else "auto", r["red cells"], r["seed"], t_early)
+            if run in seen:
+                continue
+            seen.add(run)
             flow, travel = early.split("(")[0].rstrip().split(", ")
             ratio_q, ratio_x = early.split("(")[1].rstrip(")").split(", ")
             rows.append([mesh, si.group(1) if si else "auto", r["red cells"], r["haematocrit (%)"], r["seed"],
