@@ -434,7 +434,8 @@ def t_stretching():
     for name, mesh, laws in [("stretching.md", "36x12x18", ["strain_hardening", "neo_hookean"]),
                              ("stretching_24x8x12.md", "24x8x12", ["strain_hardening", "neo_hookean"]),
                              ("stretching_skalak.md", "36x12x18", ["skalak"]),
-                             ("stretching_skalak_24x8x12.md", "24x8x12", ["skalak"])]:
+                             ("stretching_skalak_24x8x12.md", "24x8x12", ["skalak"]),
+                             ("stretching_skalak_48x16x24.md", "48x16x24", ["skalak"])]:
         path = os.path.join(VAL, name)
         if not os.path.exists(path):
             continue
