@@ -467,7 +467,8 @@ std::vector<Mat3> NurbsSolid::cauchy_stress(const std::vector<Param>& xi) const 
     Vec3 x;
     Mat3 F, frame;
     double jac0 = 0;
-    kinematics(c_n_, xi[i], nullptr, x, F, jac0, &frame);
+    kinematics(c_n_, xi[i], nullptr, x, F, jac0,
+               q_frame_.empty() ? nullptr : &frame);  // only a surface law's
     if (!q_frame_.empty()) F = F * frame;
     const double J = F.topLeftCorner(dim_, dim_).determinant();
     // Output only: NaN where F is undefined (a degenerate point) or inverted, instead of stopping the run.
