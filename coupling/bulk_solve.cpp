@@ -11,9 +11,9 @@
 namespace cellfsi::coupling {
 
 BulkSolve::~BulkSolve() {
-  try {  // the Jacobian lets the inverse go (a destructor does not throw)
-    if (Mat J = c_.fluid.jacobian_matrix()) solvers::pc_bulk_compose(J, nullptr);
-    if (op_) solvers::pc_bulk_compose(op_, nullptr);
+  try {  // the operator lets the inverse go (a destructor does not throw; nor does it make a matrix the
+         // stencil path never needed)
+    if (builds_ > 0) solvers::pc_bulk_compose(operator_matrix(), nullptr);
   } catch (...) {
   }
 }

@@ -104,13 +104,10 @@ CoupledLinearSolver::CoupledLinearSolver(fluid::ImmersedFluid& fluid, LinearSolv
   if (!(opt_.rtol > 0 && opt_.rtol < 1))
     throw std::invalid_argument("the coupled solve's rtol must be in (0, 1)");
   set_default_options(PetscPCDefaults::options(fluid.options().pressure_null_space));
-  const Mat J = fluid.jacobian_matrix();
-  PetscBool seq_baij = PETSC_FALSE, mpi_baij = PETSC_FALSE;
-  CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(J), MATSEQBAIJ, &seq_baij));
-  CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(J), MATMPIBAIJ, &mpi_baij));
   SolverSituation s;
-  s.baij = seq_baij || mpi_baij;
+  s.baij = fluid.jacobian_is_blocked();  // (a fluid that makes its matrix when first asked is not made to)
   CELLFSI_PETSC(MPI_Comm_size(fluid.comm(), &s.fluid_ranks));
+  const bool seq_baij = s.baij && s.fluid_ranks == 1;
   s.fourier_inapplicable = fourier_inapplicable(fluid.patch());
   s.own_bulk_inverse = fluid.has_bulk_inverse();
   CELLFSI_PETSC(KSPCreate(fluid.comm(), &ksp_));
@@ -123,7 +120,7 @@ CoupledLinearSolver::CoupledLinearSolver(fluid::ImmersedFluid& fluid, LinearSolv
   if (const std::optional<bool> by_type = pc_type_bulk_stencil(pc_type()); by_type && !stencil_given)
     opt_.bulk_stencil = *by_type;
   path_ = make_solve_path(pc_type(), context_);
-  path_->start(s, seq_baij == PETSC_TRUE);
+  path_->start(s, seq_baij);
 }
 
 CoupledLinearSolver::~CoupledLinearSolver() {

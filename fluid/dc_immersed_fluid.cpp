@@ -330,13 +330,20 @@ std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X
   // Of the flow averaged along the periodic directions: the initial state, uniform along them, stays as it
   // is; a later one (a rebuild after a failed solve, coupling/bulk_solve.cpp) gives the operator of its mean
   // flow, not of the cells' disturbance where the stencil's rows are taken (x index 0).
+  // Only the rows the build reads and checks are assembled (DivConformingFluid::bulk_stencil_tangent): the
+  // whole matrix is made only where a solve needs it (jacobian_matrix()).
   fluid_->gather(X, work_);
-  Mat J = fluid_->matrix();
-  fluid_->bulk_tangent_of_mean(work_, J);
+  Mat S = fluid_->bulk_stencil_tangent(work_);
   // The Jacobian's kept bulk part (-coupling_bulk_stencil false) follows: the next jacobian() makes it again.
   MatDestroy(&bulk_matrix_);
   bulk_ = std::make_unique<dc::DcFourierSolver>(*space_, comm_, fluid_->petsc_numbering());
-  bulk_->build(J, true);
+  try {
+    bulk_->build(S, true);
+  } catch (...) {
+    MatDestroy(&S);
+    throw;
+  }
+  MatDestroy(&S);
   OwnBulkInverse inv;
   inv.deviation = bulk_->deviation();
   char line[160];

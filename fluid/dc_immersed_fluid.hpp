@@ -78,8 +78,11 @@ class DcImmersedFluid final : public ImmersedFluid {
   void bulk_jacobian(Vec X, Mat J) override;
   void end_step(Vec X) override;
   std::vector<PetscInt> region_unknowns(const std::vector<char>&) const override;
+  /// The fluid's matrix, made at the first call (DivConformingFluid::matrix): a run with the bulk stencil
+  /// (-coupling_bulk_stencil, the default of cellfsi_bulk) never asks for it.
   Mat jacobian_matrix() const override { return fluid_->matrix(); }
-  void release_jacobian_matrix() override {}  // the matrix is the fluid's own solver's too
+  void release_jacobian_matrix() override { fluid_->release_matrix(); }
+  bool jacobian_is_blocked() const override { return false; }  // (AIJ; asked without making the matrix)
   std::optional<OwnBulkInverse> bulk_inverse(Vec X) override;
   bool has_bulk_inverse() const override {
     return space_->periodic(0) && (dim() == 2 || space_->periodic(2));

@@ -4,7 +4,18 @@
 #include "fluid/dc_immersed_fluid.hpp"
 #include "fluid/fluid_solver.hpp"
 
+#include "common/petsc_error.hpp"
+
 namespace cellfsi::fluid {
+
+bool ImmersedFluid::jacobian_is_blocked() const {
+  const Mat J = jacobian_matrix();
+  if (!J) return false;
+  PetscBool seq = PETSC_FALSE, mpi = PETSC_FALSE;
+  CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(J), MATSEQBAIJ, &seq));
+  CELLFSI_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(J), MATMPIBAIJ, &mpi));
+  return seq || mpi;
+}
 
 std::unique_ptr<ImmersedFluid> create_fluid(MPI_Comm comm, const geometry::Patch& patch,
                                             const FluidOptions& options) {

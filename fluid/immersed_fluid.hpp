@@ -187,8 +187,12 @@ class ImmersedFluid {
   /// The global indices of the unknowns the elements `in_region` couple (rows of those elements' element
   /// matrices), sorted; all of them, the same list on every rank. The band preconditioner's split.
   virtual std::vector<PetscInt> region_unknowns(const std::vector<char>& in_region) const = 0;
-  /// The Jacobian's matrix (with the pressure's null space, if any); null after release_jacobian_matrix.
+  /// The Jacobian's matrix (with the pressure's null space, if any); null after release_jacobian_matrix
+  /// (a fluid may also make it at the first call: the divergence-conforming one does).
   virtual Mat jacobian_matrix() const = 0;
+  /// Whether jacobian_matrix() is block AIJ (MATSEQBAIJ or MATMPIBAIJ: the node-block solvers need it),
+  /// asked without making a matrix that is not there yet.
+  virtual bool jacobian_is_blocked() const;
   /// Frees the Jacobian's matrix, for a coupled run whose operator needs no whole matrix
   /// (-coupling_bulk_stencil); jacobian_matrix(), step() and setup() make it again.
   virtual void release_jacobian_matrix() = 0;

@@ -14,6 +14,10 @@
 
 #include <Eigen/Sparse>
 
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
+
 #include <petscblaslapack.h>
 
 #include "common/petsc_error.hpp"
@@ -256,7 +260,10 @@ DivConformingFluid::DivConformingFluid(MPI_Comm comm, const DivConformingSpace& 
     if (r == rank) row_end_ = next;
   }
   for (int g : fixed_rows_)
-    if (owner[g] == rank) owned_fixed_.push_back(petsc_index_[g]);
+    if (owner[g] == rank) {
+      owned_fixed_.push_back(petsc_index_[g]);
+      owned_fixed_natural_.push_back(g);
+    }
 
   for (int e = elem_begin_; e < elem_end_; ++e) {
     const Index3 ei = space_.element_multi_index(e);
@@ -278,7 +285,6 @@ DivConformingFluid::DivConformingFluid(MPI_Comm comm, const DivConformingSpace& 
   CELLFSI_PETSC(VecCreateMPI(comm_, row_end_ - row_begin_, n, &F_));
   CELLFSI_PETSC(VecDuplicate(F_, &x_));
   CELLFSI_PETSC(VecScatterCreateToAll(x_, &to_all_, &x_all_));
-  create_matrix();
   CELLFSI_PETSC(KSPCreate(comm_, &ksp_));
   CELLFSI_PETSC(KSPSetOptionsPrefix(ksp_, "fluid_"));
   CELLFSI_PETSC(KSPSetType(ksp_, KSPPREONLY));
@@ -286,13 +292,21 @@ DivConformingFluid::DivConformingFluid(MPI_Comm comm, const DivConformingSpace& 
   CELLFSI_PETSC(KSPGetPC(ksp_, &pc));
   CELLFSI_PETSC(PCSetType(pc, PCLU));
   CELLFSI_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
-  CELLFSI_PETSC(KSPSetOperators(ksp_, J_, J_));
   CELLFSI_PETSC(KSPSetFromOptions(ksp_));  // the command line wins over the defaults above
+  // (The matrix is made when first needed: matrix().)
+}
+
+Mat DivConformingFluid::matrix() {
+  if (J_) return J_;
+  J_ = create_matrix(nullptr);
+  CELLFSI_PETSC(KSPSetOperators(ksp_, J_, J_));
   // MUMPS's relative pivot threshold CNTL(1): 0.5 instead of its 0.01. With 0.01 the saddle-point matrix
   // (mass, viscous and Nitsche rows of different scales, the zero pressure block) is factored with enough
   // growth that the continuity rows of a one-iteration solve hold only to ~1e-10 of |grad v| (7e-11 measured
   // on the manufactured solution at 16^2); with 0.5, 1e-14. -fluid_mat_mumps_cntl_1 still overrides it (MUMPS
   // reads its options when it factors).
+  PC pc;
+  CELLFSI_PETSC(KSPGetPC(ksp_, &pc));
   PCType pc_type;
   MatSolverType solver_type = nullptr;
   CELLFSI_PETSC(PCGetType(pc, &pc_type));
@@ -303,6 +317,16 @@ DivConformingFluid::DivConformingFluid(MPI_Comm comm, const DivConformingSpace& 
     CELLFSI_PETSC(PCFactorGetMatrix(pc, &F));
     CELLFSI_PETSC(MatMumpsSetCntl(F, 1, 0.5));
   }
+  return J_;
+}
+
+void DivConformingFluid::release_matrix() {
+  if (!J_) return;
+  CELLFSI_PETSC(KSPReset(ksp_));  // (its type and options stay; its operators and factors go)
+  MatDestroy(&J_);
+#ifdef __GLIBC__
+  malloc_trim(0);  // (as FluidSolver::release_jacobian_matrix: glibc keeps a large matrix's pages otherwise)
+#endif
 }
 
 DivConformingFluid::~DivConformingFluid() {
@@ -374,23 +398,31 @@ const ElementBasis& DivConformingFluid::element_basis(int e) const {
   return eb;
 }
 
-void DivConformingFluid::create_matrix() {
+Mat DivConformingFluid::create_matrix(const std::vector<char>* wanted, std::vector<char>* touching) const {
   // The pattern of each owned row (PETSc numbering): the union of the unknowns of the elements in its
   // support, a velocity row all of them, a pressure row their velocity columns and its own diagonal (for the
   // pin's unit row). Each element's unknowns, then each unknown's elements (both compressed, O(elements x
   // their unknowns)), then one owned row at a time with a marker, counted and then inserted: a list per row
   // filled element by element held each row's columns about 36 times over (at 64^3 in 3D the OOM killer
-  // stopped the run at 13 GB per rank).
+  // stopped the run at 13 GB per rank). With `wanted` only the elements that touch a wanted unknown are
+  // listed (and marked in `touching`), and only the wanted rows get a pattern.
   const int n = space_.n_dofs(), D = space_.dim(), n_el = space_.n_elements();
   std::vector<int> el_start(n_el + 1, 0), el_unknowns;
   int n_vel = 0;  // an element's velocity unknowns (the first of its list)
   ElementBasis eb;
+  if (touching) touching->assign(n_el, 0);
   for (int e = 0; e < n_el; ++e) {
     const Index3 ei = space_.element_multi_index(e);
     space_.evaluate(ei, space_.element_rule(ei, 1), eb);  // indices only
-    for (PetscInt g : local_indices(eb, D)) el_unknowns.push_back(static_cast<int>(g));
+    const std::vector<PetscInt> idx = local_indices(eb, D);
+    n_vel = static_cast<int>(idx.size()) - eb.comp[D].n;
+    const bool listed =
+        !wanted || std::any_of(idx.begin(), idx.end(), [&](PetscInt g) { return (*wanted)[g] != 0; });
+    if (listed) {
+      for (PetscInt g : idx) el_unknowns.push_back(static_cast<int>(g));
+      if (touching) (*touching)[e] = 1;
+    }
     el_start[e + 1] = static_cast<int>(el_unknowns.size());
-    n_vel = el_start[e + 1] - el_start[e] - eb.comp[D].n;
   }
   std::vector<int> fn_start(n + 1, 0), fn_elements(el_unknowns.size());
   for (int g : el_unknowns) ++fn_start[g + 1];
@@ -406,10 +438,12 @@ void DivConformingFluid::create_matrix() {
       natural_of[petsc_index_[g] - row_begin_] = g;
   const PetscInt n_own = row_end_ - row_begin_;
   std::vector<PetscInt> stamp(n, -1), cols;
-  // The columns of owned row i (natural unknown g) into cols, PETSc numbering, sorted.
+  // The columns of owned row i (natural unknown g) into cols, PETSc numbering, sorted (none for a row not
+  // wanted).
   auto row_columns = [&](PetscInt i) {
     cols.clear();
     const int g = natural_of[i];
+    if (wanted && !(*wanted)[g]) return;
     const bool pressure = g >= space_.offset(D);
     for (int f = fn_start[g]; f < fn_start[g + 1]; ++f) {
       const int e = fn_elements[f];
@@ -433,23 +467,26 @@ void DivConformingFluid::create_matrix() {
         std::count_if(cols.begin(), cols.end(), [&](PetscInt c) { return c >= row_begin_ && c < row_end_; });
     o_nnz[i] = static_cast<PetscInt>(cols.size()) - d_nnz[i];
   }
-  CELLFSI_PETSC(MatCreateAIJ(comm_, n_own, n_own, n, n, 0, d_nnz.data(), 0, o_nnz.data(), &J_));
-  CELLFSI_PETSC(MatSetOption(J_, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
+  Mat J = nullptr;
+  CELLFSI_PETSC(MatCreateAIJ(comm_, n_own, n_own, n, n, 0, d_nnz.data(), 0, o_nnz.data(), &J));
+  CELLFSI_PETSC(MatSetOption(J, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
   // Insert the pattern once (zeros), so that later assemblies never allocate.
   std::fill(stamp.begin(), stamp.end(), -1);
   std::vector<PetscScalar> zeros;
   for (PetscInt i = 0; i < n_own; ++i) {
     row_columns(i);
+    if (cols.empty()) continue;
     zeros.assign(cols.size(), 0.0);
     const PetscInt row = row_begin_ + i;
-    CELLFSI_PETSC(MatSetValues(J_, 1, &row, static_cast<PetscInt>(cols.size()), cols.data(), zeros.data(),
+    CELLFSI_PETSC(MatSetValues(J, 1, &row, static_cast<PetscInt>(cols.size()), cols.data(), zeros.data(),
                                INSERT_VALUES));
   }
-  CELLFSI_PETSC(MatAssemblyBegin(J_, MAT_FINAL_ASSEMBLY));
-  CELLFSI_PETSC(MatAssemblyEnd(J_, MAT_FINAL_ASSEMBLY));
-  CELLFSI_PETSC(MatSetOption(J_, MAT_NEW_NONZERO_LOCATION_ERR, PETSC_TRUE));
+  CELLFSI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatSetOption(J, MAT_NEW_NONZERO_LOCATION_ERR, PETSC_TRUE));
   // The element matrices carry the zero pressure-pressure block; added zeros are skipped, not inserted.
-  CELLFSI_PETSC(MatSetOption(J_, MAT_IGNORE_ZERO_ENTRIES, PETSC_TRUE));
+  CELLFSI_PETSC(MatSetOption(J, MAT_IGNORE_ZERO_ENTRIES, PETSC_TRUE));
+  return J;
 }
 
 Vec3 DivConformingFluid::wall_velocity(int d, int side, const Vec3& x, double t) const {
@@ -458,7 +495,8 @@ Vec3 DivConformingFluid::wall_velocity(int d, int side, const Vec3& x, double t)
   return v;
 }
 
-void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J, bool with_immersed) const {
+void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J, bool with_immersed,
+                                  const RowSubset* subset) const {
   const int D = space_.dim();
   CELLFSI_PETSC(VecZeroEntries(F));
   if (J) CELLFSI_PETSC(MatZeroEntries(J));
@@ -498,10 +536,15 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J, bool with_imme
       if (J) tangent.add(eb, q, eb.weight[q], t, lv.dv_dU, lv.da_dU);
     }
     if (J) tangent.flush();
-    std::vector<PetscInt> idx = local_indices(eb, D);
+    std::vector<PetscInt> idx = local_indices(eb, D), rows;
+    if (subset) {  // (MatSetValues skips negative rows; F is left alone)
+      rows = idx;
+      for (PetscInt& g : rows) g = subset->rows[g] ? petsc_index_[g] : -1;
+    }
     for (PetscInt& g : idx) g = petsc_index_[g];
-    CELLFSI_PETSC(VecSetValues(F, n_loc, idx.data(), Fe.data(), ADD_VALUES));
-    if (J) CELLFSI_PETSC(MatSetValues(J, n_loc, idx.data(), n_loc, idx.data(), Ke.data(), ADD_VALUES));
+    if (!subset) CELLFSI_PETSC(VecSetValues(F, n_loc, idx.data(), Fe.data(), ADD_VALUES));
+    const PetscInt* row_idx = subset ? rows.data() : idx.data();
+    if (J) CELLFSI_PETSC(MatSetValues(J, n_loc, row_idx, n_loc, idx.data(), Ke.data(), ADD_VALUES));
   };
 
   // nu at point q of eb: the field's where there is one, else lv.nu.
@@ -520,6 +563,7 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J, bool with_imme
   ip.convection = lv.convection;
   if (!J) interior_residual(lv, F);  // the same sums, without the kernels' generality
   for (int e = elem_begin_; e < elem_end_ && J; ++e) {
+    if (subset && !subset->elements[e]) continue;
     current = &element_basis(e);
     integrate([&](int q, const PointState& s, PointTangent* t) {
       const Vec3 g = lv.g ? lv.g(current->x[q]) : Vec3(Vec3::Zero());
@@ -541,6 +585,7 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J, bool with_imme
         np.n = {0, 0, 0};
         np.n[d] = side == 0 ? -1.0 : 1.0;
         for (int e = elem_begin_; e < elem_end_; ++e) {
+          if (subset && !subset->elements[e]) continue;
           const Index3 ei = space_.element_multi_index(e);
           if (ei[d] != (side == 0 ? 0 : space_.n_elements(d) - 1)) continue;
           space_.evaluate(ei, space_.face_rule(ei, d, side, n_gauss()), face_basis);
@@ -1050,11 +1095,14 @@ DivConformingFluid::Levels DivConformingFluid::iterate_levels(const std::vector<
   return step_levels(U, started ? Un_ : U_, started ? Udotn_ : Udot_);
 }
 
-void DivConformingFluid::zero_fixed_rows(Mat J, bool pin_pressure, double diagonal) const {
+void DivConformingFluid::zero_fixed_rows(Mat J, bool pin_pressure, double diagonal,
+                                         const RowSubset* subset) const {
   std::vector<PetscInt> rows;
   const PetscInt pin = petsc_index_[space_.offset(space_.dim())];
-  for (PetscInt r : owned_fixed_)
-    if (pin_pressure || r != pin) rows.push_back(r);
+  for (size_t k = 0; k < owned_fixed_.size(); ++k) {
+    const PetscInt r = owned_fixed_[k];
+    if ((pin_pressure || r != pin) && (!subset || subset->rows[owned_fixed_natural_[k]])) rows.push_back(r);
+  }
   CELLFSI_PETSC(MatZeroRows(J, static_cast<PetscInt>(rows.size()), rows.data(), diagonal, nullptr, nullptr));
 }
 
@@ -1074,6 +1122,32 @@ void DivConformingFluid::bulk_tangent_of_mean(const std::vector<double>& U, Mat 
   lv.viscosity_field = false;
   assemble(lv, F_, J, false);
   zero_fixed_rows(J, false, 1.0);
+}
+
+Mat DivConformingFluid::bulk_stencil_tangent(const std::vector<double>& U) {
+  // The rows of the columns (x index i, z index l) below: (0, 0) for the stencil, two more for the check.
+  const int D = space_.dim(), nx = space_.n_elements(0), nz = D == 3 ? space_.n_elements(2) : 1;
+  const std::array<std::array<int, 2>, 3> columns{{{0, 0}, {nx / 2, nz / 2}, {nx / 3, (2 * nz) / 3}}};
+  RowSubset subset;
+  subset.rows.assign(space_.n_dofs(), 0);
+  for (int c = 0; c <= D; ++c) {
+    const int ny = space_.n_basis(c, 1), first = space_.offset(c);
+    const int count = space_.n_basis(c);
+    for (int local = 0; local < count; ++local) {
+      const int i = local % space_.n_basis(c, 0), l = local / (space_.n_basis(c, 0) * ny);
+      for (const auto& col : columns)
+        if (i == col[0] && l == col[1]) subset.rows[first + local] = 1;
+    }
+  }
+  Mat S = create_matrix(&subset.rows, &subset.elements);
+  const bool started = !Un_.empty();
+  std::vector<double> u = U, un = started ? Un_ : U_, rate = started ? Udotn_ : Udot_;
+  for (std::vector<double>* v : {&u, &un, &rate}) space_.average_periodic(*v);
+  Levels lv = step_levels(u, un, rate);
+  lv.viscosity_field = false;
+  assemble(lv, F_, S, false, &subset);
+  zero_fixed_rows(S, false, 1.0, &subset);
+  return S;
 }
 
 void DivConformingFluid::step_tangent_from(Mat bulk, const std::vector<double>& U, Mat J, bool pin_pressure) {
@@ -1224,6 +1298,7 @@ void DivConformingFluid::scatter(const std::vector<double>& U, Vec X) const {
 DcSolveStats DivConformingFluid::newton(std::vector<double>& U,
                                         const std::function<Levels(const std::vector<double>&)>& levels) {
   const int n = space_.n_dofs();
+  matrix();  // (made at the first solve)
   DcSolveStats st;
   double f0 = -1;
   for (int it = 0; it <= opt_.newton_max_it; ++it) {
@@ -1484,9 +1559,10 @@ DcSolveStats DivConformingFluid::step() {
 
 Mat DivConformingFluid::jacobian(bool time_step, bool pin_pressure) {
   const Levels lv = time_step ? step_levels(U_, U_, Udot_) : steady_levels(U_);
-  assemble(lv, F_, J_);
-  zero_fixed_rows(J_, pin_pressure, 1.0);
-  return J_;
+  Mat J = matrix();
+  assemble(lv, F_, J);
+  zero_fixed_rows(J, pin_pressure, 1.0);
+  return J;
 }
 
 DivConformingFluid::Errors DivConformingFluid::errors(

@@ -257,12 +257,30 @@ class DivConformingFluid {
   Vec create_vector() const;
   void gather(Vec X, std::vector<double>& U) const;
   void scatter(const std::vector<double>& U, Vec X) const;
-  /// The matrix the tangents are assembled into (jacobian(), step_tangent).
-  Mat matrix() const { return J_; }
+  /// The matrix the tangents are assembled into (jacobian(), step_tangent), and the fluid's own solver's;
+  /// made at the first call (its pattern: every element's unknowns, about 600 entries a row in 3D at k' = 2,
+  /// 84 M at 32^3), so a coupled run that never needs it (-coupling_bulk_stencil) never holds it.
+  /// Collective at that first call.
+  Mat matrix();
+  /// Frees matrix() and the linear solver's factors; the next matrix(), jacobian(), step() or solve makes it
+  /// again. Collective.
+  void release_matrix();
+  bool matrix_made() const { return J_ != nullptr; }
+  /// bulk_tangent_of_mean(U) in a matrix like matrix() that holds only the rows DcFourierSolver::build reads
+  /// and checks: the unknowns at x (and in 3D z) index 0, its stencil, and at two more positions, (n_x/2,
+  /// n_z/2) and (n_x/3, 2 n_z/3), for its check (deviation()); the other rows are empty. Assembled from the
+  /// elements that touch those rows alone. At 64^3 the whole matrix holds 676 M entries (8 GB); this one
+  /// about three planes' worth. The caller destroys it. Collective.
+  Mat bulk_stencil_tangent(const std::vector<double>& U);
   /// divergence_history() after each step() (the "at every step").
   const std::vector<double>& divergence_history() const { return div_history_; }
 
  private:
+  /// A part of the assembly: the elements marked in `elements` (linear index) into the rows marked in
+  /// `rows` (natural index); the other rows get nothing.
+  struct RowSubset {
+    std::vector<char> rows, elements;
+  };
   /// The fields and their derivatives with respect to the unknowns that assemble() needs.
   struct Levels {
     std::vector<double> v;  // coefficients of the velocity at which momentum is evaluated (pressure: U's)
@@ -290,16 +308,20 @@ class DivConformingFluid {
   Levels iterate_levels(const std::vector<double>& U) const;
   /// Zeroes this rank's fixed rows of J with `diagonal` on them (the pressure pin's row too if pin_pressure).
   /// Collective.
-  void zero_fixed_rows(Mat J, bool pin_pressure, double diagonal) const;
+  void zero_fixed_rows(Mat J, bool pin_pressure, double diagonal, const RowSubset* subset = nullptr) const;
   std::function<Vec3(const Vec3&)> body_force_per_mass(double t) const;
-  /// Residual F and, if J is not null, the tangent (PETSc numbering), both without the fixed rows.
+  /// Residual F and, if J is not null, the tangent (PETSc numbering), both without the fixed rows; with a
+  /// subset only its elements' tangent into its rows (F is then only zeroed).
   /// Collective.
-  void assemble(const Levels& lv, Vec F, Mat J, bool with_immersed = true) const;
+  void assemble(const Levels& lv, Vec F, Mat J, bool with_immersed = true,
+                const RowSubset* subset = nullptr) const;
   /// Newton on R(U) = 0 with levels(U) describing the fields; fixed rows (wall normals, the pressure pin)
   /// keep U's values.
   DcSolveStats newton(std::vector<double>& U,
                       const std::function<Levels(const std::vector<double>&)>& levels);
-  void create_matrix();
+  /// A matrix with the pattern of the rows marked in `wanted` (natural index; null: every row), each row the
+  /// unknowns of the elements in its support; `touching` (if given) marks those elements. Collective.
+  Mat create_matrix(const std::vector<char>* wanted, std::vector<char>* touching = nullptr) const;
   /// The basis of element e (linear index, one of this rank's) at its n_gauss()^dim Gauss points. The space's
   /// knots are uniform, so elements at the same distance from the walls (all, along a periodic direction)
   /// share values and derivatives: one evaluation per such class, cached; the element's unknowns and points
@@ -321,6 +343,7 @@ class DivConformingFluid {
   std::vector<PetscInt> petsc_index_;     // natural (dc_space.hpp) -> PETSc numbering
   PetscInt row_begin_ = 0, row_end_ = 0;  // this rank's rows in PETSc numbering
   std::vector<PetscInt> owned_fixed_;     // this rank's fixed rows, PETSc numbering
+  std::vector<int> owned_fixed_natural_;  // and their natural indices
   GeneralizedAlpha alpha_;
   std::vector<double> U_, Udot_;
   std::vector<int> fixed_rows_;        // wall normal velocities and the pressure pin (natural numbering)

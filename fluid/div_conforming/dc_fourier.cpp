@@ -175,7 +175,9 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
   for (int l = 0; l < n_line_; ++l) row_start[l + 1] += row_start[l];
 
   // 2. How far A is from the circulant matrix of the stencil: each rank its own rows, row by row (the
-  // differences of the row's entries and the stencil's, both by natural column).
+  // differences of the row's entries and the stencil's, both by natural column). A row without entries is
+  // one A does not hold (DivConformingFluid::bulk_stencil_tangent holds a few positions' rows only); every
+  // row of a whole operator has its pattern.
   deviation_ = 0;
   PetscInt row_begin = 0, row_end = 0;
   CELLFSI_PETSC(MatGetOwnershipRange(A, &row_begin, &row_end));
@@ -187,6 +189,10 @@ void DcFourierSolver::build(Mat A, bool pin_pressure) {
     const PetscInt* cols;
     const PetscScalar* vals;
     CELLFSI_PETSC(MatGetRow(A, p, &ncols, &cols, &vals));
+    if (ncols == 0) {
+      CELLFSI_PETSC(MatRestoreRow(A, p, &ncols, &cols, &vals));
+      continue;
+    }
     diff.clear();
     double row_max = 0;
     for (PetscInt k = 0; k < ncols; ++k) {

@@ -29,9 +29,10 @@
 // info > 0, e.g. wave 0 without the pin) throws std::runtime_error naming the wave vector.
 //
 // Ranks: the wave vectors are dealt out to the ranks (index mod size); every rank reads the stencil rows
-// (those at x and z index 0, MatCreateSubMatrices) and checks deviation() on its own rows; b and x are whole
-// on every rank (the fluid's state is replicated, dc_fluid.hpp); a solve transforms every line on every rank,
-// solves its own wave vectors and ends in one MPI_Allreduce of the half spectra before the inverse FFTs.
+// (those at x and z index 0, MatCreateSubMatrices) and checks deviation() on its own rows (those A holds); b
+// and x are whole on every rank (the fluid's state is replicated, dc_fluid.hpp); a solve transforms every
+// line on every rank, solves its own wave vectors and ends in one MPI_Allreduce of the half spectra before
+// the inverse FFTs.
 //
 // Cost: per solve 2 n_line real FFTs of n_x n_z values and n_z (n_x/2 + 1) banded substitutions of size
 // n_line (O(n log(n_x n_z)) in all); build O(nonzeros) plus the banded LUs. Measured (bench/dc_fourier_solve:
@@ -65,7 +66,9 @@ class DcFourierSolver {
 
   /// Reads the stencil from the rows at x (and z) index 0 of A (the operator must not carry a pressure pin,
   /// which is not translation-invariant) and factorises this rank's wave numbers. deviation(): the largest
-  /// difference between A and the circulant matrix of that stencil, relative to the largest entry of its row.
+  /// difference between A and the circulant matrix of that stencil, relative to the largest entry of its row,
+  /// over the rows A holds (a row without entries is skipped: A may hold only the stencil's rows and a few
+  /// others to check, DivConformingFluid::bulk_stencil_tangent).
   /// Collective. Throws std::runtime_error if a wave number's system is singular.
   void build(Mat A, bool pin_pressure);
   /// x = A^{-1} b (natural numbering, size n_dofs, the same b on every rank; x on every rank). Collective.

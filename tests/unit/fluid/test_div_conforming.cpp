@@ -994,6 +994,97 @@ double fourier_vs_direct(const FourierCase& cs, MPI_Comm comm, double& deviation
 
 }  // namespace
 
+TEST(DcFourierSolver, BuildsFromTheStencilRowsAloneAsFromTheWholeOperator) {
+  // DivConformingFluid::bulk_stencil_tangent holds only the rows at three x (and z) positions, assembled from
+  // the elements that touch them: those rows equal the whole operator's (bulk_tangent_of_mean) to round-off
+  // (asserted 1e-14 of the row's largest entry), the others are empty, and a solver built from it solves as
+  // one built from the whole matrix (1e-13 of max|x|). Its check still sees a row that is not the stencil's:
+  // one entry of a checked row changed by 1e-3 of the row's largest shows as a deviation of 1e-3.
+  for (int D : {2, 3}) {
+    const int nx = 8, ny = 5, nz = D == 3 ? 7 : 1;
+    const DivConformingSpace sp(D, 2, {nx, ny, nz}, Vec3(0, 0, 0), Vec3(1, 0.5, D == 3 ? 0.75 : 0),
+                                {true, false, D == 3});
+    DcFluidOptions opt;
+    opt.density = 1.0;
+    opt.viscosity = 0.1;
+    opt.dt = 0.01;
+    opt.wall_velocity[1][1] = Vec3(1.0, 0, 0);
+    DivConformingFluid fs(PETSC_COMM_WORLD, sp, opt);
+    ASSERT_TRUE(fs.solve_steady().converged);  // Couette: a state with convection, uniform in x
+    Mat A = fs.matrix();
+    fs.bulk_tangent_of_mean(fs.state(), A);
+    Mat S = fs.bulk_stencil_tangent(fs.state());
+    PetscInt r0 = 0, r1 = 0;
+    CELLFSI_PETSC(MatGetOwnershipRange(S, &r0, &r1));
+    double worst = 0;
+    int held = 0;
+    for (PetscInt r = r0; r < r1; ++r) {
+      PetscInt na = 0, ns = 0;
+      const PetscInt *ca = nullptr, *cs = nullptr;
+      const PetscScalar *va = nullptr, *vs = nullptr;
+      CELLFSI_PETSC(MatGetRow(S, r, &ns, &cs, &vs));
+      if (ns > 0) {
+        ++held;
+        CELLFSI_PETSC(MatGetRow(A, r, &na, &ca, &va));
+        EXPECT_EQ(na, ns) << "row " << r;
+        double row_max = 0, diff = 0;
+        for (PetscInt k = 0; k < std::min(na, ns); ++k) {
+          EXPECT_EQ(ca[k], cs[k]) << "row " << r;
+          row_max = std::max(row_max, std::abs(va[k]));
+          diff = std::max(diff, std::abs(va[k] - vs[k]));
+        }
+        worst = std::max(worst, diff / row_max);
+        CELLFSI_PETSC(MatRestoreRow(A, r, &na, &ca, &va));
+      }
+      CELLFSI_PETSC(MatRestoreRow(S, r, &ns, &cs, &vs));
+    }
+    CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &held, 1, MPI_INT, MPI_SUM, PETSC_COMM_WORLD));
+    int line = 0;  // unknowns of one (x, z) position: every component's y functions
+    for (int c = 0; c <= D; ++c) line += sp.n_basis(c, 1);
+    EXPECT_EQ(held, 3 * line) << D << "D";  // positions (0, 0), (4, 3), (2, 4); in 2D x = 0, 4, 2
+    EXPECT_LT(worst, 1e-14) << D << "D";
+
+    std::vector<double> b = random_velocity(sp, 5);
+    b.resize(sp.n_dofs());
+    for (int a = sp.offset(D); a < sp.n_dofs(); ++a) b[a] = 0.0;
+    for (int r : sp.wall_normal_dofs()) b[r] = 0.0;
+    DcFourierSolver whole(sp, PETSC_COMM_WORLD, fs.petsc_numbering()),
+        rows(sp, PETSC_COMM_WORLD, fs.petsc_numbering());
+    whole.build(A, true);
+    rows.build(S, true);
+    EXPECT_LT(whole.deviation(), 1e-13) << D << "D";
+    EXPECT_LT(rows.deviation(), 1e-13) << D << "D";
+    std::vector<double> xw, xr;
+    whole.solve(b, xw);
+    rows.solve(b, xr);
+    double dx = 0, sx = 0;
+    for (size_t a = 0; a < xw.size(); ++a) {
+      dx = std::max(dx, std::abs(xw[a] - xr[a]));
+      sx = std::max(sx, std::abs(xw[a]));
+    }
+    EXPECT_GT(sx, 0);
+    EXPECT_LT(dx, 1e-13 * sx) << D << "D";
+
+    // v_x's function at (n_x/2, y index 2, n_z/2): a checked row; its diagonal changed.
+    const int g = sp.offset(0) + nx / 2 + nx * (2 + sp.n_basis(0, 1) * (nz / 2));
+    const PetscInt row = fs.petsc_numbering()[g];
+    if (row >= r0 && row < r1) {
+      PetscInt ns = 0;
+      const PetscScalar* vs = nullptr;
+      CELLFSI_PETSC(MatGetRow(S, row, &ns, nullptr, &vs));
+      double row_max = 0;
+      for (PetscInt k = 0; k < ns; ++k) row_max = std::max(row_max, std::abs(vs[k]));
+      CELLFSI_PETSC(MatRestoreRow(S, row, &ns, nullptr, &vs));
+      CELLFSI_PETSC(MatSetValue(S, row, row, 1e-3 * row_max, ADD_VALUES));
+    }
+    CELLFSI_PETSC(MatAssemblyBegin(S, MAT_FINAL_ASSEMBLY));
+    CELLFSI_PETSC(MatAssemblyEnd(S, MAT_FINAL_ASSEMBLY));
+    rows.build(S, true);
+    EXPECT_NEAR(rows.deviation(), 1e-3, 1e-5) << D << "D";  // (1e-3 of the row's largest before the change)
+    MatDestroy(&S);
+  }
+}
+
 TEST(DcFourierSolver, EqualsTheDirectSolve) {
   // Tangents that are translation-invariant in x (and z): a Navier-Stokes time step at a Couette state
   // (moving top wall) in the channel, the steady Stokes operator there, and a time step on the all-periodic
