@@ -229,25 +229,33 @@ void DivConformingSpace::evaluate(const Index3& e, const TensorRule& rule, Eleme
             cb.index[a] = index(c, folded);
           }
     }
+    // The products built outward in: per (j2, j1) the factors of directions 1 and 2 once, then a run over j0
+    // (the functions a = j0 + np0 (j1 + np1 j2) are consecutive). (Indexing each factor per function took
+    // 14 % of a 3D coupled step at 32^3, most of it at the immersed points' one-point rules; perf.)
     for (int q2 = 0; q2 < nq[2]; ++q2)
       for (int q1 = 0; q1 < nq[1]; ++q1)
         for (int q0 = 0; q0 < nq[0]; ++q0) {
           const int q = q0 + nq[0] * (q1 + nq[1] * q2);
-          const int qd[3] = {q0, q1, q2};
-          for (int j2 = 0; j2 < np[2]; ++j2)
-            for (int j1 = 0; j1 < np[1]; ++j1)
+          const double* f0 = &uni[sp[0]][0][q0 * np[0] * 2];
+          const double* f1 = &uni[sp[1]][1][q1 * np[1] * 2];
+          const double* f2 = &uni[sp[2]][2][q2 * np[2] * 2];
+          double* value = &cb.value[static_cast<size_t>(q) * cb.n];
+          double* grad = &cb.grad[static_cast<size_t>(q) * cb.n * 3];
+          for (int j2 = 0; j2 < np[2]; ++j2) {
+            const double v2 = f2[2 * j2], d2 = f2[2 * j2 + 1];
+            for (int j1 = 0; j1 < np[1]; ++j1) {
+              const double v1 = f1[2 * j1], d1 = f1[2 * j1 + 1];
+              const double v12 = v1 * v2, d1v2 = d1 * v2, v1d2 = v1 * d2;
               for (int j0 = 0; j0 < np[0]; ++j0) {
-                const int a = j0 + np[0] * (j1 + np[1] * j2);
-                const int j[3] = {j0, j1, j2};
-                double f[3][2];
-                for (int d = 0; d < 3; ++d)
-                  for (int m = 0; m < 2; ++m) f[d][m] = uni[sp[d]][d][(qd[d] * np[d] + j[d]) * 2 + m];
-                const size_t qa = static_cast<size_t>(q) * cb.n + a;
-                cb.value[qa] = f[0][0] * f[1][0] * f[2][0];
-                cb.grad[qa * 3 + 0] = f[0][1] * f[1][0] * f[2][0];
-                cb.grad[qa * 3 + 1] = f[0][0] * f[1][1] * f[2][0];
-                cb.grad[qa * 3 + 2] = f[0][0] * f[1][0] * f[2][1];
+                const double v0 = f0[2 * j0], d0 = f0[2 * j0 + 1];
+                *value++ = v0 * v12;
+                grad[0] = d0 * v12;
+                grad[1] = v0 * d1v2;
+                grad[2] = v0 * v1d2;
+                grad += 3;
               }
+            }
+          }
         }
   }
 }
