@@ -438,6 +438,12 @@ std::vector<std::pair<std::string, double>> Scene::metrics() {
   for (size_t b = 0; b < bodies_.size(); ++b) {
     for (const auto& [k, v] : trackers_[b].metrics()) last_.emplace_back(bodies_[b]->name() + "_" + k, v);
     for (const auto& [k, v] : shape_symmetry(b)) last_.emplace_back(bodies_[b]->name() + "_" + k, v);
+    if (bodies_[b]->is_membrane()) {
+      // The mid-surface's bounding box [cm]: a cell's diameters in shear as peers report them.
+      const Vec3 e = s_.dim == 2 ? solid::mid_surface_extent(bodies_[b]->current_patch(), 256, 1)
+                                 : solid::mid_surface_extent(bodies_[b]->current_patch());
+      for (int d = 0; d < s_.dim; ++d) last_.emplace_back(bodies_[b]->name() + "_extent_" + "xyz"[d], e[d]);
+    }
     if (equilibrium_[b]) {
       // The stretching test: D_A, D_T [cm] and their largest relative change over the equilibrium window.
       last_.emplace_back(bodies_[b]->name() + "_axial_diameter", equilibrium_[b]->last().axial);

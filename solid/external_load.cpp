@@ -62,6 +62,13 @@ std::array<Vec3, 2> membrane_ends(const geometry::Patch& membrane, const Vec3& a
   return {*std::min_element(pts.begin(), pts.end(), along), *std::max_element(pts.begin(), pts.end(), along)};
 }
 
+geometry::Vec3 mid_surface_extent(const geometry::Patch& membrane, int n1, int n2) {
+  const std::vector<geometry::Vec3> pts = mid_surface_points(membrane, n1, n2);
+  geometry::Vec3 lo = pts.front(), hi = pts.front();
+  for (const geometry::Vec3& x : pts) lo = lo.cwiseMin(x), hi = hi.cwiseMax(x);
+  return hi - lo;
+}
+
 StretchDiameters stretch_diameters(const std::vector<Vec3>& points, const Vec3& axis) {
   StretchDiameters d;
   if (points.empty()) return d;

@@ -50,6 +50,12 @@ struct StretchDiameters {
 };
 StretchDiameters stretch_diameters(const std::vector<geometry::Vec3>& points, const geometry::Vec3& axis);
 
+/// A membrane's extent along each coordinate axis: the largest minus the smallest coordinate of its
+/// mid-surface sampled at n1 x n2 points (mid_surface_points; the default counts hold an RBC's rim and an
+/// ellipsoid's axes exactly). The bounding box whose sides peers report as a cell's diameters in shear
+/// (HemoCell's examples/oneCellShear). z is 0 in 2D.
+geometry::Vec3 mid_surface_extent(const geometry::Patch& membrane, int n1 = 33, int n2 = 65);
+
 /// When a stretched body has come to rest: the first record at which neither diameter has changed by more
 /// than `tolerance` of itself over the last `window` seconds (compared with the latest record at least
 /// `window` before it), with the whole window after `not_before` (the end of a force's ramp: while the force

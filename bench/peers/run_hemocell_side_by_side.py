@@ -62,24 +62,37 @@ def mpi_env():
                 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_ess_singleton_isolated="1", OMPI_MCA_pml="ob1")
 
 
+def kept_or_none(path, args):
+    """(True, the kept result) if path holds one; (True, None) with --report; (False, None): run it."""
+    if os.path.isfile(path):
+        return True, json.load(open(path))
+    return bool(args.report), None
+
+
+def fresh_example(args, example_name, folder, files):
+    """HemoCell's built examples/NAME/NAME (exits with a message if not built), with `files` of its folder copied
+    into a fresh `folder`: the executable's path."""
+    example = os.path.join(args.hemocell, "examples", example_name)
+    exe = os.path.join(example, example_name)
+    if not os.access(exe, os.X_OK):
+        sys.exit(f"{os.path.basename(sys.argv[0])}: --hemocell '{args.hemocell}' has no built "
+                 f"examples/{example_name}/{example_name} (bash bench/peers/build_hemocell.sh)")
+    shutil.rmtree(folder, ignore_errors=True)
+    os.makedirs(folder)
+    for name in files:
+        shutil.copy(os.path.join(example, name), folder)
+    return exe
+
+
 def run_hemocell(args, force):
     """HemoCell's stretchCell at force [pN] in its own folder: its result dict (kept in result.json)."""
     folder = os.path.join(args.runs, f"hemocell_F{force:g}")
     kept = os.path.join(folder, "result.json")
-    if os.path.isfile(kept):
-        return json.load(open(kept))
-    if args.report:
-        return None
-    example = os.path.join(args.hemocell, "examples", "stretchCell")
-    exe = os.path.join(example, "stretchCell")
-    if not os.access(exe, os.X_OK):
-        sys.exit(f"{TOOL}: --hemocell '{args.hemocell}' has no built examples/stretchCell/stretchCell "
-                 "(bash bench/peers/build_hemocell.sh)")
-    shutil.rmtree(folder, ignore_errors=True)
-    os.makedirs(folder)
-    for name in ("RBC.pos", "RBC.xml"):
-        shutil.copy(os.path.join(example, name), folder)
-    config = open(os.path.join(example, "config.xml")).read()
+    done, result = kept_or_none(kept, args)
+    if done:
+        return result
+    exe = fresh_example(args, "stretchCell", folder, ("RBC.pos", "RBC.xml"))
+    config = open(os.path.join(os.path.dirname(exe), "config.xml")).read()
     config = re.sub(r"<stretchForce>[^<]*</stretchForce>", f"<stretchForce> {force:g} </stretchForce>", config)
     open(os.path.join(folder, "config.xml"), "w").write(config)
     rc, wall, mb = timed([exe, "config.xml"], folder, os.path.join(folder, "run.log"), mpi_env())
@@ -100,10 +113,9 @@ def run_cellfsi(args, law, force):
     folder = os.path.join(args.runs, tag)
     summary = os.path.join(folder, "summary.json")
     kept = os.path.join(args.runs, tag + ".json")
-    if os.path.isfile(kept):
-        return json.load(open(kept))
-    if args.report:
-        return None
+    done, result = kept_or_none(kept, args)
+    if done:
+        return result
     G = FITTED_GH[law] * 1e-3 / THICKNESS  # uN/m = 1e-3 dyn/cm
     cmd = [os.path.join(args.build, "apps", "cellfsi"), os.path.join(ROOT, "scenes", "rbc_stretch_3d.yaml"),
            "-output_dir", folder, "-output_every", "0", "-domain_size", "0.0026,0.0013,0.0013",

@@ -112,6 +112,26 @@ TEST(ExternalLoad, DiametersOfAnEllipsoidAlongAndAcrossTheAxis) {
   EXPECT_NEAR(d.transverse, 7.82e-4, 1e-7);
 }
 
+TEST(ExternalLoad, TheMidSurfaceExtentIsTheBoundingBoxOfAnEllipsoidAndAnRbc) {
+  // Semi-axes 3, 1.5, 1 um: 6, 3, 2 um. The rest RBC (axis along z): 7.82, 7.82 um in its plane and 2.565 um
+  // across it, the Evans-Fung profile's largest thickness (near r = 0.71 R0; the mid-surface is that
+  // profile).
+  const Vec3 e = solid::mid_surface_extent(geometry::hollow_ellipsoid(3e-4, 1.5e-4, 1e-4, kH, 12, 16, 2));
+  EXPECT_NEAR(e[0], 6e-4, 1e-9);
+  EXPECT_NEAR(e[1], 3e-4, 1e-9);
+  EXPECT_NEAR(e[2], 2e-4, 1e-9);
+  const Vec3 r = solid::mid_surface_extent(geometry::biconcave_rbc_3d(3.1623e-5, 20, 40, 2));
+  std::printf("  rest RBC: extent %.4f x %.4f x %.4f um\n", r[0] * 1e4, r[1] * 1e4, r[2] * 1e4);
+  EXPECT_NEAR(r[0], 7.82e-4, 1e-7);
+  EXPECT_NEAR(r[1], 7.82e-4, 1e-7);
+  EXPECT_NEAR(r[2], 2.565e-4, 1e-7);
+  // In 2D (256 samples of a 24-element ring, which its axes fall between: 3e-5 short) the z extent is 0.
+  const Vec3 c = solid::mid_surface_extent(geometry::hollow_ellipse(2e-4, 1e-4, 5e-6, 24, 2), 256, 1);
+  EXPECT_NEAR(c[0], 4e-4, 2e-8);
+  EXPECT_NEAR(c[1], 2e-4, 1e-8);
+  EXPECT_EQ(c[2], 0.0);
+}
+
 TEST(ExternalLoad, EquilibriumIsTheFirstRecordStillForAWindow) {
   // The diameters move until t = 5 and stay from there: with a window of 2, equilibrium at t = 7 exactly (at
   // t = 6 the record two before, t = 4, still differs); a tolerance above the last change is reached earlier.
