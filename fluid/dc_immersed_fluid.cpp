@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include <petsc/private/petscimpl.h>  // PetscObjectStateGet (private in PETSc 3.18; the PC types use it too)
 #include <petscblaslapack.h>
 
 #include <vtkDoubleArray.h>
@@ -99,6 +100,7 @@ DcImmersedFluid::~DcImmersedFluid() {
   MatDestroy(&bulk_matrix_);
   MatDestroy(&stencil_op_);
   MatDestroy(&immersed_);
+  VecDestroy(&applied_rhs_);
 }
 
 void DcImmersedFluid::sync_solution() { fluid_->scatter(fluid_->state(), U_); }
@@ -336,6 +338,7 @@ std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X
   Mat S = fluid_->bulk_stencil_tangent(work_);
   // The Jacobian's kept bulk part (-coupling_bulk_stencil false) follows: the next jacobian() makes it again.
   MatDestroy(&bulk_matrix_);
+  applied_id_ = 0;  // (a product of an older inverse's output is not this one's)
   bulk_ = std::make_unique<dc::DcFourierSolver>(*space_, comm_, fluid_->petsc_numbering());
   try {
     bulk_->build(S, true);
@@ -363,6 +366,11 @@ std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X
     fluid_->gather(r, b);
     bulk_->solve(b, x);
     fluid_->scatter(x, out);
+    // Kept for the stencil operator's product with `out` (stencil_mult): S out = r.
+    if (!applied_rhs_) CELLFSI_PETSC(VecDuplicate(r, &applied_rhs_));
+    CELLFSI_PETSC(VecCopy(r, applied_rhs_));
+    CELLFSI_PETSC(PetscObjectGetId(reinterpret_cast<PetscObject>(out), &applied_id_));
+    CELLFSI_PETSC(PetscObjectStateGet(reinterpret_cast<PetscObject>(out), &applied_state_));
   };
   if (!stencil_op_) {
     PetscInt m = 0, n = 0;
@@ -480,12 +488,33 @@ PetscErrorCode DcImmersedFluid::stencil_mult(Mat A, Vec x, Vec y) {
     PetscCall(MatMult(self->fluid_->matrix(), x, y));
     PetscFunctionReturn(0);
   }
-  try {
-    self->fluid_->gather(x, self->x_nat_);
-    self->bulk_->multiply(self->x_nat_, self->y_nat_, true);  // (scatter() takes this rank's rows)
-    self->fluid_->scatter(self->y_nat_, y);
-  } catch (const std::exception& e) {
-    SETERRQ(PetscObjectComm(reinterpret_cast<PetscObject>(A)), PETSC_ERR_LIB, "%s", e.what());
+  // x the bulk inverse's last output, unchanged since (a Krylov method with right preconditioning multiplies
+  // each z = S^{-1} v it made): S x is that v, which was kept, so the stencil's product is skipped. S x = v
+  // holds to the banded solves' round-off for every v whose continuity rows sum to zero (the constant
+  // pressure's equation, the one the inverse pins), as every residual of the coupling loop and every Krylov
+  // vector made from it and from this operator's products.
+  PetscObjectState state = 0;
+  PetscObjectId id = 0;
+  PetscCall(PetscObjectStateGet(reinterpret_cast<PetscObject>(x), &state));
+  PetscCall(PetscObjectGetId(reinterpret_cast<PetscObject>(x), &id));  // (unique: not an address reused)
+  if (self->applied_rhs_ && id == self->applied_id_ && state == self->applied_state_) {
+    PetscCall(VecCopy(self->applied_rhs_, y));
+    ++self->products_skipped_;
+    if (!self->colloc_begin_.empty()) {  // (the solids' product reads x in the natural numbering)
+      try {
+        self->fluid_->gather(x, self->x_nat_);
+      } catch (const std::exception& e) {
+        SETERRQ(PetscObjectComm(reinterpret_cast<PetscObject>(A)), PETSC_ERR_LIB, "%s", e.what());
+      }
+    }
+  } else {
+    try {
+      self->fluid_->gather(x, self->x_nat_);
+      self->bulk_->multiply(self->x_nat_, self->y_nat_, true);  // (scatter() takes this rank's rows)
+      self->fluid_->scatter(self->y_nat_, y);
+    } catch (const std::exception& e) {
+      SETERRQ(PetscObjectComm(reinterpret_cast<PetscObject>(A)), PETSC_ERR_LIB, "%s", e.what());
+    }
   }
   if (self->immersed_) PetscCall(MatMultAdd(self->immersed_, x, y, y));
   if (!self->colloc_begin_.empty()) {

@@ -97,6 +97,8 @@ class DcImmersedFluid final : public ImmersedFluid {
 
   /// The discretisation behind the face (tests, the divergence history for summary.json).
   const dc::DivConformingFluid& discretisation() const { return *fluid_; }
+  /// How many stencil products were taken from the bulk inverse's last right-hand side (stencil_mult).
+  long stencil_products_skipped() const { return products_skipped_; }
 
  private:
   Vec3 physical(const geometry::Param& xi) const;
@@ -126,6 +128,12 @@ class DcImmersedFluid final : public ImmersedFluid {
   std::vector<int> pattern_elements_;  // this rank's elements with points when immersed_'s pattern was made
   bool op_assembled_ = false;
   std::vector<double> x_nat_, y_nat_;  // the operator's product in the natural numbering
+  /// The bulk inverse's last application, z = S^{-1} v: v (a copy), z's id and z's state then. stencil_mult
+  /// takes v for S z when it multiplies that z unchanged (right preconditioning: FGMRES's every product).
+  Vec applied_rhs_ = nullptr;
+  PetscObjectId applied_id_ = 0;  // (PETSc's object ids start at 1)
+  PetscObjectState applied_state_ = -1;
+  long products_skipped_ = 0;
   static PetscErrorCode stencil_mult(Mat A, Vec x, Vec y);
   void refresh_stencil_operator(Vec X);
   /// The solids' stiffness through their collocation (set_solid_linearization), in the stencil operator
