@@ -251,13 +251,13 @@ void DcImmersedFluid::set_immersed_points(const std::vector<geometry::Index3>& e
                                           const std::vector<ImmersedPoint>& data) {
   if (elements.size() != xi.size() || xi.size() != data.size())
     throw std::invalid_argument("set_immersed_points: elements, xi and data differ in size");
-  std::vector<dc::DivConformingFluid::ImmersedAt> pts;
-  pts.reserve(data.size());
+  std::vector<dc::DivConformingFluid::ImmersedAt>& pts = points_;  // (kept storage: see the fluid's)
+  pts.clear();
   for (std::size_t i = 0; i < data.size(); ++i) {
     if (!owns_element(elements[i])) continue;
     pts.push_back({patch_.element_index(elements[i]), physical(xi[i]), data[i]});
   }
-  fluid_->set_immersed_points(std::move(pts));
+  fluid_->set_immersed_points(pts);
 }
 
 void DcImmersedFluid::set_viscosity(const std::function<double(int node)>& mu) {

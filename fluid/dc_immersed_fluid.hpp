@@ -115,6 +115,7 @@ class DcImmersedFluid final : public ImmersedFluid {
   std::unique_ptr<dc::DivConformingFluid> fluid_;
   Vec U_ = nullptr;
   mutable std::vector<double> work_;  // an iterate in the natural numbering
+  std::vector<dc::DivConformingFluid::ImmersedAt> points_;  // set_immersed_points' (kept storage)
   std::unique_ptr<dc::DcFourierSolver> bulk_;
   /// The coupled Jacobian's bulk part (no immersed points), assembled at the first jacobian() and kept: each
   /// jacobian() copies it and adds the immersed points' tangent (DivConformingFluid::step_tangent_from).

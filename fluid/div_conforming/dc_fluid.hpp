@@ -192,7 +192,7 @@ class DivConformingFluid {
   };
   /// The immersed points this rank assembles (those in its elements; the others' are ignored). Their terms
   /// (dc_kernel.hpp, dc_immersed_residual) enter every residual and tangent of a step until replaced.
-  void set_immersed_points(std::vector<ImmersedAt> points);
+  void set_immersed_points(const std::vector<ImmersedAt>& points);
   std::size_t n_immersed_points() const { return immersed_.size(); }
   /// Starts a step driven from outside: keeps (U_n, Udot_n); the iterate's first value is state().
   void begin_step();
@@ -351,6 +351,7 @@ class DivConformingFluid {
   std::vector<double> div_history_;
   std::vector<double> nu_field_;      // kinematic viscosity per pressure function; empty: uniform
   std::vector<ImmersedAt> immersed_;  // this rank's, sorted by element
+  std::vector<int> point_order_;      // set_immersed_points' permutation (kept storage)
   bool solid_apart_ = false;          // set_solid_stiffness_apart
   struct CachedBasis {
     Index3 element;  // the element it was evaluated on

@@ -72,6 +72,7 @@ class DcFourierSolver {
   /// Collective. Throws std::runtime_error if a wave number's system is singular.
   void build(Mat A, bool pin_pressure);
   /// x = A^{-1} b (natural numbering, size n_dofs, the same b on every rank; x on every rank). Collective.
+  /// Not thread-safe (a work buffer).
   void solve(const std::vector<double>& b, std::vector<double>& x) const;
   /// y = S x, S the circulant matrix of the stencil build() read (A itself to deviation(); without the pin
   /// build() adds to its own factors). Natural numbering, size n_dofs, every entry on every rank; local (no
@@ -122,6 +123,7 @@ class DcFourierSolver {
   std::vector<int> pair_row_, pair_col_;
   std::vector<double> pair_taps_;
   mutable std::vector<double> padded_;  // multiply()'s lines of x with halo_ periodic values at both ends
+  mutable std::vector<Complex> spectrum_;  // transform()'s half spectra
   std::vector<char> owned_runs_;        // per (line, l): whether it holds a row of this rank's (build())
   double deviation_ = 0;
   bool pinned_ = false, built_ = false;
