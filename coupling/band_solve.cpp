@@ -14,7 +14,7 @@ using geometry::contains;  // (element masks: geometry/element_region.hpp)
 
 BandSolve::~BandSolve() {
   try {  // the Jacobian lets the kept part go (PETSc errors are exceptions, and a destructor does not throw)
-    if (Mat J = c_.fluid.jacobian_matrix()) solvers::pc_band_compose_split(J, nullptr, nullptr);
+    if (Mat J = c_.fluid.jacobian_matrix_if_made()) solvers::pc_band_compose_split(J, nullptr, nullptr);
   } catch (...) {
   }
   MatDestroy(&J_fixed_);

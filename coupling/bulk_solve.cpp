@@ -13,7 +13,7 @@ namespace cellfsi::coupling {
 BulkSolve::~BulkSolve() {
   try {  // the operator lets the inverse go (a destructor does not throw; nor does it make a matrix the
          // stencil path never needed)
-    if (builds_ > 0) solvers::pc_bulk_compose(operator_matrix(), nullptr);
+    if (composed_) solvers::pc_bulk_compose(composed_, nullptr);
   } catch (...) {
   }
 }
@@ -62,7 +62,8 @@ std::optional<FallBack> BulkSolve::prepare(Vec X, bool, SolveCounts& counts) {
   // With the bulk stencil the operator is the fluid's: its bulk part the inverse's own stencil, no assembled
   // bulk (fluid::ImmersedFluid::OwnBulkInverse::stencil_operator).
   if (c_.options.bulk_stencil) op_ = inv->stencil_operator;
-  solvers::pc_bulk_compose(operator_matrix(), std::move(bulk));
+  composed_ = operator_matrix();
+  solvers::pc_bulk_compose(composed_, std::move(bulk));
   CELLFSI_PETSC(PetscPrintf(c_.fluid.comm(), "cellfsi: %s%s\n", inv->description.c_str(),
                             op_ ? "; the Jacobian's bulk part applied by its stencil" : ""));
   marking_changed();  // the first solve assembles the coupled Jacobian

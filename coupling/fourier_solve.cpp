@@ -20,7 +20,7 @@ using geometry::contains;  // (element masks: geometry/element_region.hpp)
 FourierSolve::~FourierSolve() {
   try {  // the Jacobian lets the bulk solver go (PETSc errors are exceptions, and a destructor does not
          // throw)
-    if (Mat J = c_.fluid.jacobian_matrix()) solvers::pc_fourier_compose_bulk(J, nullptr);
+    if (Mat J = c_.fluid.jacobian_matrix_if_made()) solvers::pc_fourier_compose_bulk(J, nullptr);
   } catch (...) {
   }
   MatDestroy(&J_fixed_);

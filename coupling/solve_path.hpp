@@ -167,6 +167,7 @@ class BulkSolve final : public CellfsiSolve {
   bool built_ = false;
   int builds_ = 0;
   Mat op_ = nullptr;  // bulk_stencil: the fluid's operator (its own; not destroyed here)
+  Mat composed_ = nullptr;  // the operator the bulk inverse was composed on (the destructor detaches it)
 };
 
 class PetscPCSolve final : public SolvePath {

@@ -363,12 +363,13 @@ std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X
                   space_->n_elements(0), space_->n_elements(2), inv.deviation);
   inv.description = line;
   inv.apply = [this, b = std::vector<double>(), x = std::vector<double>()](Vec r, Vec out) mutable {
+    // r kept for the stencil operator's product with `out` (stencil_mult): S out = r (copied first, in case
+    // a caller passes r as out).
+    if (!applied_rhs_) CELLFSI_PETSC(VecDuplicate(r, &applied_rhs_));
+    CELLFSI_PETSC(VecCopy(r, applied_rhs_));
     fluid_->gather(r, b);
     bulk_->solve(b, x);
     fluid_->scatter(x, out);
-    // Kept for the stencil operator's product with `out` (stencil_mult): S out = r.
-    if (!applied_rhs_) CELLFSI_PETSC(VecDuplicate(r, &applied_rhs_));
-    CELLFSI_PETSC(VecCopy(r, applied_rhs_));
     CELLFSI_PETSC(PetscObjectGetId(reinterpret_cast<PetscObject>(out), &applied_id_));
     CELLFSI_PETSC(PetscObjectStateGet(reinterpret_cast<PetscObject>(out), &applied_state_));
   };
@@ -489,10 +490,13 @@ PetscErrorCode DcImmersedFluid::stencil_mult(Mat A, Vec x, Vec y) {
     PetscFunctionReturn(0);
   }
   // x the bulk inverse's last output, unchanged since (a Krylov method with right preconditioning multiplies
-  // each z = S^{-1} v it made): S x is that v, which was kept, so the stencil's product is skipped. S x = v
-  // holds to the banded solves' round-off for every v whose continuity rows sum to zero (the constant
-  // pressure's equation, the one the inverse pins), as every residual of the coupling loop and every Krylov
-  // vector made from it and from this operator's products.
+  // each z = S^{-1} v it made): S x is that v, which was kept, so the stencil's product is skipped. S x = v holds
+  // to the banded solves' round-off for every v compatible with S, w.v = 0 for S's left null vector w (ones on
+  // the continuity rows, the wall-flux coefficients on the fixed wall-normal rows): the equation the inverse
+  // pins. Every residual of the coupling loop is (its pin row kept, its fixed rows zero), and so is every
+  // Krylov vector made from it and from this operator's products (the points' and the solids' parts have no
+  // continuity rows and zero fixed rows). For any other v the product differs from S x by a constant on the
+  // pinned pressure line.
   PetscObjectState state = 0;
   PetscObjectId id = 0;
   PetscCall(PetscObjectStateGet(reinterpret_cast<PetscObject>(x), &state));

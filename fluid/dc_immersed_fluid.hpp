@@ -82,6 +82,7 @@ class DcImmersedFluid final : public ImmersedFluid {
   /// (-coupling_bulk_stencil, the default of cellfsi_bulk) never asks for it.
   Mat jacobian_matrix() const override { return fluid_->matrix(); }
   void release_jacobian_matrix() override { fluid_->release_matrix(); }
+  Mat jacobian_matrix_if_made() const override { return fluid_->matrix_made() ? fluid_->matrix() : nullptr; }
   bool jacobian_is_blocked() const override { return false; }  // (AIJ; asked without making the matrix)
   std::optional<OwnBulkInverse> bulk_inverse(Vec X) override;
   bool has_bulk_inverse() const override {

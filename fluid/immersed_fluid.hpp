@@ -190,6 +190,9 @@ class ImmersedFluid {
   /// The Jacobian's matrix (with the pressure's null space, if any); null after release_jacobian_matrix
   /// (a fluid may also make it at the first call: the divergence-conforming one does).
   virtual Mat jacobian_matrix() const = 0;
+  /// jacobian_matrix() if it exists now, else null; never makes it (for destructors and error paths: a fluid
+  /// that makes its matrix at the first call would make it only to detach something from it).
+  virtual Mat jacobian_matrix_if_made() const { return jacobian_matrix(); }
   /// Whether jacobian_matrix() is block AIJ (MATSEQBAIJ or MATMPIBAIJ: the node-block solvers need it),
   /// asked without making a matrix that is not there yet.
   virtual bool jacobian_is_blocked() const;
@@ -204,7 +207,10 @@ class ImmersedFluid {
   /// solve's PC type cellfsi_bulk applies it. Collective.
   /// stencil_operator: if not null, the coupled Jacobian as an operator whose bulk part is the inverse's own
   /// stencil (no assembled bulk; -coupling_bulk_stencil): owned by the fluid, refreshed by jacobian(X, it),
-  /// its products those of jacobian() to the operator's deviation from that stencil.
+  /// its products those of jacobian() to the operator's deviation from that stencil. Its product with apply's
+  /// last output z (unchanged) takes apply's input v for the bulk part, S z = v: exact for a v compatible with
+  /// the bulk operator, as every coupling residual and the Krylov vectors made from them (divergence-conforming
+  /// fluid).
   struct OwnBulkInverse {
     std::function<void(Vec b, Vec x)> apply;
     std::string description;

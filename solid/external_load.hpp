@@ -52,9 +52,10 @@ StretchDiameters stretch_diameters(const std::vector<geometry::Vec3>& points, co
 
 /// A membrane's extent along each coordinate axis: the largest minus the smallest coordinate of its
 /// mid-surface sampled at n1 x n2 points (mid_surface_points; the default counts hold an RBC's rim and an
-/// ellipsoid's axes exactly). The bounding box whose sides peers report as a cell's diameters in shear
-/// (HemoCell's examples/oneCellShear). z is 0 in 2D.
-geometry::Vec3 mid_surface_extent(const geometry::Patch& membrane, int n1 = 33, int n2 = 65);
+/// ellipsoid's axes exactly, and a turned 7.8 um cell's extremes to about 1 nm: R (1 - cos(pi / (n2 - 1)))). The
+/// bounding box whose sides peers report as a cell's diameters in shear (HemoCell's examples/oneCellShear). z is
+/// 0 in 2D.
+geometry::Vec3 mid_surface_extent(const geometry::Patch& membrane, int n1 = 65, int n2 = 129);
 
 /// When a stretched body has come to rest: the first record at which neither diameter has changed by more
 /// than `tolerance` of itself over the last `window` seconds (compared with the latest record at least

@@ -1389,7 +1389,9 @@ std::vector<double> DivConformingFluid::project_saddle_point(const std::function
     lv.g = f;
     return lv;
   };
+  const bool had_matrix = matrix_made();
   const DcSolveStats st = newton(X, levels);
+  if (!had_matrix) release_matrix();  // (a coupled run with the bulk stencil needs it no more)
   if (!st.converged)
     throw std::runtime_error("DivConformingFluid::project_initial_state: the projection's solve failed");
   for (int i = space_.offset(D); i < space_.n_dofs(); ++i) X[i] = 0.0;
