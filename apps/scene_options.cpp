@@ -553,14 +553,8 @@ void check_memory(SceneSettings& s) {
   // when memory is short (coupling::plan_memory).
   PetscBool partial_given = PETSC_FALSE;
   CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-coupling_partial_jacobian", &partial_given));
-  // The bulk stencil as the run will have it: a PC type's own default unless given (CoupledLinearSolver).
-  PetscBool stencil_given = PETSC_FALSE;
-  CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-coupling_bulk_stencil", &stencil_given));
-  coupling::LinearSolverOptions as_run = l;
-  if (const std::optional<bool> by_type = coupling::pc_type_bulk_stencil(pc); by_type && !stencil_given)
-    as_run.bulk_stencil = *by_type;
   const coupling::MemoryPlan plan = coupling::plan_memory(
-      pc, as_run, partial_given == PETSC_TRUE, fluid_jacobian_bytes(s) / std::max(1, leaders), available);
+      pc, l, partial_given == PETSC_TRUE, fluid_jacobian_bytes(s) / std::max(1, leaders), available);
   if (plan.partial_jacobian != l.partial_jacobian) {
     l.partial_jacobian = plan.partial_jacobian;
     CELLFSI_PETSC(

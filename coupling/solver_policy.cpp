@@ -70,11 +70,8 @@ std::string fallback_pc_type(bool baij, int fluid_ranks) {
 int jacobian_copies(const std::string& pc_type, bool partial_jacobian, bool bulk_stencil) {
   // cellfsi_band: the kept part, MUMPS' input copy of it and the whole; cellfsi_fourier: the part away from
   // the cells (unless partial_jacobian is off) and the whole, or with the bulk stencil the whole only while
-  // the bulk solver is built (then the rows near the cells); cellfsi_bulk with the bulk stencil none (the
-  // divergence-conforming fluid reads its stencil from a few rows; fluid/dc_immersed_fluid.hpp), else the
-  // whole.
+  // the bulk solver is built (then the rows near the cells).
   if (pc_type == solvers::kPCBand) return 3;
-  if (pc_type == solvers::kPCBulk) return bulk_stencil ? 0 : 1;
   if (pc_type == solvers::kPCFourier && bulk_stencil) return 1;
   if (pc_type == solvers::kPCFourier) return partial_jacobian ? 2 : 1;
   return 1;

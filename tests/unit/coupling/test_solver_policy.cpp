@@ -101,10 +101,6 @@ TEST(SolverPolicy, MemoryPlanDropsTheSecondCopyWhenFourAndAHalfJacobiansDoNotFit
   EXPECT_EQ(coupling::plan_memory("asm", o, false, gb, 1.5 * gb).jacobian_copies, 1);
   EXPECT_EQ(coupling::jacobian_copies("cellfsi_fourier", false), 1);
   EXPECT_EQ(coupling::jacobian_copies("cellfsi_fourier", true, true), 1);
-  // cellfsi_bulk (the divergence-conforming fluid) with its stencil never makes the whole Jacobian; without
-  // it, it keeps one.
-  EXPECT_EQ(coupling::jacobian_copies("cellfsi_bulk", true, true), 0);
-  EXPECT_EQ(coupling::jacobian_copies("cellfsi_bulk", true, false), 1);
 }
 
 TEST(SolverPolicy, WhichOptionsApplyToWhichPCType) {
