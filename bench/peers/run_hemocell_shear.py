@@ -188,7 +188,8 @@ def main():
     lines += ["", "| code | steps | wall s | peak MB | max abs r_A | status |", "|---|---|---|---|---|---|"]
     for r in results:
         if r:
-            steps = 100000 if r["code"].startswith("HemoCell") else r.get("steps")
+            hemocell = r["code"].startswith("HemoCell")
+            steps = (100000 if r.get("exit") == 0 else None) if hemocell else r.get("steps")
             lines.append(f"| {r['code']} | {fmt(steps, 'd')} | {fmt(r.get('wall_s'), '.0f')} | "
                          f"{fmt(r.get('peak_MB'), '.0f')} | {fmt(r.get('max_abs_r_A'), '.1e')} | "
                          f"{r.get('status') or ('exit ' + str(r.get('exit')))} |")

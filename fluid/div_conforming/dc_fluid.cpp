@@ -1390,7 +1390,13 @@ std::vector<double> DivConformingFluid::project_saddle_point(const std::function
     return lv;
   };
   const bool had_matrix = matrix_made();
-  const DcSolveStats st = newton(X, levels);
+  DcSolveStats st;
+  try {
+    st = newton(X, levels);
+  } catch (...) {
+    if (!had_matrix) release_matrix();
+    throw;
+  }
   if (!had_matrix) release_matrix();  // (a coupled run with the bulk stencil needs it no more)
   if (!st.converged)
     throw std::runtime_error("DivConformingFluid::project_initial_state: the projection's solve failed");
