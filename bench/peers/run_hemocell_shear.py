@@ -32,13 +32,13 @@ import os
 import re
 import shlex
 import sys
-import tempfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
 sys.path.insert(0, HERE)
-from bench_common import ROOT, fmt, provenance, write_table  # noqa: E402
-from run_hemocell_side_by_side import FITTED_GH, THICKNESS, fresh_example, kept_or_none, mpi_env, timed  # noqa: E402,E501
+from bench_common import ROOT, fmt, provenance, pyplot, save_figure, write_table  # noqa: E402
+from run_hemocell_side_by_side import (FITTED_GH, THICKNESS, fresh_example, kept_or_none, mpi_env,  # noqa: E402
+                                        run_timed_cellfsi, timed)
 
 TOOL = "run_hemocell_shear.py"
 D0 = 7.82  # um, HemoCell's reference diameter
@@ -93,14 +93,11 @@ def run_cellfsi(args, mesh):
            "-solid_rbc_center", "0.0010,0.00045,0.0010", "-solid_rbc_axis", "1,0,0", "-solid_rbc_angle", "90",
            "-solid_rbc_material", LAW, "-solid_rbc_shear_modulus", f"{G:.6g}", "-dt", f"{DT:g}",
            "-final_time", f"{FINAL_TIME:g}"]
-    with tempfile.TemporaryDirectory(prefix="cellfsi-ompi-") as session:
-        env = dict(mpi_env(), OMPI_MCA_orte_tmpdir_base=session)
-        rc, wall, mb = timed(cmd, ROOT, os.path.join(args.runs, tag + ".log"), env)
+    rc, wall, mb, s = run_timed_cellfsi(cmd, os.path.join(args.runs, tag + ".log"))
     try:
-        s = json.load(open(os.path.join(folder, "summary.json")))
         rows = list(csv.DictReader(open(os.path.join(folder, "metrics.csv"))))
     except (OSError, ValueError):
-        s, rows = {}, []
+        rows = []
     series = [{"t_ms": float(r["time"]) * 1e3, "flow": float(r["rbc_extent_x"]) * 1e4,
                "gradient": float(r["rbc_extent_y"]) * 1e4, "vorticity": float(r["rbc_extent_z"]) * 1e4}
               for r in rows if "rbc_extent_x" in r]
@@ -120,9 +117,9 @@ def at(series, t_ms):
 
 
 def figure(results, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot(TOOL)
+    if plt is None:
+        return
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
     for ax, key, name in zip(axes, ("flow", "gradient", "vorticity"),
                              ("along the flow", "along the velocity gradient", "along the vorticity")):
@@ -134,8 +131,7 @@ def figure(results, path):
         ax.set_ylabel("bounding box um")
         ax.set_title(name)
     axes[0].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, TOOL)
 
 
 def main():

@@ -62,6 +62,18 @@ def mpi_env():
                 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_ess_singleton_isolated="1", OMPI_MCA_pml="ob1")
 
 
+def run_timed_cellfsi(cmd, log):
+    """cellfsi's cmd under GNU time from the repository, in a private Open MPI session directory, its output into
+    log: (exit code, wall s, peak MB) and its summary.json in the -output_dir it was given (empty if none)."""
+    with tempfile.TemporaryDirectory(prefix="cellfsi-ompi-") as session:
+        rc, wall, mb = timed(cmd, ROOT, log, dict(mpi_env(), OMPI_MCA_orte_tmpdir_base=session))
+    try:
+        summary = json.load(open(os.path.join(cmd[cmd.index("-output_dir") + 1], "summary.json")))
+    except (OSError, ValueError):
+        summary = {}
+    return rc, wall, mb, summary
+
+
 def kept_or_none(path, args):
     """(True, the kept result) if path holds one; (True, None) with --report; (False, None): run it."""
     if os.path.isfile(path):
@@ -111,7 +123,6 @@ def run_cellfsi(args, law, force):
     """cellfsi in HemoCell's box at force [pN] with law at its fitted G h: its result dict."""
     tag = f"cellfsi_{law}_F{force:g}"
     folder = os.path.join(args.runs, tag)
-    summary = os.path.join(folder, "summary.json")
     kept = os.path.join(args.runs, tag + ".json")
     done, result = kept_or_none(kept, args)
     if done:
@@ -122,13 +133,7 @@ def run_cellfsi(args, law, force):
            "-domain_periodic", "1,1,1", "-fluid_elements", args.mesh.replace("x", ","),
            "-solid_rbc_material", law, "-solid_rbc_shear_modulus", f"{G:.6g}",
            "-solid_rbc_stretch_force", f"{force * PN:g}", "-solid_rbc_stretch_ramp", "0.005"]
-    with tempfile.TemporaryDirectory(prefix="cellfsi-ompi-") as session:
-        env = dict(mpi_env(), OMPI_MCA_orte_tmpdir_base=session)
-        rc, wall, mb = timed(cmd, ROOT, os.path.join(args.runs, tag + ".log"), env)
-    try:
-        s = json.load(open(summary))
-    except (OSError, ValueError):
-        s = {}
+    rc, wall, mb, s = run_timed_cellfsi(cmd, os.path.join(args.runs, tag + ".log"))
     result = {"code": f"cellfsi {law}", "force_pN": force, "exit": rc, "wall_s": wall, "peak_MB": mb,
               "axial_um": s.get("rbc_axial_diameter", 0) * 1e4 or None,
               "transverse_um": s.get("rbc_transverse_diameter", 0) * 1e4 or None,
