@@ -262,7 +262,11 @@ int FluidRun::step_loop() {
         return 2;
       }
       done_ = k;
-      last_ = scene_->metrics();
+      {
+        static const PetscLogEvent metrics_event = register_log_event("cellfsi app", "CellfsiMetrics");
+        EventScope ev(metrics_event);
+        last_ = scene_->metrics();
+      }
       Metrics row{{"step", k},
                   {"time", scene_->fluid().time()},
                   {coupled ? "coupling_iterations" : "newton_iterations", st.iterations},

@@ -411,6 +411,9 @@ SceneStep Scene::step() {
   r.factorizations = st.factorizations, r.bulk_factorizations = st.bulk_factorizations;
   r.converged = st.converged, r.reason = st.reason;
   if (st.converged) {
+    // (-log_view: the bodies' metrics of the step, on every rank)
+    static const PetscLogEvent track_event = register_log_event("cellfsi app", "CellfsiTrack");
+    EventScope ev(track_event);
     contact_last_ = st.repulsion;
     contact_cell_min_ = std::min(contact_cell_min_, st.repulsion.cell_gap);
     contact_wall_min_ = std::min(contact_wall_min_, st.repulsion.wall_gap);

@@ -14,6 +14,9 @@ namespace cellfsi::coupling {
 struct CouplingEvents {
   PetscLogEvent solid = register_log_event("cellfsi coupling", "FsiSolidUpdate");
   PetscLogEvent locate = register_log_event("cellfsi coupling", "FsiLocate");
+  // Inside FsiLocate's immersed update: the bodies' quadrature data (stress, tangent) and the repulsion.
+  PetscLogEvent quadrature = register_log_event("cellfsi coupling", "FsiQuadrature");
+  PetscLogEvent repulsion = register_log_event("cellfsi coupling", "FsiRepulsion");
   PetscLogEvent residual = register_log_event("cellfsi coupling", "FsiResidual");
   PetscLogEvent jacobian = register_log_event("cellfsi coupling", "FsiJacobian");
   // The kept part's factorisation (cellfsi_band) or the bulk solver's set-up (cellfsi_fourier).

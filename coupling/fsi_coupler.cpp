@@ -94,12 +94,19 @@ void FsiCoupler::update_immersed(bool first_iteration) {
   std::vector<std::vector<solid::QuadratureData>>& all_q = scratch_q_;
   all_q.resize(bodies_.size());
   for (size_t b = 0; b < bodies_.size(); ++b) {
-    all_q[b] = bodies_[b]->quadrature_data(rho1, with_tangent);
+    {
+      EventScope ev(coupling_events().quadrature);
+      all_q[b] = bodies_[b]->quadrature_data(rho1, with_tangent);
+    }
     auto& warm = quadrature_loc_[b];
     warm.resize(all_q[b].size());
     for (size_t i = 0; i < all_q[b].size(); ++i) warm[i] = locator_.locate_or_throw(all_q[b][i].x, &warm[i]);
   }
-  const std::vector<std::vector<geometry::Vec3>>* contact = repulsion_forces(all_q);
+  const std::vector<std::vector<geometry::Vec3>>* contact = nullptr;
+  {
+    EventScope ev(coupling_events().repulsion);
+    contact = repulsion_forces(all_q);
+  }
   for (size_t b = 0; b < bodies_.size(); ++b) {
     const std::vector<solid::QuadratureData>& q = all_q[b];
     const bool linear = collocation && bodies_[b]->n_control() > 0 &&

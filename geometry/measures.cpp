@@ -156,9 +156,12 @@ double smallest_element_extent(const Patch& patch) {
 double patch_measure(const Patch& patch, int extra_gauss) {
   const int P = patch.param_dim();
   double total = 0;
+  // sqrt(det(J^T J)) of the P tangent columns J, with fixed sizes (a dynamic matrix per point was a heap
+  // allocation per point: the bodies' metrics evaluate this at every step).
   for_each_point(patch, extra_gauss, [&](const Vec3&, const Mat3& dx, double w) {
-    const Eigen::MatrixXd J = dx.leftCols(P);
-    total += w * std::sqrt(std::abs((J.transpose() * J).determinant()));
+    const Mat3 G = dx.transpose() * dx;
+    const double det = P == 1 ? G(0, 0) : P == 2 ? G.topLeftCorner<2, 2>().determinant() : G.determinant();
+    total += w * std::sqrt(std::abs(det));
   });
   return total;
 }

@@ -198,14 +198,15 @@ void BodyTracker::restore(const std::vector<double>& state) {
 
 void BodyTracker::measure(const Patch& p, double& area, double& boundary,
                           geometry::RegionMoments& region) const {
-  area = geometry::patch_measure(p);
   if (membrane_) {
+    area = geometry::patch_measure(p);
     const geometry::MembraneShape s = geometry::membrane_shape(p, 0);
     boundary = s.boundary;
     region = s.moments;
   } else {
     boundary = geometry::patch_measure(geometry::isoparametric(p, 0, p.knots(0).b()));
     region = geometry::patch_moments(p);
+    area = region.measure;  // patch_measure's integral at the same points (|det J| = sqrt(det J^T J))
   }
 }
 

@@ -301,6 +301,8 @@ class DivConformingFluid {
   void interior_residual_batched(const Levels& lv, Vec F) const;
   /// Adds the immersed points' terms to F and J (no assembly calls).
   void assemble_immersed(const Levels& lv, Vec F, Mat J) const;
+  /// assemble_immersed's residual (J null), by sum factorisation at each point.
+  void immersed_residual(const Levels& lv, Vec F) const;
   /// A generalized-alpha step from (Un, Udotn) with iterate U.
   Levels step_levels(const std::vector<double>& U, const std::vector<double>& Un,
                      const std::vector<double>& Udotn) const;
@@ -329,6 +331,8 @@ class DivConformingFluid {
   const ElementBasis& element_basis(int e) const;
   /// The class of element e whose basis element_basis caches (elements of a class share their values).
   int basis_class(int e) const;
+  /// This rank's elements grouped by basis_class (made at the first call).
+  const std::vector<std::vector<int>>& elements_by_class() const;
   /// Calls f(eb) for each of this rank's elements with its basis at the element's Gauss points.
   template <class F>
   void for_owned_elements(int n_gauss, F&& f) const;

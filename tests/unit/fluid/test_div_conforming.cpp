@@ -15,6 +15,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <memory>
 #include <numbers>
 #include <random>
 
@@ -31,6 +32,7 @@
 #include "fluid/div_conforming/dc_fourier.hpp"
 #include "fluid/div_conforming/dc_kernel.hpp"
 #include "fluid/div_conforming/dc_space.hpp"
+#include "fluid/div_conforming/dc_sum_factorization.hpp"
 #include "geometry/builders.hpp"
 
 using namespace cellfsi;
@@ -84,6 +86,26 @@ std::vector<double> random_velocity(const DivConformingSpace& sp, unsigned seed)
 
 // --- The space
 // ----------------------------------------------------------------------------------------------
+
+/// n random immersed points (random elements, positions, weights, density factors, symmetric stresses and
+/// forces; no stiffness) in the space's elements.
+std::vector<DivConformingFluid::ImmersedAt> random_immersed_points(const DivConformingSpace& sp, int n,
+                                                                   std::mt19937& rng) {
+  std::uniform_real_distribution<double> uni(-1.0, 1.0), unit(0.0, 1.0);
+  std::vector<DivConformingFluid::ImmersedAt> pts(n);
+  for (auto& p : pts) {
+    p.element = std::min(static_cast<int>(unit(rng) * sp.n_elements()), sp.n_elements() - 1);
+    const Index3 ei = sp.element_multi_index(p.element);
+    for (int d = 0; d < sp.dim(); ++d) p.x[d] = sp.lo(d) + (ei[d] + unit(rng)) * sp.element_size(d);
+    p.data.weight = 0.01 * (0.5 + unit(rng));
+    p.data.beta = 0.2 * uni(rng);
+    for (int i = 0; i < sp.dim(); ++i) {
+      p.data.force[i] = uni(rng);
+      for (int j = 0; j <= i; ++j) p.data.stress[i][j] = p.data.stress[j][i] = uni(rng);
+    }
+  }
+  return pts;
+}
 
 TEST(DivConformingSpace, EveryComponentIsAPartitionOfUnity) {
   for (int k : {2, 3}) {
@@ -272,6 +294,96 @@ TEST(DivConformingSpace, RejectsBadInputWithAMessage) {
   // Curved geometry needs the Piola map: refused.
   EXPECT_THROW(DivConformingSpace::from_patch(geometry::narrowing_channel({}, 12, 4, 2), 2),
                std::invalid_argument);
+}
+
+TEST(DivConformingSpace, SumFactorisationEqualsTheWholeBasisAndItsTransposeIsTheAdjoint) {
+  // The sum-factorised kernels (dc_sum_factorization.hpp) on a block of 5 elements with random coefficients:
+  // values and gradients at the element rule's points against DivConformingSpace::evaluate's products (each
+  // element's own coefficients through its whole basis), to 1e-13 of the largest; the test kernel against the
+  // transpose, <values(u), r> = <u, test(r)>, to 1e-13. Every component (velocity, pressure), in 2D and 3D,
+  // for k' = 1, 2, 3, on an element at a wall and one inside (their factors differ).
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> uni(-1.0, 1.0);
+  for (int dim : {2, 3})
+    for (int k : {1, 2, 3}) {
+      const int n = k + 3;
+      const DivConformingSpace sp(dim, k, {n, n, dim == 3 ? n : 1}, Vec3(0, 0, 0),
+                                  Vec3(1.0, 0.7, dim == 3 ? 0.9 : 0.0), {true, false, false});
+      for (const Index3 ei : {Index3{0, 0, 0}, Index3{1, n / 2, dim == 3 ? n / 2 : 0}}) {
+        const TensorRule rule = sp.element_rule(ei, k + 2);
+        ElementBasis eb;
+        sp.evaluate(ei, rule, eb);
+        for (int c = 0; c <= dim; ++c) {
+          const ComponentFactors f = component_factors(sp, c, ei, rule);
+          const ComponentBasis& cb = eb.comp[c];
+          ASSERT_EQ(f.n_functions(), cb.n);
+          ASSERT_EQ(f.n_points(), eb.n_points);
+          const int m = 5, nq = eb.n_points;
+          std::vector<double> u(static_cast<size_t>(cb.n) * m), value(static_cast<size_t>(nq) * m), scratch;
+          std::array<std::vector<double>, 3> grad;
+          for (auto& gj : grad) gj.assign(static_cast<size_t>(nq) * m, 0.0);
+          for (double& x : u) x = uni(rng);
+          const std::array<double*, 3> gp{grad[0].data(), grad[1].data(), grad[2].data()};
+          sum_factorized_values(f, m, u.data(), value.data(), &gp, scratch);
+          double worst = 0, scale = 0;
+          for (int e = 0; e < m; ++e)
+            for (int q = 0; q < nq; ++q) {
+              double v = 0, gr[3] = {0, 0, 0};
+              for (int a = 0; a < cb.n; ++a) {
+                const double ua = u[static_cast<size_t>(a) * m + e];
+                v += ua * cb.value[static_cast<size_t>(q) * cb.n + a];
+                for (int j = 0; j < 3; ++j)
+                  gr[j] += ua * cb.grad[(static_cast<size_t>(q) * cb.n + a) * 3 + j];
+              }
+              const size_t i = static_cast<size_t>(q) * m + e;
+              worst = std::max(worst, std::abs(value[i] - v));
+              scale = std::max(scale, std::abs(v));
+              for (int j = 0; j < 3; ++j) {
+                worst = std::max(worst, std::abs(grad[j][i] - gr[j]));
+                scale = std::max(scale, std::abs(gr[j]));
+              }
+            }
+          EXPECT_LT(worst, 1e-13 * scale) << "dim " << dim << " k " << k << " component " << c;
+          // The adjoint: random point values r (value and gradient rows).
+          std::vector<double> r(static_cast<size_t>(nq) * m), out(u.size());
+          std::array<std::vector<double>, 3> rg;
+          for (double& x : r) x = uni(rng);
+          for (auto& rj : rg) {
+            rj.resize(r.size());
+            for (double& x : rj) x = uni(rng);
+          }
+          const std::array<const double*, 3> rgp{rg[0].data(), rg[1].data(), rg[2].data()};
+          sum_factorized_test(f, m, r.data(), &rgp, out.data(), scratch);
+          double left = 0, right = 0, size = 0;
+          for (size_t i = 0; i < r.size(); ++i) {
+            left += value[i] * r[i];
+            size += std::abs(value[i] * r[i]);
+            for (int j = 0; j < 3; ++j)
+              left += grad[j][i] * rg[j][i], size += std::abs(grad[j][i] * rg[j][i]);
+          }
+          for (size_t i = 0; i < u.size(); ++i) right += u[i] * out[i];
+          EXPECT_LT(std::abs(left - right), 1e-13 * size)
+              << "dim " << dim << " k " << k << " component " << c;
+          // At one point (point_value, point_test): element e's first coefficients, its first rule point.
+          PointFactors pf;
+          point_factors(sp, ei, eb.x[0], pf);
+          std::vector<double> ue(cb.n), te(cb.n, 0.0);
+          for (int a = 0; a < cb.n; ++a) ue[a] = u[static_cast<size_t>(a) * m];
+          double pg[3];
+          const double pv = point_value(pf, dim, c, ue.data(), pg);
+          EXPECT_NEAR(pv, value[0], 1e-13 * scale) << "dim " << dim << " k " << k << " component " << c;
+          for (int j = 0; j < 3; ++j) EXPECT_NEAR(pg[j], grad[j][0], 1e-13 * scale) << "gradient " << j;
+          const double r0 = 0.7, rgrad[3] = {-0.3, 1.1, dim == 3 ? 0.4 : 0.0};
+          point_test(pf, dim, c, r0, rgrad, te.data());
+          for (int a = 0; a < cb.n; ++a) {
+            double t = r0 * cb.value[a];
+            for (int j = 0; j < 3; ++j) t += rgrad[j] * cb.grad[3 * a + j];
+            EXPECT_NEAR(te[a], t, 1e-13 * (1 + std::abs(t)))
+                << "dim " << dim << " component " << c << " a " << a;
+          }
+        }
+      }
+    }
 }
 
 TEST(DivConformingFluid, OptionsAreReadAndChecked) {
@@ -575,6 +687,9 @@ TEST(DivConformingFluid, StepResidualDifferencesEqualTheStepTangent) {
     DivConformingFluid fs(PETSC_COMM_WORLD, sp, opt);
     if (cs.field) fs.project_viscosity([](const Vec3& x) { return 0.3 * (1.5 + std::sin(6 * x[0]) * x[1]); });
     std::mt19937 rng(7 + cs.dim * 10 + cs.k);
+    // Immersed points too: their residual (sum-factorised at each point) against their tangent (the whole
+    // basis at each point).
+    fs.set_immersed_points(random_immersed_points(sp, 40, rng));
     std::uniform_real_distribution<double> uni(-1.0, 1.0);
     std::vector<double> U(sp.n_dofs()), dU(sp.n_dofs());
     for (double& u : U) u = uni(rng);
@@ -616,6 +731,142 @@ TEST(DivConformingFluid, StepResidualDifferencesEqualTheStepTangent) {
     VecDestroy(&JdU);
     VecDestroy(&dX);
   }
+}
+
+TEST(DivConformingFluid, TheSumFactorisedResidualEqualsThePointByPointOne) {
+  // The step residual of a uniform body force (interior_residual_batched: sum factorisation over blocks of
+  // elements) against the same force given as a field (interior_residual_sized: the whole basis point by
+  // point), at a random state, with and without a viscosity field: equal to 1e-12 of the residual's size
+  // (they differ only in the order of the sums).
+  struct Case {
+    int dim, k;
+    bool field;
+  };
+  for (const Case cs :
+       {Case{2, 2, false}, Case{2, 3, true}, Case{3, 2, false}, Case{3, 2, true}, Case{3, 3, false}}) {
+    const int n = cs.dim == 2 ? 7 : 5;
+    const DivConformingSpace sp(cs.dim, cs.k, {n, n + 1, cs.dim == 3 ? n : 1}, Vec3(0, 0, 0),
+                                Vec3(1.0, 0.8, cs.dim == 3 ? 0.9 : 0.0), {true, false, cs.dim == 3});
+    const Vec3 force(1.5, -0.7, cs.dim == 3 ? 0.4 : 0.0);
+    DcFluidOptions uniform;
+    uniform.density = 1.0;
+    uniform.viscosity = 0.3;
+    uniform.dt = 0.01;
+    uniform.body_force = force;
+    DcFluidOptions as_field = uniform;
+    as_field.body_force = Vec3::Zero();
+    as_field.body_force_field = [force](const Vec3&, double) { return force; };
+    std::mt19937 rng(3 + cs.dim * 10 + cs.k);
+    std::uniform_real_distribution<double> uni(-1.0, 1.0);
+    std::vector<double> U(sp.n_dofs());
+    for (double& u : U) u = uni(rng);
+    for (int r : sp.wall_normal_dofs()) U[r] = 0.0;
+    double norms[2], diff = 0;
+    Vec F[2];
+    int i = 0;
+    std::unique_ptr<DivConformingFluid> fluids[2];
+    for (const DcFluidOptions* opt : {&uniform, &as_field}) {
+      fluids[i] = std::make_unique<DivConformingFluid>(PETSC_COMM_WORLD, sp, *opt);
+      DivConformingFluid& fs = *fluids[i];
+      if (cs.field)
+        fs.project_viscosity([](const Vec3& x) { return 0.3 * (1.5 + std::sin(6 * x[0]) * x[1]); });
+      fs.set_state(U);
+      fs.begin_step();
+      F[i] = fs.create_vector();
+      fs.step_residual(U, F[i]);
+      CELLFSI_PETSC(VecNorm(F[i], NORM_INFINITY, &norms[i]));
+      ++i;
+    }
+    CELLFSI_PETSC(VecAXPY(F[0], -1.0, F[1]));
+    CELLFSI_PETSC(VecNorm(F[0], NORM_INFINITY, &diff));
+    EXPECT_GT(norms[0], 0.0);
+    EXPECT_LT(diff, 1e-12 * norms[1]) << "dim " << cs.dim << " k " << cs.k << (cs.field ? " field" : "");
+    print0("  %dD k'=%d%s: |F_sum-factorised - F_point-by-point| / |F| = %.2e\n", cs.dim, cs.k,
+           cs.field ? " field" : "", diff / norms[1]);
+    VecDestroy(&F[0]);
+    VecDestroy(&F[1]);
+  }
+}
+
+TEST(DivConformingFluid, TheImmersedPointsResidualEqualsTheirSumsThroughTheWholeBasis) {
+  // The points' part of the step residual (immersed_residual: sum factorisation at each point) against the
+  // same sums written out in the test through DivConformingSpace::evaluate's whole basis and interpolate (the
+  // code they replace): 60 random points at a random state (the step's first iterate, so that the levels are
+  // the state and the rate 0), with and without a viscosity field, 2D and 3D: equal to 1e-12 of the largest
+  // entry.
+  for (const int dim : {2, 3})
+    for (const bool field : {false, true}) {
+      const int n = dim == 2 ? 6 : 4;
+      const DivConformingSpace sp(dim, 2, {n, n - 1, dim == 3 ? n : 1}, Vec3(0, 0, 0),
+                                  Vec3(1.0, 0.8, dim == 3 ? 0.9 : 0.0), {true, false, dim == 3});
+      DcFluidOptions opt;
+      opt.density = 1.0;
+      opt.viscosity = 0.3;
+      DivConformingFluid fs(PETSC_COMM_WORLD, sp, opt);
+      auto nu = [](const Vec3& x) { return 0.3 * (1.5 + std::sin(6 * x[0]) * x[1]); };
+      if (field) fs.project_viscosity(nu);
+      std::mt19937 rng(5 + dim + (field ? 10 : 0));
+      std::uniform_real_distribution<double> uni(-1.0, 1.0);
+      std::vector<double> U(sp.n_dofs());
+      for (double& u : U) u = uni(rng);
+      for (int r : sp.wall_normal_dofs()) U[r] = 0.0;
+      fs.set_state(U);
+      fs.begin_step();
+      Vec F0 = fs.create_vector(), F1 = fs.create_vector();
+      fs.step_residual(U, F0);
+      const auto pts = random_immersed_points(sp, 60, rng);
+      fs.set_immersed_points(pts);
+      fs.step_residual(U, F1);
+      CELLFSI_PETSC(VecAXPY(F1, -1.0, F0));
+      // The reference: each point's kernel at the fields through the whole basis, tested by it.
+      std::vector<double> ref(sp.n_dofs(), 0.0), nu_coeffs;
+      ElementBasis eb;
+      for (const auto& p : pts) {
+        TensorRule rule;
+        for (int d = 0; d < 3; ++d) rule.points[d] = {d < dim ? p.x[d] : 0.0}, rule.weights[d] = {1.0};
+        sp.evaluate(sp.element_multi_index(p.element), rule, eb);
+        const auto pv = DivConformingSpace::interpolate(eb, 0, dim, U.data());
+        PointState st;
+        for (int i = 0; i < dim; ++i) {
+          st.v[i] = pv.v[i];
+          for (int j = 0; j < dim; ++j) st.dv[i][j] = pv.grad[i][j];
+        }
+        ImmersedParameters prm;
+        prm.dim = dim;
+        prm.nu = 0.3;
+        if (field) {  // the projected field at the point, through the pressure functions
+          const ComponentBasis& cp = eb.comp[dim];
+          const std::vector<double>& nf = fs.viscosity_field();
+          prm.nu = 0;
+          for (int a = 0; a < cp.n; ++a) prm.nu += nf[cp.index[a] - sp.offset(dim)] * cp.value[a];
+        }
+        const PointResidual r = dc_immersed_residual(st, prm, p.data);
+        for (int i = 0; i < dim; ++i) {
+          const ComponentBasis& cb = eb.comp[i];
+          for (int a = 0; a < cb.n; ++a) {
+            double t = cb.value[a] * r.r0[i];
+            for (int j = 0; j < dim; ++j) t += cb.grad[3 * a + j] * r.r1[i][j];
+            ref[cb.index[a]] += p.data.weight * t;
+          }
+        }
+      }
+      for (int row : sp.wall_normal_dofs()) ref[row] = 0.0;  // (fixed rows: the residual's are zeroed)
+      const std::vector<PetscInt>& num = fs.petsc_numbering();
+      const PetscScalar* f;
+      CELLFSI_PETSC(VecGetArrayRead(F1, &f));
+      double worst = 0, scale = 0;
+      for (size_t i = 0; i < ref.size(); ++i) {
+        worst = std::max(worst, std::abs(f[num[i]] - ref[i]));
+        scale = std::max(scale, std::abs(ref[i]));
+      }
+      CELLFSI_PETSC(VecRestoreArrayRead(F1, &f));
+      EXPECT_GT(scale, 0.0);
+      EXPECT_LT(worst, 1e-12 * scale) << dim << "D" << (field ? " field" : "");
+      print0("  %dD%s: |F_points - sums through the whole basis| / max = %.2e\n", dim, field ? " field" : "",
+             worst / scale);
+      VecDestroy(&F0);
+      VecDestroy(&F1);
+    }
 }
 
 TEST(DivConformingFluid, ShearFlowWithAViscosityFieldIsExact) {
