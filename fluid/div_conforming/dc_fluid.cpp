@@ -939,18 +939,18 @@ void DivConformingFluid::immersed_residual(const Levels& lv, Vec F) const {
     PointState st;
     for (int i = 0; i < D; ++i) {
       double g[3];
-      st.v[i] = point_value(pf, D, i, ue.data() + off[i], g);
-      st.a[i] = point_value(pf, D, i, ae.data() + off[i], nullptr);
+      st.v[i] = point_value(pf, i, ue.data() + off[i], g);
+      st.a[i] = point_value(pf, i, ae.data() + off[i], nullptr);
       for (int j = 0; j < D; ++j) st.dv[i][j] = g[j];
     }
-    prm.nu = field ? point_value(pf, D, D, nue.data(), nullptr) : lv.nu;
+    prm.nu = field ? point_value(pf, D, nue.data(), nullptr) : lv.nu;
     const Vec3 g = lv.g ? lv.g(p.x) : Vec3(Vec3::Zero());
     for (int i = 0; i < 3; ++i) prm.g[i] = g[i];
     const PointResidual r = dc_immersed_residual(st, prm, p.data);
     const double w = p.data.weight;
     for (int i = 0; i < D; ++i) {
       const double rg[3] = {w * r.r1[i][0], w * r.r1[i][1], D == 3 ? w * r.r1[i][2] : 0.0};
-      point_test(pf, D, i, w * r.r0[i], rg, Fe.data() + off[i]);
+      point_test(pf, i, w * r.r0[i], rg, Fe.data() + off[i]);
     }
   }
   flush();

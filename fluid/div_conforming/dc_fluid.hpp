@@ -297,7 +297,8 @@ class DivConformingFluid {
   void interior_residual(const Levels& lv, Vec F) const;
   template <int D, int NV, int NP>
   void interior_residual_sized(const Levels& lv, Vec F) const;
-  /// interior_residual for a uniform body force, by GEMMs over blocks of elements of one basis class.
+  /// interior_residual for a uniform body force, by sum factorisation over blocks of elements of one basis
+  /// class.
   void interior_residual_batched(const Levels& lv, Vec F) const;
   /// Adds the immersed points' terms to F and J (no assembly calls).
   void assemble_immersed(const Levels& lv, Vec F, Mat J) const;

@@ -1,6 +1,8 @@
 #include "fluid/div_conforming/dc_sum_factorization.hpp"
 
 #include <algorithm>
+#include <stdexcept>
+#include <string>
 
 #include "geometry/basis.hpp"
 
@@ -9,6 +11,11 @@ namespace cellfsi::fluid::dc {
 ComponentFactors component_factors(const DivConformingSpace& space, int c, const Index3& e,
                                    const TensorRule& rule) {
   ComponentFactors f;
+  for (int d = 0; d < space.dim(); ++d)
+    if (rule.points[d].empty() || rule.points[d].size() > static_cast<size_t>(kMaxRulePoints))
+      throw std::invalid_argument("component_factors: a rule of 1 to " + std::to_string(kMaxRulePoints) +
+                                  " points per direction is needed, got " +
+                                  std::to_string(rule.points[d].size()));
   for (int d = 0; d < space.dim(); ++d) {
     const KnotVector& kv = space.knots(c, d);
     const int p = kv.degree(), span = kv.element_span(e[d]);
@@ -32,13 +39,21 @@ ComponentFactors component_factors(const DivConformingSpace& space, int c, const
 namespace {
 
 /// o[e] = sum_t c[t] x[t][e] for e < m, T terms. The loop over the block's elements is the one that
-/// vectorises; the kernel is compiled for AVX-512, AVX2 (with FMA) and the baseline, chosen at load time by
-/// the CPU (GCC's target_clones), since the build's own flags target the baseline. (With one product per
-/// pass over o, SSE2 and a load and store of o per term, the 3D residual's contractions ran at about one
-/// multiply-add per cycle: no faster than the GEMMs they replace; measured with perf.)
+/// vectorises; on x86-64 with GCC the kernel is compiled for AVX-512, AVX2 (with FMA) and the baseline,
+/// chosen at load time by the CPU (target_clones), since the build's own flags target the baseline; elsewhere
+/// (other CPUs, Clang, which takes no target_clones on templates) it is compiled once. The fused
+/// multiply-adds of the AVX clones change a result's last bits with the CPU. (With one product per pass over
+/// o, SSE2 and a load and store of o per term, the 3D residual's contractions ran at about one multiply-add
+/// per cycle: no faster than the GEMMs they replace; measured with perf.)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define CELLFSI_SUM_FACTORIZATION_CLONES \
+  __attribute__((target_clones("arch=skylake-avx512", "arch=haswell", "default")))
+#else
+#define CELLFSI_SUM_FACTORIZATION_CLONES
+#endif
 template <int T>
-__attribute__((target_clones("arch=skylake-avx512", "arch=haswell", "default"))) void weighted_sum(
-    const double* c, const double* const* x, double* o, int m) {
+CELLFSI_SUM_FACTORIZATION_CLONES void weighted_sum(const double* c, const double* const* x, double* o,
+                                                   int m) {
   for (int e = 0; e < m; ++e) {
     double acc = 0;
     for (int t = 0; t < T; ++t) acc += c[t] * x[t][e];
@@ -71,7 +86,8 @@ void weighted_sum(int T, const double* c, const double* const* x, double* o, int
   }
 }
 
-constexpr int kMaxTerms = 2 * (geometry::kMaxDegree + 2);
+constexpr int kMaxTerms = 2 * kMaxRulePoints;  // (a transposed sum's terms: two per point)
+static_assert(kMaxTerms >= geometry::kMaxDegree + 2, "a contraction's terms: one per function");
 
 /// One direction's contraction on a block: in[(i + I (j + n r)) m + e] -> out[(i + I (q + Q r)) m + e] =
 /// sum_j M[q n + j] in[...].
@@ -183,8 +199,7 @@ namespace {
 inline int space_of(int c, int d) { return c == d ? 1 : 0; }
 }  // namespace
 
-double point_value(const PointFactors& f, int dim, int c, const double* u, double* grad) {
-  (void)dim;
+double point_value(const PointFactors& f, int c, const double* u, double* grad) {
   const int s0 = space_of(c, 0), s1 = space_of(c, 1), s2 = space_of(c, 2);
   const int n0 = f.n[s0][0], n1 = f.n[s1][1], n2 = f.n[s2][2];
   const double *B0 = f.value[s0][0], *D0 = f.deriv[s0][0], *B1 = f.value[s1][1], *D1 = f.deriv[s1][1],
@@ -210,8 +225,7 @@ double point_value(const PointFactors& f, int dim, int c, const double* u, doubl
   return val;
 }
 
-void point_test(const PointFactors& f, int dim, int c, double r_value, const double* r_grad, double* out) {
-  (void)dim;
+void point_test(const PointFactors& f, int c, double r_value, const double* r_grad, double* out) {
   const int s0 = space_of(c, 0), s1 = space_of(c, 1), s2 = space_of(c, 2);
   const int n0 = f.n[s0][0], n1 = f.n[s1][1], n2 = f.n[s2][2];
   const double *B0 = f.value[s0][0], *D0 = f.deriv[s0][0], *B1 = f.value[s1][1], *D1 = f.deriv[s1][1],
