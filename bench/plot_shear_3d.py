@@ -154,8 +154,10 @@ def main():
             f"{fmt(minutes, '.1f')} min{resumed} |")
     lines.append("")
     lines.append(f"Paper (64^3 quadratic, s_I 1e9, 3072 membrane and 7168 sphere elements; its 3D dt is not "
-                 f"stated): both tumble at {args.paper} 1/s. omega_TU is averaged over the whole half-turns of the "
-                 "long axis in the metrics window (the second half of the run).")
+                 f"stated): both tumble at {args.paper} 1/s. In the metrics window (the second half of the run) "
+                 "the membrane's omega_TU is its long axis's rate over its whole half-turns there (from the window's "
+                 "start to the last one), the round nucleus's its material's mean rate over the window; the "
+                 "window tables below average both bodies' per-step rates alike.")
     for window, (t0, t1) in zip(windows, args.window):
         lines += ["", f"Mean rates over t = {t0:g}-{t1:g} s (time averages of metrics.csv's per-step omega_tu):", "",
                   "| run | dt s | steps run | membrane omega_TU 1/s | nucleus omega_TU 1/s | nucleus / membrane | "

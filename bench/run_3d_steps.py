@@ -30,7 +30,7 @@ from bench_common import ROOT, fmt, provenance, write_table  # noqa: E402
 TOOL = "run_3d_steps.py"
 # The coupling's log events (coupling/coupling_events.hpp), per step; FsiFactor (the Fourier bulk's banded
 # factors) is once per run and reported apart.
-EVENTS = ["FsiPCSetUp", "FsiLinearSolve", "FsiJacobian", "FsiResidual", "FsiLocate", "FsiSolidUpdate"]
+EVENTS = ["FsiPCSetUp", "FsiLinearSolve", "FsiJacobian", "FsiResidual", "FsiLocate", "FsiSolidUpdate", "CellfsiTrack"]
 
 
 def parse_cases(text):
@@ -144,11 +144,11 @@ def main():
              "s/step: wall time per step after the first (progress lines); step 1: wall time to the end of step 1, "
              "set-up included. The events (-log_view, the slowest rank's time) are per step over all steps: "
              "PCSetUp is the region's LU, LinearSolve the FGMRES solves, Jacobian and Residual their assembly, "
-             "Locate the point location, SolidUpdate the solids' step; Factor is the Fourier bulk's banded "
+             "Locate the point location, SolidUpdate the solids' step, Track the bodies' metrics of the step; Factor is the Fourier bulk's banded "
              "factorisation, once per run. Peak GB: the largest resident set of one rank.", "",
              "| mesh | ranks | steps | s/step | step 1 (s) | PCSetUp | LinearSolve | Jacobian | Residual | Locate | "
-             "SolidUpdate | Factor (once) | coupling/step | GMRES/coupling | corrected unknowns | peak GB |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "SolidUpdate | Track | Factor (once) | coupling/step | GMRES/coupling | corrected unknowns | peak GB |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for n, ranks, steps in cases:
         row = run_case(args, n, ranks, steps)
         print(row, flush=True)

@@ -22,7 +22,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bench_common import ROOT, commit_of_head, fmt, write_table  # noqa: E402
 
 TOOL = "scaling_model_3d.py"
-PARTS = ["LinearSolve", "Jacobian", "Residual", "Locate", "SolidUpdate"]
+PARTS = ["LinearSolve", "Jacobian", "Residual", "Locate", "SolidUpdate", "Track"]
+OPTIONAL = {"Track"}  # (a column of tables from 2026-11-29 on; 0 where a table lacks it)
 # What each part is, and what in it does not divide by the ranks today (docs/performance.md).
 WHAT = {
     "LinearSolve": "FGMRES: bulk inverse (FFT of every line on every rank; banded solves divided), points' matrix",
@@ -30,7 +31,8 @@ WHAT = {
     "Residual": "elements' terms (divided), points' terms (their owners'), state gathered to every rank",
     "Locate": "every body's quadrature data and every point's location, on every rank",
     "SolidUpdate": "every body's kinematic update, on every rank",
-    "rest": "end of step, the bodies' metrics (every rank), progress",
+    "Track": "the bodies' metrics of the step (area, volume, moments), on every rank",
+    "rest": "end of step, the metrics' row, progress",
 }
 
 
@@ -49,7 +51,7 @@ def read_rows(path, mesh):
             if len(cells) != len(header):
                 raise ValueError
             row = dict(zip(header, cells))
-            parts = {p: float(row[p]) for p in PARTS}
+            parts = {p: float(row[p]) if p in row or p not in OPTIONAL else 0.0 for p in PARTS}
             rows.append((int(row["ranks"]), float(row["s/step"]), parts))
         except (KeyError, ValueError):
             skipped.append(" | ".join(cells[:4]))

@@ -813,6 +813,8 @@ void DivConformingFluid::interior_residual_batched(const Levels& lv, Vec F) cons
     ComponentFactors fac[4];
     for (int c = 0; c <= D; ++c) fac[c] = component_factors(space_, c, ei, rule);
     const int nq = eb.n_points, np = eb.comp[D].n;
+    if (fac[0].n_points() != nq)
+      throw std::logic_error("interior_residual_batched: the factors' rule is not the basis'");
     int nv[3] = {0, 0, 0}, off[4] = {0, 0, 0, 0};
     for (int c = 0; c < D; ++c) nv[c] = eb.comp[c].n, off[c + 1] = off[c] + nv[c];
     for (size_t first = 0; first < members.size(); first += kBlock) {
@@ -1727,7 +1729,7 @@ double DivConformingFluid::divergence_ratio() const {
   const int D = space_.dim();
   double m[2] = {0, 0};  // max |div v_h|, max |grad v_h|
   constexpr int kBlock = 128;
-  std::vector<double> u, grad[3][3], value, scratch;
+  std::vector<double> u, grad[3][3], scratch;
   for (const std::vector<int>& members : elements_by_class()) {
     if (members.empty()) continue;
     const Index3 ei = space_.element_multi_index(members.front());
@@ -1742,7 +1744,6 @@ double DivConformingFluid::divergence_ratio() const {
     for (size_t first = 0; first < members.size(); first += kBlock) {
       const int mb = static_cast<int>(std::min<size_t>(kBlock, members.size() - first));
       const size_t mq = static_cast<size_t>(nq) * mb;
-      value.resize(mq);
       for (int c = 0; c < D; ++c) {
         const int n = fac[c].n_functions();
         u.resize(static_cast<size_t>(n) * mb);
@@ -1753,7 +1754,7 @@ double DivConformingFluid::divergence_ratio() const {
         }
         for (auto& g : grad[c]) g.resize(mq);
         const std::array<double*, 3> gp{grad[c][0].data(), grad[c][1].data(), grad[c][2].data()};
-        sum_factorized_values(fac[c], mb, u.data(), value.data(), &gp, scratch);
+        sum_factorized_values(fac[c], mb, u.data(), nullptr, &gp, scratch);  // (the gradient alone)
       }
       for (size_t k = 0; k < mq; ++k) {
         double div = 0, g2 = 0;

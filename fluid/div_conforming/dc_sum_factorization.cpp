@@ -39,15 +39,16 @@ ComponentFactors component_factors(const DivConformingSpace& space, int c, const
 namespace {
 
 /// o[e] = sum_t c[t] x[t][e] for e < m, T terms. The loop over the block's elements is the one that
-/// vectorises; on x86-64 with GCC the kernel is compiled for AVX-512, AVX2 (with FMA) and the baseline,
-/// chosen at load time by the CPU (target_clones), since the build's own flags target the baseline; elsewhere
-/// (other CPUs, Clang, which takes no target_clones on templates) it is compiled once. The fused
-/// multiply-adds of the AVX clones change a result's last bits with the CPU. (With one product per pass over
-/// o, SSE2 and a load and store of o per term, the 3D residual's contractions ran at about one multiply-add
-/// per cycle: no faster than the GEMMs they replace; measured with perf.)
+/// vectorises. On x86-64 with GCC the kernel is compiled for AVX-512F, AVX2 and the baseline and the CPU's
+/// instruction sets choose one at load time (target_clones; the build's own flags target the baseline, and
+/// "arch=" clones would be chosen by CPU model: this EPYC ran the baseline one under them). Elsewhere (other
+/// CPUs, Clang, which takes no target_clones on templates) it is compiled once. The AVX-512 clone fuses
+/// multiply-adds, so a result's last bits depend on the CPU. Measured on the 3D compound capsule at 32^3, one
+/// rank: the elements' terms of 20 residuals 1.62-1.64 s with the AVX-512 clone, 1.87 s with the baseline
+/// one; several terms a pass (not one product per pass over o) made the larger difference
+/// (docs/notes/2026-11-29-dc-step-sum-factorisation.md).
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#define CELLFSI_SUM_FACTORIZATION_CLONES \
-  __attribute__((target_clones("arch=skylake-avx512", "arch=haswell", "default")))
+#define CELLFSI_SUM_FACTORIZATION_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 #else
 #define CELLFSI_SUM_FACTORIZATION_CLONES
 #endif
@@ -141,7 +142,7 @@ void sum_factorized_values(const ComponentFactors& f, int m, const double* u, do
   double* s01 = s10 + ss;
   contract(f.value[0], 1, n0, Q0, n1 * n2, m, u, t);
   contract(f.value[1], Q0, n1, Q1, n2, m, t, s00);
-  contract(f.value[2], Q0 * Q1, n2, Q2, 1, m, s00, value);
+  if (value) contract(f.value[2], Q0 * Q1, n2, Q2, 1, m, s00, value);
   if (!grad) return;
   contract(f.deriv[0], 1, n0, Q0, n1 * n2, m, u, td);
   contract(f.value[1], Q0, n1, Q1, n2, m, td, s10);

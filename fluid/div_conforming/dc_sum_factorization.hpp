@@ -42,8 +42,9 @@ ComponentFactors component_factors(const DivConformingSpace& space, int c, const
                                    const TensorRule& rule);
 
 /// The field with coefficients u[a * m + e] (a: the component's functions, direction 0 fastest) at the points
-/// of the m elements: value[q * m + e] and, where grad is not null, grad[j][q * m + e] = d/dx_j for j < 3
-/// (directions beyond the space's dimension give 0). scratch: kept by the caller (no allocation once sized).
+/// of the m elements: value[q * m + e] (where value is not null) and, where grad is not null, grad[j][q * m +
+/// e] = d/dx_j for j < 3 (directions beyond the space's dimension give 0). scratch: kept by the caller (no
+/// allocation once sized).
 void sum_factorized_values(const ComponentFactors& f, int m, const double* u, double* value,
                            const std::array<double*, 3>* grad, std::vector<double>& scratch);
 
