@@ -353,6 +353,16 @@ void DivConformingFluid::for_owned_elements(int n_gauss, F&& f) const {
   }
 }
 
+void DivConformingFluid::gather_block(const int* members, int m, int local_first, int n, const double* src,
+                                      int shift, std::vector<double>& out) const {
+  out.resize(static_cast<size_t>(n) * m);
+  for (int e = 0; e < m; ++e) {
+    const int* idx =
+        element_unknowns_.data() + static_cast<size_t>(members[e] - elem_begin_) * n_local_ + local_first;
+    for (int b = 0; b < n; ++b) out[static_cast<size_t>(b) * m + e] = src[idx[b] - shift];
+  }
+}
+
 const std::vector<std::vector<int>>& DivConformingFluid::elements_by_class() const {
   if (class_elements_.empty()) {
     class_elements_.resize(static_cast<size_t>(std::pow(2 * space_.degree() + 5, space_.dim())));
@@ -821,26 +831,13 @@ void DivConformingFluid::interior_residual_batched(const Levels& lv, Vec F) cons
       const int m = static_cast<int>(std::min<size_t>(kBlock, members.size() - first));
       const size_t mq = static_cast<size_t>(nq) * m;
       // Gather the block's coefficients (function a of element e at a m + e).
+      const int* block = members.data() + first;
       for (int c = 0; c < D; ++c) {
-        U[c].resize(static_cast<size_t>(nv[c]) * m);
-        A[c].resize(static_cast<size_t>(nv[c]) * m);
+        gather_block(block, m, off[c], nv[c], lv.v.data(), 0, U[c]);
+        gather_block(block, m, off[c], nv[c], lv.a.data(), 0, A[c]);
       }
-      P.resize(static_cast<size_t>(np) * m);
-      if (field) Nu.resize(static_cast<size_t>(np) * m);
-      for (int e = 0; e < m; ++e) {
-        const int* idx =
-            element_unknowns_.data() + static_cast<size_t>(members[first + e] - elem_begin_) * n_local_;
-        for (int c = 0; c < D; ++c)
-          for (int b = 0; b < nv[c]; ++b) {
-            U[c][static_cast<size_t>(b) * m + e] = lv.v[idx[off[c] + b]];
-            A[c][static_cast<size_t>(b) * m + e] = lv.a[idx[off[c] + b]];
-          }
-        for (int b = 0; b < np; ++b) {
-          const int gi = idx[off[D] + b];
-          P[static_cast<size_t>(b) * m + e] = lv.v[gi];
-          if (field) Nu[static_cast<size_t>(b) * m + e] = nu_field_[gi - space_.offset(D)];
-        }
-      }
+      gather_block(block, m, off[D], np, lv.v.data(), 0, P);
+      if (field) gather_block(block, m, off[D], np, nu_field_.data(), space_.offset(D), Nu);
       for (int c = 0; c < D; ++c) {
         Y[c].resize(mq);
         Ya[c].resize(mq);
@@ -1745,13 +1742,7 @@ double DivConformingFluid::divergence_ratio() const {
       const int mb = static_cast<int>(std::min<size_t>(kBlock, members.size() - first));
       const size_t mq = static_cast<size_t>(nq) * mb;
       for (int c = 0; c < D; ++c) {
-        const int n = fac[c].n_functions();
-        u.resize(static_cast<size_t>(n) * mb);
-        for (int e = 0; e < mb; ++e) {
-          const int* idx =
-              element_unknowns_.data() + static_cast<size_t>(members[first + e] - elem_begin_) * n_local_;
-          for (int b = 0; b < n; ++b) u[static_cast<size_t>(b) * mb + e] = U_[idx[off[c] + b]];
-        }
+        gather_block(members.data() + first, mb, off[c], fac[c].n_functions(), U_.data(), 0, u);
         for (auto& g : grad[c]) g.resize(mq);
         const std::array<double*, 3> gp{grad[c][0].data(), grad[c][1].data(), grad[c][2].data()};
         sum_factorized_values(fac[c], mb, u.data(), nullptr, &gp, scratch);  // (the gradient alone)

@@ -332,6 +332,10 @@ class DivConformingFluid {
   const ElementBasis& element_basis(int e) const;
   /// The class of element e whose basis element_basis caches (elements of a class share their values).
   int basis_class(int e) const;
+  /// The coefficients src[unknown - shift] of the local unknowns [local_first, local_first + n) of the m elements
+  /// members[0 .. m) (this rank's), into out[b * m + e] (the sum-factorised kernels' layout).
+  void gather_block(const int* members, int m, int local_first, int n, const double* src, int shift,
+                    std::vector<double>& out) const;
   /// This rank's elements grouped by basis_class (made at the first call).
   const std::vector<std::vector<int>>& elements_by_class() const;
   /// Calls f(eb) for each of this rank's elements with its basis at the element's Gauss points.
