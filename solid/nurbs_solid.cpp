@@ -1,6 +1,7 @@
 #include "solid/nurbs_solid.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -31,39 +32,25 @@ NurbsSolid::NurbsSolid(std::string name, geometry::Patch reference, std::shared_
   if (!(density > 0)) throw std::invalid_argument("NurbsSolid '" + name_ + "': density must be > 0");
   time_ = TimeParameters::from_rho_inf(0.5, 1.0);
 
-  // Reduced unknowns: the last control layer of a closed (open-knot) direction is the first.
-  int m[3] = {1, 1, 1};
-  bool merge[3] = {false, false, false};
-  for (int d = 0; d < dim_; ++d) {
-    merge[d] = reference_.closed(d) && !reference_.knots(d).periodic();
-    m[d] = reference_.n_control(d) - (merge[d] ? 1 : 0);
+  // Step 3's solver owns the points and the unknowns (a closed direction's last control layer folded onto
+  // its first).
+  try {
+    collocation_solver_ = std::make_unique<CollocationSolver>(reference_);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error("NurbsSolid '" + name_ + "': " + e.what());
   }
+  const CollocationSolver& cs = *collocation_solver_;
+  const int m[3] = {cs.n_points(0), cs.n_points(1), cs.n_points(2)};
   n_reduced_ = m[0] * m[1] * m[2];
   reduced_.resize(reference_.n_control());
-  for (int k = 0; k < reference_.n_control(); ++k) {
-    Index3 i = reference_.control_multi_index(k);
-    for (int d = 0; d < dim_; ++d)
-      if (merge[d] && i[d] == reference_.n_control(d) - 1) i[d] = 0;
-    reduced_[k] = i[0] + m[0] * (i[1] + m[1] * i[2]);
-  }
-
-  // Collocation points: Greville abscissae per direction, the duplicate of a closed direction dropped.
-  std::vector<double> tau[3] = {{0.0}, {0.0}, {0.0}};
-  for (int d = 0; d < dim_; ++d) {
-    tau[d] = reference_.knots(d).greville();
-    tau[d].resize(m[d]);
-  }
-  std::vector<Eigen::Triplet<double>> trip;
-  BasisValues bv;
+  for (int k = 0; k < reference_.n_control(); ++k) reduced_[k] = cs.unknown(k);
+  const std::array<std::vector<double>, 3> tau = {cs.abscissae(0), cs.abscissae(1), cs.abscissae(2)};
   int p = 0;
   for (int c = 0; c < m[2]; ++c)
     for (int b = 0; b < m[1]; ++b)
       for (int a = 0; a < m[0]; ++a, ++p) {
         const Param xi{tau[0][a], tau[1][b], tau[2][c]};
         point_xi_.push_back(xi);
-        reference_.basis(xi, 0, bv);
-        for (int k = 0; k < bv.n; ++k)
-          if (bv.value[k] != 0.0) trip.emplace_back(p, reduced_[bv.index[k]], bv.value[k]);
         reference_points_.push_back(reference_.point(xi));
         // Interface faces: both ends of direction 0, unless a face collapses to a point (a body's centre).
         if (a == 0 || a == m[0] - 1) face_points_.push_back(p);
@@ -92,11 +79,6 @@ NurbsSolid::NurbsSolid(std::string name, geometry::Patch reference, std::shared_
     throw std::invalid_argument("NurbsSolid '" + name_ + "': the " + material_->name() +
                                 " law is a law of a 3D membrane's surface; this body is " +
                                 (membrane_ ? "a 2D membrane" : "not a membrane"));
-  collocation_.resize(n_reduced_, n_reduced_);
-  collocation_.setFromTriplets(trip.begin(), trip.end());
-  factor_.compute(collocation_);
-  if (factor_.info() != Eigen::Success)
-    throw std::runtime_error("NurbsSolid '" + name_ + "': the collocation matrix is singular");
 
   u_ = Eigen::MatrixXd::Zero(n_reduced_, dim_);
   u_n_ = u_;
@@ -169,13 +151,14 @@ void NurbsSolid::tabulate_quadrature() {
 }
 
 Eigen::MatrixXd NurbsSolid::control_from_points(const Eigen::MatrixXd& values) const {
-  Eigen::MatrixXd c = factor_.solve(values);
-  c += factor_.solve(values - collocation_ * c);  // one refinement step: exact to round-off
+  Eigen::MatrixXd c = collocation_solver_->solve(values);
+  c += collocation_solver_->solve(values - collocation_solver_->matrix() *
+                                               c);  // one refinement step: exact to round-off
   return c;
 }
 
 Eigen::MatrixXd NurbsSolid::points_from_control(const Eigen::MatrixXd& control) const {
-  return collocation_ * control;
+  return collocation_solver_->matrix() * control;
 }
 
 void NurbsSolid::set_rate(const std::vector<Vec3>& rate) {
@@ -272,7 +255,7 @@ bool NurbsSolid::control_increment(const std::vector<Vec3>& dv, Eigen::MatrixXd&
     const Vec3 d = kinematic_inverse_[i] * dv[i];
     du.row(i) = d.head(dim_).transpose();
   }
-  dc = time_.alpha_f * factor_.solve(du);
+  dc = time_.alpha_f * collocation_solver_->solve(du);
   return true;
 }
 

@@ -4,16 +4,18 @@
 //
 // The state lives at the collocation points (displacement and its rate, advanced by generalized-alpha point
 // by point, steps 1-2: one d x d Newton solve per point); the control variables follow from them through the
-// collocation matrix, factorised once (step 3). In a closed direction (a membrane around a cell: first and
-// last control layers coincide) those two layers are one unknown, and the duplicate Greville point is
-// dropped, so the system stays square. Degenerate points (a disk's centre, a sphere's poles) need nothing
-// special: their Greville points coincide in space, receive the same velocity, and so move together.
+// collocation matrix, solved direction by direction (step 3, solid/collocation_solver.hpp). In a closed
+// direction (a membrane around a cell: first and last control layers coincide) those two layers are one
+// unknown, and the duplicate Greville point is dropped, so the system stays square. Degenerate points (a
+// disk's centre, a sphere's poles) need nothing special: their Greville points coincide in space, receive the
+// same velocity, and so move together.
 #include <functional>
 #include <memory>
 
 #include <Eigen/Sparse>
 
 #include "geometry/patch.hpp"
+#include "solid/collocation_solver.hpp"
 #include "solid/external_load.hpp"
 #include "solid/material.hpp"
 #include "solid/solid_solver.hpp"
@@ -107,8 +109,7 @@ class NurbsSolid final : public SolidSolver {
   std::vector<Vec3> reference_points_;  // collocation points in the reference configuration
   std::vector<geometry::Param> point_xi_;
   std::vector<int> face_points_;  // collocation points on interface faces
-  Eigen::SparseMatrix<double> collocation_;
-  Eigen::SparseLU<Eigen::SparseMatrix<double>> factor_;
+  std::unique_ptr<const CollocationSolver> collocation_solver_;  // step 3 (its own file says how)
   Eigen::MatrixXd u_, u_n_, rate_n_;  // at the collocation points (n_points x dim)
   Eigen::MatrixXd c_, c_n_;           // control variables (n_reduced x dim)
   // The inverse of the last kinematic_update()'s tangent at each collocation point (control_increment, which
