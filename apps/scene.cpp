@@ -354,7 +354,7 @@ void Scene::attach_bodies(std::vector<solid::SolidSolver*> bodies) {
   const int plane = wall_dir_ > 0 ? wall_dir_ : 1;
   for (solid::SolidSolver* b : bodies_) {
     trackers_.emplace_back(b->reference_patch(), b->is_membrane(), plane);
-    trackers_.back().record(fluid_->time(), b->current_patch());
+    trackers_.back().record(fluid_->time(), b->current_patch(), metric_share());
     equilibrium_.emplace_back();
     if (body_settings(b->name()).stretched)
       equilibrium_.back().emplace(s_.equilibrium_tolerance, s_.equilibrium_window,
@@ -417,14 +417,33 @@ SceneStep Scene::step() {
     contact_last_ = st.repulsion;
     contact_cell_min_ = std::min(contact_cell_min_, st.repulsion.cell_gap);
     contact_wall_min_ = std::min(contact_wall_min_, st.repulsion.wall_gap);
+    const solid::MetricShare share = metric_share();
     for (size_t b = 0; b < bodies_.size(); ++b)
-      trackers_[b].record(fluid_->time(), bodies_[b]->current_patch());
+      trackers_[b].record(fluid_->time(), bodies_[b]->current_patch(), share);
     record_diameters();
     if (suspension_on_) record_suspension();
     accumulate_profile();
     if (s_.s_interface_raise) raise_interface_scaling();
   }
   return r;
+}
+
+solid::MetricShare Scene::metric_share() const {
+  const MPI_Comm comm = fluid_->comm();
+  int rank = 0, size = 1;
+  CELLFSI_PETSC(MPI_Comm_rank(comm, &rank));
+  CELLFSI_PETSC(MPI_Comm_size(comm, &size));
+  solid::MetricShare share;
+  share.elements = {rank, size};
+  if (size > 1) {
+    share.sum = [comm](double* v, int n) {
+      CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, v, n, MPI_DOUBLE, MPI_SUM, comm));
+    };
+    share.max = [comm](double* v, int n) {
+      CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, v, n, MPI_DOUBLE, MPI_MAX, comm));
+    };
+  }
+  return share;
 }
 
 void Scene::raise_interface_scaling() {

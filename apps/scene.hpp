@@ -210,6 +210,8 @@ class Scene {
   // Per body: the stretching test's diameters and equilibrium (stretched bodies only).
   std::vector<std::optional<solid::EquilibriumMonitor>> equilibrium_;
   void record_diameters();
+  /// The bodies' metrics shared among the fluid's ranks (each integrates its share of the elements).
+  solid::MetricShare metric_share() const;
   std::vector<std::pair<std::string, double>> last_;
   std::function<geometry::Vec3(const geometry::Vec3&)> undisturbed_;
   bool suspension_on_ = false;  // a plane channel (Poiseuille, 2D) with membranes: rheology recorded

@@ -5,6 +5,7 @@
 #include <numbers>
 #include <optional>
 #include <stdexcept>
+#include <string>
 
 #include "geometry/basis.hpp"
 #include "geometry/quadrature.hpp"
@@ -20,7 +21,7 @@ namespace {
 /// the map: the values of Patch::basis and Patch::map without their per-point span search, folding and
 /// allocation (the bodies' metrics integrate every body at every step).
 template <class F>
-void for_each_point(const Patch& patch, int extra_gauss, F&& f) {
+void for_each_point(const Patch& patch, int extra_gauss, const ElementShare& share, F&& f) {
   const int P = patch.param_dim();
   const Index3 ng = default_gauss(patch, extra_gauss);
   constexpr int M = kMaxDegree + 1, kMaxN = M * M * M;
@@ -42,7 +43,13 @@ void for_each_point(const Patch& patch, int extra_gauss, F&& f) {
   const bool rational = patch.rational();
   Vec3 X[kMaxN];
   double Wc[kMaxN], R[kMaxN], dR[kMaxN][3], ders[2 * M];
-  for (int e = 0; e < patch.n_elements(); ++e) {
+  if (share.parts < 1 || share.part < 0 || share.part >= share.parts)
+    throw std::invalid_argument("ElementShare: part " + std::to_string(share.part) + " of " +
+                                std::to_string(share.parts));
+  const long n_elements = patch.n_elements();
+  const int e_begin = static_cast<int>(n_elements * share.part / share.parts);
+  const int e_end = static_cast<int>(n_elements * (share.part + 1) / share.parts);
+  for (int e = e_begin; e < e_end; ++e) {
     const Index3 m = patch.element_multi_index(e);
     Param lo, hi;
     patch.element_bounds(m, lo, hi);
@@ -105,18 +112,17 @@ Vec3 reference_point(const Patch& patch) {
   return 0.5 * (lo + hi);
 }
 
-/// Converts raw moments about `ref` (M0, M1 = int (x-ref), M2 = int (x-ref)(x-ref)^T) to RegionMoments.
-RegionMoments finish(double M0, const Vec3& M1, const Mat3& M2, const Vec3& ref) {
+}  // namespace
+
+RegionMoments finish(const MomentSums& sums) {
   RegionMoments r;
-  const double s = M0 < 0 ? -1.0 : 1.0;  // orientation of the boundary
-  r.measure = s * M0;
-  const Vec3 c = s * M1 / r.measure;  // centroid relative to ref
-  r.centroid = ref + c;
-  r.second_moment = s * M2 - r.measure * c * c.transpose();
+  const double s = sums.m0 < 0 ? -1.0 : 1.0;  // orientation of the boundary
+  r.measure = s * sums.m0;
+  const Vec3 c = s * sums.m1 / r.measure;  // centroid relative to ref
+  r.centroid = sums.ref + c;
+  r.second_moment = s * sums.m2 - r.measure * c * c.transpose();
   return r;
 }
-
-}  // namespace
 
 std::array<double, 3> element_extents(const Patch& p, int e) {
   Param lo, hi;
@@ -153,12 +159,12 @@ double smallest_element_extent(const Patch& patch) {
   return smallest;
 }
 
-double patch_measure(const Patch& patch, int extra_gauss) {
+double patch_measure(const Patch& patch, int extra_gauss, const ElementShare& share) {
   const int P = patch.param_dim();
   double total = 0;
   // sqrt(det(J^T J)) of the P tangent columns J, with fixed sizes (a dynamic matrix per point was a heap
   // allocation per point: the bodies' metrics evaluate this at every step).
-  for_each_point(patch, extra_gauss, [&](const Vec3&, const Mat3& dx, double w) {
+  for_each_point(patch, extra_gauss, share, [&](const Vec3&, const Mat3& dx, double w) {
     const Mat3 G = dx.transpose() * dx;
     const double det = P == 1 ? G(0, 0) : P == 2 ? G.topLeftCorner<2, 2>().determinant() : G.determinant();
     total += w * std::sqrt(std::abs(det));
@@ -167,23 +173,31 @@ double patch_measure(const Patch& patch, int extra_gauss) {
 }
 
 RegionMoments patch_moments(const Patch& patch, int extra_gauss) {
+  return finish(patch_moment_sums(patch, extra_gauss));
+}
+
+MomentSums patch_moment_sums(const Patch& patch, int extra_gauss, const ElementShare& share) {
   const int P = patch.param_dim(), D = patch.physical_dim();
   if (P != D) throw std::invalid_argument("patch_moments: needs parametric dimension == physical dimension");
   const Vec3 ref = reference_point(patch);
   double M0 = 0;
   Vec3 M1 = Vec3::Zero();
   Mat3 M2 = Mat3::Zero();
-  for_each_point(patch, extra_gauss, [&](const Vec3& x, const Mat3& dx, double w) {
+  for_each_point(patch, extra_gauss, share, [&](const Vec3& x, const Mat3& dx, double w) {
     const double detJ = std::abs(dx.topLeftCorner(D, D).determinant());
     const Vec3 y = x - ref;
     M0 += w * detJ;
     M1 += w * detJ * y;
     M2 += w * detJ * y * y.transpose();
   });
-  return finish(M0, M1, M2, ref);
+  return {M0, M1, M2, ref};
 }
 
 RegionMoments enclosed_moments(const Patch& boundary, int extra_gauss) {
+  return finish(enclosed_moment_sums(boundary, extra_gauss));
+}
+
+MomentSums enclosed_moment_sums(const Patch& boundary, int extra_gauss, const ElementShare& share) {
   const int P = boundary.param_dim(), D = boundary.physical_dim();
   if (P != D - 1) throw std::invalid_argument("enclosed_moments: needs a curve in 2D or a surface in 3D");
   for (int d = 0; d < P; ++d)
@@ -195,7 +209,7 @@ RegionMoments enclosed_moments(const Patch& boundary, int extra_gauss) {
   Mat3 M2 = Mat3::Zero();
   if (D == 2) {
     // Green: int_A f dA = oint F . n ds with n ds = (y', -x') du for a counter-clockwise curve.
-    for_each_point(boundary, extra_gauss, [&](const Vec3& xx, const Mat3& dx, double w) {
+    for_each_point(boundary, extra_gauss, share, [&](const Vec3& xx, const Mat3& dx, double w) {
       const double x = xx[0] - ref[0], y = xx[1] - ref[1], xp = dx(0, 0), yp = dx(1, 0);
       M0 += w * 0.5 * (x * yp - y * xp);
       M1[0] += w * 0.5 * x * x * yp;
@@ -207,7 +221,7 @@ RegionMoments enclosed_moments(const Patch& boundary, int extra_gauss) {
     M2(1, 0) = M2(0, 1);
   } else {
     // Divergence theorem with n dA = (S_u x S_v) du dv.
-    for_each_point(boundary, extra_gauss, [&](const Vec3& xx, const Mat3& dx, double w) {
+    for_each_point(boundary, extra_gauss, share, [&](const Vec3& xx, const Mat3& dx, double w) {
       const Vec3 x = xx - ref;
       const Vec3 n = dx.col(0).cross(dx.col(1));
       M0 += w * x.dot(n) / 3.0;
@@ -223,7 +237,7 @@ RegionMoments enclosed_moments(const Patch& boundary, int extra_gauss) {
     for (int i = 0; i < 3; ++i)
       for (int j = i + 1; j < 3; ++j) M2(j, i) = M2(i, j);
   }
-  return finish(M0, M1, M2, ref);
+  return {M0, M1, M2, ref};
 }
 
 PrincipalAxes principal_axes(const RegionMoments& moments, int dim) {

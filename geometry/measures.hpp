@@ -16,6 +16,24 @@ struct RegionMoments {
   Mat3 second_moment = Mat3::Zero();  // integral of (x - c)(x - c)^T over the region
 };
 
+/// A contiguous share of a patch's elements (by linear element index), part `part` of `parts`: the integrals
+/// below over a share are partial sums, to be added over all parts (the bodies' metrics split among ranks).
+struct ElementShare {
+  int part = 0;
+  int parts = 1;
+};
+
+/// Raw moments about a reference point (the patch's bounding-box centre, the same for every share): M0 =
+/// int 1, M1 = int (x - ref), M2 = int (x - ref)(x - ref)^T (signed by the orientation for a boundary's).
+/// Sums over shares add entry by entry; finish() turns the whole into RegionMoments.
+struct MomentSums {
+  double m0 = 0;
+  Vec3 m1 = Vec3::Zero();
+  Mat3 m2 = Mat3::Zero();
+  Vec3 ref = Vec3::Zero();
+};
+RegionMoments finish(const MomentSums& sums);
+
 /// Extent of element e of a patch along each parametric direction d: the largest distance between two of its
 /// corners that differ only in d (entry d < param_dim; the others are zero).
 std::array<double, 3> element_extents(const Patch& patch, int e);
@@ -24,16 +42,19 @@ std::array<double, 3> element_extents(const Patch& patch, int e);
 /// every element's edges are evaluated (12 per element in 3D).
 double smallest_element_extent(const Patch& patch);
 
-/// Length, area or volume of the patch itself (its parametric dimension decides which).
-double patch_measure(const Patch& patch, int extra_gauss = 2);
+/// Length, area or volume of the patch itself (its parametric dimension decides which); over a share of its
+/// elements, that share's part.
+double patch_measure(const Patch& patch, int extra_gauss = 2, const ElementShare& share = {});
 
 /// Moments of the region a patch covers (parametric dimension == physical dimension), e.g. a nucleus or the
-/// membrane band itself.
+/// membrane band itself; patch_moment_sums: a share's raw sums.
 RegionMoments patch_moments(const Patch& patch, int extra_gauss = 2);
+MomentSums patch_moment_sums(const Patch& patch, int extra_gauss = 2, const ElementShare& share = {});
 
 /// Moments of the region enclosed by a closed boundary: a closed curve in 2D (Green's theorem) or a closed
-/// surface in 3D (divergence theorem). Orientation does not matter.
+/// surface in 3D (divergence theorem). Orientation does not matter. enclosed_moment_sums: a share's raw sums.
 RegionMoments enclosed_moments(const Patch& boundary, int extra_gauss = 2);
+MomentSums enclosed_moment_sums(const Patch& boundary, int extra_gauss = 2, const ElementShare& share = {});
 
 /// Principal axes of a region: eigenvalues of the central second moment in descending order and the matching
 /// unit eigenvectors as columns. The first axis is the long axis (least moment of inertia).

@@ -52,7 +52,7 @@ BodyTracker::BodyTracker(const Patch& reference, bool membrane, int plane_dir, i
     throw std::invalid_argument("BodyTracker: plane_dir must be 1.." + std::to_string(dim_ - 1));
   if (n_material_points < 4) throw std::invalid_argument("BodyTracker: at least 4 material points");
   geometry::RegionMoments region;
-  measure(reference, area0_, boundary0_, region);
+  measure(reference, {}, area0_, boundary0_, region);
   const geometry::PrincipalAxes ax = geometry::principal_axes(region, dim_);
   elongated_ = ax.values[0] > 1.01 * ax.values[dim_ - 1];
   // Material points: mid-thickness of a membrane, the outer face of a bulky body.
@@ -196,25 +196,44 @@ void BodyTracker::restore(const std::vector<double>& state) {
   history_ = std::move(history);
 }
 
-void BodyTracker::measure(const Patch& p, double& area, double& boundary,
+void BodyTracker::measure(const Patch& p, const MetricShare& share, double& area, double& boundary,
                           geometry::RegionMoments& region) const {
+  // A membrane: the band's own measure, the mid-surface's and the moments of the region it encloses
+  // (geometry::membrane_shape's integrals); a bulky body: its outer face's measure and its own moments (its
+  // measure is patch_measure's integral at the same points: |det J| = sqrt(det J^T J)).
+  constexpr int kExtra = 2;
+  double measures[2] = {0, 0};  // the body's own (a membrane's), the boundary's
+  geometry::MomentSums sums;
   if (membrane_) {
-    area = geometry::patch_measure(p);
-    const geometry::MembraneShape s = geometry::membrane_shape(p, 0);
-    boundary = s.boundary;
-    region = s.moments;
+    const geometry::KnotVector& kv = p.knots(0);
+    const Patch mid = geometry::isoparametric(p, 0, 0.5 * (kv.a() + kv.b()));
+    measures[0] = geometry::patch_measure(p, kExtra, share.elements);
+    measures[1] = geometry::patch_measure(mid, kExtra, share.elements);
+    sums = geometry::enclosed_moment_sums(mid, kExtra, share.elements);
   } else {
-    boundary = geometry::patch_measure(geometry::isoparametric(p, 0, p.knots(0).b()));
-    region = geometry::patch_moments(p);
-    area = region.measure;  // patch_measure's integral at the same points (|det J| = sqrt(det J^T J))
+    measures[1] =
+        geometry::patch_measure(geometry::isoparametric(p, 0, p.knots(0).b()), kExtra, share.elements);
+    sums = geometry::patch_moment_sums(p, kExtra, share.elements);
   }
+  if (share.sum) {
+    double v[15] = {measures[0], measures[1], sums.m0, sums.m1[0], sums.m1[1], sums.m1[2]};
+    for (int i = 0; i < 9; ++i) v[6 + i] = sums.m2(i / 3, i % 3);
+    share.sum(v, 15);
+    measures[0] = v[0], measures[1] = v[1], sums.m0 = v[2];
+    for (int i = 0; i < 3; ++i) sums.m1[i] = v[3 + i];
+    for (int i = 0; i < 9; ++i) sums.m2(i / 3, i % 3) = v[6 + i];
+  }
+  region = geometry::finish(sums);
+  area = membrane_ ? measures[0] : region.measure;
+  boundary = measures[1];
 }
 
-double BodyTracker::largest_stretch(const Patch& p) const {
+double BodyTracker::largest_stretch(const Patch& p, const MetricShare& share) const {
   // The squared principal stretches are the eigenvalues of G^{-1} g (G, g: the reference and current
   // metrics), which are those of the symmetric G^{-1/2} g G^{-1/2}; the larger of a 2 x 2 pair in closed form.
   double largest = 0;
-  for (size_t i = 0; i < stretch_xi_.size(); ++i) {
+  const std::size_t n = stretch_xi_.size(), parts = share.elements.parts, part = share.elements.part;
+  for (std::size_t i = n * part / parts; i < n * (part + 1) / parts; ++i) {
     const Eigen::Matrix2d m = reference_metric_inverse_[i] * surface_metric(p.evaluate(stretch_xi_[i]), dim_);
     double l2 = m(0, 0);
     if (dim_ == 3) {
@@ -223,6 +242,7 @@ double BodyTracker::largest_stretch(const Patch& p) const {
     }
     largest = std::max(largest, std::sqrt(l2));
   }
+  if (share.max) share.max(&largest, 1);
   return largest;
 }
 
@@ -236,12 +256,12 @@ std::vector<double> BodyTracker::material_angles(const Patch& p, const Vec3& cen
   return a;
 }
 
-void BodyTracker::record(double time, const Patch& current) {
+void BodyTracker::record(double time, const Patch& current, const MetricShare& share) {
   if (!history_.empty() && !(time > history_.back().time))
     throw std::invalid_argument("BodyTracker::record: times must increase");
   double area = 0, boundary = 0;
   geometry::RegionMoments region;
-  measure(current, area, boundary, region);
+  measure(current, share, area, boundary, region);
   Sample s;
   s.time = time;
   s.r_a = (area - area0_) / area0_;
@@ -259,7 +279,7 @@ void BodyTracker::record(double time, const Patch& current) {
     axis = geometry::long_axis_angle(in_plane);
   }
   s.anisotropy = ax.values[dim_ - 1] > 0 ? ax.values[0] / ax.values[dim_ - 1] - 1 : 0.0;
-  if (membrane_) s.stretch = largest_stretch(current);
+  if (membrane_) s.stretch = largest_stretch(current, share);
   std::vector<double> angles = material_angles(current, region.centroid);
   if (history_.empty()) {
     s.axis = wrap(axis, kPi);

@@ -27,6 +27,7 @@
 // deformation).
 // Angles are taken in the shear plane spanned by x and `plane_dir` (the wall-normal direction).
 #include <Eigen/Dense>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -38,6 +39,15 @@ namespace cellfsi::solid {
 
 using Metric = std::pair<std::string, double>;
 
+/// How a tracker's work is shared among ranks: each rank integrates its share of every patch's elements and
+/// samples its share of the stretch points; `sum` adds a short array over the ranks in place and `max` takes
+/// the largest (MPI_Allreduce), so that every rank records the same sample. The default: one rank does all.
+struct MetricShare {
+  geometry::ElementShare elements;
+  std::function<void(double* values, int n)> sum;
+  std::function<void(double* values, int n)> max;
+};
+
 class BodyTracker {
  public:
   /// `reference`: the body in its reference configuration (direction 0 through the thickness or from the
@@ -45,8 +55,9 @@ class BodyTracker {
   /// followed for omega.
   BodyTracker(const geometry::Patch& reference, bool membrane, int plane_dir = 1, int n_material_points = 64);
 
-  /// Records the body's configuration at `time` (call once per step, in order).
-  void record(double time, const geometry::Patch& current);
+  /// Records the body's configuration at `time` (call once per step, in order). With a share, collective over
+  /// the ranks that hold it: each calls it with the same patch and its own part.
+  void record(double time, const geometry::Patch& current, const MetricShare& share = {});
 
   /// Values at the last record (omega: over the last interval; 0 before the second record).
   std::vector<Metric> metrics() const;
@@ -80,10 +91,10 @@ class BodyTracker {
     double material = 0;    // mean unwrapped angle of the material points [rad]
     geometry::Vec3 centroid = geometry::Vec3::Zero();
   };
-  void measure(const geometry::Patch& p, double& area, double& boundary,
+  void measure(const geometry::Patch& p, const MetricShare& share, double& area, double& boundary,
                geometry::RegionMoments& region) const;
   std::vector<double> material_angles(const geometry::Patch& p, const geometry::Vec3& centroid) const;
-  double largest_stretch(const geometry::Patch& p) const;
+  double largest_stretch(const geometry::Patch& p, const MetricShare& share) const;
   std::vector<const Sample*> window(double average_from) const;
 
   bool membrane_;

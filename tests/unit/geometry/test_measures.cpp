@@ -310,3 +310,36 @@ TEST(Measures, Rbc3dMidSurfaceConvergesToEvansFungIntegrals) {
   EXPECT_LT(rel(coarse.boundary, fine.boundary), 1e-12);
   EXPECT_LT(rel(coarse.enclosed, fine.enclosed), 1e-12);
 }
+
+TEST(Measures, SharesOfAPatchsElementsAddUpToTheWhole) {
+  // The bodies' metrics split among ranks: each share's partial integrals, added, are the whole patch's,
+  // and finish() of the added raw moments its moments. The sums differ only in their order: 1e-13 relative.
+  const Patch shell = hollow_ellipsoid(3e-4, 2e-4, 2e-4, 5e-7, 6, 12, 2);
+  const Patch mid = isoparametric(shell, 0, 0.5);
+  const Patch ball = solid_ellipsoid(2e-4, 1.5e-4, 1e-4, 2, 6, 12, 2);
+  const double whole_band = patch_measure(shell), whole_mid = patch_measure(mid);
+  const RegionMoments enclosed = enclosed_moments(mid), own = patch_moments(ball);
+  for (int parts : {1, 2, 3, 1000}) {  // 1000: more parts than elements (some shares are empty)
+    double band = 0, surface = 0;
+    MomentSums e_sum, o_sum;
+    for (int part = 0; part < parts; ++part) {
+      const ElementShare share{part, parts};
+      band += patch_measure(shell, 2, share);
+      surface += patch_measure(mid, 2, share);
+      const MomentSums e = enclosed_moment_sums(mid, 2, share), o = patch_moment_sums(ball, 2, share);
+      e_sum.ref = e.ref, o_sum.ref = o.ref;
+      e_sum.m0 += e.m0, e_sum.m1 += e.m1, e_sum.m2 += e.m2;
+      o_sum.m0 += o.m0, o_sum.m1 += o.m1, o_sum.m2 += o.m2;
+    }
+    EXPECT_NEAR(band, whole_band, 1e-13 * whole_band) << parts;
+    EXPECT_NEAR(surface, whole_mid, 1e-13 * whole_mid) << parts;
+    for (const auto& [sum, whole] : {std::pair{finish(e_sum), enclosed}, std::pair{finish(o_sum), own}}) {
+      EXPECT_NEAR(sum.measure, whole.measure, 1e-13 * whole.measure) << parts;
+      EXPECT_LE((sum.centroid - whole.centroid).norm(), 1e-13 * 3e-4) << parts;
+      EXPECT_LE((sum.second_moment - whole.second_moment).norm(), 1e-12 * whole.second_moment.norm())
+          << parts;
+    }
+  }
+  EXPECT_THROW(patch_measure(shell, 2, ElementShare{2, 2}), std::invalid_argument);
+  EXPECT_THROW(patch_measure(shell, 2, ElementShare{0, 0}), std::invalid_argument);
+}

@@ -368,3 +368,61 @@ TEST(MirrorAsymmetry, TellsAnAlignedEllipseAnInclinedOneAndAParachuteApart) {
   EXPECT_GT(solid::mirror_asymmetry(parachute, o, 1), 0.1);   // but not front to back
   EXPECT_THROW(solid::mirror_asymmetry({o, o}, o, 0), std::invalid_argument);
 }
+
+TEST(BodyTracker, RecordsSharedAmongRanksAreTheWholeBodysRecords) {
+  // Two "ranks" in one process: each integrates its half of the elements and samples half the stretch points;
+  // `sum` adds the other half's partial integrals and `max` takes the larger stretch, both taken in a first
+  // pass where the two only keep them. The records then equal one tracker's that
+  // integrates everything, to the round-off of the sums' order (1e-12 relative; the angles absolutely).
+  for (bool membrane : {true, false}) {
+    const Patch p = membrane
+                        ? geometry::hollow_ellipsoid(3e-4, 2e-4, 2e-4, 5e-7, 6, 12, 2, Vec3(1e-3, 6e-4, 6e-4))
+                        : geometry::solid_ellipsoid(3e-4, 2e-4, 1e-4, 2, 6, 12, 2, Vec3(1e-3, 6e-4, 6e-4));
+    // Stretched (the anisotropy changes: its largest is at a definite record) and turned.
+    const Mat3 A =
+        Vec3(1.03, 0.98, 1.0).asDiagonal() * Eigen::AngleAxisd(0.3, Vec3::UnitZ()).toRotationMatrix();
+    const Patch q = geometry::transformed(p, A, Vec3(1e-3, 6e-4, 6e-4) - A * Vec3(1e-3, 6e-4, 6e-4));
+    std::vector<double> kept[2][2];  // [rank][record]
+    double stretch[2][2] = {{0, 0}, {0, 0}};
+    for (int pass = 0; pass < 2; ++pass) {
+      solid::BodyTracker whole(p, membrane), rank[2] = {{p, membrane}, {p, membrane}};
+      int record = 0;
+      for (const Patch* config : {&p, &q}) {
+        whole.record(record * 1e-3, *config);
+        for (int r = 0; r < 2; ++r) {
+          solid::MetricShare share;
+          share.elements = {r, 2};
+          share.sum = [&, r](double* v, int n) {
+            if (pass == 0) {
+              kept[r][record].assign(v, v + n);
+            } else {
+              for (int i = 0; i < n; ++i) v[i] += kept[1 - r][record][i];
+            }
+          };
+          share.max = [&, r](double* v, int n) {
+            if (pass == 0) {
+              stretch[r][record] = *v;
+            } else {
+              *v = std::max(*v, stretch[1 - r][record]);
+            }
+            (void)n;
+          };
+          rank[r].record(record * 1e-3, *config, share);
+        }
+        ++record;
+      }
+      if (pass == 0) continue;
+      for (int r = 0; r < 2; ++r) {
+        std::vector<solid::Metric> a = whole.metrics(), b = rank[r].metrics();
+        const std::vector<solid::Metric> sa = whole.summary(0), sb = rank[r].summary(0);  // (max_stretch)
+        a.insert(a.end(), sa.begin(), sa.end());
+        b.insert(b.end(), sb.begin(), sb.end());
+        ASSERT_EQ(a.size(), b.size());
+        for (size_t i = 0; i < a.size(); ++i) {
+          EXPECT_EQ(a[i].first, b[i].first);
+          EXPECT_NEAR(a[i].second, b[i].second, 1e-12 * std::max(1.0, std::abs(a[i].second))) << a[i].first;
+        }
+      }
+    }
+  }
+}
