@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 #include <optional>
 #include <stdexcept>
@@ -46,7 +47,7 @@ void for_each_point(const Patch& patch, int extra_gauss, const ElementShare& sha
   if (share.parts < 1 || share.part < 0 || share.part >= share.parts)
     throw std::invalid_argument("ElementShare: part " + std::to_string(share.part) + " of " +
                                 std::to_string(share.parts));
-  const long n_elements = patch.n_elements();
+  const std::int64_t n_elements = patch.n_elements();
   const int e_begin = static_cast<int>(n_elements * share.part / share.parts);
   const int e_end = static_cast<int>(n_elements * (share.part + 1) / share.parts);
   for (int e = e_begin; e < e_end; ++e) {

@@ -232,6 +232,7 @@ double BodyTracker::largest_stretch(const Patch& p, const MetricShare& share) co
   // The squared principal stretches are the eigenvalues of G^{-1} g (G, g: the reference and current
   // metrics), which are those of the symmetric G^{-1/2} g G^{-1/2}; the larger of a 2 x 2 pair in closed form.
   double largest = 0;
+  // (The share was checked by measure(), which record() calls first.)
   const std::size_t n = stretch_xi_.size(), parts = share.elements.parts, part = share.elements.part;
   for (std::size_t i = n * part / parts; i < n * (part + 1) / parts; ++i) {
     const Eigen::Matrix2d m = reference_metric_inverse_[i] * surface_metric(p.evaluate(stretch_xi_[i]), dim_);

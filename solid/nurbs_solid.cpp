@@ -151,9 +151,9 @@ void NurbsSolid::tabulate_quadrature() {
 }
 
 Eigen::MatrixXd NurbsSolid::control_from_points(const Eigen::MatrixXd& values) const {
-  Eigen::MatrixXd c = collocation_solver_->solve(values);
-  c += collocation_solver_->solve(values - collocation_solver_->matrix() *
-                                               c);  // one refinement step: exact to round-off
+  const CollocationSolver& cs = *collocation_solver_;
+  Eigen::MatrixXd c = cs.solve(values);
+  c += cs.solve(values - cs.matrix() * c);  // one refinement step: exact to round-off
   return c;
 }
 

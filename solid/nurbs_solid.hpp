@@ -69,6 +69,8 @@ class NurbsSolid final : public SolidSolver {
   const std::vector<Vec3>& load_densities() const { return load_density_; }
 
   int n_points() const { return static_cast<int>(reference_points_.size()); }
+  /// Step 3's solver (whether it goes direction by direction, or why not).
+  const CollocationSolver& collocation_solver() const { return *collocation_solver_; }
   const std::vector<Vec3>& reference_points() const { return reference_points_; }
   const geometry::Patch& reference() const { return reference_; }
 

@@ -372,8 +372,9 @@ TEST(MirrorAsymmetry, TellsAnAlignedEllipseAnInclinedOneAndAParachuteApart) {
 TEST(BodyTracker, RecordsSharedAmongRanksAreTheWholeBodysRecords) {
   // Two "ranks" in one process: each integrates its half of the elements and samples half the stretch points;
   // `sum` adds the other half's partial integrals and `max` takes the larger stretch, both taken in a first
-  // pass where the two only keep them. The records then equal one tracker's that
-  // integrates everything, to the round-off of the sums' order (1e-12 relative; the angles absolutely).
+  // pass where the two only keep them. The records then equal one tracker's that integrates everything, to
+  // the round-off of the sums' order: 1e-12 relative for values above 1, absolutely below (r_A, r_P, the
+  // anisotropy and the angles are of order 1e-2 to 1).
   for (bool membrane : {true, false}) {
     const Patch p = membrane
                         ? geometry::hollow_ellipsoid(3e-4, 2e-4, 2e-4, 5e-7, 6, 12, 2, Vec3(1e-3, 6e-4, 6e-4))
