@@ -41,7 +41,8 @@ using Metric = std::pair<std::string, double>;
 
 /// How a tracker's work is shared among ranks: each rank integrates its share of every patch's elements and
 /// samples its share of the stretch points; `sum` adds a short array over the ranks in place and `max` takes
-/// the largest (MPI_Allreduce), so that every rank records the same sample. The default: one rank does all.
+/// the largest (apps/scene.cpp: on rank 0, then broadcast), so that every rank records the same sample. The
+/// default: one rank does all.
 struct MetricShare {
   geometry::ElementShare elements;
   std::function<void(double* values, int n)> sum;
