@@ -14,7 +14,8 @@ namespace cellfsi::coupling {
 struct CouplingEvents {
   PetscLogEvent solid = register_log_event("cellfsi coupling", "FsiSolidUpdate");
   PetscLogEvent locate = register_log_event("cellfsi coupling", "FsiLocate");
-  // Inside FsiLocate's immersed update: the bodies' quadrature data (stress, tangent) and the repulsion.
+  // Inside FsiLocate's immersed update: the bodies' quadrature points located and their data (stress,
+  // tangent: this rank's points only), and the repulsion.
   PetscLogEvent quadrature = register_log_event("cellfsi coupling", "FsiQuadrature");
   PetscLogEvent repulsion = register_log_event("cellfsi coupling", "FsiRepulsion");
   PetscLogEvent residual = register_log_event("cellfsi coupling", "FsiResidual");

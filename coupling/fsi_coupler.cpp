@@ -34,6 +34,7 @@ FsiCoupler::FsiCoupler(fluid::ImmersedFluid& fluid, std::vector<solid::SolidSolv
   }
   collocation_loc_.resize(bodies_.size());
   quadrature_loc_.resize(bodies_.size());
+  quadrature_owned_.resize(bodies_.size());
   CELLFSI_PETSC(VecDuplicate(fluid.solution(), &X_));
   CELLFSI_PETSC(VecDuplicate(X_, &dX_));
   CELLFSI_PETSC(VecDuplicate(X_, &F_));
@@ -90,17 +91,22 @@ void FsiCoupler::update_immersed(bool first_iteration) {
   std::vector<Linearized> linearized;
   std::vector<int> q_begin, q_unknown;
   std::vector<double> q_grad;
-  // Every body's points first, located: the repulsion between them needs them all.
+  // Every body's points first, located: the repulsion between them needs them all. The material (stress,
+  // tangent) is evaluated only at the points of this rank's fluid elements, the rest carry their positions.
   std::vector<std::vector<solid::QuadratureData>>& all_q = scratch_q_;
   all_q.resize(bodies_.size());
   for (size_t b = 0; b < bodies_.size(); ++b) {
-    {
-      EventScope ev(coupling_events().quadrature);
-      all_q[b] = bodies_[b]->quadrature_data(rho1, with_tangent);
-    }
+    EventScope ev(coupling_events().quadrature);
     auto& warm = quadrature_loc_[b];
+    std::vector<char>& own = quadrature_owned_[b];
+    all_q[b] = bodies_[b]->quadrature_data(rho1, with_tangent, [&](std::size_t i, const geometry::Vec3& x) {
+      if (i >= warm.size()) warm.resize(i + 1), own.resize(i + 1);
+      warm[i] = locator_.locate_or_throw(x, &warm[i]);
+      own[i] = fluid_.owns_element(warm[i].element);
+      return own[i] != 0;
+    });
     warm.resize(all_q[b].size());
-    for (size_t i = 0; i < all_q[b].size(); ++i) warm[i] = locator_.locate_or_throw(all_q[b][i].x, &warm[i]);
+    own.resize(all_q[b].size());
   }
   const std::vector<std::vector<geometry::Vec3>>* contact = nullptr;
   {
@@ -109,9 +115,11 @@ void FsiCoupler::update_immersed(bool first_iteration) {
   }
   for (size_t b = 0; b < bodies_.size(); ++b) {
     const std::vector<solid::QuadratureData>& q = all_q[b];
+    const std::vector<char>& own = quadrature_owned_[b];
+    const auto n_own = static_cast<size_t>(std::count(own.begin(), own.end(), 1));
     const bool linear = collocation && bodies_[b]->n_control() > 0 &&
-                        bodies_[b]->basis_gradients(q_begin, q_unknown, q_grad) &&
-                        q_begin.size() == q.size() + 1;
+                        bodies_[b]->basis_gradients(q_begin, q_unknown, q_grad, &own) &&
+                        q_begin.size() == n_own + 1;
     const int offset = lin.n_columns;
     if (linear) {
       const std::vector<geometry::Vec3> pts = bodies_[b]->collocation_points();
@@ -126,8 +134,9 @@ void FsiCoupler::update_immersed(bool first_iteration) {
       lin.n_columns += 3 * bodies_[b]->n_control();
     }
     const auto& warm = quadrature_loc_[b];
-    for (size_t i = 0; i < q.size(); ++i) {
-      if (!fluid_.owns_element(warm[i].element)) continue;  // another rank's: it keeps its own points
+    for (size_t i = 0, o = 0; i < q.size(); ++i) {
+      if (!own[i]) continue;     // another rank's: it keeps its own points
+      const size_t k_own = o++;  // the point's place among this rank's (basis_gradients' list)
       elements.push_back(warm[i].element);
       xi.push_back(warm[i].xi);
       fluid::ImmersedPoint ip;
@@ -142,7 +151,7 @@ void FsiCoupler::update_immersed(bool first_iteration) {
       }
       if (linear) {
         ip.solid_begin = static_cast<int>(lin.column.size());
-        for (int k = q_begin[i]; k < q_begin[i + 1]; ++k) {
+        for (int k = q_begin[k_own]; k < q_begin[k_own + 1]; ++k) {
           lin.column.push_back(offset + 3 * q_unknown[k]);
           lin.grad.insert(lin.grad.end(), q_grad.begin() + 3 * k, q_grad.begin() + 3 * k + 3);
         }

@@ -141,6 +141,7 @@ class FsiCoupler {
   CouplerOptions opt_;
   Locator locator_;
   std::vector<std::vector<Location>> collocation_loc_, quadrature_loc_;  // warm starts, per body
+  std::vector<std::vector<char>> quadrature_owned_;  // per body and point: in this rank's fluid elements
   // update_immersed's buffers of this rank's points (kept between calls).
   std::vector<geometry::Index3> scratch_elements_;
   std::vector<geometry::Param> scratch_xi_;

@@ -95,6 +95,7 @@ class RemoteSolid final : public solid::SolidSolver {
   void begin_step(const solid::TimeParameters& time) override;
   std::vector<solid::Vec3> collocation_points() const override;
   double kinematic_update(const std::vector<solid::VelocitySample>& samples) override;
+  using solid::SolidSolver::quadrature_data;  // (the selective one: every point, computed remotely)
   std::vector<solid::QuadratureData> quadrature_data(double fluid_density, bool with_tangent) const override;
   std::vector<solid::Vec3> interface_points() const override;
   void end_step() override;

@@ -25,6 +25,15 @@ Mat3 deformation_block(const Mat3& F, int d, double& J) {
   return Fd;
 }
 
+}  // namespace
+
+void Material::check_deformation(const Mat3& F, int dim) {
+  double J = 0;
+  deformation_block(F, dim, J);
+}
+
+namespace {
+
 /// The d x d block of a padded 3 x 3 tensor, zero elsewhere.
 Mat3 leading_block(const Mat3& m, int d) {
   Mat3 out = Mat3::Zero();

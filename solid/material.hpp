@@ -39,6 +39,9 @@ class Material {
   /// Kirchhoff stress F S F^T and the spatial tangent are the same in any reference frame, so the result
   /// needs no turning back. The isotropic laws do not depend on the frame and are given F as it is.
   virtual bool membrane_surface_law() const { return false; }
+  /// The refusal every law makes before it evaluates (an inverted element: det of F's dim x dim block not
+  /// > 0, NaN included), alone: for a point whose stress is not needed on this rank.
+  static void check_deformation(const Mat3& F, int dim);
 };
 
 /// The Kirchhoff stress tau = F S F^T of a material.

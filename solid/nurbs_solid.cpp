@@ -260,25 +260,34 @@ bool NurbsSolid::control_increment(const std::vector<Vec3>& dv, Eigen::MatrixXd&
 }
 
 bool NurbsSolid::basis_gradients(std::vector<int>& begin, std::vector<int>& unknown,
-                                 std::vector<double>& grad) const {
+                                 std::vector<double>& grad, const std::vector<char>* wanted) const {
   const int n_q = static_cast<int>(q_X_.size());
-  begin.assign(q_begin_.begin(), q_begin_.end());
-  unknown.assign(q_unknown_.begin(), q_unknown_.end());
-  grad.assign(3 * q_unknown_.size(), 0.0);
+  if (wanted && wanted->size() != q_X_.size())
+    throw std::invalid_argument("basis_gradients: " + std::to_string(wanted->size()) + " flags for " +
+                                std::to_string(n_q) + " points");
+  begin.assign(1, 0);
+  unknown.clear();
+  grad.clear();
   int q = 0;
   // d N / d x = F^{-T} d N / d X at the configuration quadrature_data() describes.
   for_each_quadrature_point(displacement_control_alpha(), [&](const Vec3&, const Mat3& F, double) {
+    if (wanted && !(*wanted)[q]) {
+      ++q;
+      return;
+    }
     Mat3 Fd = Mat3::Identity();
     Fd.topLeftCorner(dim_, dim_) = F.topLeftCorner(dim_, dim_);
     const Mat3 Finv = Fd.inverse();
     for (int k = q_begin_[q]; k < q_begin_[q + 1]; ++k) {
       const double* dN = q_dN_.data() + static_cast<std::size_t>(k) * dim_;
-      for (int l = 0; l < dim_; ++l) {
+      unknown.push_back(q_unknown_[k]);
+      for (int l = 0; l < 3; ++l) {
         double g = 0;
-        for (int a = 0; a < dim_; ++a) g += dN[a] * Finv(a, l);
-        grad[3 * static_cast<std::size_t>(k) + l] = g;
+        for (int a = 0; a < dim_ && l < dim_; ++a) g += dN[a] * Finv(a, l);
+        grad.push_back(g);
       }
     }
+    begin.push_back(static_cast<int>(unknown.size()));
     ++q;
   });
   return q == n_q;
@@ -391,6 +400,12 @@ void NurbsSolid::set_loads(const std::vector<PatchLoad>& loads, double ramp) {
 }
 
 std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density, bool with_tangent) const {
+  return quadrature_data(fluid_density, with_tangent, [](std::size_t, const Vec3&) { return true; });
+}
+
+std::vector<QuadratureData> NurbsSolid::quadrature_data(
+    double fluid_density, bool with_tangent,
+    const std::function<bool(std::size_t, const Vec3&)>& wanted) const {
   if (!(fluid_density > 0)) throw std::invalid_argument("quadrature_data: fluid density must be > 0");
   const double beta = 1.0 - density_ / fluid_density;
   std::vector<QuadratureData> out;
@@ -400,11 +415,19 @@ std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density, bo
         QuadratureData d;
         d.x = x;
         d.weight = weight;
-        // A membrane surface law takes F in the membrane's frame; tau and c come out the same (Material).
-        const Mat3 F = q_frame_.empty() ? F_global : Mat3(F_global * q_frame_[out.size()]);
-        d.stress = F * material_->second_piola(F, dim_) * F.transpose() / fluid_density;
         d.beta = beta;
         d.shear_modulus = material_->tangent_shear_modulus();
+        if (membrane_) d.area = q_area_[out.size()];
+        // A membrane surface law takes F in the membrane's frame; tau and c come out the same (Material).
+        const Mat3 F = q_frame_.empty() ? F_global : Mat3(F_global * q_frame_[out.size()]);
+        if (!wanted(out.size(), x)) {
+          // Another rank's point: only the laws' own refusal of an inverted element, so that every rank
+          // refuses the same configuration.
+          Material::check_deformation(F, dim_);
+          out.push_back(d);
+          return;
+        }
+        d.stress = F * material_->second_piola(F, dim_) * F.transpose() / fluid_density;
         if (with_tangent) {
           d.has_tangent = true;
           const Voigt6 c = material_->spatial_tangent(F, dim_);
@@ -412,7 +435,6 @@ std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density, bo
             for (int k = r; k < 6; ++k, ++t) d.tangent[t] = c(r, k) / fluid_density;
         }
         if (!load_density_.empty()) d.force = load_factor() * load_density_[out.size()] / fluid_density;
-        if (membrane_) d.area = q_area_[out.size()];
         out.push_back(d);
       });
   return out;

@@ -36,11 +36,14 @@ class NurbsSolid final : public SolidSolver {
   std::vector<Vec3> collocation_points() const override;
   double kinematic_update(const std::vector<VelocitySample>& samples) override;
   std::vector<QuadratureData> quadrature_data(double fluid_density, bool with_tangent) const override;
+  std::vector<QuadratureData> quadrature_data(
+      double fluid_density, bool with_tangent,
+      const std::function<bool(std::size_t, const Vec3&)>& wanted) const override;
   std::vector<Vec3> interface_points() const override;
   bool control_increment(const std::vector<Vec3>& dv, Eigen::MatrixXd& dc) const override;
   int n_control() const override { return n_reduced_; }
-  bool basis_gradients(std::vector<int>& begin, std::vector<int>& unknown,
-                       std::vector<double>& grad) const override;
+  bool basis_gradients(std::vector<int>& begin, std::vector<int>& unknown, std::vector<double>& grad,
+                       const std::vector<char>* wanted = nullptr) const override;
   void end_step() override;
 
   /// Sets the displacement rate at the collocation points (e.g. the fluid velocity there at t = 0, so the

@@ -8,6 +8,8 @@
 //   kinematic_update() (steps 1-3) -> quadrature_data(), interface_points() -> [fluid assembles and solves] }
 //   -> end_step().
 #include <array>
+#include <cstddef>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -74,6 +76,19 @@ class SolidSolver {
   /// the spatial tangent (QuadratureData::has_tangent and tangent), which only an assembly of the coupling's
   /// Jacobian reads; the coupler asks for it at the iterations that may assemble one (a step's first).
   virtual std::vector<QuadratureData> quadrature_data(double fluid_density, bool with_tangent) const = 0;
+  /// quadrature_data() with the material only where it is wanted: `wanted(q, x)` is called once per point,
+  /// in order, with its index and current position (the coupler locates the point there and answers whether
+  /// this fluid rank owns it). A wanted point gets everything; the others carry x, weight, beta and area
+  /// alone (stress, tangent and load zero, has_tangent false). Every point is still checked for an inverted
+  /// element, so that every rank that asks refuses the same configuration. The default computes every point
+  /// in full (a solver that cannot skip one, e.g. a remote body).
+  virtual std::vector<QuadratureData> quadrature_data(
+      double fluid_density, bool with_tangent,
+      const std::function<bool(std::size_t, const Vec3&)>& wanted) const {
+    std::vector<QuadratureData> q = quadrature_data(fluid_density, with_tangent);
+    for (std::size_t i = 0; i < q.size(); ++i) wanted(i, q[i].x);
+    return q;
+  }
   /// The linearised steps 2-3, for a coupled Jacobian that follows the body's own interpolation
   /// (-coupling_solid_tangent collocation): the displacement control at t_{n+alpha_f} changes by dc
   /// (n_control() rows, one per control unknown, dim() columns) when the velocity at the collocation points
@@ -87,10 +102,12 @@ class SolidSolver {
   virtual int n_control() const { return 0; }
   /// Each quadrature point's functions, in quadrature_data()'s order, at t_{n+alpha_f}: point q's are
   /// [begin[q], begin[q + 1]) of `unknown` (the control unknown, a row of control_increment's dc) and `grad`
-  /// (3 values each: the spatial gradient d N / d x, zero beyond dim()). False: not available.
-  virtual bool basis_gradients(std::vector<int>& begin, std::vector<int>& unknown,
-                               std::vector<double>& grad) const {
-    (void)begin, (void)unknown, (void)grad;
+  /// (3 values each: the spatial gradient d N / d x, zero beyond dim()). `wanted` (if not null, one flag per
+  /// point): only the flagged points are listed, in order (begin then has one entry per flagged point, and
+  /// one more). False: not available.
+  virtual bool basis_gradients(std::vector<int>& begin, std::vector<int>& unknown, std::vector<double>& grad,
+                               const std::vector<char>* wanted = nullptr) const {
+    (void)begin, (void)unknown, (void)grad, (void)wanted;
     return false;
   }
   /// Points on the fluid-solid interface (both faces of a membrane, the boundary of a bulky body) at

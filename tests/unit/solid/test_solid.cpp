@@ -3,6 +3,7 @@
 // test_materials.cpp.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -235,7 +236,7 @@ TEST(NurbsSolid, BasisGradientsReproduceTheCurrentPosition) {
   EXPECT_LT(err_sum, 1e-9 * scale);
 }
 
-TEST(NurbsSolid, AnInvertedElementIsReportedWithItsBodyElementAndStretches) {
+TEST(NurbsSolid, AnInvertedElementIsReportedWithItsBodyElementAndStretchesOnEveryRank) {
   // v = L (x - c) with L = diag(-a, 0) squeezes the body in x: F = diag(f, 1) everywhere, f falling each step
   // (the implicit update slows it, so f < 0 takes a few steps). The error names the body, the element and the
   // stretch along each reference direction: at element (0, 0) (next to the ellipse's end on the x axis) the
@@ -246,7 +247,7 @@ TEST(NurbsSolid, AnInvertedElementIsReportedWithItsBodyElementAndStretches) {
   const solid::TimeParameters t = solid::TimeParameters::from_rho_inf(0.5, 5e-4);
   Mat3 L = Mat3::Zero();
   L(0, 0) = -8000;
-  std::string m;
+  std::string m, none;
   for (int step = 0; step < 10 && m.empty(); ++step) {
     s.begin_step(t);
     std::vector<solid::VelocitySample> vs(s.n_points());
@@ -258,9 +259,18 @@ TEST(NurbsSolid, AnInvertedElementIsReportedWithItsBodyElementAndStretches) {
     } catch (const std::runtime_error& err) {
       m = err.what();
     }
+    // Every fluid rank asks, each wanting its own points (coupling::FsiCoupler): the ranks that own none of
+    // the inverted element's points must refuse it too, or they would go on alone into the next collective
+    // call.
+    try {
+      s.quadrature_data(1.025, false, [](std::size_t, const Vec3&) { return false; });
+    } catch (const std::runtime_error& err) {
+      none = err.what();
+    }
     s.end_step();
   }
   ASSERT_FALSE(m.empty()) << "no inverted element was reported";
+  EXPECT_EQ(none, m);
   double det = 0, through = 0, around = 0;
   ASSERT_EQ(std::sscanf(m.c_str(), "inverted solid element: det F = %lf", &det), 1) << m;
   EXPECT_LT(det, 0) << m;
@@ -361,6 +371,65 @@ TEST(NurbsSolid, QuadratureDataOfAHomogeneousDeformationIn3DIsExact) {
     EXPECT_EQ(plain[i].weight, q[i].weight);
   }
   EXPECT_LT(worst_c, 1e-9 * c6.norm() / 1.025);
+}
+
+TEST(NurbsSolid, QuadratureDataAndBasisGradientsOfSomePointsAreThoseOfAll) {
+  // A fluid rank asks for the material only at its own points (coupling::FsiCoupler): the points it wants
+  // get the numbers of the full call to the bit (the same sums in the same order), the others their
+  // position, weight, beta and area alone; basis_gradients lists the wanted points only, in order. A 3D
+  // membrane (the surface frame and areas) moved by a linear velocity field, every third point wanted.
+  const Vec3 c(6e-4, 6e-4, 6e-4);
+  const geometry::Patch m = geometry::hollow_ellipsoid(3e-4, 2e-4, 2e-4, 5e-7, 8, 16, 2, c);
+  solid::NurbsSolid s("membrane", m, membrane_material(), 1.1);
+  Mat3 L;
+  L << 30, 70, 0, -10, 20, 15, 5, 0, -40;
+  step_homogeneously(s, L, c);
+  s.begin_step(solid::TimeParameters::from_rho_inf(0.5, 1e-3));
+  const std::vector<solid::QuadratureData> all = s.quadrature_data(1.025, true);
+  std::vector<char> wanted(all.size(), 0);
+  std::vector<Vec3> seen;
+  const std::vector<solid::QuadratureData> some =
+      s.quadrature_data(1.025, true, [&](std::size_t i, const Vec3& x) {
+        seen.push_back(x);
+        wanted[i] = i % 3 == 0;
+        return wanted[i] != 0;
+      });
+  ASSERT_EQ(some.size(), all.size());
+  ASSERT_EQ(seen.size(), all.size());
+  for (size_t i = 0; i < all.size(); ++i) {
+    EXPECT_EQ(seen[i], all[i].x);
+    EXPECT_EQ(some[i].x, all[i].x);
+    EXPECT_EQ(some[i].weight, all[i].weight);
+    EXPECT_EQ(some[i].area, all[i].area);
+    EXPECT_EQ(some[i].beta, all[i].beta);
+    EXPECT_EQ(some[i].shear_modulus, all[i].shear_modulus);
+    if (wanted[i]) {
+      ASSERT_TRUE(some[i].has_tangent);
+      EXPECT_EQ(some[i].stress, all[i].stress);
+      EXPECT_EQ(some[i].tangent, all[i].tangent);
+    } else {
+      EXPECT_FALSE(some[i].has_tangent);
+      EXPECT_TRUE(some[i].stress.isZero());
+    }
+  }
+  ASSERT_GT(all[0].stress.norm(), 0);  // it is strained: the comparison has numbers to compare
+  std::vector<int> begin, unknown, begin_some, unknown_some;
+  std::vector<double> grad, grad_some;
+  ASSERT_TRUE(s.basis_gradients(begin, unknown, grad));
+  ASSERT_TRUE(s.basis_gradients(begin_some, unknown_some, grad_some, &wanted));
+  ASSERT_EQ(begin_some.size(), static_cast<size_t>(std::count(wanted.begin(), wanted.end(), 1)) + 1);
+  for (size_t i = 0, o = 0; i < all.size(); ++i) {
+    if (!wanted[i]) continue;
+    ASSERT_EQ(begin_some[o + 1] - begin_some[o], begin[i + 1] - begin[i]);
+    for (int k = 0; k < begin[i + 1] - begin[i]; ++k) {
+      EXPECT_EQ(unknown_some[begin_some[o] + k], unknown[begin[i] + k]);
+      for (int l = 0; l < 3; ++l)
+        EXPECT_EQ(grad_some[3 * (begin_some[o] + k) + l], grad[3 * (begin[i] + k) + l]);
+    }
+    ++o;
+  }
+  const std::vector<char> short_flags(3, 1);
+  EXPECT_THROW(s.basis_gradients(begin, unknown, grad, &short_flags), std::invalid_argument);
 }
 
 TEST(NurbsSolid, AMembranesPointAreasSumToItsMidSurfaceAndABulkyBodysAreZero) {
