@@ -29,7 +29,7 @@ WHAT = {
     "LinearSolve": "FGMRES: bulk inverse (FFT of every line on every rank; banded solves divided), points' matrix",
     "Jacobian": "the points' tangent (their owners' points)",
     "Residual": "elements' terms (divided), points' terms (their owners'), state gathered to every rank",
-    "Locate": "every body's quadrature data and every point's location, on every rank",
+    "Locate": "every point located and its x, F formed on every rank (the material at its owner's only), the repulsion",
     "SolidUpdate": "every body's kinematic update, on every rank",
     "Track": "the bodies' metrics of the step (area, volume, moments), on every rank",
     "rest": "end of step, the metrics' row, progress",
