@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <stdexcept>
+#include <string>
 
 #include "common/petsc_error.hpp"
 #include "coupling/coupling_events.hpp"
@@ -99,12 +101,23 @@ void FsiCoupler::update_immersed(bool first_iteration) {
     EventScope ev(coupling_events().quadrature);
     auto& warm = quadrature_loc_[b];
     std::vector<char>& own = quadrature_owned_[b];
+    std::size_t offered = 0,
+                outside = SIZE_MAX;  // (a point outside the domain is refused after the call, so
+                                     // that the body's inverted-element report does not claim it)
     all_q[b] = bodies_[b]->quadrature_data(rho1, with_tangent, [&](std::size_t i, const geometry::Vec3& x) {
-      if (i >= warm.size()) warm.resize(i + 1), own.resize(i + 1);
-      warm[i] = locator_.locate_or_throw(x, &warm[i]);
-      own[i] = fluid_.owns_element(warm[i].element);
+      ++offered;
+      if (i >= warm.size()) warm.resize(i + 1);
+      if (i >= own.size()) own.resize(i + 1);
+      warm[i] = locator_.locate(x, &warm[i]);
+      if (!warm[i].found && outside == SIZE_MAX) outside = i;
+      own[i] = warm[i].found && fluid_.owns_element(warm[i].element);
       return own[i] != 0;
     });
+    if (offered != all_q[b].size())
+      throw std::logic_error("body '" + bodies_[b]->name() + "' offered " + std::to_string(offered) +
+                             " of its " + std::to_string(all_q[b].size()) +
+                             " quadrature points to the coupler");
+    if (outside != SIZE_MAX) locator_.locate_or_throw(all_q[b][outside].x);  // throws, naming the point
     warm.resize(all_q[b].size());
     own.resize(all_q[b].size());
   }
