@@ -377,59 +377,65 @@ TEST(NurbsSolid, QuadratureDataAndBasisGradientsOfSomePointsAreThoseOfAll) {
   // A fluid rank asks for the material only at its own points (coupling::FsiCoupler): the points it wants
   // get the numbers of the full call to the bit (the same sums in the same order), the others their
   // position, weight, beta and area alone; basis_gradients lists the wanted points only, in order. A 3D
-  // membrane (the surface frame and areas) moved by a linear velocity field, every third point wanted.
+  // membrane (its areas; with Skalak's law also its surface frame) moved by a linear velocity field, every
+  // third point wanted.
   const Vec3 c(6e-4, 6e-4, 6e-4);
   const geometry::Patch m = geometry::hollow_ellipsoid(3e-4, 2e-4, 2e-4, 5e-7, 8, 16, 2, c);
-  solid::NurbsSolid s("membrane", m, membrane_material(), 1.1);
-  Mat3 L;
-  L << 30, 70, 0, -10, 20, 15, 5, 0, -40;
-  step_homogeneously(s, L, c);
-  s.begin_step(solid::TimeParameters::from_rho_inf(0.5, 1e-3));
-  const std::vector<solid::QuadratureData> all = s.quadrature_data(1.025, true);
-  std::vector<char> wanted(all.size(), 0);
-  std::vector<Vec3> seen;
-  const std::vector<solid::QuadratureData> some =
-      s.quadrature_data(1.025, true, [&](std::size_t i, const Vec3& x) {
-        seen.push_back(x);
-        wanted[i] = i % 3 == 0;
-        return wanted[i] != 0;
-      });
-  ASSERT_EQ(some.size(), all.size());
-  ASSERT_EQ(seen.size(), all.size());
-  for (size_t i = 0; i < all.size(); ++i) {
-    EXPECT_EQ(seen[i], all[i].x);
-    EXPECT_EQ(some[i].x, all[i].x);
-    EXPECT_EQ(some[i].weight, all[i].weight);
-    EXPECT_EQ(some[i].area, all[i].area);
-    EXPECT_EQ(some[i].beta, all[i].beta);
-    EXPECT_EQ(some[i].shear_modulus, all[i].shear_modulus);
-    if (wanted[i]) {
-      ASSERT_TRUE(some[i].has_tangent);
-      EXPECT_EQ(some[i].stress, all[i].stress);
-      EXPECT_EQ(some[i].tangent, all[i].tangent);
-    } else {
-      EXPECT_FALSE(some[i].has_tangent);
-      EXPECT_TRUE(some[i].stress.isZero());
+  for (const std::shared_ptr<const solid::Material>& law :
+       {membrane_material(),
+        std::shared_ptr<const solid::Material>(std::make_shared<solid::SkalakMembrane>(7500.0, 10.0))}) {
+    SCOPED_TRACE(law->name());
+    solid::NurbsSolid s("membrane", m, law, 1.1);
+    Mat3 L;
+    L << 30, 70, 0, -10, 20, 15, 5, 0, -40;
+    step_homogeneously(s, L, c);
+    s.begin_step(solid::TimeParameters::from_rho_inf(0.5, 1e-3));
+    const std::vector<solid::QuadratureData> all = s.quadrature_data(1.025, true);
+    std::vector<char> wanted(all.size(), 0);
+    std::vector<Vec3> seen;
+    const std::vector<solid::QuadratureData> some =
+        s.quadrature_data(1.025, true, [&](std::size_t i, const Vec3& x) {
+          seen.push_back(x);
+          wanted[i] = i % 3 == 0;
+          return wanted[i] != 0;
+        });
+    ASSERT_EQ(some.size(), all.size());
+    ASSERT_EQ(seen.size(), all.size());
+    for (size_t i = 0; i < all.size(); ++i) {
+      EXPECT_EQ(seen[i], all[i].x);
+      EXPECT_EQ(some[i].x, all[i].x);
+      EXPECT_EQ(some[i].weight, all[i].weight);
+      EXPECT_EQ(some[i].area, all[i].area);
+      EXPECT_EQ(some[i].beta, all[i].beta);
+      EXPECT_EQ(some[i].shear_modulus, all[i].shear_modulus);
+      if (wanted[i]) {
+        ASSERT_TRUE(some[i].has_tangent);
+        EXPECT_EQ(some[i].stress, all[i].stress);
+        EXPECT_EQ(some[i].tangent, all[i].tangent);
+      } else {
+        EXPECT_FALSE(some[i].has_tangent);
+        EXPECT_TRUE(some[i].stress.isZero());
+      }
     }
-  }
-  ASSERT_GT(all[0].stress.norm(), 0);  // it is strained: the comparison has numbers to compare
-  std::vector<int> begin, unknown, begin_some, unknown_some;
-  std::vector<double> grad, grad_some;
-  ASSERT_TRUE(s.basis_gradients(begin, unknown, grad));
-  ASSERT_TRUE(s.basis_gradients(begin_some, unknown_some, grad_some, &wanted));
-  ASSERT_EQ(begin_some.size(), static_cast<size_t>(std::count(wanted.begin(), wanted.end(), 1)) + 1);
-  for (size_t i = 0, o = 0; i < all.size(); ++i) {
-    if (!wanted[i]) continue;
-    ASSERT_EQ(begin_some[o + 1] - begin_some[o], begin[i + 1] - begin[i]);
-    for (int k = 0; k < begin[i + 1] - begin[i]; ++k) {
-      EXPECT_EQ(unknown_some[begin_some[o] + k], unknown[begin[i] + k]);
-      for (int l = 0; l < 3; ++l)
-        EXPECT_EQ(grad_some[3 * (begin_some[o] + k) + l], grad[3 * (begin[i] + k) + l]);
+    ASSERT_GT(all[0].stress.norm(), 0);  // it is strained: the comparison has numbers to compare
+    std::vector<int> begin, unknown, begin_some, unknown_some;
+    std::vector<double> grad, grad_some;
+    ASSERT_TRUE(s.basis_gradients(begin, unknown, grad));
+    ASSERT_TRUE(s.basis_gradients(begin_some, unknown_some, grad_some, &wanted));
+    ASSERT_EQ(begin_some.size(), static_cast<size_t>(std::count(wanted.begin(), wanted.end(), 1)) + 1);
+    for (size_t i = 0, o = 0; i < all.size(); ++i) {
+      if (!wanted[i]) continue;
+      ASSERT_EQ(begin_some[o + 1] - begin_some[o], begin[i + 1] - begin[i]);
+      for (int k = 0; k < begin[i + 1] - begin[i]; ++k) {
+        EXPECT_EQ(unknown_some[begin_some[o] + k], unknown[begin[i] + k]);
+        for (int l = 0; l < 3; ++l)
+          EXPECT_EQ(grad_some[3 * (begin_some[o] + k) + l], grad[3 * (begin[i] + k) + l]);
+      }
+      ++o;
     }
-    ++o;
+    const std::vector<char> short_flags(3, 1);
+    EXPECT_THROW(s.basis_gradients(begin, unknown, grad, &short_flags), std::invalid_argument);
   }
-  const std::vector<char> short_flags(3, 1);
-  EXPECT_THROW(s.basis_gradients(begin, unknown, grad, &short_flags), std::invalid_argument);
 }
 
 TEST(NurbsSolid, AMembranesPointAreasSumToItsMidSurfaceAndABulkyBodysAreZero) {
