@@ -265,9 +265,18 @@ bool NurbsSolid::basis_gradients(std::vector<int>& begin, std::vector<int>& unkn
   if (wanted && wanted->size() != q_X_.size())
     throw std::invalid_argument("basis_gradients: " + std::to_string(wanted->size()) + " flags for " +
                                 std::to_string(n_q) + " points");
+  std::size_t n_listed = q_unknown_.size();  // (reserved at once: this runs at every refresh of the Jacobian)
+  if (wanted) {
+    n_listed = 0;
+    for (int p = 0; p < n_q; ++p)
+      if ((*wanted)[p]) n_listed += static_cast<std::size_t>(q_begin_[p + 1] - q_begin_[p]);
+  }
   begin.assign(1, 0);
+  begin.reserve(static_cast<std::size_t>(n_q) + 1);
   unknown.clear();
+  unknown.reserve(n_listed);
   grad.clear();
+  grad.reserve(3 * n_listed);
   int q = 0;
   // d N / d x = F^{-T} d N / d X at the configuration quadrature_data() describes.
   for_each_quadrature_point(displacement_control_alpha(), [&](const Vec3&, const Mat3& F, double) {
