@@ -85,7 +85,10 @@ void FsiCoupler::update_immersed(bool first_iteration) {
   // functions' gradients gets 3 columns per control unknown, from `offset`.
   const bool collocation =
       with_tangent && opt_.solid_tangent == SolidTangent::collocation && !linearization_refused_;
-  fluid::SolidLinearization lin;
+  fluid::SolidLinearization& lin = scratch_lin_;  // (the buffers the fluid gave back)
+  lin.n_columns = 0;
+  lin.control = nullptr;
+  lin.elements.clear(), lin.xi.clear(), lin.column.clear(), lin.grad.clear();
   struct Linearized {
     solid::SolidSolver* body;
     int offset, n_control, first_point, n_points;
@@ -195,7 +198,7 @@ void FsiCoupler::update_immersed(bool first_iteration) {
       }
     };
     // (A fluid that does not take it says so once; its points keep their consistent tangent.)
-    linearization_refused_ = !fluid_.set_solid_linearization(std::move(lin));
+    linearization_refused_ = !fluid_.set_solid_linearization(lin);
   }
   fluid_.set_immersed_points(elements, xi, data);
   if (!first_iteration) return;

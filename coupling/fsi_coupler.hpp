@@ -147,6 +147,7 @@ class FsiCoupler {
   std::vector<geometry::Param> scratch_xi_;
   std::vector<fluid::ImmersedPoint> scratch_data_;
   std::vector<std::vector<solid::QuadratureData>> scratch_q_;
+  fluid::SolidLinearization scratch_lin_;  // (given to the fluid, which gives its old one back)
   std::unique_ptr<Repulsion> repulsion_;
   bool repulsion_checked_ = false;  // repulsion_ built, or found not to apply
   std::vector<std::vector<geometry::Vec3>> contact_x_, contact_force_;

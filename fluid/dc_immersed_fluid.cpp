@@ -386,9 +386,9 @@ std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X
   return inv;
 }
 
-bool DcImmersedFluid::set_solid_linearization(SolidLinearization lin) {
+bool DcImmersedFluid::set_solid_linearization(SolidLinearization& lin) {
   if (!has_bulk_inverse()) return false;  // (only the stencil operator applies it)
-  solid_ = std::move(lin);
+  std::swap(solid_, lin);                 // (lin: the old buffers, for the caller's next one)
   solid_given_ = true;
   return true;
 }

@@ -67,7 +67,7 @@ class DcImmersedFluid final : public ImmersedFluid {
   bool owns_element(const geometry::Index3& e) const override;
   void set_immersed_points(const std::vector<geometry::Index3>& elements, const std::vector<geometry::Param>& xi,
                            const std::vector<ImmersedPoint>& data) override;
-  bool set_solid_linearization(SolidLinearization lin) override;
+  bool set_solid_linearization(SolidLinearization& lin) override;
   void set_scaling(const std::function<double(int node)>&) override {}  // no s^h on this space
   void set_viscosity(const std::function<double(int node)>& mu) override;
   void begin_step(Vec X) override;

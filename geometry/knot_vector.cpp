@@ -95,9 +95,15 @@ double KnotVector::normalize(double u) const {
 
 int KnotVector::find_element(double u) const {
   u = normalize(u);
-  // Largest element whose begin is <= u.
+  // Largest element whose begin is <= u. First the element of equal elements (the usual mesh; the point
+  // location asks at every immersed point), checked; then a binary search.
   int lo = 0, hi = n_elements() - 1;
   if (u >= element_begin(hi)) return hi;
+  const double r = (u - a()) / (b() - a()) * n_elements();
+  if (r >= 0 && r < hi) {  // (false for a NaN)
+    const int guess = static_cast<int>(r);
+    if (element_begin(guess) <= u && u < element_begin(guess + 1)) return guess;
+  }
   while (hi - lo > 1) {
     const int mid = (lo + hi) / 2;
     if (element_begin(mid) <= u)

@@ -47,6 +47,34 @@ DivConformingSpace::DivConformingSpace(int dim, int k, const Index3& n_elements,
     offset_[c] = off;
     off += n_basis(c);
   }
+  // univariate()'s tables: each element's functions expanded about its midpoint (Taylor: all p derivatives
+  // there, the polynomials' own coefficients).
+  for (int d = 0; d < dim_; ++d) {
+    const int n_e = high_[d].n_elements();
+    mid_[d].resize(n_e), inv_h_[d].resize(n_e);
+    for (int e = 0; e < n_e; ++e) {
+      const double a = high_[d].element_begin(e), b = high_[d].element_end(e);
+      mid_[d][e] = 0.5 * (a + b), inv_h_[d][e] = 1.0 / (b - a);
+    }
+    for (int s = 0; s < 2; ++s) {
+      const KnotVector& kv = s ? high_[d] : low_[d];
+      const int p = kv.degree(), n = p + 1;
+      require(kv.n_elements() == n_e, "the two spaces' elements differ along direction " + std::to_string(d));
+      std::vector<double>& poly = poly_[s][d];
+      poly.resize(static_cast<size_t>(n_e) * n * n);
+      double ders[(geometry::kMaxDegree + 1) * (geometry::kMaxDegree + 1)];
+      for (int e = 0; e < n_e; ++e) {
+        geometry::bspline_basis(kv, kv.element_span(e), mid_[d][e], p, ders);
+        for (int j = 0; j < n; ++j) {
+          double scale = 1.0;  // h^m / m!
+          for (int m = 0; m < n; ++m) {
+            poly[(static_cast<size_t>(e) * n + j) * n + m] = ders[m * n + j] * scale;
+            scale /= (m + 1) * inv_h_[d][e];
+          }
+        }
+      }
+    }
+  }
 }
 
 DivConformingSpace DivConformingSpace::from_patch(const geometry::Patch& patch, int k) {
@@ -197,12 +225,12 @@ void DivConformingSpace::evaluate(const Index3& e, const TensorRule& rule, Eleme
       const int p = kv.degree(), span = kv.element_span(e[d]);
       first[s][d] = span - p;
       uni[s][d].resize(nq[d] * (p + 1) * 2);
-      double ders[2 * kMax];
+      double value[kMax], deriv[kMax];
       for (int q = 0; q < nq[d]; ++q) {
-        geometry::bspline_basis(kv, span, rule.points[d][q], 1, ders);
+        univariate(s, d, e[d], rule.points[d][q], value, deriv);
         for (int j = 0; j <= p; ++j) {
-          uni[s][d][(q * (p + 1) + j) * 2] = ders[j];
-          uni[s][d][(q * (p + 1) + j) * 2 + 1] = ders[(p + 1) + j];
+          uni[s][d][(q * (p + 1) + j) * 2] = value[j];
+          uni[s][d][(q * (p + 1) + j) * 2 + 1] = deriv[j];
         }
       }
     }

@@ -110,6 +110,21 @@ class DivConformingSpace {
   /// The basis of every component at the points of `rule` in element e. with_indices false keeps out's
   /// function indices: the caller's last call was on the same element (the immersed points of one element).
   void evaluate(const Index3& e, const TensorRule& rule, ElementBasis& out, bool with_indices = true) const;
+  /// The p + 1 functions of space s (0: low, 1: high) along direction d < dim() that are nonzero on element e
+  /// of that direction: value[j] and physical derivative deriv[j] at x (a point of the element; beyond it,
+  /// the element's polynomials continued). From each element's power-basis coefficients about its midpoint,
+  /// set once at construction from the Cox-de Boor recursion (geometry::bspline_basis): at a point, Horner's
+  /// rule without divisions. (The recursion at each immersed point was 6 % of a 64^3 coupled step; perf.)
+  void univariate(int s, int d, int e, double x, double* value, double* deriv) const {
+    const int p = k_ + s, n = p + 1;
+    const double* c = &poly_[s][d][static_cast<size_t>(e) * n * n];
+    const double t = (x - mid_[d][e]) * inv_h_[d][e];
+    for (int j = 0; j < n; ++j, c += n) {
+      double v = c[p], dv = 0.0;
+      for (int m = p - 1; m >= 0; --m) dv = dv * t + v, v = v * t + c[m];
+      value[j] = v, deriv[j] = dv * inv_h_[d][e];
+    }
+  }
   /// The fields at the points of eb from a coefficient array over all unknowns: velocity (dim) and its
   /// gradient grad[i][j] = d v_i / d x_j, and pressure.
   struct PointValues {
@@ -133,6 +148,10 @@ class DivConformingSpace {
   std::array<double, 3> lo_{0, 0, 0}, hi_{0, 0, 0};
   std::array<KnotVector, 3> high_, low_;
   std::array<int, 4> offset_{0, 0, 0, 0};
+  // univariate()'s tables: per space and direction, poly_[s][d][(e (p + 1) + j) (p + 1) + m] the coefficient
+  // of t^m of function j on element e, t = (x - mid_[d][e]) inv_h_[d][e] (the spaces share their elements).
+  std::array<std::array<std::vector<double>, 3>, 2> poly_;
+  std::array<std::vector<double>, 3> mid_, inv_h_;
 };
 
 }  // namespace cellfsi::fluid::dc

@@ -179,19 +179,14 @@ void sum_factorized_test(const ComponentFactors& f, int m, const double* r_value
 }
 
 void point_factors(const DivConformingSpace& space, const Index3& e, const Vec3& x, PointFactors& out) {
-  double ders[2 * PointFactors::kMax];
   for (int s = 0; s < 2; ++s)
     for (int d = 0; d < 3; ++d) {
       if (d >= space.dim()) {
         out.n[s][d] = 1, out.value[s][d][0] = 1.0, out.deriv[s][d][0] = 0.0;
         continue;
       }
-      const KnotVector& kv = s ? space.high(d) : space.low(d);
-      const int p = kv.degree();
-      geometry::bspline_basis(kv, kv.element_span(e[d]), x[d], 1,
-                              ders);  // (x in element e, as evaluate's rule)
-      out.n[s][d] = p + 1;
-      for (int j = 0; j <= p; ++j) out.value[s][d][j] = ders[j], out.deriv[s][d][j] = ders[p + 1 + j];
+      out.n[s][d] = space.degree() + s + 1;
+      space.univariate(s, d, e[d], x[d], out.value[s][d], out.deriv[s][d]);  // (x in element e)
     }
 }
 

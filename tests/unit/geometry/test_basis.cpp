@@ -188,6 +188,28 @@ TEST(KnotVector, GrevilleIdentityReproducesTheParameter) {
   }
 }
 
+TEST(KnotVector, FindElementIsTheLargestElementBeginningAtOrBeforeThePoint) {
+  // find_element's guess for equal elements, checked against a scan, on equal and unequal elements, at the
+  // breakpoints themselves, just either side of them, and beyond the ends (clamped; periodic: wrapped).
+  const std::vector<KnotVector> vectors = {KnotVector::open_uniform(2, 64, -1.5e-3, 2.5e-3),
+                                           KnotVector::open(2, {0, 0, 0, 0.1, 0.15, 0.7, 1, 1, 1}),
+                                           KnotVector::periodic_uniform(3, 9, 0.0, 3.0)};
+  for (const KnotVector& kv : vectors) {
+    std::vector<double> us;
+    for (int e = 0; e < kv.n_elements(); ++e)
+      for (double u : {kv.element_begin(e), kv.element_end(e)})
+        for (double f : {-1e-12, 0.0, 1e-12}) us.push_back(u + f * (kv.b() - kv.a()));
+    for (int i = 0; i <= 1000; ++i) us.push_back(kv.a() + (kv.b() - kv.a()) * (1.2 * i / 1000.0 - 0.1));
+    for (double u : us) {
+      const double v = kv.normalize(u);
+      int scan = 0;
+      for (int e = 0; e < kv.n_elements(); ++e)
+        if (kv.element_begin(e) <= v) scan = e;
+      EXPECT_EQ(kv.find_element(u), scan) << "u " << u;
+    }
+  }
+}
+
 TEST(KnotVector, StructureAndInvalidInput) {
   const KnotVector kv = KnotVector::open_uniform(3, 4, 0.0, 1.0);
   EXPECT_EQ(kv.n_basis(), 7);
