@@ -9,6 +9,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/petsc_error.hpp"
+
 namespace cellfsi::coupling {
 
 using geometry::Index3;
@@ -86,6 +88,8 @@ Location Locator::locate_affine(const Vec3& x) const {
   const Vec3 y = primary_image(x);
   Location l;
   double outside2 = 0;  // squared distance to the nearest point of the domain (a box)
+  CELLFSI_PETSC(
+      PetscLogFlops(12.0 * patch_.param_dim()));  // (-log_view's counts: the image, the map's inverse)
   for (int d = 0; d < patch_.param_dim(); ++d) {
     const geometry::KnotVector& kv = patch_.knots(d);
     double u = (y[d] - affine_->offset[d]) / affine_->scale[d];

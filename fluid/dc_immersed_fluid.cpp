@@ -401,10 +401,15 @@ void DcImmersedFluid::build_solid_operator() {
   colloc_index_.clear();
   colloc_value_.clear();
   dc::ElementBasis eb;
+  dc::TensorRule rule;  // (at x as it is: the point's element holds it unwrapped, as in assemble_immersed)
   for (std::size_t i = 0; i < n; ++i) {
     const Vec3 x = physical(solid_.xi[i]);
     const int e = patch_.element_index(solid_.elements[i]);
-    space_->evaluate(space_->element_multi_index(e), space_->point_rule(x), eb);
+    for (int d = 0; d < 3; ++d) {
+      rule.points[d].assign(1, d < D ? x[d] : 0.0);
+      rule.weights[d].assign(1, 1.0);
+    }
+    space_->evaluate(space_->element_multi_index(e), rule, eb);
     for (int c = 0; c < 3; ++c) {
       if (c < D) {
         const dc::ComponentBasis& cb = eb.comp[c];
@@ -417,9 +422,11 @@ void DcImmersedFluid::build_solid_operator() {
     }
   }
   solid_blocks_ = fluid_->solid_blocks(solid_.column, solid_.grad);
-  // (The points' tables are in the blocks now; the product needs the collocation points and control alone.)
-  std::vector<int>().swap(solid_.column);
-  std::vector<double>().swap(solid_.grad);
+  // (The points' tables are in the blocks now; the product needs the collocation points and control alone.
+  // Emptied but kept: set_solid_linearization hands them back to the coupler, which fills them again at the
+  // next refresh without new pages.)
+  solid_.column.clear();
+  solid_.grad.clear();
 }
 
 void DcImmersedFluid::add_solid_product(Vec y) {
@@ -431,6 +438,9 @@ void DcImmersedFluid::add_solid_product(Vec y) {
       v += colloc_value_[k] * x_nat_[colloc_index_[k]];
     dv_[r] = v;
   }
+  // (-log_view's counts: these sums and each block's product; the bodies' collocation solves in control()
+  // are not counted)
+  CELLFSI_PETSC(PetscLogFlops(2.0 * colloc_index_.size()));
   dc_.assign(solid_.n_columns, 0.0);
   solid_.control(dv_, dc_);
   for (const dc::DivConformingFluid::SolidBlock& b : solid_blocks_) {
@@ -443,6 +453,7 @@ void DcImmersedFluid::add_solid_product(Vec y) {
     const double one = 1.0, zero = 0.0;
     const PetscBLASInt inc = 1;
     BLASgemv_("T", &n, &m, &one, b.values.data(), &n, block_x_.data(), &inc, &zero, block_y_.data(), &inc);
+    CELLFSI_PETSC(PetscLogFlops(2.0 * m * n));
     CELLFSI_PETSC(VecSetValues(y, m, b.rows.data(), block_y_.data(), ADD_VALUES));
   }
   CELLFSI_PETSC(VecAssemblyBegin(y));

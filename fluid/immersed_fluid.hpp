@@ -159,7 +159,7 @@ class ImmersedFluid {
   /// points then given to set_immersed_points; returns false if this discretisation does not use it (its
   /// jacobian() then uses each point's consistent tangent). On true it takes lin's contents and leaves in lin
   /// the buffers of the linearization it replaces (contents unspecified), for the caller to clear and fill
-  /// again: at 64^3 they are some 100 MB, and new ones at every refresh were that many page faults.
+  /// again without new pages (per point, a column and three gradients per control function of its element).
   virtual bool set_solid_linearization(SolidLinearization& /*lin*/) { return false; }
   /// The interface scaling field s^h by the patch's control points (natural index -> s; s_I on the functions
   /// the marking chose, 1 elsewhere; paper Sec. 3.3). Applies to owned control points.

@@ -102,6 +102,9 @@ class TangentAccumulator {
       }
     }
     const ComponentBasis& cp = eb.comp[D];
+    // (-log_view's counts: per velocity column D (5 + 4 D + 2 D^2) + 2 D + 1, per pressure column D^2)
+    CELLFSI_PETSC(PetscLogFlops(off_[D] * (D * (5.0 + 4 * D + 2 * D * D) + 2.0 * D + 1) +
+                                (velocity_only_ ? 0.0 : n_[D] * D * D)));
     if (!velocity_only_)
       for (int a = 0; a < n_[D]; ++a)
         Wq_[static_cast<size_t>(p) * n_[D] + a] = w * cp.value[static_cast<size_t>(q) * n_[D] + a];
@@ -163,6 +166,7 @@ class TangentAccumulator {
       const double* W = c < dim_ ? W_[c].data() : Wq_.data();
       BLASgemm_("N", "T", &m, &n, &k, &alpha, X, &m, W, &n, &beta, K + static_cast<size_t>(off_[c]) * n_loc_,
                 &m);
+      CELLFSI_PETSC(PetscLogFlops(2.0 * m * n * k));
     }
     points_ = 0;
   }
@@ -761,6 +765,7 @@ struct BlockPointFields {
 /// run-time loops over the components it was half of the residual's time; perf).
 template <int D>
 void block_point_residual(const BlockPointFields& f) {
+  CELLFSI_PETSC(PetscLogFlops(f.nq * f.m * (D * (6.0 * D + 5) + 1)));
   for (int q = 0; q < f.nq; ++q) {
     const double w = f.weight[q];
     const size_t k0 = static_cast<size_t>(q) * f.m;
@@ -1142,6 +1147,8 @@ std::vector<DivConformingFluid::SolidBlock> DivConformingFluid::solid_blocks(
         prod.resize(static_cast<size_t>(m) * n);
         BLASgemm_("N", "N", &m, &n, &kk, &one, left[i].data(), &m, right[i].data(), &kk, &zero, prod.data(),
                   &m);
+        // (-log_view's counts: the product, and the right operand: D n_c sums of D terms per point and row j)
+        CELLFSI_PETSC(PetscLogFlops(2.0 * m * n * kk + 2.0 * P * D * D * n_c));
         for (int k = 0; k < D; ++k)
           for (int r = 0; r < n_e; ++r) {
             const int col = where[column[head.solid_begin + r] + k];

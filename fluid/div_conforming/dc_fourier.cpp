@@ -332,6 +332,7 @@ struct PairProduct {
 template <int W>
 void multiply_pairs(const PairProduct& p, int width, double* y) {
   const int wx = W > 0 ? W : width;
+  double terms = 0;  // (-log_view's counts: the multiply-adds, nx per tap of a run)
   for (std::size_t g = 0; g < p.n_pairs; ++g) {
     const double* wg = p.taps + g * static_cast<std::size_t>(p.wz) * wx;
     const double* xc = p.padded + static_cast<std::size_t>(p.cols[g]) * p.padded_line;
@@ -349,6 +350,7 @@ void multiply_pairs(const PairProduct& p, int width, double* y) {
             zero = zero && wl[t] == 0.0;
           }
           if (zero) continue;  // (3D: the corners of the z x x block)
+          terms += W;
           for (int i = 0; i < p.nx; ++i) {
             double acc = 0;
             for (int t = 0; t < W; ++t) acc += wl[t] * xl[i + t];
@@ -356,12 +358,15 @@ void multiply_pairs(const PairProduct& p, int width, double* y) {
           }
         } else {
           for (int t = 0; t < wx; ++t)
-            if (w[t] != 0.0)
+            if (w[t] != 0.0) {
+              terms += 1;
               for (int i = 0; i < p.nx; ++i) yr[i] += w[t] * xl[i + t];
+            }
         }
       }
     }
   }
+  CELLFSI_PETSC(PetscLogFlops(2.0 * terms * p.nx));
 }
 
 }  // namespace
@@ -438,6 +443,10 @@ void DcFourierSolver::transform(const std::vector<double>& b, std::vector<double
   auto plan = [&](int line) -> const Plans& { return *plans_[line_component_[line]]; };
   for (int l = 0; l < n_line_; ++l)  // FFTW's r2c leaves its input as it is (out of place)
     fftw_execute_dft_r2c(plan(l).forward, const_cast<double*>(&b[line_first_[l]]), half(l));
+  // (-log_view's counts: a real transform of N points as 2.5 N log2 N operations, FFTW's own estimate; both
+  // ways, and the inverse's scaling)
+  const double n_points = static_cast<double>(nx_) * nz_;
+  CELLFSI_PETSC(PetscLogFlops(n_line_ * (5.0 * n_points * std::log2(n_points) + n_points)));
   // 2. This rank's wave vectors, each result in place of its right-hand side.
   std::vector<Complex> rhs(n_line_);
   for (size_t k = 0; k < modes_.size(); ++k) {
@@ -488,6 +497,8 @@ void DcFourierSolver::banded_substitution(const Complex* ab, const PetscBLASInt*
   // above, kl + ku superdiagonals.
   const int n = n_line_, d = kl_ + ku_;
   double* r = reinterpret_cast<double*>(rhs);  // std::complex<double> is an array of two doubles
+  // (-log_view's counts: 8 per complex multiply-add of the band, 6 per diagonal; the zero skips not counted)
+  CELLFSI_PETSC(PetscLogFlops(n * (8.0 * (kl_ + d) + 6.0)));
   const double* a = reinterpret_cast<const double*>(ab);
   // L: forward elimination with the interchanges.
   for (int j = 0; j + 1 < n; ++j) {

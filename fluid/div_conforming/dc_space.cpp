@@ -3,6 +3,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "geometry/basis.hpp"
 #include "geometry/quadrature.hpp"
@@ -102,6 +103,30 @@ DivConformingSpace DivConformingSpace::from_patch(const geometry::Patch& patch, 
   return DivConformingSpace(dim, k, n, lo, hi, periodic);
 }
 
+DivConformingSpace DivConformingSpace::mapped(std::shared_ptr<const geometry::Patch> patch, int k) {
+  require(patch != nullptr, "mapped: no patch");
+  const int dim = patch->param_dim();
+  require(dim == 2 || dim == 3, "mapped: the patch's parametric dimension must be 2 or 3");
+  require(patch->physical_dim() == dim, "the patch's parametric and physical dimensions must agree");
+  Index3 n{1, 1, 1};
+  Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
+  std::array<bool, 3> periodic{false, false, false};
+  for (int d = 0; d < dim; ++d) {
+    const KnotVector& kv = patch->knots(d);
+    const std::vector<double> breaks = kv.breakpoints();
+    n[d] = kv.n_elements();
+    periodic[d] = kv.periodic();
+    lo[d] = kv.a(), hi[d] = kv.b();
+    const double h = (kv.b() - kv.a()) / n[d];
+    for (int e = 0; e <= n[d]; ++e)
+      require(std::abs(breaks[e] - (kv.a() + e * h)) <= 1e-12 * (kv.b() - kv.a()),
+              "direction " + std::to_string(d) + ": the elements must be uniform in the parameter");
+  }
+  DivConformingSpace space(dim, k, n, lo, hi, periodic);
+  space.map_ = std::move(patch);
+  return space;
+}
+
 Index3 DivConformingSpace::element_multi_index(int e) const {
   const int n0 = n_elements(0), n1 = n_elements(1);
   return {e % n0, (e / n0) % n1, e / (n0 * n1)};
@@ -173,12 +198,14 @@ TensorRule DivConformingSpace::element_rule(const Index3& e, int n_gauss) const 
 }
 
 Index3 DivConformingSpace::find_element(const Vec3& x) const {
+  if (map_) throw std::logic_error("DivConformingSpace::find_element: a mapped space locates by inversion");
   Index3 e{0, 0, 0};
   for (int d = 0; d < dim_; ++d) e[d] = low_[d].find_element(x[d]);
   return e;
 }
 
 TensorRule DivConformingSpace::point_rule(const Vec3& x) const {
+  if (map_) throw std::logic_error("DivConformingSpace::point_rule: a mapped space's rules are parametric");
   TensorRule r;
   for (int d = 0; d < 3; ++d) {
     r.points[d] = {d < dim_ ? low_[d].normalize(x[d]) : 0.0};
@@ -286,6 +313,20 @@ void DivConformingSpace::evaluate(const Index3& e, const TensorRule& rule, Eleme
           }
         }
   }
+  // A mapped space: the physical points, the map there, and the measure J dxi.
+  out.piola.clear();
+  if (!map_) return;
+  out.piola.resize(n_points);
+  thread_local geometry::BasisValues bv;
+  geometry::MapValues mv;
+  for (int q = 0; q < n_points; ++q) {
+    const geometry::Param xi{out.x[q][0], out.x[q][1], out.x[q][2]};
+    map_->basis(xi, 2, bv, &e);  // (the element's span: points on its faces belong to it)
+    map_->map(bv, mv);
+    out.piola[q] = piola_point(mv, dim_);
+    out.x[q] = mv.x;
+    out.weight[q] *= out.piola[q].J;
+  }
 }
 
 namespace {
@@ -311,6 +352,18 @@ DivConformingSpace::PointValues interpolate_fixed(const ElementBasis& eb, int q,
   const ComponentBasis& cp = eb.comp[D];
   const double* value = cp.value.data() + static_cast<size_t>(q) * cp.n;
   for (int a = 0; a < cp.n; ++a) pv.p += coeffs[cp.index[a]] * value[a];
+  if (!eb.piola.empty()) {  // the parametric fields to the physical ones (the pressure is mapped plainly)
+    double v_hat[3], g_hat[3][3], v[3], g[3][3];
+    for (int c = 0; c < 3; ++c) {
+      v_hat[c] = pv.v[c];
+      for (int j = 0; j < 3; ++j) g_hat[c][j] = pv.grad[c][j];
+    }
+    piola_values(eb.piola[q], v_hat, g_hat, v, g);
+    for (int c = 0; c < 3; ++c) {
+      pv.v[c] = v[c];
+      for (int j = 0; j < 3; ++j) pv.grad[c][j] = g[c][j];
+    }
+  }
   return pv;
 }
 
@@ -330,6 +383,13 @@ std::array<double, 3> DivConformingSpace::interpolate_velocity(const ElementBasi
     double s = 0;
     for (int a = 0; a < cb.n; ++a) s += coeffs[cb.index[a]] * value[a];
     v[c] = s;
+  }
+  if (!eb.piola.empty()) {  // v = P v^
+    const PiolaPoint& pt = eb.piola[q];
+    std::array<double, 3> mapped{};
+    for (int i = 0; i < dim; ++i)
+      for (int c = 0; c < dim; ++c) mapped[i] += pt.P(i, c) * v[c];
+    return mapped;
   }
   return v;
 }

@@ -4,6 +4,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "common/petsc_error.hpp"
 #include "geometry/basis.hpp"
 
 namespace cellfsi::fluid::dc {
@@ -94,6 +95,7 @@ static_assert(kMaxTerms >= geometry::kMaxDegree + 2, "a contraction's terms: one
 /// sum_j M[q n + j] in[...].
 void contract(const std::vector<double>& M, int I, int n, int Q, int R, int m, const double* in,
               double* out) {
+  CELLFSI_PETSC(PetscLogFlops(2.0 * R * Q * I * n * m));  // (-log_view's counts: a multiply-add per term)
   const double* x[kMaxTerms];
   for (int r = 0; r < R; ++r)
     for (int q = 0; q < Q; ++q)
@@ -110,6 +112,7 @@ void contract_transposed(const std::vector<double>& M, int I, int n, int Q, int 
                          double* out, const std::vector<double>* M2 = nullptr, const double* in2 = nullptr) {
   const double* x[kMaxTerms];
   double c[kMaxTerms];
+  CELLFSI_PETSC(PetscLogFlops(2.0 * R * n * I * Q * (M2 ? 2 : 1) * m));
   for (int r = 0; r < R; ++r)
     for (int j = 0; j < n; ++j)
       for (int i = 0; i < I; ++i) {
@@ -201,6 +204,7 @@ double point_value(const PointFactors& f, int c, const double* u, double* grad) 
   const double *B0 = f.value[s0][0], *D0 = f.deriv[s0][0], *B1 = f.value[s1][1], *D1 = f.deriv[s1][1],
                *B2 = f.value[s2][2], *D2 = f.deriv[s2][2];
   double val = 0, g[3] = {0, 0, 0};
+  CELLFSI_PETSC(PetscLogFlops(4.0 * n0 * n1 * n2 + 6.0 * n1 * n2 + 8.0 * n2));
   for (int j2 = 0; j2 < n2; ++j2) {
     double s00 = 0, s10 = 0, s01 = 0;
     for (int j1 = 0; j1 < n1; ++j1) {
@@ -226,6 +230,7 @@ void point_test(const PointFactors& f, int c, double r_value, const double* r_gr
   const int n0 = f.n[s0][0], n1 = f.n[s1][1], n2 = f.n[s2][2];
   const double *B0 = f.value[s0][0], *D0 = f.deriv[s0][0], *B1 = f.value[s1][1], *D1 = f.deriv[s1][1],
                *B2 = f.value[s2][2], *D2 = f.deriv[s2][2];
+  CELLFSI_PETSC(PetscLogFlops(4.0 * n0 * n1 * n2 + 4.0 * n1 * n2 + 5.0 * n2));
   for (int j2 = 0; j2 < n2; ++j2) {
     const double s00 = B2[j2] * r_value + D2[j2] * r_grad[2], s10 = B2[j2] * r_grad[0],
                  s01 = B2[j2] * r_grad[1];

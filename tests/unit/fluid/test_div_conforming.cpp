@@ -8,16 +8,21 @@
 // along x, the velocity's x component has degree k >= 2 in y) exact to 1e-12, steady and over time steps; a
 // body force that is a gradient leaves the velocity at round-off (pressure robustness); divergence-free to
 // 1e-9 of the velocity gradient at every time step. The manufactured-solution rates are in
-// tests/convergence/test_div_conforming_convergence.cpp.
+// tests/convergence/test_div_conforming_convergence.cpp. The contravariant Piola map's point kernel
+// (dc_piola.hpp, DcPiola.*): the physical gradient against differences, the Piola divergence identity, the
+// test map the transpose.
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
 #include <memory>
 #include <numbers>
 #include <random>
+#include <utility>
+#include <vector>
 
 #include <petscsys.h>
 #include <vtkDataArray.h>
@@ -31,10 +36,12 @@
 #include "fluid/div_conforming/dc_fluid.hpp"
 #include "fluid/div_conforming/dc_fourier.hpp"
 #include "fluid/div_conforming/dc_kernel.hpp"
+#include "fluid/div_conforming/dc_piola.hpp"
 #include "fluid/div_conforming/dc_space.hpp"
 #include "fluid/div_conforming/dc_sum_factorization.hpp"
 #include "geometry/basis.hpp"
 #include "geometry/builders.hpp"
+#include "geometry/measures.hpp"
 
 using namespace cellfsi;
 using namespace cellfsi::fluid::dc;
@@ -305,7 +312,7 @@ TEST(DivConformingSpace, RejectsBadInputWithAMessage) {
 
 TEST(DivConformingSpace, ElementPolynomialsEqualTheCoxDeBoorRecursion) {
   // univariate()'s power-basis tables against geometry::bspline_basis at the element ends and inside, for
-  // open and periodic directions, every pressure degree, both spaces: values and derivatives to 1e-13 of
+  // open and periodic directions, pressure degrees 1 to 3, both spaces: values and derivatives to 1e-13 of
   // their scale (1 and 1/h).
   for (int k = 1; k <= 3; ++k) {
     const DivConformingSpace sp(3, k, {7, 5, 4}, Vec3(-0.3, 0, 1), Vec3(0.4, 2, 3), {false, true, true});
@@ -329,6 +336,186 @@ TEST(DivConformingSpace, ElementPolynomialsEqualTheCoxDeBoorRecursion) {
           }
       }
   }
+}
+
+namespace {
+/// A curved 2D map (the narrowing channel, its transitions in view) and a curved 3D one (a box whose interior
+/// control points are moved), for the Piola kernel's tests.
+std::vector<std::pair<geometry::Patch, int>> curved_maps() {
+  std::vector<std::pair<geometry::Patch, int>> maps;
+  maps.emplace_back(geometry::narrowing_channel({}, 12, 4, 3), 2);
+  geometry::Patch b = geometry::box(2.0, 1.0, 1.5, 3, 3, 3, 2);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-0.08, 0.08);
+  for (Vec3& x : b.control_points()) x += Vec3(u(rng), u(rng), u(rng));
+  maps.emplace_back(std::move(b), 3);
+  return maps;
+}
+
+/// A smooth parametric velocity and its parametric gradient (not divergence-free).
+void parametric_field(const geometry::Param& xi, double* v, double (*g)[3]) {
+  const double c[3][4] = {{0.3, 1.1, -0.7, 0.4}, {-0.2, 0.5, 0.9, -1.3}, {0.8, -0.6, 0.2, 0.7}};
+  for (int k = 0; k < 3; ++k) {
+    v[k] = c[k][0] + c[k][1] * xi[0] * xi[1] + c[k][2] * std::sin(xi[1] + xi[2]) + c[k][3] * xi[0] * xi[0];
+    g[k][0] = c[k][1] * xi[1] + 2 * c[k][3] * xi[0];
+    g[k][1] = c[k][1] * xi[0] + c[k][2] * std::cos(xi[1] + xi[2]);
+    g[k][2] = c[k][2] * std::cos(xi[1] + xi[2]);
+  }
+}
+}  // namespace
+
+TEST(DcPiola, GradientMatchesDifferencesAndDivergenceIsTheParametricOneOverJ) {
+  // The physical gradient of P v^ against central differences along each parameter (d v / d xi_a = grad v
+  // F_a), and the Piola identity div_x v = (1/J) div_xi v^ to round-off: both need the map's second
+  // derivatives right.
+  for (const auto& [patch, D] : curved_maps())
+    for (const geometry::Param xi0 : {geometry::Param{0.31, 0.27, 0.6}, geometry::Param{0.62, 0.85, 0.2},
+                                      geometry::Param{0.45, 0.05, 0.45}}) {
+      geometry::Param xi = xi0;
+      if (D == 2) xi[2] = 0;
+      auto physical = [&](const geometry::Param& at, double* v, double(*g)[3], PiolaPoint* out) {
+        double vh[3], gh[3][3];
+        parametric_field(at, vh, gh);
+        if (D == 2) vh[2] = 0, gh[0][2] = gh[1][2] = gh[2][0] = gh[2][1] = gh[2][2] = 0;
+        const PiolaPoint pt = piola_point(patch.evaluate(at, 2), D);
+        piola_values(pt, vh, gh, v, g);
+        if (out) *out = pt;
+      };
+      double v[3], g[3][3], vh[3], gh[3][3];
+      PiolaPoint pt;
+      physical(xi, v, g, &pt);
+      parametric_field(xi, vh, gh);
+      const geometry::MapValues m = patch.evaluate(xi, 1);
+      double scale = 0;
+      for (int i = 0; i < D; ++i)
+        for (int j = 0; j < D; ++j) scale = std::max(scale, std::abs(g[i][j]));
+      const double h = 1e-5;
+      for (int a = 0; a < D; ++a) {
+        geometry::Param p = xi, q = xi;
+        p[a] += h, q[a] -= h;
+        double vp[3], vq[3], gp[3][3];
+        physical(p, vp, gp, nullptr);
+        physical(q, vq, gp, nullptr);
+        for (int i = 0; i < D; ++i) {
+          double chain = 0;
+          for (int j = 0; j < D; ++j) chain += g[i][j] * m.dx(j, a);
+          double fa = 0;
+          for (int j = 0; j < D; ++j) fa = std::max(fa, std::abs(m.dx(j, a)));
+          EXPECT_NEAR((vp[i] - vq[i]) / (2 * h), chain, 1e-7 * scale * fa) << "dim " << D << " a " << a;
+        }
+      }
+      double div = 0, div_hat = 0;
+      for (int i = 0; i < D; ++i) div += g[i][i], div_hat += gh[i][i];
+      print0("Piola, dim %d: div_x v - div_xi v^ / J = %.2e of |grad v|\n", D,
+             std::abs(div - div_hat / pt.J) / scale);
+      EXPECT_NEAR(div, div_hat / pt.J, 1e-12 * scale) << "dim " << D;
+    }
+}
+
+TEST(DcPiola, TheTestMapIsTheTransposeAndAWallKeepsItsParametricNormalVelocity) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (const auto& [patch, D] : curved_maps()) {
+    // Adjoint: r . L(u) = L^T(r) . u for random r and parametric fields u.
+    const PiolaPoint pt = piola_point(patch.evaluate({0.37, 0.71, D == 3 ? 0.52 : 0.0}, 2), D);
+    for (int trial = 0; trial < 5; ++trial) {
+      double vh[3] = {}, gh[3][3] = {}, r0[3] = {}, r1[3][3] = {};
+      for (int i = 0; i < D; ++i) {
+        vh[i] = u(rng), r0[i] = u(rng);
+        for (int j = 0; j < D; ++j) gh[i][j] = u(rng), r1[i][j] = u(rng);
+      }
+      double v[3], g[3][3], r0h[3], r1h[3][3];
+      piola_values(pt, vh, gh, v, g);
+      piola_test(pt, r0, r1, r0h, r1h);
+      double lhs = 0, rhs = 0, size = 0;
+      for (int i = 0; i < D; ++i) {
+        lhs += r0[i] * v[i], rhs += r0h[i] * vh[i], size += std::abs(r0[i] * v[i]);
+        for (int j = 0; j < D; ++j)
+          lhs += r1[i][j] * g[i][j], rhs += r1h[i][j] * gh[i][j], size += std::abs(r1[i][j] * g[i][j]);
+      }
+      EXPECT_NEAR(lhs, rhs, 1e-13 * size) << "dim " << D;
+    }
+    // On the wall xi_1 = 0 the outward normal is along -G^T e_1: v . n = -v^_1 / (J |G^T e_1|), zero with
+    // v^_1.
+    for (double x0 : {0.1, 0.35, 0.5, 0.8}) {
+      const PiolaPoint w = piola_point(patch.evaluate({x0, 0.0, D == 3 ? 0.4 : 0.0}, 2), D);
+      double vh[3] = {u(rng), 0.0, D == 3 ? u(rng) : 0.0}, gh[3][3] = {}, v[3], g[3][3];
+      piola_values(w, vh, gh, v, g);
+      double vn = 0, speed = 0;
+      for (int i = 0; i < D; ++i) vn += v[i] * w.G(1, i), speed += std::abs(v[i]);
+      EXPECT_GT(speed, 0.0);
+      EXPECT_NEAR(vn, 0.0, 1e-14 * speed * w.G.norm()) << "dim " << D << " xi_0 " << x0;
+      vh[1] = 0.25;
+      piola_values(w, vh, gh, v, g);
+      vn = 0;
+      for (int i = 0; i < D; ++i) vn += v[i] * w.G(1, i);
+      EXPECT_NEAR(vn, 0.25 / w.J, 1e-12 * 0.25 / w.J);
+    }
+  }
+  // A folded map is refused.
+  geometry::MapValues folded;
+  folded.dx = geometry::Mat3::Identity();
+  folded.dx(1, 1) = -1;
+  EXPECT_THROW(piola_point(folded, 2), std::invalid_argument);
+}
+
+TEST(DcPiola, AMappedSpaceMeasuresTheDomainDividesByJAndHoldsItsCurvedWalls) {
+  // The space on the narrowing channel through the Piola map (DivConformingSpace::mapped), k = 2 and 3,
+  // random coefficients with the walls' normal unknowns at 0: the weights sum to the channel's area; at every
+  // element's Gauss points div_x v = (1/J) times the pressure-space function of divergence() (the parametric
+  // divergence), to 1e-10 of |grad v|; on both curved walls v . n = 0 to 1e-12 of |v|.
+  auto patch = std::make_shared<const geometry::Patch>(geometry::narrowing_channel({}, 12, 4, 3));
+  const double area = geometry::patch_measure(*patch);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int k = 2; k <= 3; ++k) {
+    const DivConformingSpace sp = DivConformingSpace::mapped(patch, k);
+    ASSERT_TRUE(sp.is_mapped());
+    std::vector<double> U(sp.n_dofs());
+    for (double& c : U) c = u(rng);
+    for (int r : sp.wall_normal_dofs()) U[r] = 0;
+    const std::vector<double> div_hat =
+        sp.divergence(std::vector<double>(U.begin(), U.begin() + sp.n_velocity()));
+    double measure = 0, worst_div = 0, worst_wall = 0;
+    ElementBasis eb;
+    for (int e = 0; e < sp.n_elements(); ++e) {
+      const Index3 ei = sp.element_multi_index(e);
+      sp.evaluate(ei, sp.element_rule(ei, k + 2), eb);
+      ASSERT_EQ(eb.piola.size(), static_cast<size_t>(eb.n_points));
+      for (int q = 0; q < eb.n_points; ++q) {
+        measure += eb.weight[q];
+        const auto pv = DivConformingSpace::interpolate(eb, q, 2, U.data());
+        const ComponentBasis& cp = eb.comp[2];
+        double dh = 0;
+        for (int a = 0; a < cp.n; ++a)
+          dh += div_hat[cp.index[a] - sp.offset(2)] * cp.value[static_cast<size_t>(q) * cp.n + a];
+        const double scale = std::max({std::abs(pv.grad[0][0]), std::abs(pv.grad[0][1]),
+                                       std::abs(pv.grad[1][0]), std::abs(pv.grad[1][1])});
+        worst_div = std::max(worst_div, std::abs(pv.grad[0][0] + pv.grad[1][1] - dh / eb.piola[q].J) / scale);
+      }
+      for (int side = 0; side < 2; ++side) {
+        if (ei[1] != (side == 0 ? 0 : sp.n_elements(1) - 1)) continue;
+        sp.evaluate(ei, sp.face_rule(ei, 1, side, k + 2), eb);
+        for (int q = 0; q < eb.n_points; ++q) {
+          const auto v = DivConformingSpace::interpolate_velocity(eb, q, 2, U.data());
+          const double n0 = eb.piola[q].G(1, 0), n1 = eb.piola[q].G(1, 1);  // normal direction G^T e_1
+          const double vn = (v[0] * n0 + v[1] * n1) / std::hypot(n0, n1);
+          worst_wall = std::max(worst_wall, std::abs(vn) / std::hypot(v[0], v[1]));
+        }
+      }
+    }
+    print0("mapped narrowing channel, k = %d: area %.2e relative, div %.2e, wall v.n %.2e\n", k,
+           std::abs(measure - area) / area, worst_div, worst_wall);
+    EXPECT_NEAR(measure, area, 1e-12 * area) << "k " << k;
+    EXPECT_LT(worst_div, 1e-10) << "k " << k;
+    EXPECT_LT(worst_wall, 1e-12) << "k " << k;
+    EXPECT_THROW(sp.find_element(Vec3(1e-3, 0, 0)), std::logic_error);
+  }
+  // The box keeps its plain basis.
+  const DivConformingSpace box(2, 2, {4, 3, 1}, Vec3(0, 0, 0), Vec3(1, 1, 0), {true, false, false});
+  ElementBasis eb;
+  box.evaluate({1, 1, 0}, box.element_rule({1, 1, 0}, 3), eb);
+  EXPECT_TRUE(eb.piola.empty());
 }
 
 TEST(DivConformingSpace, SumFactorisationEqualsTheWholeBasisAndItsTransposeIsTheAdjoint) {
