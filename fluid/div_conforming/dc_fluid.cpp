@@ -232,6 +232,9 @@ DivConformingFluid::DivConformingFluid(MPI_Comm comm, const DivConformingSpace& 
                                        const DcFluidOptions& options)
     : comm_(comm), space_(space), opt_(options) {
   opt_.validate();
+  require(!space_.is_mapped(),
+          "a space on a curved patch (DivConformingSpace::mapped) is not taken yet: the assembly through the "
+          "Piola map is not written (fluid/div_conforming/README.md, item 4)");
   alpha_ = GeneralizedAlpha::from_rho_inf(opt_.rho_inf, opt_.dt);
   const int n = space_.n_dofs(), D = space_.dim(), n_el = space_.n_elements();
   U_.assign(n, 0.0);
@@ -1147,7 +1150,7 @@ std::vector<DivConformingFluid::SolidBlock> DivConformingFluid::solid_blocks(
         prod.resize(static_cast<size_t>(m) * n);
         BLASgemm_("N", "N", &m, &n, &kk, &one, left[i].data(), &m, right[i].data(), &kk, &zero, prod.data(),
                   &m);
-        // (-log_view's counts: the product, and the right operand: D n_c sums of D terms per point and row j)
+        // (-log_view's counts: the product, and the right operand: n_c sums of D terms per point and row j)
         CELLFSI_PETSC(PetscLogFlops(2.0 * m * n * kk + 2.0 * P * D * D * n_c));
         for (int k = 0; k < D; ++k)
           for (int r = 0; r < n_e; ++r) {

@@ -53,6 +53,8 @@ DcFourierSolver::DcFourierSolver(const DivConformingSpace& space, MPI_Comm comm,
                                  std::vector<PetscInt> petsc_index)
     : space_(space), comm_(comm), petsc_index_(std::move(petsc_index)) {
   const int D = space.dim();
+  if (space.is_mapped())
+    throw std::invalid_argument("DcFourierSolver: a space on a curved patch is not translation-invariant");
   if (!space.periodic(0) || (D == 3 && !space.periodic(2)))
     throw std::invalid_argument(
         "DcFourierSolver: needs a space periodic in x (2D) or in x and z (3D); got dim " + std::to_string(D) +

@@ -25,7 +25,8 @@
 
 namespace cellfsi::fluid::dc {
 
-/// The map's quantities at one point (directions beyond dim: identity, derivatives 0).
+/// The map's quantities at one point. In 2D only the first two rows and columns are meaningful (F's third
+/// direction is the identity, so P(2, 2) = 1 / J); piola_values and piola_test read those alone.
 struct PiolaPoint {
   int dim = 3;
   double J = 1;                      // det F

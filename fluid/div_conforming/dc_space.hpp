@@ -72,8 +72,10 @@ class DivConformingSpace {
   /// The space on a curved patch through the contravariant Piola map (dc_piola.hpp; issue 45 part 2, not yet
   /// taken by the fluid): the knot vectors on the patch's parametric box (its elements, which must be uniform
   /// per direction; its periodic directions), the fields mapped at every point evaluate() forms. Its
-  /// lo/hi/element_size are parametric, and find_element/point_rule (physical points of a box) throw.
-  /// Throws std::invalid_argument as from_patch, and where the map folds (det F <= 0 at a point).
+  /// lo/hi/element_size and divergence() (div_xi: div_x v = div_xi v^ / J) are parametric, and
+  /// find_element/point_rule (physical points of a box) throw std::logic_error. Throws std::invalid_argument
+  /// as from_patch; evaluate() throws it where the map folds (det F <= 0 at a point). DivConformingFluid and
+  /// DcFourierSolver refuse such a space.
   static DivConformingSpace mapped(std::shared_ptr<const geometry::Patch> patch, int k);
   bool is_mapped() const { return map_ != nullptr; }
 
