@@ -78,51 +78,55 @@ DivConformingSpace::DivConformingSpace(int dim, int k, const Index3& n_elements,
   }
 }
 
+namespace {
+
+/// A patch's parametric element grid: per direction its element count, parametric ends and periodicity.
+/// Throws std::invalid_argument unless the dimensions agree and the elements are uniform in the parameter.
+struct ParametricGrid {
+  int dim = 0;
+  Index3 n{1, 1, 1};
+  Vec3 a = Vec3::Zero(), b = Vec3::Zero();
+  std::array<bool, 3> periodic{false, false, false};
+};
+ParametricGrid parametric_grid(const geometry::Patch& patch) {
+  ParametricGrid g;
+  g.dim = patch.param_dim();
+  require(g.dim == 2 || g.dim == 3, "the patch's parametric dimension must be 2 or 3");
+  require(patch.physical_dim() == g.dim, "the patch's parametric and physical dimensions must agree");
+  for (int d = 0; d < g.dim; ++d) {
+    const KnotVector& kv = patch.knots(d);
+    const std::vector<double> breaks = kv.breakpoints();
+    g.n[d] = kv.n_elements();
+    g.periodic[d] = kv.periodic();
+    g.a[d] = kv.a(), g.b[d] = kv.b();
+    const double h = (kv.b() - kv.a()) / g.n[d];
+    for (int e = 0; e <= g.n[d]; ++e)
+      require(std::abs(breaks[e] - (kv.a() + e * h)) <= 1e-12 * (kv.b() - kv.a()),
+              "direction " + std::to_string(d) + ": the elements must be uniform in the parameter");
+  }
+  return g;
+}
+
+}  // namespace
+
 DivConformingSpace DivConformingSpace::from_patch(const geometry::Patch& patch, int k) {
   const auto map = geometry::affine_map(patch);
   require(map.has_value(),
-          "the patch is not an axis-aligned affine box (geometry::rectangle or geometry::box); curved "
-          "geometry needs the contravariant Piola map, not implemented yet");
-  const int dim = patch.param_dim();
-  require(patch.physical_dim() == dim, "the patch's parametric and physical dimensions must agree");
-  Index3 n{1, 1, 1};
+          "the patch is not an axis-aligned affine box (geometry::rectangle or geometry::box); a curved one "
+          "takes DivConformingSpace::mapped, which the fluid does not take yet");
+  const ParametricGrid g = parametric_grid(patch);
   Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
-  std::array<bool, 3> periodic{false, false, false};
-  for (int d = 0; d < dim; ++d) {
-    const KnotVector& kv = patch.knots(d);
-    const std::vector<double> breaks = kv.breakpoints();
-    n[d] = kv.n_elements();
-    periodic[d] = kv.periodic();
-    lo[d] = map->offset[d] + map->scale[d] * kv.a();
-    hi[d] = map->offset[d] + map->scale[d] * kv.b();
-    const double h = (kv.b() - kv.a()) / n[d];
-    for (int e = 0; e <= n[d]; ++e)
-      require(std::abs(breaks[e] - (kv.a() + e * h)) <= 1e-12 * (kv.b() - kv.a()),
-              "direction " + std::to_string(d) + ": the elements must be uniform");
+  for (int d = 0; d < g.dim; ++d) {
+    lo[d] = map->offset[d] + map->scale[d] * g.a[d];
+    hi[d] = map->offset[d] + map->scale[d] * g.b[d];
   }
-  return DivConformingSpace(dim, k, n, lo, hi, periodic);
+  return DivConformingSpace(g.dim, k, g.n, lo, hi, g.periodic);
 }
 
 DivConformingSpace DivConformingSpace::mapped(std::shared_ptr<const geometry::Patch> patch, int k) {
   require(patch != nullptr, "mapped: no patch");
-  const int dim = patch->param_dim();
-  require(dim == 2 || dim == 3, "mapped: the patch's parametric dimension must be 2 or 3");
-  require(patch->physical_dim() == dim, "the patch's parametric and physical dimensions must agree");
-  Index3 n{1, 1, 1};
-  Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
-  std::array<bool, 3> periodic{false, false, false};
-  for (int d = 0; d < dim; ++d) {
-    const KnotVector& kv = patch->knots(d);
-    const std::vector<double> breaks = kv.breakpoints();
-    n[d] = kv.n_elements();
-    periodic[d] = kv.periodic();
-    lo[d] = kv.a(), hi[d] = kv.b();
-    const double h = (kv.b() - kv.a()) / n[d];
-    for (int e = 0; e <= n[d]; ++e)
-      require(std::abs(breaks[e] - (kv.a() + e * h)) <= 1e-12 * (kv.b() - kv.a()),
-              "direction " + std::to_string(d) + ": the elements must be uniform in the parameter");
-  }
-  DivConformingSpace space(dim, k, n, lo, hi, periodic);
+  const ParametricGrid g = parametric_grid(*patch);
+  DivConformingSpace space(g.dim, k, g.n, g.a, g.b, g.periodic);
   space.map_ = std::move(patch);
   return space;
 }
