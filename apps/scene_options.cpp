@@ -536,9 +536,12 @@ void check_memory(SceneSettings& s) {
   CELLFSI_PETSC(
       PetscOptionsGetString(nullptr, nullptr, "-fluid_mat_type_jacobian", type, sizeof type, nullptr));
   coupling::SolverSituation situation;
-  situation.baij = std::string(type) == "baij";
+  // (the divergence-conforming fluid assembles AIJ whatever the option; its bulk inverse needs a box periodic
+  // along x, and z in 3D: DcImmersedFluid::has_bulk_inverse)
+  const bool dc = s.fluid_space == "div_conforming";
+  situation.baij = !dc && std::string(type) == "baij";
   situation.own_bulk_inverse =
-      s.fluid_space == "div_conforming" && s.periodic[0] && (s.dim == 2 || s.periodic[2]);
+      dc && s.domain != "narrowing" && s.periodic[0] && (s.dim == 2 || s.periodic[2]);
   situation.fluid_ranks = size;
   coupling::LinearSolverOptions& l = s.coupling.linear;
   // The domain is built only for the choice between several copies: a mesh that cannot hold one is refused

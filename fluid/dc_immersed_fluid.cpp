@@ -77,15 +77,18 @@ DcImmersedFluid::DcImmersedFluid(MPI_Comm comm, const geometry::Patch& patch, co
     : comm_(comm), patch_(patch), options_(options) {
   options_.validate();
   const std::optional<geometry::AffineMap> map = geometry::affine_map(patch);
-  if (!map)
-    bad_option("fluid_space", "div_conforming",
-               "equal_order on this domain: the divergence-conforming space needs an axis-aligned box "
-               "(curved walls need the contravariant Piola map, not written yet)");
-  offset_ = map->offset;
-  scale_ = map->scale;
   try {
-    space_ = std::make_unique<dc::DivConformingSpace>(
-        dc::DivConformingSpace::from_patch(patch, options_.dc_degree));
+    if (map) {
+      offset_ = map->offset;
+      scale_ = map->scale;
+      space_ = std::make_unique<dc::DivConformingSpace>(
+          dc::DivConformingSpace::from_patch(patch, options_.dc_degree));
+    } else {  // (the patch outlives the fluid: the app owns both)
+      const std::shared_ptr<const geometry::Patch> view(&patch, [](const geometry::Patch*) {});
+      space_ =
+          std::make_unique<dc::DivConformingSpace>(dc::DivConformingSpace::mapped(view, options_.dc_degree));
+      inverter_ = std::make_unique<geometry::PointInverter>(patch);
+    }
   } catch (const std::invalid_argument& e) {
     bad_option("fluid_space", "div_conforming", std::string("equal_order on this domain (") + e.what() + ")");
   }
@@ -105,8 +108,24 @@ DcImmersedFluid::~DcImmersedFluid() {
 
 void DcImmersedFluid::sync_solution() { fluid_->scatter(fluid_->state(), U_); }
 
-Vec3 DcImmersedFluid::physical(const geometry::Param& xi) const {
+Vec3 DcImmersedFluid::space_point(const geometry::Param& xi) const {
+  if (space_->is_mapped()) return space_->from_patch_parameters(xi);
   return offset_ + scale_.cwiseProduct(Vec3(xi[0], xi[1], xi[2]));
+}
+
+bool DcImmersedFluid::locate(const Vec3& x, Vec3& s) const {
+  if (inverter_) {
+    const geometry::InversionResult r = inverter_->invert(x);
+    if (r.inside) s = space_->from_patch_parameters(r.xi);
+    return r.inside;
+  }
+  for (int d = 0; d < dim(); ++d)
+    if (!space_->periodic(d)) {
+      const double tol = 1e-12 * (space_->hi(d) - space_->lo(d));
+      if (x[d] < space_->lo(d) - tol || x[d] > space_->hi(d) + tol) return false;
+    }
+  s = x;
+  return true;
 }
 
 std::vector<int> DcImmersedFluid::unknown_kinds() const {
@@ -144,32 +163,31 @@ StepStats DcImmersedFluid::step() {
 std::vector<PointSample> DcImmersedFluid::evaluate(const std::vector<double>& c,
                                                    const std::vector<double>* rate,
                                                    const std::vector<Vec3>& points) const {
-  const int D = dim();
   std::vector<PointSample> out(points.size());
   dc::ElementBasis eb;
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    bool inside = true;
-    for (int d = 0; d < D; ++d)
-      if (!space_->periodic(d)) {
-        const double tol = 1e-12 * (space_->hi(d) - space_->lo(d));
-        inside = inside && points[i][d] >= space_->lo(d) - tol && points[i][d] <= space_->hi(d) + tol;
-      }
-    if (!inside) continue;
-    space_->evaluate(space_->find_element(points[i]), space_->point_rule(points[i]), eb);
-    const auto pv = dc::DivConformingSpace::interpolate(eb, 0, D, c.data());
-    PointSample& s = out[i];
-    s.found = true;
-    for (int a = 0; a < D; ++a) {
-      s.v[a] = pv.v[a];
-      for (int b = 0; b < D; ++b) s.grad_v(a, b) = pv.grad[a][b];
-    }
-    s.p = pv.p;
-    if (rate) {
-      const auto pr = dc::DivConformingSpace::interpolate(eb, 0, D, rate->data());
-      for (int a = 0; a < D; ++a) s.vdot[a] = pr.v[a];
-    }
-  }
+  Vec3 at;
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (locate(points[i], at)) out[i] = at_space_point(c, rate, at, eb);
   return out;
+}
+
+PointSample DcImmersedFluid::at_space_point(const std::vector<double>& c, const std::vector<double>* rate,
+                                            const Vec3& at, dc::ElementBasis& eb) const {
+  const int D = dim();
+  space_->evaluate(space_->find_element(at), space_->point_rule(at), eb);
+  const auto pv = dc::DivConformingSpace::interpolate(eb, 0, D, c.data());
+  PointSample s;
+  s.found = true;
+  for (int a = 0; a < D; ++a) {
+    s.v[a] = pv.v[a];
+    for (int b = 0; b < D; ++b) s.grad_v(a, b) = pv.grad[a][b];
+  }
+  s.p = pv.p;
+  if (rate) {
+    const auto pr = dc::DivConformingSpace::interpolate(eb, 0, D, rate->data());
+    for (int a = 0; a < D; ++a) s.vdot[a] = pr.v[a];
+  }
+  return s;
 }
 
 std::vector<PointSample> DcImmersedFluid::sample(const std::vector<Vec3>& points) const {
@@ -183,7 +201,7 @@ std::vector<PointSample> DcImmersedFluid::sample_alpha(Vec X, const std::vector<
   std::vector<Vec3> x(xi.size());
   for (std::size_t i = 0; i < xi.size(); ++i) {
     el[i] = patch_.element_index(elements[i]);
-    x[i] = physical(xi[i]);
+    x[i] = space_point(xi[i]);
   }
   const std::vector<dc::DivConformingFluid::StepSample> s = fluid_->sample_step(work_, el, x);
   std::vector<PointSample> out(s.size());
@@ -197,10 +215,11 @@ std::vector<PointSample> DcImmersedFluid::sample_alpha(Vec X, const std::vector<
 }
 
 SectionData DcImmersedFluid::section(double u, int n_profile) const {
+  if (space_->is_mapped()) return section_mapped(u, n_profile);
   // The section x_0 = const of the box; its normal is e_0. Gauss points of the velocity's degree + 1 on the
   // space's elements along the other directions (local: the state is on every rank).
   const int D = dim(), k = space_->degree();
-  const double x0 = physical({u, 0, 0})[0];
+  const double x0 = space_point({u, 0, 0})[0];
   const geometry::GaussRule& g = geometry::gauss_legendre(k + 3);
   SectionData out;
   const int n1 = space_->n_elements(1), n2 = D == 3 ? space_->n_elements(2) : 1;
@@ -240,6 +259,46 @@ SectionData DcImmersedFluid::section(double u, int n_profile) const {
   return out;
 }
 
+SectionData DcImmersedFluid::section_mapped(double u, int n_profile) const {
+  // The section xi_0 = u of the patch: v . n dA from the map's derivatives there, (dy/dxi_1, -dx/dxi_1)
+  // dxi_1 in 2D and dx/dxi_1 x dx/dxi_2 dxi_1 dxi_2 in 3D (as FluidSolver::section), on Gauss points of
+  // the velocity's degree + 1 per element.
+  const int D = dim();
+  const geometry::GaussRule& g = geometry::gauss_legendre(space_->degree() + 3);
+  const geometry::KnotVector& k1 = patch_.knots(1);
+  const int n2 = D == 3 ? patch_.knots(2).n_elements() : 1;
+  SectionData out;
+  dc::ElementBasis eb;
+  for (int e1 = 0; e1 < k1.n_elements(); ++e1)
+    for (int e2 = 0; e2 < n2; ++e2)
+      for (std::size_t q1 = 0; q1 < g.points.size(); ++q1)
+        for (std::size_t q2 = 0; q2 < (D == 3 ? g.points.size() : 1); ++q2) {
+          const double a1 = k1.element_begin(e1), b1 = k1.element_end(e1);
+          geometry::Param xi{u, a1 + 0.5 * (b1 - a1) * (g.points[q1] + 1), 0};
+          double w = 0.5 * (b1 - a1) * g.weights[q1];
+          if (D == 3) {
+            const geometry::KnotVector& k2 = patch_.knots(2);
+            const double a2 = k2.element_begin(e2), b2 = k2.element_end(e2);
+            xi[2] = a2 + 0.5 * (b2 - a2) * (g.points[q2] + 1);
+            w *= 0.5 * (b2 - a2) * g.weights[q2];
+          }
+          const geometry::MapValues mv = patch_.evaluate(xi, 1);
+          const Vec3 nA =
+              D == 2 ? Vec3(mv.dx(1, 1), -mv.dx(0, 1), 0) : Vec3(mv.dx.col(1).cross(mv.dx.col(2)));
+          const PointSample s = at_space_point(fluid_->state(), nullptr, space_point(xi), eb);
+          out.flow_rate += w * s.v.dot(nA);
+          out.area += w * nA.norm();
+        }
+  for (int i = 0; i < n_profile; ++i) {
+    geometry::Param xi{u, k1.a() + (k1.b() - k1.a()) * i / std::max(1, n_profile - 1), 0};
+    if (D == 3) xi[2] = 0.5 * (patch_.knots(2).a() + patch_.knots(2).b());
+    const PointSample s = at_space_point(fluid_->state(), nullptr, space_point(xi), eb);
+    out.points.push_back(eb.x[0]);
+    out.velocity.push_back(s.v);
+  }
+  return out;
+}
+
 bool DcImmersedFluid::owns_element(const geometry::Index3& e) const {
   const int i = patch_.element_index(e);
   const std::array<int, 2> r = fluid_->owned_elements();
@@ -255,7 +314,7 @@ void DcImmersedFluid::set_immersed_points(const std::vector<geometry::Index3>& e
   pts.clear();
   for (std::size_t i = 0; i < data.size(); ++i) {
     if (!owns_element(elements[i])) continue;
-    pts.push_back({patch_.element_index(elements[i]), physical(xi[i]), data[i]});
+    pts.push_back({patch_.element_index(elements[i]), space_point(xi[i]), data[i]});
   }
   fluid_->set_immersed_points(pts);
 }
@@ -281,7 +340,8 @@ void DcImmersedFluid::begin_step(Vec X) {
 
 void DcImmersedFluid::residual(Vec X, Vec F) {
   fluid_->gather(X, work_);
-  fluid_->step_residual(work_, F, false);
+  // (a mapped space has no bulk inverse to take the constant pressure: the pin holds it, as in a step)
+  fluid_->step_residual(work_, F, space_->is_mapped());
 }
 
 void DcImmersedFluid::jacobian(Vec X, Mat J) {
@@ -291,6 +351,10 @@ void DcImmersedFluid::jacobian(Vec X, Mat J) {
   }
   fluid_->gather(X, work_);
   fluid_->set_solid_stiffness_apart(false);  // (an assembled Jacobian carries the points' own stiffness)
+  if (space_->is_mapped()) {  // no mean flow to keep (not translation-invariant); the pressure pinned
+    fluid_->step_tangent(work_, J, true, true);
+    return;
+  }
   if (fluid_->has_viscosity_field()) {  // the field moves with the cells: everything re-assembled
     fluid_->step_tangent(work_, J, true, false);
     return;
@@ -403,7 +467,7 @@ void DcImmersedFluid::build_solid_operator() {
   dc::ElementBasis eb;
   dc::TensorRule rule;  // (at x as it is: the point's element holds it unwrapped, as in assemble_immersed)
   for (std::size_t i = 0; i < n; ++i) {
-    const Vec3 x = physical(solid_.xi[i]);
+    const Vec3 x = space_point(solid_.xi[i]);
     const int e = patch_.element_index(solid_.elements[i]);
     for (int d = 0; d < 3; ++d) {
       rule.points[d].assign(1, d < D ? x[d] : 0.0);
@@ -569,7 +633,16 @@ std::string DcImmersedFluid::write_fields(const std::string& dir, const std::str
               x[d] = space_->lo(d) + (space_->hi(d) - space_->lo(d)) * m[d] / (n[d] - 1);
             pts.push_back(x);
           }
-      const std::vector<PointSample> smp = evaluate(fluid_->state(), nullptr, pts);
+      std::vector<PointSample> smp;
+      if (space_->is_mapped()) {  // the grid is in the space's coordinates: evaluated there, then mapped
+        dc::ElementBasis eb;
+        for (Vec3& x : pts) {
+          smp.push_back(at_space_point(fluid_->state(), nullptr, x, eb));
+          x = eb.x[0];
+        }
+      } else {
+        smp = evaluate(fluid_->state(), nullptr, pts);
+      }
       vtkNew<vtkStructuredGrid> grid;
       grid->SetDimensions(n[0], n[1], n[2]);
       vtkNew<vtkPoints> points;

@@ -4,9 +4,13 @@
 // for -fluid_space div_conforming.
 //
 // What it maps, and how:
-//   * the patch: an axis-aligned box (geometry::affine_map; the narrowing channel's curved walls need the
-//     contravariant Piola map, not written: refused with a message). Its elements are the space's, numbered
-//     alike; the coupler's parametric points become physical ones through the affine map.
+//   * the patch: an axis-aligned box (geometry::affine_map), whose elements are the space's, numbered alike,
+//     the coupler's parametric points becoming physical ones through the affine map; or any other patch
+//     with uniform elements (the narrowing channel) through the contravariant Piola map
+//     (DivConformingSpace::mapped): the coupler's parametric points are then the space's own (scaled)
+//     coordinates, physical points are found by NURBS inversion, and the coupled solve assembles the whole
+//     tangent with the pressure pinned (no bulk inverse: the domain is not translation-invariant; the
+//     default PC is then PETSc's ASM with MUMPS on its blocks, one exact LU on one rank).
 //   * the unknowns: the space's (velocity components, then pressure), in DivConformingFluid's PETSc
 //     numbering; no node blocks (block_layout() is empty, so cellfsi_fourier and cellfsi_band do not apply).
 //     The coupled solve uses PC type cellfsi_bulk with bulk_inverse(): the DFT inverse of the operator
@@ -33,12 +37,14 @@
 #include "fluid/div_conforming/dc_fluid.hpp"
 #include "fluid/div_conforming/dc_fourier.hpp"
 #include "fluid/immersed_fluid.hpp"
+#include "geometry/inversion.hpp"
 
 namespace cellfsi::fluid {
 
 class DcImmersedFluid final : public ImmersedFluid {
  public:
-  /// Throws std::invalid_argument (naming -fluid_space) for a patch that is not an axis-aligned box.
+  /// Throws std::invalid_argument (naming -fluid_space) for a patch the space cannot take (elements not
+  /// uniform in the parameters).
   DcImmersedFluid(MPI_Comm comm, const geometry::Patch& patch, const FluidOptions& options);
   ~DcImmersedFluid() override;
 
@@ -86,7 +92,7 @@ class DcImmersedFluid final : public ImmersedFluid {
   bool jacobian_is_blocked() const override { return false; }  // (AIJ; asked without making the matrix)
   std::optional<OwnBulkInverse> bulk_inverse(Vec X) override;
   bool has_bulk_inverse() const override {
-    return space_->periodic(0) && (dim() == 2 || space_->periodic(2));
+    return !space_->is_mapped() && space_->periodic(0) && (dim() == 2 || space_->periodic(2));
   }
   bool uses_interface_scaling() const override { return false; }
   std::optional<double> max_divergence_ratio() const override;
@@ -102,7 +108,17 @@ class DcImmersedFluid final : public ImmersedFluid {
   long stencil_products_skipped() const { return products_skipped_; }
 
  private:
-  Vec3 physical(const geometry::Param& xi) const;
+  /// The space's point of the patch's parametric point xi: physical on a box, the scaled parameters on a
+  /// mapped space (DivConformingSpace::from_patch_parameters).
+  Vec3 space_point(const geometry::Param& xi) const;
+  /// Where a physical point lies: found, and the space's point (by the affine map or by inversion).
+  bool locate(const Vec3& x, Vec3& s) const;
+  /// section() on a mapped space.
+  SectionData section_mapped(double u, int n_profile) const;
+  /// The fields of coefficients c at a point in the space's coordinates (inside); eb then holds its basis,
+  /// eb.x[0] the physical point.
+  PointSample at_space_point(const std::vector<double>& c, const std::vector<double>* rate, const Vec3& at,
+                             dc::ElementBasis& eb) const;
   /// The fields of coefficients c (natural numbering) at physical points (found false outside the box).
   std::vector<PointSample> evaluate(const std::vector<double>& c, const std::vector<double>* rate,
                                     const std::vector<Vec3>& points) const;
@@ -112,6 +128,7 @@ class DcImmersedFluid final : public ImmersedFluid {
   const geometry::Patch& patch_;
   FluidOptions options_;
   Vec3 offset_ = Vec3::Zero(), scale_ = Vec3::Zero();  // the patch's affine map x = offset + scale xi
+  std::unique_ptr<geometry::PointInverter> inverter_;  // (a mapped space)
   std::unique_ptr<dc::DivConformingSpace> space_;
   std::unique_ptr<dc::DivConformingFluid> fluid_;
   Vec U_ = nullptr;

@@ -23,6 +23,7 @@
 #include "common/petsc_error.hpp"
 #include "fluid/div_conforming/dc_kernel.hpp"
 #include "fluid/div_conforming/dc_sum_factorization.hpp"
+#include "geometry/inversion.hpp"
 #include "geometry/patch_vtk.hpp"
 
 namespace cellfsi::fluid::dc {
@@ -232,9 +233,6 @@ DivConformingFluid::DivConformingFluid(MPI_Comm comm, const DivConformingSpace& 
                                        const DcFluidOptions& options)
     : comm_(comm), space_(space), opt_(options) {
   opt_.validate();
-  require(!space_.is_mapped(),
-          "a space on a curved patch (DivConformingSpace::mapped) is not taken yet: the assembly through the "
-          "Piola map is not written (fluid/div_conforming/README.md, item 4)");
   alpha_ = GeneralizedAlpha::from_rho_inf(opt_.rho_inf, opt_.dt);
   const int n = space_.n_dofs(), D = space_.dim(), n_el = space_.n_elements();
   U_.assign(n, 0.0);
@@ -401,6 +399,15 @@ int DivConformingFluid::basis_class(int e) const {
 const ElementBasis& DivConformingFluid::element_basis(int e) const {
   const int D = space_.dim(), classes = 2 * space_.degree() + 5;
   const Index3 ei = space_.element_multi_index(e);
+  if (space_.is_mapped()) {
+    // No two elements share their values through the map, and a cache per element would hold 45 kB each
+    // (k = 3 in 2D; 2.2 GB at the narrowing scene's 384 x 128): each call evaluates.
+    if (basis_cache_.empty()) basis_cache_.resize(1);
+    if (!basis_cache_[0]) basis_cache_[0] = std::make_unique<CachedBasis>();
+    basis_cache_[0]->element = ei;
+    space_.evaluate(ei, space_.element_rule(ei, n_gauss()), basis_cache_[0]->basis);
+    return basis_cache_[0]->basis;
+  }
   const int key = basis_class(e);
   if (basis_cache_.empty()) basis_cache_.resize(static_cast<size_t>(std::pow(classes, D)));
   std::unique_ptr<CachedBasis>& slot = basis_cache_[static_cast<size_t>(key)];
@@ -515,9 +522,11 @@ Mat DivConformingFluid::create_matrix(const std::vector<char>* wanted, std::vect
   return J;
 }
 
-Vec3 DivConformingFluid::wall_velocity(int d, int side, const Vec3& x, double t) const {
+Vec3 DivConformingFluid::wall_velocity(int d, int side, const Vec3& x, double t, const PointVec& n) const {
   Vec3 v = opt_.wall_velocity_field ? opt_.wall_velocity_field(x, t) : opt_.wall_velocity[d][side];
-  v[d] = 0.0;  // only the tangential part is imposed (weakly); the normal one is the strong 0
+  // Only the tangential part is imposed (weakly); the normal one is the strong 0.
+  const double vn = v[0] * n[0] + v[1] * n[1] + v[2] * n[2];
+  for (int i = 0; i < 3; ++i) v[i] -= vn * n[i];
   return v;
 }
 
@@ -557,7 +566,11 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J, bool with_imme
     }
     PointTangent t;  // (zeroed once per element; the kernels assign it whole)
     for (int q = 0; q < eb.n_points; ++q) {
-      const PointResidual r = kernel(q, point_state(q), J ? &t : nullptr);
+      PointResidual r = kernel(q, point_state(q), J ? &t : nullptr);
+      if (!eb.piola.empty()) {  // a mapped space: the test side through the map (dc_piola.hpp)
+        r = piola_residual(eb.piola[q], r);
+        if (J) t = piola_tangent(eb.piola[q], t);
+      }
       add_point_residual(eb, q, D, eb.weight[q], r, Fe);
       if (J) tangent.add(eb, q, eb.weight[q], t, lv.dv_dU, lv.da_dU);
     }
@@ -587,12 +600,13 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J, bool with_imme
   ip.dim = D;
   ip.nu = lv.nu;
   ip.convection = lv.convection;
-  if (!J) {  // the same sums, without the kernels' generality
+  const bool mapped = space_.is_mapped();
+  if (!J && !mapped) {  // the same sums, without the kernels' generality (on a box)
     static const PetscLogEvent interior_event = register_log_event("cellfsi fluid", "DcInterior");
     EventScope ev(interior_event);
     interior_residual(lv, F);
   }
-  for (int e = elem_begin_; e < elem_end_ && J; ++e) {
+  for (int e = elem_begin_; e < elem_end_ && (J || mapped); ++e) {
     if (subset && !subset->elements[e]) continue;
     current = &element_basis(e);
     integrate([&](int q, const PointState& s, PointTangent* t) {
@@ -607,8 +621,10 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J, bool with_imme
   if (lv.nitsche) {
     NitscheParameters np;
     np.dim = D;
+    std::vector<double> grad_xi;  // |grad xi_d| at a face's points (1 on a box)
     for (int d = 0; d < D; ++d) {
       if (space_.periodic(d)) continue;
+      // (on a mapped space the element's size across the wall is h^ / |grad xi_d| at each point)
       const double beta_per_nu =
           opt_.penalty * (space_.degree() + 1) * (space_.degree() + 1) / space_.element_size(d);
       for (int side = 0; side < 2; ++side) {
@@ -619,12 +635,23 @@ void DivConformingFluid::assemble(const Levels& lv, Vec F, Mat J, bool with_imme
           const Index3 ei = space_.element_multi_index(e);
           if (ei[d] != (side == 0 ? 0 : space_.n_elements(d) - 1)) continue;
           space_.evaluate(ei, space_.face_rule(ei, d, side, n_gauss()), face_basis);
+          // A mapped face: the measure J |G^T e_d| dA^ (Nanson; evaluate gave J), its outward normal
+          // +-G^T e_d / |G^T e_d| per point.
+          grad_xi.assign(face_basis.n_points, 1.0);
+          for (size_t q = 0; q < face_basis.piola.size(); ++q) {
+            grad_xi[q] = face_basis.piola[q].G.row(d).norm();
+            face_basis.weight[q] *= grad_xi[q];
+          }
           current = &face_basis;
           integrate([&](int q, const PointState& s, PointTangent* t) {
-            const Vec3 vw = wall_velocity(d, side, face_basis.x[q], lv.t);
+            if (mapped) {
+              const PiolaPoint& pp = face_basis.piola[q];
+              for (int i = 0; i < 3; ++i) np.n[i] = (side == 0 ? -1.0 : 1.0) * pp.G(d, i) / grad_xi[q];
+            }
+            const Vec3 vw = wall_velocity(d, side, face_basis.x[q], lv.t, np.n);
             for (int i = 0; i < 3; ++i) np.v_wall[i] = vw[i];
             np.nu = nu_at(q);
-            np.beta = beta_per_nu * np.nu;
+            np.beta = beta_per_nu * grad_xi[q] * np.nu;
             if (t) *t = dc_nitsche_tangent(np);
             return dc_nitsche_residual(s, np);
           });
@@ -964,7 +991,7 @@ void DivConformingFluid::immersed_residual(const Levels& lv, Vec F) const {
 }
 
 void DivConformingFluid::assemble_immersed(const Levels& lv, Vec F, Mat J) const {
-  if (!J) return immersed_residual(lv, F);
+  if (!J && !space_.is_mapped()) return immersed_residual(lv, F);
   const int D = space_.dim();
   ElementBasis eb;
   std::vector<double> Fe, Ke;
@@ -1022,24 +1049,33 @@ void DivConformingFluid::assemble_immersed(const Levels& lv, Vec F, Mat J) const
       prm.nu = 0;
       for (int a = 0; a < cb.n; ++a) prm.nu += nu_field_[cb.index[a] - space_.offset(D)] * cb.value[a];
     }
-    const Vec3 g = lv.g ? lv.g(p.x) : Vec3(Vec3::Zero());
+    const Vec3 g = lv.g ? lv.g(eb.x[0]) : Vec3(Vec3::Zero());
     for (int i = 0; i < 3; ++i) prm.g[i] = g[i];
-    if (F) add_point_residual(eb, 0, D, p.data.weight, dc_immersed_residual(st, prm, p.data), Fe);
+    // (a mapped space: the point's measure is its own weight, not J dxi; the test side through the map)
+    const PiolaPoint* map = eb.piola.empty() ? nullptr : &eb.piola[0];
+    if (F) {
+      const PointResidual r = dc_immersed_residual(st, prm, p.data);
+      add_point_residual(eb, 0, D, p.data.weight, map ? piola_residual(*map, r) : r, Fe);
+    }
     if (!J) continue;
+    PointTangent t;
     if (solid_apart_ && p.data.solid_begin >= 0) {  // its stiffness is solid_blocks()'
       ImmersedPoint without = p.data;
       without.stiffness_time = 0;
       without.stiffness_viscosity = 0;
-      tangent.add(eb, 0, p.data.weight, dc_immersed_tangent(st, prm, without), lv.dv_dU, lv.da_dU);
+      t = dc_immersed_tangent(st, prm, without);
     } else {
-      tangent.add(eb, 0, p.data.weight, dc_immersed_tangent(st, prm, p.data), lv.dv_dU, lv.da_dU);
+      t = dc_immersed_tangent(st, prm, p.data);
     }
+    tangent.add(eb, 0, p.data.weight, map ? piola_tangent(*map, t) : t, lv.dv_dU, lv.da_dU);
   }
   flush();
 }
 
 std::vector<DivConformingFluid::SolidBlock> DivConformingFluid::solid_blocks(
     const std::vector<int>& column, const std::vector<double>& grad) const {
+  if (space_.is_mapped())
+    throw std::logic_error("DivConformingFluid::solid_blocks: not written for a mapped space");
   // Points of one body element inside one fluid element share their columns (they come in the body's
   // quadrature order, kept by set_immersed_points' stable sort): for each such group and velocity
   // component i the block's rows of i gain one GEMM, (w dN_a/dx_j)_{a, (p, j)} times
@@ -1528,6 +1564,16 @@ bool DivConformingFluid::project_columnar(const std::function<Vec3(const Vec3&)>
   const int D = space_.dim(), ng = n_gauss();
   ElementBasis eb;
   double largest = 0, deviation = 0;
+  if (space_.is_mapped()) {  // only rest: a profile along a curved channel is not one column's
+    for (int e = 0; e < space_.n_elements() && largest == 0; ++e) {
+      const Index3 ei = space_.element_multi_index(e);
+      space_.evaluate(ei, space_.element_rule(ei, ng), eb);
+      for (int q = 0; q < eb.n_points; ++q) largest = std::max(largest, f(eb.x[q]).norm());
+    }
+    if (largest > 0) return false;
+    X.assign(space_.n_dofs(), 0.0);
+    return true;
+  }
   for (int e = 0; e < space_.n_elements(); ++e) {
     const Index3 ei = space_.element_multi_index(e);
     space_.evaluate(ei, space_.element_rule(ei, ng), eb);
@@ -1735,6 +1781,24 @@ double DivConformingFluid::divergence_ratio() const {
   // two ranks, every rank its own elements).
   const int D = space_.dim();
   double m[2] = {0, 0};  // max |div v_h|, max |grad v_h|
+  if (space_.is_mapped()) {  // point by point through the map (the physical gradient)
+    for (int e = elem_begin_; e < elem_end_; ++e) {
+      const ElementBasis& eb = element_basis(e);
+      for (int q = 0; q < eb.n_points; ++q) {
+        const auto pv = DivConformingSpace::interpolate(eb, q, D, U_.data());
+        double div = 0, g2 = 0;
+        for (int i = 0; i < D; ++i) {
+          div += pv.grad[i][i];
+          for (int j = 0; j < D; ++j) g2 += pv.grad[i][j] * pv.grad[i][j];
+        }
+        m[0] = std::max(m[0], std::abs(div));
+        m[1] = std::max(m[1], g2);
+      }
+    }
+    m[1] = std::sqrt(m[1]);
+    CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, m, 2, MPI_DOUBLE, MPI_MAX, comm_));
+    return m[1] > 0 ? m[0] / m[1] : 0.0;
+  }
   constexpr int kBlock = 128;
   std::vector<double> u, grad[3][3], scratch;
   for (const std::vector<int>& members : elements_by_class()) {
@@ -1802,8 +1866,30 @@ std::vector<DivConformingFluid::Sample> DivConformingFluid::sample(const std::ve
   const int D = space_.dim();
   std::vector<Sample> out(points.size());
   ElementBasis eb;
+  std::unique_ptr<geometry::PointInverter> inverter;
+  if (space_.is_mapped()) inverter = std::make_unique<geometry::PointInverter>(*space_.patch());
+  TensorRule rule;
+  geometry::InversionResult previous;
   for (size_t i = 0; i < points.size(); ++i) {
-    space_.evaluate(space_.find_element(points[i]), space_.point_rule(points[i]), eb);
+    if (inverter) {  // (warm from the previous point: output grids and profiles come in order)
+      const geometry::InversionResult loc = i > 0 && previous.inside
+                                                ? inverter->invert(points[i], previous.element, previous.xi)
+                                                : inverter->invert(points[i]);
+      const geometry::InversionResult found = loc.inside ? loc : inverter->invert(points[i]);
+      if (!found.inside)
+        throw std::invalid_argument("DivConformingFluid::sample: the point (" + std::to_string(points[i][0]) +
+                                    ", " + std::to_string(points[i][1]) + ", " +
+                                    std::to_string(points[i][2]) + ") is outside the domain (by " +
+                                    std::to_string(found.distance) + " cm)");
+      previous = found;
+      for (int d = 0; d < 3; ++d) {
+        rule.points[d].assign(1, d < D ? space_.from_patch_parameters(found.xi)[d] : 0.0);
+        rule.weights[d].assign(1, 1.0);
+      }
+      space_.evaluate(found.element, rule, eb);
+    } else {
+      space_.evaluate(space_.find_element(points[i]), space_.point_rule(points[i]), eb);
+    }
     const auto pv = DivConformingSpace::interpolate(eb, 0, D, U_.data());
     for (int a = 0; a < D; ++a) {
       out[i].v[a] = pv.v[a];
@@ -1830,7 +1916,10 @@ void DivConformingFluid::write_vtk(const std::string& path, int samples_per_elem
   if (rank == 0) {
     try {
       std::vector<Vec3> pts;
+      std::vector<Sample> smp;
       pts.reserve(static_cast<size_t>(n[0]) * n[1] * n[2]);
+      ElementBasis eb;
+      TensorRule rule;
       for (int m2 = 0; m2 < n[2]; ++m2)
         for (int m1 = 0; m1 < n[1]; ++m1)
           for (int m0 = 0; m0 < n[0]; ++m0) {
@@ -1838,10 +1927,31 @@ void DivConformingFluid::write_vtk(const std::string& path, int samples_per_elem
             Vec3 x = Vec3::Zero();
             for (int d = 0; d < D; ++d)
               x[d] = space_.lo(d) + (space_.hi(d) - space_.lo(d)) * m[d] / (n[d] - 1);
-            pts.push_back(x);
+            if (!space_.is_mapped()) {
+              pts.push_back(x);
+              continue;
+            }
+            // A mapped space: x is the parametric point; its element's (the last along a direction for the
+            // end sample), evaluated there and mapped.
+            Index3 e{0, 0, 0};
+            for (int d = 0; d < D; ++d) e[d] = std::min(m[d] / s, space_.n_elements(d) - 1);
+            for (int d = 0; d < 3; ++d) {
+              rule.points[d].assign(1, x[d]);
+              rule.weights[d].assign(1, 1.0);
+            }
+            space_.evaluate(e, rule, eb);
+            const auto pv = DivConformingSpace::interpolate(eb, 0, D, U_.data());
+            Sample sm;
+            for (int a = 0; a < D; ++a) {
+              sm.v[a] = pv.v[a];
+              for (int b = 0; b < D; ++b) sm.grad_v(a, b) = pv.grad[a][b];
+            }
+            sm.p = pv.p;
+            smp.push_back(sm);
+            pts.push_back(eb.x[0]);
           }
       // A periodic direction's last sample, at the period's end, is wrapped to its start: the same value.
-      const std::vector<Sample> smp = sample(pts);
+      if (!space_.is_mapped()) smp = sample(pts);
       vtkNew<vtkStructuredGrid> grid;
       grid->SetDimensions(n[0], n[1], n[2]);
       vtkNew<vtkPoints> points;

@@ -171,7 +171,8 @@ class DivConformingFluid {
   const std::vector<double>& viscosity_field() const { return nu_field_; }
 
   /// Velocity, its gradient (grad_v(i, j) = d v_i / d x_j) and the pressure at points anywhere in the box
-  /// (periodic coordinates wrapped). Local: the state is on every rank.
+  /// (periodic coordinates wrapped; on a mapped space, found by NURBS inversion, geometry::PointInverter;
+  /// a point outside the domain throws std::invalid_argument). Local: the state is on every rank.
   struct Sample {
     Vec3 v = Vec3::Zero();
     geometry::Mat3 grad_v = geometry::Mat3::Zero();
@@ -179,12 +180,13 @@ class DivConformingFluid {
   };
   std::vector<Sample> sample(const std::vector<Vec3>& points) const;
   /// Writes the fields as a VTK structured grid (.vts) sampled at samples_per_element + 1 points per element
-  /// and direction (element ends shared): arrays velocity, pressure, divergence. Rank 0 writes; collective.
+  /// and direction (element ends shared; on a mapped space uniform in the parameters and mapped): arrays
+  /// velocity, pressure, divergence. Rank 0 writes; collective.
   void write_vtk(const std::string& path, int samples_per_element = 2) const;
 
   // --- Immersed solids and a step driven from outside (the coupling loop of paper Sec. 2.3) ---
   /// One immersed solid point in element `element` (linear index, DivConformingSpace::element_multi_index)
-  /// at the physical point x.
+  /// at x: the physical point on a box, the parametric one on a mapped space (DivConformingSpace::mapped).
   struct ImmersedAt {
     int element = 0;
     Vec3 x = Vec3::Zero();
@@ -232,6 +234,7 @@ class DivConformingFluid {
     std::vector<int> cols;
     std::vector<double> values;
   };
+  /// Not on a mapped space (std::logic_error): there the points carry their consistent tangent.
   std::vector<SolidBlock> solid_blocks(const std::vector<int>& column, const std::vector<double>& grad) const;
   /// d v(t_{n+alpha_f}) / d U of a step's iterate (alpha_f).
   double velocity_alpha() const { return alpha_.alpha_f; }
@@ -245,7 +248,7 @@ class DivConformingFluid {
   /// Accepts U as U_{n+1}: the rate, the time, the pressure's zero mean, divergence_history().
   void end_step(const std::vector<double>& U);
   /// v and grad v at t_{n+alpha_f} and the acceleration at t_{n+alpha_m} of the step's iterate U at points
-  /// (element, x) (local: U is on every rank).
+  /// (element, x) (x as ImmersedAt's; local: U is on every rank).
   struct StepSample {
     Vec3 v = Vec3::Zero(), a = Vec3::Zero();
     geometry::Mat3 grad_v = geometry::Mat3::Zero();
@@ -342,7 +345,8 @@ class DivConformingFluid {
   template <class F>
   void for_owned_elements(int n_gauss, F&& f) const;
   void shift_pressure_to_zero_mean(std::vector<double>& U) const;
-  Vec3 wall_velocity(int d, int side, const Vec3& x, double t) const;
+  /// The wall velocity at x with its part along the unit normal n removed.
+  Vec3 wall_velocity(int d, int side, const Vec3& x, double t, const std::array<double, 3>& n) const;
   int n_gauss() const { return space_.degree() + 2; }  // exact for the mass matrix (degree 2k + 2)
 
   MPI_Comm comm_;

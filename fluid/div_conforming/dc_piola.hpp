@@ -1,7 +1,7 @@
 #pragma once
-// The contravariant Piola map of the divergence-conforming space on a mapped (curved) domain, at one point:
-// issue 45 part 2's kernel, tested alone (tests/unit/fluid/test_div_conforming.cpp, DcPiola.*). Not yet used
-// by the fluid, which takes axis-aligned boxes only (DivConformingSpace::from_patch refuses others).
+// The contravariant Piola map of the divergence-conforming space on a mapped (curved) domain, at one point
+// (issue 45 part 2), tested alone (tests/unit/fluid/test_div_conforming.cpp, DcPiola.*) and used by
+// DivConformingFluid on a space made by DivConformingSpace::mapped.
 //
 // On the parametric box the space is the one of dc_space.hpp, with its knot vectors in the parameters xi; the
 // geometry x(xi) (a geometry::Patch, e.g. the narrowing channel) has F = dx/dxi, J = det F > 0 and G =
@@ -19,8 +19,17 @@
 // which needs the map's second derivatives. A weak form's point terms w . r0 + grad w : r1 (dc_kernel.hpp)
 // against a test function w = P w^ are then (L^T (r0, r1)) . (w^, grad_xi w^), integrated with the measure
 // J dxi: piola_test is L's transpose.
+//
+// A kernel of dc_kernel.hpp then runs unchanged on a mapped space: the fields at the point mapped by L, its
+// residual taken back by L^T (piola_residual), its tangent K by L^T K L (piola_tangent), and the parametric
+// basis with weight J dxi assembles them as on a box. Two terms vanish by the Piola identity (the columns of
+// P are divergence-free, sum_i dP_ic/dx_i = 0: div_x of P e_c is div_xi e_c / J = 0) and are left out:
+// the pressure's -p I in r1 reaches r0^ only as -p sum_i dP_ic/dx_i, and div v = tr(grad v) depends on v^
+// only through the same sum; PointTangent has no place for either (d r0 / d p, d rq / d v), and on a map of
+// second derivatives computed to round-off they are round-off.
 #include <array>
 
+#include "fluid/div_conforming/dc_kernel.hpp"
 #include "geometry/patch.hpp"
 
 namespace cellfsi::fluid::dc {
@@ -48,5 +57,14 @@ void piola_values(const PiolaPoint& pt, const double* v_hat, const double (*grad
 /// sum_ca r1_hat_ca dv^_c/dxi_a for every parametric field (multiply the quadrature weight by J).
 void piola_test(const PiolaPoint& pt, const double* r0, const double (*r1)[3], double* r0_hat,
                 double (*r1_hat)[3]);
+
+/// The physical fields of a point from its parametric ones (v, a by P; grad v by L; p unchanged).
+PointState piola_state(const PiolaPoint& pt, const PointState& hat);
+/// A kernel's residual at the physical fields, as the parametric test side's: (r0^, r1^) = L^T (r0, r1), rq
+/// unchanged (the caller's weight carries J).
+PointResidual piola_residual(const PiolaPoint& pt, const PointResidual& r);
+/// A kernel's tangent at the physical fields as the derivative of piola_residual with respect to the
+/// parametric fields: L^T K L (a by P, p unchanged; the two terms of the Piola identity left out, above).
+PointTangent piola_tangent(const PiolaPoint& pt, const PointTangent& t);
 
 }  // namespace cellfsi::fluid::dc

@@ -126,8 +126,29 @@ DivConformingSpace DivConformingSpace::from_patch(const geometry::Patch& patch, 
 DivConformingSpace DivConformingSpace::mapped(std::shared_ptr<const geometry::Patch> patch, int k) {
   require(patch != nullptr, "mapped: no patch");
   const ParametricGrid g = parametric_grid(*patch);
-  DivConformingSpace space(g.dim, k, g.n, g.a, g.b, g.periodic);
+  // The space's coordinates s_d = c_d xi_d, c_d the patch's length along d per unit parameter (the distance
+  // between its mid-line's ends, or the period shift's length): then F = dx/ds and J are of order 1 and the
+  // velocity coefficients (J F^{-1} v) have the physical velocity's size. In the patch's own parameters
+  // (the paper's domains map [0, 1]) they were J F^{-1} ~ 1e-3 of it at 0.003 x 0.001 cm, while the
+  // pressure's stayed, and Newton's update test (relative to the largest unknown) read the pressure's
+  // round-off as 1e-10 of the velocity (measured on a channel at an angle).
+  Vec3 scale = Vec3::Ones();
+  for (int d = 0; d < g.dim; ++d) {
+    double length = 0;
+    if (g.periodic[d]) {
+      length = patch->shift(d).norm();
+    } else {
+      geometry::Param lo{0, 0, 0}, hi{0, 0, 0};
+      for (int e = 0; e < g.dim; ++e) lo[e] = hi[e] = 0.5 * (g.a[e] + g.b[e]);
+      lo[d] = g.a[d], hi[d] = g.b[d];
+      length = (patch->evaluate(hi, 0).x - patch->evaluate(lo, 0).x).norm();
+    }
+    require(length > 0, "mapped: the patch has no length along direction " + std::to_string(d));
+    scale[d] = length / (g.b[d] - g.a[d]);
+  }
+  DivConformingSpace space(g.dim, k, g.n, g.a.cwiseProduct(scale), g.b.cwiseProduct(scale), g.periodic);
   space.map_ = std::move(patch);
+  space.param_scale_ = scale;
   return space;
 }
 
@@ -202,14 +223,12 @@ TensorRule DivConformingSpace::element_rule(const Index3& e, int n_gauss) const 
 }
 
 Index3 DivConformingSpace::find_element(const Vec3& x) const {
-  if (map_) throw std::logic_error("DivConformingSpace::find_element: a mapped space locates by inversion");
   Index3 e{0, 0, 0};
   for (int d = 0; d < dim_; ++d) e[d] = low_[d].find_element(x[d]);
   return e;
 }
 
 TensorRule DivConformingSpace::point_rule(const Vec3& x) const {
-  if (map_) throw std::logic_error("DivConformingSpace::point_rule: a mapped space's rules are parametric");
   TensorRule r;
   for (int d = 0; d < 3; ++d) {
     r.points[d] = {d < dim_ ? low_[d].normalize(x[d]) : 0.0};
@@ -324,9 +343,16 @@ void DivConformingSpace::evaluate(const Index3& e, const TensorRule& rule, Eleme
   thread_local geometry::BasisValues bv;
   geometry::MapValues mv;
   for (int q = 0; q < n_points; ++q) {
-    const geometry::Param xi{out.x[q][0], out.x[q][1], out.x[q][2]};
+    const geometry::Param xi = to_patch(out.x[q]);
     map_->basis(xi, 2, bv, &e);  // (the element's span: points on its faces belong to it)
     map_->map(bv, mv);
+    for (int a = 0; a < 3; ++a) {  // (d/ds_a = d/dxi_a / c_a)
+      mv.dx.col(a) /= param_scale_[a];
+      for (int i = 0; i < 3; ++i) {
+        mv.d2x[i].row(a) /= param_scale_[a];
+        mv.d2x[i].col(a) /= param_scale_[a];
+      }
+    }
     out.piola[q] = piola_point(mv, dim_);
     out.x[q] = mv.x;
     out.weight[q] *= out.piola[q].J;

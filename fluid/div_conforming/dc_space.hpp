@@ -69,15 +69,24 @@ class DivConformingSpace {
   /// geometry::box) with its elements and periodic directions; the patch's own degree plays no part.
   /// Throws std::invalid_argument for a patch that is not affine or whose periodic elements are not uniform.
   static DivConformingSpace from_patch(const geometry::Patch& patch, int k);
-  /// The space on a curved patch through the contravariant Piola map (dc_piola.hpp; issue 45 part 2, not yet
-  /// taken by the fluid): the knot vectors on the patch's parametric box (its elements, which must be uniform
-  /// per direction; its periodic directions), the fields mapped at every point evaluate() forms. Its
-  /// lo/hi/element_size and divergence() (div_xi: div_x v = div_xi v^ / J) are parametric, and
-  /// find_element/point_rule (physical points of a box) throw std::logic_error. Throws std::invalid_argument
-  /// as from_patch; evaluate() throws it where the map folds (det F <= 0 at a point). DivConformingFluid and
-  /// DcFourierSolver refuse such a space.
+  /// The space on a curved patch through the contravariant Piola map (dc_piola.hpp; issue 45 part 2): the
+  /// knot vectors on the patch's parametric box scaled per direction (from_patch_parameters; its elements,
+  /// which must be uniform per direction; its periodic directions), the fields mapped at every point
+  /// evaluate() forms. Its lo/hi/element_size, find_element/point_rule and divergence() (div_s: div_x v =
+  /// div_s v^ / J) are in those coordinates s. Throws std::invalid_argument as from_patch; evaluate() throws
+  /// it where the map folds (det F <= 0 at a point). DcFourierSolver refuses such a space.
   static DivConformingSpace mapped(std::shared_ptr<const geometry::Patch> patch, int k);
   bool is_mapped() const { return map_ != nullptr; }
+  /// The geometry of a mapped space (null on a box).
+  const geometry::Patch* patch() const { return map_.get(); }
+  /// A mapped space's coordinates s (its knots, rules and points) are the patch's parameters xi scaled per
+  /// direction, s_d = c_d xi_d (mapped() says why); c_d is 1 on a box.
+  Vec3 from_patch_parameters(const geometry::Param& xi) const {
+    return Vec3(xi[0] * param_scale_[0], xi[1] * param_scale_[1], xi[2] * param_scale_[2]);
+  }
+  geometry::Param to_patch(const Vec3& s) const {
+    return {s[0] / param_scale_[0], s[1] / param_scale_[1], s[2] / param_scale_[2]};
+  }
 
   int dim() const { return dim_; }
   int degree() const { return k_; }  // pressure degree k'
@@ -120,7 +129,8 @@ class DivConformingSpace {
   /// Rule on the face of element e at side `side` (0: x_d = lo, 1: x_d = hi) of direction d.
   TensorRule face_rule(const Index3& e, int d, int side, int n_gauss) const;
   /// The element containing x (per direction: wrapped into the period if periodic, clamped to the box
-  /// otherwise) and the one-point rule at x in it (periodic coordinates wrapped).
+  /// otherwise) and the one-point rule at x in it (periodic coordinates wrapped). x: physical on a box, the
+  /// space's coordinates s on a mapped space.
   Index3 find_element(const Vec3& x) const;
   TensorRule point_rule(const Vec3& x) const;
   /// The basis of every component at the points of `rule` in element e. with_indices false keeps out's
@@ -170,6 +180,7 @@ class DivConformingSpace {
   std::array<std::array<std::vector<double>, 3>, 2> poly_;
   std::array<std::vector<double>, 3> mid_, inv_h_;
   std::shared_ptr<const geometry::Patch> map_;  // (mapped(): the geometry; null on a box)
+  Vec3 param_scale_ = Vec3::Ones();             // c_d (from_patch_parameters)
 };
 
 }  // namespace cellfsi::fluid::dc

@@ -12,51 +12,19 @@
 
 #include <petscsys.h>
 
+#include "../support/dc_manufactured.hpp"
 #include "../support/print_rank0.hpp"
 #include "fluid/div_conforming/dc_fluid.hpp"
 
 using namespace cellfsi;
 using namespace cellfsi::fluid::dc;
+using cellfsi::test_support::Manufactured;
 using cellfsi::test_support::print0;
 using geometry::Mat3;
 
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-
-/// On the unit channel (periodic x, walls y = 0, 1): psi = sin(2 pi x) sin(pi y), v = (psi_y, -psi_x), so
-/// div v = 0, v.n = 0 on the walls and the tangential wall velocity varies along them (Nitsche with a wall
-/// velocity field); p = P sin(2 pi x) cos(pi y). rho = nu = 1; f = 5 pi^2 nu v + c (v.grad)v + grad p.
-/// The pressure's amplitude P: the velocity does not depend on it (pressure robustness), and P = 100 makes
-/// the pressure's own approximation error, of order k + 1, dominate its error from the first mesh on (with P
-/// = 1 a part of order k + 2 driven by the velocity is as large on these meshes: rates 4.1, 3.8, 3.5 for k =
-/// 2).
-struct Manufactured {
-  double nu = 1.0;
-  double P = 100.0;
-  Vec3 v(const Vec3& x) const {
-    return Vec3(kPi * std::sin(2 * kPi * x[0]) * std::cos(kPi * x[1]),
-                -2 * kPi * std::cos(2 * kPi * x[0]) * std::sin(kPi * x[1]), 0);
-  }
-  Mat3 grad(const Vec3& x) const {
-    const double s2 = std::sin(2 * kPi * x[0]), c2 = std::cos(2 * kPi * x[0]);
-    const double s1 = std::sin(kPi * x[1]), c1 = std::cos(kPi * x[1]);
-    Mat3 m = Mat3::Zero();
-    m(0, 0) = 2 * kPi * kPi * c2 * c1;
-    m(0, 1) = -kPi * kPi * s2 * s1;
-    m(1, 0) = 4 * kPi * kPi * s2 * s1;
-    m(1, 1) = -2 * kPi * kPi * c2 * c1;
-    return m;
-  }
-  double p(const Vec3& x) const { return P * std::sin(2 * kPi * x[0]) * std::cos(kPi * x[1]); }
-  Vec3 force(const Vec3& x, double convection) const {
-    const Vec3 vv = v(x);
-    const Mat3 g = grad(x);
-    const Vec3 grad_p(P * 2 * kPi * std::cos(2 * kPi * x[0]) * std::cos(kPi * x[1]),
-                      -P * kPi * std::sin(2 * kPi * x[0]) * std::sin(kPi * x[1]), 0);
-    return 5 * kPi * kPi * nu * vv + convection * (g * vv) + grad_p;
-  }
-};
 
 struct Rates {
   std::vector<double> v_l2, v_h1, p_l2;

@@ -10,6 +10,7 @@
 #include "common/petsc_error.hpp"
 #include "fluid/dc_immersed_fluid.hpp"
 #include "geometry/builders.hpp"
+#include "geometry/refine.hpp"
 #include "solid/material.hpp"
 #include "solid/nurbs_solid.hpp"
 
@@ -460,13 +461,18 @@ TEST(DcImmersedFluid, TheSolidTangentThroughTheCollocationEqualsTheConsistentOne
   VecDestroy(&y_none);
 }
 
-TEST(DcImmersedFluid, RefusesADomainThatIsNotABox) {
-  const geometry::Patch channel = geometry::narrowing_channel(geometry::NarrowingChannel{}, 32, 16, 2);
+TEST(DcImmersedFluid, RefusesADomainWhoseElementsAreNotUniform) {
+  // The narrowing channel is taken (through the Piola map, tests/unit/fluid/test_dc_mapped_fluid.cpp); one
+  // with a knot inserted across the channel is not: the space's elements are uniform in the parameters.
+  const geometry::Patch channel =
+      geometry::insert_knots(geometry::narrowing_channel(geometry::NarrowingChannel{}, 32, 16, 2), 1, {0.51});
   fluid::FluidOptions o;
   o.space = "div_conforming";
+  EXPECT_NO_THROW(fluid::create_fluid(
+      PETSC_COMM_WORLD, geometry::narrowing_channel(geometry::NarrowingChannel{}, 32, 16, 2), o));
   try {
     fluid::create_fluid(PETSC_COMM_WORLD, channel, o);
-    FAIL() << "a curved domain was accepted";
+    FAIL() << "a domain of unequal elements was accepted";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("-fluid_space"), std::string::npos) << e.what();
   }
