@@ -221,6 +221,8 @@ void PrintTo(const SceneCase& c, std::ostream* os) { *os << c.file; }
 const std::vector<SceneCase> kEveryScene = {
     {"shear.yaml", kTiny},
     {"poiseuille.yaml", kTiny},
+    {"narrowing_flow.yaml",
+     {"-fluid_elements", "48,16", "-fluid_degree", "2", "-final_time", "1e-3", "-output_every", "0"}},
     {"capsule_shear_quick.yaml", kDefaultCapsule},
     {"capsule_shear.yaml", kCapsule},
     {"biconcave_capsule_shear.yaml", with(kCapsule, {"-fluid_elements", "64,32"})},
