@@ -97,9 +97,17 @@ void FsiCoupler::update_immersed(bool first_iteration) {
   std::vector<int> q_begin, q_unknown;
   std::vector<double> q_grad;
   // Every body's points first, located: the repulsion between them needs them all. The material (stress,
-  // tangent) is evaluated only at the points of this rank's fluid elements, the rest carry their positions.
+  // tangent) is evaluated only at this rank's points, the rest carry their positions: those of its fluid
+  // elements, or, where the fluid assembles a point in any element, the rank's equal run of the body's points
+  // (their count known from the previous call; at the first, by element). At 32^3 by element the points'
+  // terms stopped dividing beyond 2 ranks: the cells sat in two ranks' elements (-log_view's operation
+  // counts).
   std::vector<std::vector<solid::QuadratureData>>& all_q = scratch_q_;
   all_q.resize(bodies_.size());
+  const bool dealt = fluid_.assembles_points_anywhere();
+  int rank = 0, ranks = 1;
+  CELLFSI_PETSC(MPI_Comm_rank(fluid_.comm(), &rank));
+  CELLFSI_PETSC(MPI_Comm_size(fluid_.comm(), &ranks));
   for (size_t b = 0; b < bodies_.size(); ++b) {
     EventScope ev(coupling_events().quadrature);
     auto& warm = quadrature_loc_[b];
@@ -107,13 +115,17 @@ void FsiCoupler::update_immersed(bool first_iteration) {
     std::size_t offered = 0,
                 outside = SIZE_MAX;  // (a point outside the domain is refused after the call, so
                                      // that the body's inverted-element report does not claim it)
+    const std::size_t n_known = dealt ? warm.size() : 0;  // (the body's points at the previous call)
     all_q[b] = bodies_[b]->quadrature_data(rho1, with_tangent, [&](std::size_t i, const geometry::Vec3& x) {
       ++offered;
       if (i >= warm.size()) warm.resize(i + 1);
       if (i >= own.size()) own.resize(i + 1);
       warm[i] = locator_.locate(x, &warm[i]);
       if (!warm[i].found && outside == SIZE_MAX) outside = i;
-      own[i] = warm[i].found && fluid_.owns_element(warm[i].element);
+      own[i] = warm[i].found &&
+               (n_known > 0 ? std::min(i * static_cast<std::size_t>(ranks) / n_known,
+                                       static_cast<std::size_t>(ranks - 1)) == static_cast<std::size_t>(rank)
+                            : fluid_.owns_element(warm[i].element));
       return own[i] != 0;
     });
     if (offered != all_q[b].size())

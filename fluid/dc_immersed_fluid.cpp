@@ -312,8 +312,7 @@ void DcImmersedFluid::set_immersed_points(const std::vector<geometry::Index3>& e
     throw std::invalid_argument("set_immersed_points: elements, xi and data differ in size");
   std::vector<dc::DivConformingFluid::ImmersedAt>& pts = points_;  // (kept storage: see the fluid's)
   pts.clear();
-  for (std::size_t i = 0; i < data.size(); ++i) {
-    if (!owns_element(elements[i])) continue;
+  for (std::size_t i = 0; i < data.size(); ++i) {  // (this rank's: assembles_points_anywhere)
     pts.push_back({patch_.element_index(elements[i]), space_point(xi[i]), data[i]});
   }
   fluid_->set_immersed_points(pts);

@@ -151,7 +151,13 @@ class ImmersedFluid {
   // --- The immersed step, driven from outside (the coupling loop, paper Sec. 2.3) ---
   /// Whether this rank assembles element e (an immersed point there is kept only by this rank).
   virtual bool owns_element(const geometry::Index3& e) const = 0;
-  /// Immersed points already located (element, xi); each rank keeps those in its elements.
+  /// Whether a rank may assemble an immersed point in any element (its rows travel to their owners). Then the
+  /// coupler deals each body's points out to the ranks in equal contiguous runs, whatever their elements: the
+  /// points' terms and the material's evaluation divide by the ranks even where the cells sit in a few ranks'
+  /// elements. Otherwise (the default) a point goes to its element's owner (owns_element).
+  virtual bool assembles_points_anywhere() const { return false; }
+  /// Immersed points already located (element, xi): this rank's (those in its elements, or those dealt to it
+  /// where assembles_points_anywhere()).
   virtual void set_immersed_points(const std::vector<geometry::Index3>& elements,
                                    const std::vector<geometry::Param>& xi,
                                    const std::vector<ImmersedPoint>& data) = 0;

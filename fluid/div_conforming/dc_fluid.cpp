@@ -368,6 +368,17 @@ void DivConformingFluid::gather_block(const int* members, int m, int local_first
   }
 }
 
+const int* DivConformingFluid::unknowns_of(int e, std::vector<int>& scratch) const {
+  if (e >= elem_begin_ && e < elem_end_)
+    return element_unknowns_.data() + static_cast<size_t>(e - elem_begin_) * n_local_;
+  const Index3 ei = space_.element_multi_index(e);
+  ElementBasis eb;
+  space_.evaluate(ei, space_.element_rule(ei, 1), eb);  // indices only
+  const std::vector<PetscInt> idx = local_indices(eb, space_.dim());
+  scratch.assign(idx.begin(), idx.end());
+  return scratch.data();
+}
+
 const std::vector<std::vector<int>>& DivConformingFluid::elements_by_class() const {
   if (class_elements_.empty()) {
     class_elements_.resize(static_cast<size_t>(std::pow(2 * space_.degree() + 5, space_.dim())));
@@ -950,6 +961,7 @@ void DivConformingFluid::immersed_residual(const Levels& lv, Vec F) const {
   }
   const int n_vel = off[D], n_p = off[D + 1] - off[D];
   std::vector<double> ue(n_vel), ae(n_vel), nue(n_p), Fe(n_vel);
+  std::vector<int> other_unknowns;
   std::vector<PetscInt> idx(n_vel);
   int current = -1;
   auto flush = [&] {
@@ -959,7 +971,7 @@ void DivConformingFluid::immersed_residual(const Levels& lv, Vec F) const {
     if (p.element != current) {
       flush();
       current = p.element;
-      const int* u = element_unknowns_.data() + static_cast<size_t>(p.element - elem_begin_) * n_local_;
+      const int* u = unknowns_of(p.element, other_unknowns);
       for (int a = 0; a < n_vel; ++a) {
         ue[a] = lv.v[u[a]];
         ae[a] = lv.a[u[a]];
@@ -1209,9 +1221,7 @@ void DivConformingFluid::set_immersed_points(const std::vector<ImmersedAt>& poin
   // bytes, and new vectors of them at every coupling iteration (3 x 110 MB per rank at 64^3) came back from
   // the kernel as fresh pages to fault in and clear.
   point_order_.clear();
-  for (std::size_t i = 0; i < points.size(); ++i)
-    if (points[i].element >= elem_begin_ && points[i].element < elem_end_)
-      point_order_.push_back(static_cast<int>(i));
+  for (std::size_t i = 0; i < points.size(); ++i) point_order_.push_back(static_cast<int>(i));
   std::stable_sort(point_order_.begin(), point_order_.end(),
                    [&](int a, int b) { return points[a].element < points[b].element; });
   immersed_.clear();

@@ -192,8 +192,10 @@ class DivConformingFluid {
     Vec3 x = Vec3::Zero();
     ImmersedPoint data;
   };
-  /// The immersed points this rank assembles (those in its elements; the others' are ignored). Their terms
-  /// (dc_kernel.hpp, dc_immersed_residual) enter every residual and tangent of a step until replaced.
+  /// The immersed points this rank assembles, in any elements (their rows travel to their owners through
+  /// PETSc's stashes; the coupler deals the points out evenly: ImmersedFluid::assembles_points_anywhere).
+  /// Their terms (dc_kernel.hpp, dc_immersed_residual) enter every residual and tangent of a step until
+  /// replaced.
   void set_immersed_points(const std::vector<ImmersedAt>& points);
   std::size_t n_immersed_points() const { return immersed_.size(); }
   /// Starts a step driven from outside: keeps (U_n, Udot_n); the iterate's first value is state().
@@ -238,7 +240,7 @@ class DivConformingFluid {
   std::vector<SolidBlock> solid_blocks(const std::vector<int>& column, const std::vector<double>& grad) const;
   /// d v(t_{n+alpha_f}) / d U of a step's iterate (alpha_f).
   double velocity_alpha() const { return alpha_.alpha_f; }
-  /// This rank's elements that hold immersed points, sorted.
+  /// The elements that hold this rank's immersed points, sorted.
   std::vector<int> immersed_elements() const;
   /// A matrix preallocated for immersed_tangent: AIJ, each owned row's distinct columns over the elements
   /// with points on every rank (their velocity blocks: the points' terms have no pressure), counted exactly
@@ -339,6 +341,9 @@ class DivConformingFluid {
   /// members[0 .. m) (this rank's), into out[b * m + e] (the sum-factorised kernels' layout).
   void gather_block(const int* members, int m, int local_first, int n, const double* src, int shift,
                     std::vector<double>& out) const;
+  /// The local unknowns of element e (natural numbering, add_point_residual's order): this rank's kept list
+  /// for its own elements, else computed into scratch.
+  const int* unknowns_of(int e, std::vector<int>& scratch) const;
   /// This rank's elements grouped by basis_class (made at the first call).
   const std::vector<std::vector<int>>& elements_by_class() const;
   /// Calls f(eb) for each of this rank's elements with its basis at the element's Gauss points.
