@@ -32,9 +32,10 @@ PARTS = ["FsiLinearSolve", "FsiJacobian", "FsiResidual", "FsiLocate", "FsiSolidU
 WHAT = {
     "FsiLinearSolve": "FGMRES: the bulk inverse (FFT of every line on every rank, banded solves dealt out), "
                       "the points' matrix",
-    "FsiJacobian": "the points' tangent, on the ranks that own their elements",
-    "FsiResidual": "the elements' terms (dealt out), the points' terms (their elements' owners)",
-    "FsiLocate": "every point located on every rank, the material at its owner, the repulsion",
+    "FsiJacobian": "the points' tangent (each rank an equal run of the points, or its elements' points)",
+    "FsiResidual": "the elements' terms (dealt out), the points' terms (as the Jacobian's)",
+    "FsiLocate": "every point located and formed on every rank, the repulsion; the material at the rank's "
+                 "points (not counted)",
     "FsiSolidUpdate": "every body's kinematic update on every rank (not counted)",
     "CellfsiTrack": "the bodies' metrics (not counted)",
     "rest": "the rest of the one-rank step after the first (its wall time less the parts; not counted)",

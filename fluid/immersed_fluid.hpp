@@ -152,9 +152,10 @@ class ImmersedFluid {
   /// Whether this rank assembles element e (an immersed point there is kept only by this rank).
   virtual bool owns_element(const geometry::Index3& e) const = 0;
   /// Whether a rank may assemble an immersed point in any element (its rows travel to their owners). Then the
-  /// coupler deals each body's points out to the ranks in equal contiguous runs, whatever their elements: the
+  /// coupler deals each body's points out to the ranks in equal runs in the order of their elements: the
   /// points' terms and the material's evaluation divide by the ranks even where the cells sit in a few ranks'
-  /// elements. Otherwise (the default) a point goes to its element's owner (owns_element).
+  /// elements, and a rank's points lie in a contiguous range of elements. Otherwise (the default) a point
+  /// goes to its element's owner (owns_element).
   virtual bool assembles_points_anywhere() const { return false; }
   /// Immersed points already located (element, xi): this rank's (those in its elements, or those dealt to it
   /// where assembles_points_anywhere()).
