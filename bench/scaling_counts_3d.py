@@ -38,7 +38,8 @@ WHAT = {
                  "points (not counted)",
     "FsiSolidUpdate": "every body's kinematic update on every rank (not counted)",
     "CellfsiTrack": "the bodies' metrics (not counted)",
-    "rest": "the rest of the one-rank step after the first (its wall time less the parts; not counted)",
+    "rest": "the rest of the one-rank step after the first (its wall time less the parts, which average every "
+            "step, the first's set-up included: a lower bound; not counted)",
 }
 
 

@@ -113,10 +113,14 @@ Vec3 DcImmersedFluid::space_point(const geometry::Param& xi) const {
   return offset_ + scale_.cwiseProduct(Vec3(xi[0], xi[1], xi[2]));
 }
 
-bool DcImmersedFluid::locate(const Vec3& x, Vec3& s) const {
+bool DcImmersedFluid::locate(const Vec3& x, Vec3& s, geometry::InversionResult* warm) const {
   if (inverter_) {
-    const geometry::InversionResult r = inverter_->invert(x);
+    // (from the previous point's element first: output grids, profiles and sections come in order)
+    geometry::InversionResult r =
+        warm && warm->inside ? inverter_->invert(x, warm->element, warm->xi) : inverter_->invert(x);
+    if (!r.inside && warm && warm->inside) r = inverter_->invert(x);
     if (r.inside) s = space_->from_patch_parameters(r.xi);
+    if (warm) *warm = r;
     return r.inside;
   }
   for (int d = 0; d < dim(); ++d)
@@ -166,15 +170,26 @@ std::vector<PointSample> DcImmersedFluid::evaluate(const std::vector<double>& c,
   std::vector<PointSample> out(points.size());
   dc::ElementBasis eb;
   Vec3 at;
+  geometry::InversionResult warm;
   for (std::size_t i = 0; i < points.size(); ++i)
-    if (locate(points[i], at)) out[i] = at_space_point(c, rate, at, eb);
+    if (locate(points[i], at, &warm)) out[i] = at_space_point(c, rate, at, eb);
   return out;
 }
 
 PointSample DcImmersedFluid::at_space_point(const std::vector<double>& c, const std::vector<double>* rate,
-                                            const Vec3& at, dc::ElementBasis& eb) const {
+                                            const Vec3& at, dc::ElementBasis& eb,
+                                            const geometry::Index3* element) const {
   const int D = dim();
-  space_->evaluate(space_->find_element(at), space_->point_rule(at), eb);
+  if (element) {  // at as it is, in the given element (a periodic end is not wrapped to the start)
+    dc::TensorRule rule;
+    for (int d = 0; d < 3; ++d) {
+      rule.points[d] = {d < D ? at[d] : 0.0};
+      rule.weights[d] = {1.0};
+    }
+    space_->evaluate(*element, rule, eb);
+  } else {
+    space_->evaluate(space_->find_element(at), space_->point_rule(at), eb);
+  }
   const auto pv = dc::DivConformingSpace::interpolate(eb, 0, D, c.data());
   PointSample s;
   s.found = true;
@@ -312,7 +327,9 @@ void DcImmersedFluid::set_immersed_points(const std::vector<geometry::Index3>& e
     throw std::invalid_argument("set_immersed_points: elements, xi and data differ in size");
   std::vector<dc::DivConformingFluid::ImmersedAt>& pts = points_;  // (kept storage: see the fluid's)
   pts.clear();
-  for (std::size_t i = 0; i < data.size(); ++i) {  // (this rank's: assembles_points_anywhere)
+  // Every point given is assembled here: the caller (the coupler) gives each rank its own share
+  // (assembles_points_anywhere); the same points on every rank would count each once per rank.
+  for (std::size_t i = 0; i < data.size(); ++i) {
     pts.push_back({patch_.element_index(elements[i]), space_point(xi[i]), data[i]});
   }
   fluid_->set_immersed_points(pts);
@@ -633,11 +650,18 @@ std::string DcImmersedFluid::write_fields(const std::string& dir, const std::str
             pts.push_back(x);
           }
       std::vector<PointSample> smp;
-      if (space_->is_mapped()) {  // the grid is in the space's coordinates: evaluated there, then mapped
+      if (space_->is_mapped()) {
+        // The grid is in the space's coordinates: each sample evaluated in its element as it is (the last
+        // along x in the last element, not wrapped to the period's start: mapped there it is x = L), then
+        // mapped.
         dc::ElementBasis eb;
-        for (Vec3& x : pts) {
-          smp.push_back(at_space_point(fluid_->state(), nullptr, x, eb));
-          x = eb.x[0];
+        for (std::size_t p = 0; p < pts.size(); ++p) {
+          const int m[3] = {static_cast<int>(p % n[0]), static_cast<int>((p / n[0]) % n[1]),
+                            static_cast<int>(p / (static_cast<std::size_t>(n[0]) * n[1]))};
+          geometry::Index3 e{0, 0, 0};
+          for (int d = 0; d < D; ++d) e[d] = std::min(m[d] / s, space_->n_elements(d) - 1);
+          smp.push_back(at_space_point(fluid_->state(), nullptr, pts[p], eb, &e));
+          pts[p] = eb.x[0];
         }
       } else {
         smp = evaluate(fluid_->state(), nullptr, pts);

@@ -113,14 +113,16 @@ class DcImmersedFluid final : public ImmersedFluid {
   /// The space's point of the patch's parametric point xi: physical on a box, the scaled parameters on a
   /// mapped space (DivConformingSpace::from_patch_parameters).
   Vec3 space_point(const geometry::Param& xi) const;
-  /// Where a physical point lies: found, and the space's point (by the affine map or by inversion).
-  bool locate(const Vec3& x, Vec3& s) const;
+  /// Where a physical point lies: found, and the space's point (by the affine map or by inversion, started
+  /// from *warm's element if it was found, and set to this point's result).
+  bool locate(const Vec3& x, Vec3& s, geometry::InversionResult* warm = nullptr) const;
   /// section() on a mapped space.
   SectionData section_mapped(double u, int n_profile) const;
-  /// The fields of coefficients c at a point in the space's coordinates (inside); eb then holds its basis,
+  /// The fields of coefficients c at a point in the space's coordinates (inside; in `element` as it is if
+  /// given, else in the element that holds it, periodic coordinates wrapped); eb then holds its basis,
   /// eb.x[0] the physical point.
   PointSample at_space_point(const std::vector<double>& c, const std::vector<double>* rate, const Vec3& at,
-                             dc::ElementBasis& eb) const;
+                             dc::ElementBasis& eb, const geometry::Index3* element = nullptr) const;
   /// The fields of coefficients c (natural numbering) at physical points (found false outside the box).
   std::vector<PointSample> evaluate(const std::vector<double>& c, const std::vector<double>* rate,
                                     const std::vector<Vec3>& points) const;

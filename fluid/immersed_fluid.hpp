@@ -149,7 +149,8 @@ class ImmersedFluid {
   virtual SectionData section(double u, int n_profile = 33) const = 0;
 
   // --- The immersed step, driven from outside (the coupling loop, paper Sec. 2.3) ---
-  /// Whether this rank assembles element e (an immersed point there is kept only by this rank).
+  /// Whether this rank assembles element e (the immersed points the coupler gives this rank are those in its
+  /// elements, unless assembles_points_anywhere()).
   virtual bool owns_element(const geometry::Index3& e) const = 0;
   /// Whether a rank may assemble an immersed point in any element (its rows travel to their owners). Then the
   /// coupler deals each body's points out to the ranks in equal runs in the order of their elements: the

@@ -1270,6 +1270,10 @@ void DivConformingFluid::step_tangent(const std::vector<double>& U, Mat J, bool 
 }
 
 void DivConformingFluid::bulk_tangent_of_mean(const std::vector<double>& U, Mat J) {
+  if (space_
+          .is_mapped())  // (the mean along x of a curved domain's flow is no translation-invariant operator)
+    throw std::logic_error(
+        "DivConformingFluid::bulk_tangent_of_mean: a box's operator, not a mapped space's");
   const bool started = !Un_.empty();
   std::vector<double> u = U, un = started ? Un_ : U_, rate = started ? Udotn_ : Udot_;
   for (std::vector<double>* v : {&u, &un, &rate}) space_.average_periodic(*v);
@@ -1280,6 +1284,9 @@ void DivConformingFluid::bulk_tangent_of_mean(const std::vector<double>& U, Mat 
 }
 
 Mat DivConformingFluid::bulk_stencil_tangent(const std::vector<double>& U) {
+  if (space_.is_mapped())
+    throw std::logic_error(
+        "DivConformingFluid::bulk_stencil_tangent: a box's operator, not a mapped space's");
   // The rows of the columns (x index i, z index l) below: (0, 0) for the stencil, two more for the check.
   const int D = space_.dim(), nx = space_.n_elements(0), nz = D == 3 ? space_.n_elements(2) : 1;
   const std::array<std::array<int, 2>, 3> columns{{{0, 0}, {nx / 2, nz / 2}, {nx / 3, (2 * nz) / 3}}};

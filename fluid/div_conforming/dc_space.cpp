@@ -113,7 +113,7 @@ DivConformingSpace DivConformingSpace::from_patch(const geometry::Patch& patch, 
   const auto map = geometry::affine_map(patch);
   require(map.has_value(),
           "the patch is not an axis-aligned affine box (geometry::rectangle or geometry::box); a curved one "
-          "takes DivConformingSpace::mapped, which the fluid does not take yet");
+          "takes DivConformingSpace::mapped (the contravariant Piola map)");
   const ParametricGrid g = parametric_grid(patch);
   Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
   for (int d = 0; d < g.dim; ++d) {

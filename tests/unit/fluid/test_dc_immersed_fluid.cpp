@@ -4,8 +4,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <random>
 #include <stdexcept>
+
+#include <vtkNew.h>
+#include <vtkPoints.h>
+#include <vtkStructuredGrid.h>
+#include <vtkXMLStructuredGridReader.h>
 
 #include "common/petsc_error.hpp"
 #include "fluid/dc_immersed_fluid.hpp"
@@ -472,6 +478,37 @@ TEST(DcImmersedFluid, TheSolidTangentThroughTheCollocationEqualsTheConsistentOne
   VecDestroy(&y_col);
   VecDestroy(&y_cons);
   VecDestroy(&y_none);
+}
+
+TEST(DcImmersedFluid, WritesTheNarrowingOnItsMappedGrid) {
+  // The .vts of a run on the narrowing (a mapped space): the grid's points are the channel's, x from 0 to its
+  // length 0.006 cm along the periodic direction (the last column at x = L, not folded back onto x = 0), y
+  // between the curved walls, and the velocity there the one sample() gives.
+  const geometry::Patch channel = geometry::narrowing_channel(geometry::NarrowingChannel{}, 24, 8, 2);
+  fluid::FluidOptions o;
+  o.space = "div_conforming";
+  std::unique_ptr<fluid::ImmersedFluid> f = fluid::create_fluid(PETSC_COMM_WORLD, channel, o);
+  f->set_initial_velocity([](const Vec3& x) { return Vec3(1e-3 * (1e-6 - x[1] * x[1]) / 1e-6, 0, 0); });
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "cellfsi_dc_narrowing_vts";
+  std::filesystem::create_directories(dir);
+  const std::string name = f->write_fields(dir.string(), "fluid", 2, nullptr);
+  vtkNew<vtkXMLStructuredGridReader> reader;
+  reader->SetFileName((dir / name).string().c_str());
+  reader->Update();
+  vtkStructuredGrid* grid = reader->GetOutput();
+  int n[3];
+  grid->GetDimensions(n);
+  ASSERT_EQ(n[0], 24 * 2 + 1);
+  ASSERT_EQ(n[1], 8 * 2 + 1);
+  double first[3], last[3], top[3];
+  grid->GetPoint(0, first);
+  grid->GetPoint(n[0] - 1, last);
+  grid->GetPoint(static_cast<vtkIdType>(n[0]) * (n[1] - 1), top);
+  EXPECT_NEAR(first[0], 0.0, 1e-15);
+  EXPECT_NEAR(last[0], 0.006, 1e-15);
+  EXPECT_NEAR(first[1], -0.001, 1e-7);  // (the wall is an L2 projection of the profile: 1e-7 of it)
+  EXPECT_NEAR(top[1], 0.001, 1e-7);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(DcImmersedFluid, RefusesADomainWhoseElementsAreNotUniform) {

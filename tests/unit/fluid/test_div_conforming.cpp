@@ -662,10 +662,13 @@ double tangent_mismatch(const PointState& s0, const PointTangent& t, int D, Resi
   };
   auto comp = [](const PointResidual& r, int i, int j) { return j < 0 ? r.r0[i] : r.r1[i][j]; };
   for (int k = 0; k < D; ++k) {
-    compare([&](PointState& s, double e) { s.v[k] += e; }, comp,
-            [&](int i, int j) { return j < 0 ? t.dr0_dv[i][k] : t.dr1_dv[i][j][k]; });
-    compare([&](PointState& s, double e) { s.a[k] += e; }, comp,
-            [&](int i, int j) { return j < 0 ? t.dr0_da[i][k] : 0.0; });
+    // (rq depends on the gradient alone: PointTangent has no d rq / d v or d a, so their differences must be
+    // 0; on a mapped space the Piola identity's term, dc_piola.hpp)
+    const double fdq_v = compare([&](PointState& s, double e) { s.v[k] += e; }, comp,
+                                 [&](int i, int j) { return j < 0 ? t.dr0_dv[i][k] : t.dr1_dv[i][j][k]; });
+    const double fdq_a = compare([&](PointState& s, double e) { s.a[k] += e; }, comp,
+                                 [&](int i, int j) { return j < 0 ? t.dr0_da[i][k] : 0.0; });
+    worst = std::max({worst, std::abs(fdq_v), std::abs(fdq_a)});
     for (int l = 0; l < D; ++l) {
       const double fdq =
           compare([&](PointState& s, double e) { s.dv[k][l] += e; }, comp,
