@@ -121,15 +121,20 @@ void FsiCoupler::update_immersed(bool first_iteration) {
     std::vector<char>& mine = scratch_mine_;              // (this rank's run among them)
     mine.assign(n_known, 0);
     if (n_known > 0) {
+      // The points in element order by a counting sort (O(points + elements) where a comparison sort is
+      // O(points log points): every rank does it, at every call). Points not found (refused below) first.
       std::vector<int>& order = scratch_order_;
-      std::vector<int>& key = scratch_key_;
+      std::vector<int>& start = scratch_key_;
+      const int n_el = fluid_.patch().n_elements();
+      start.assign(static_cast<std::size_t>(n_el) + 2, 0);
+      auto key = [&](std::size_t i) {
+        return warm[i].found ? fluid_.patch().element_index(warm[i].element) + 1 : 0;
+      };
+      for (std::size_t i = 0; i < n_known; ++i) ++start[static_cast<std::size_t>(key(i)) + 1];
+      for (std::size_t e = 1; e < start.size(); ++e) start[e] += start[e - 1];
       order.resize(n_known);
-      key.resize(n_known);
-      for (std::size_t i = 0; i < n_known; ++i) {
-        order[i] = static_cast<int>(i);
-        key[i] = warm[i].found ? fluid_.patch().element_index(warm[i].element) : -1;
-      }
-      std::stable_sort(order.begin(), order.end(), [&](int a, int c) { return key[a] < key[c]; });
+      for (std::size_t i = 0; i < n_known; ++i)
+        order[start[static_cast<std::size_t>(key(i))]++] = static_cast<int>(i);
       for (std::size_t k = 0; k < n_known; ++k)
         if (std::min(k * static_cast<std::size_t>(ranks) / n_known, static_cast<std::size_t>(ranks - 1)) ==
             static_cast<std::size_t>(rank))
