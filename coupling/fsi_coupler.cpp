@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -121,15 +122,22 @@ void FsiCoupler::update_immersed(bool first_iteration) {
     std::vector<char>& mine = scratch_mine_;              // (this rank's run among them)
     mine.assign(n_known, 0);
     if (n_known > 0) {
-      // The points in element order by a counting sort (O(points + elements) where a comparison sort is
-      // O(points log points): every rank does it, at every call). Points not found (refused below) first.
+      // The points in element order by a counting sort over the body's range of elements (O(points + that
+      // range) where a comparison sort is O(points log points): every rank does it, at every call). Points
+      // not found (refused below) first.
       std::vector<int>& order = scratch_order_;
-      std::vector<int>& start = scratch_key_;
-      const int n_el = fluid_.patch().n_elements();
-      start.assign(static_cast<std::size_t>(n_el) + 2, 0);
-      auto key = [&](std::size_t i) {
-        return warm[i].found ? fluid_.patch().element_index(warm[i].element) + 1 : 0;
+      std::vector<int>& start = scratch_start_;
+      int lowest = std::numeric_limits<int>::max(), highest = -1;
+      for (std::size_t i = 0; i < n_known; ++i)
+        if (warm[i].found) {
+          const int e = fluid_.patch().element_index(warm[i].element);
+          lowest = std::min(lowest, e), highest = std::max(highest, e);
+        }
+      if (highest < 0) lowest = highest = 0;
+      auto key = [&](std::size_t i) {  // 0: not found; 1 + (element - lowest)
+        return warm[i].found ? fluid_.patch().element_index(warm[i].element) - lowest + 1 : 0;
       };
+      start.assign(static_cast<std::size_t>(highest - lowest) + 3, 0);
       for (std::size_t i = 0; i < n_known; ++i) ++start[static_cast<std::size_t>(key(i)) + 1];
       for (std::size_t e = 1; e < start.size(); ++e) start[e] += start[e - 1];
       order.resize(n_known);

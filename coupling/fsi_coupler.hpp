@@ -143,7 +143,7 @@ class FsiCoupler {
   std::vector<std::vector<Location>> collocation_loc_, quadrature_loc_;  // warm starts, per body
   std::vector<std::vector<char>> quadrature_owned_;  // per body and point: this rank's (update_immersed)
   std::vector<char> scratch_mine_;                   // (update_immersed's dealing: kept storage)
-  std::vector<int> scratch_order_, scratch_key_;     // (the counting sort's order and bucket starts)
+  std::vector<int> scratch_order_, scratch_start_;   // (the counting sort's order and bucket starts)
   // update_immersed's buffers of this rank's points (kept between calls).
   std::vector<geometry::Index3> scratch_elements_;
   std::vector<geometry::Param> scratch_xi_;

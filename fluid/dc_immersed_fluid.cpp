@@ -115,7 +115,7 @@ Vec3 DcImmersedFluid::space_point(const geometry::Param& xi) const {
 
 bool DcImmersedFluid::locate(const Vec3& x, Vec3& s, geometry::InversionResult* warm) const {
   if (inverter_) {
-    // (from the previous point's element first: output grids, profiles and sections come in order)
+    // (from the previous point's element first: sample()'s points often come in order)
     geometry::InversionResult r =
         warm && warm->inside ? inverter_->invert(x, warm->element, warm->xi) : inverter_->invert(x);
     if (!r.inside && warm && warm->inside) r = inverter_->invert(x);

@@ -483,7 +483,7 @@ TEST(DcImmersedFluid, TheSolidTangentThroughTheCollocationEqualsTheConsistentOne
 TEST(DcImmersedFluid, WritesTheNarrowingOnItsMappedGrid) {
   // The .vts of a run on the narrowing (a mapped space): the grid's points are the channel's, x from 0 to its
   // length 0.006 cm along the periodic direction (the last column at x = L, not folded back onto x = 0), y
-  // between the curved walls, and the velocity there the one sample() gives.
+  // between the curved walls.
   const geometry::Patch channel = geometry::narrowing_channel(geometry::NarrowingChannel{}, 24, 8, 2);
   fluid::FluidOptions o;
   o.space = "div_conforming";
@@ -495,6 +495,7 @@ TEST(DcImmersedFluid, WritesTheNarrowingOnItsMappedGrid) {
   vtkNew<vtkXMLStructuredGridReader> reader;
   reader->SetFileName((dir / name).string().c_str());
   reader->Update();
+  std::filesystem::remove_all(dir);  // (read: the grid is in memory)
   vtkStructuredGrid* grid = reader->GetOutput();
   int n[3];
   grid->GetDimensions(n);
@@ -508,7 +509,6 @@ TEST(DcImmersedFluid, WritesTheNarrowingOnItsMappedGrid) {
   EXPECT_NEAR(last[0], 0.006, 1e-15);
   EXPECT_NEAR(first[1], -0.001, 1e-7);  // (the wall is an L2 projection of the profile: 1e-7 of it)
   EXPECT_NEAR(top[1], 0.001, 1e-7);
-  std::filesystem::remove_all(dir);
 }
 
 TEST(DcImmersedFluid, RefusesADomainWhoseElementsAreNotUniform) {

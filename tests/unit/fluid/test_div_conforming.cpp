@@ -639,7 +639,8 @@ TEST(DivConformingFluid, OptionsAreReadAndChecked) {
 namespace {
 
 /// Largest difference between a kernel's tangent and central differences of its residual, relative to the
-/// tangent's largest entry (differences with step 1e-6 of quadratic residuals: round-off ~1e-10).
+/// tangent's largest entry (differences with step 1e-6 of quadratic residuals: round-off ~1e-10); rq's
+/// differences with respect to v and a, which PointTangent has no place for, count as differences from 0.
 template <class Residual>
 double tangent_mismatch(const PointState& s0, const PointTangent& t, int D, Residual&& residual) {
   const double h = 1e-6;
