@@ -1883,8 +1883,10 @@ std::vector<DivConformingFluid::Sample> DivConformingFluid::sample(const std::ve
   const int D = space_.dim();
   std::vector<Sample> out(points.size());
   ElementBasis eb;
-  std::unique_ptr<geometry::PointInverter> inverter;
-  if (space_.is_mapped()) inverter = std::make_unique<geometry::PointInverter>(*space_.patch());
+  // (made once: its set-up visits every element)
+  if (space_.is_mapped() && !inverter_)
+    inverter_ = std::make_unique<geometry::PointInverter>(*space_.patch());
+  const geometry::PointInverter* inverter = inverter_.get();
   TensorRule rule;
   geometry::InversionResult previous;
   for (size_t i = 0; i < points.size(); ++i) {

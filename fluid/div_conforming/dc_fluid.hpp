@@ -47,6 +47,7 @@
 #include "common/generalized_alpha.hpp"
 #include "fluid/div_conforming/dc_space.hpp"
 #include "fluid/immersed_point.hpp"
+#include "geometry/inversion.hpp"
 
 namespace cellfsi::fluid::dc {
 
@@ -377,6 +378,8 @@ class DivConformingFluid {
   };
   mutable std::vector<std::unique_ptr<CachedBasis>> basis_cache_;  // by class (element_basis)
   mutable std::vector<std::vector<int>> class_elements_;  // this rank's elements by class (basis_class)
+  mutable std::unique_ptr<geometry::PointInverter>
+      inverter_;                       // sample() on a mapped space (made at its first)
   std::vector<int> element_unknowns_;  // natural unknowns of each owned element, n_local_ per element
   int n_local_ = 0;
   std::vector<double> Un_, Udotn_;  // the state at t_n of a step driven from outside

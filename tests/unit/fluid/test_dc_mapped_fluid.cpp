@@ -18,6 +18,9 @@
 #include <vector>
 
 #include <petscsys.h>
+#include <vtkNew.h>
+#include <vtkStructuredGrid.h>
+#include <vtkXMLStructuredGridReader.h>
 
 #include "../../support/dc_manufactured.hpp"
 #include "../../support/print_rank0.hpp"
@@ -199,6 +202,19 @@ TEST(DcMappedFluid, TheNarrowingCarriesTheSameFlowThroughEverySection) {
   // The .vts: the mapped grid's points, the velocity there.
   const std::string path = std::filesystem::temp_directory_path() / "cellfsi_dc_mapped.vts";
   fs.write_vtk(path, 2);
-  EXPECT_TRUE(std::filesystem::exists(path));
+  vtkNew<vtkXMLStructuredGridReader> reader;
+  reader->SetFileName(path.c_str());
+  reader->Update();
   std::filesystem::remove(path);
+  vtkStructuredGrid* grid = reader->GetOutput();
+  int n[3];
+  grid->GetDimensions(n);
+  ASSERT_EQ(n[0], 48 * 2 + 1);
+  ASSERT_EQ(n[1], 16 * 2 + 1);
+  double first[3], last[3];
+  grid->GetPoint(0, first);
+  grid->GetPoint(n[0] - 1, last);
+  EXPECT_NEAR(first[0], 0.0, 1e-15);
+  EXPECT_NEAR(last[0], 0.006, 1e-15);  // (the periodic end at x = L, not folded onto x = 0)
+  EXPECT_NEAR(first[1], -0.001, 1e-7);
 }
