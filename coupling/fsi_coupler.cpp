@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "common/collective.hpp"
 #include "common/petsc_error.hpp"
 #include "coupling/coupling_events.hpp"
 #include "coupling/inner_viscosity.hpp"
@@ -105,37 +106,44 @@ void FsiCoupler::update_immersed(bool first_iteration) {
   // operation counts). Runs in the body's own order divided them, but a rank's points then spread over the
   // whole cell and half their rows went to other ranks: 64^3 on 2 ranks took 9.3-9.6 s per step against 8.1.
   // In element order a rank's run lies in a contiguous range of elements, as the fluid's own ranges do.
+  // Dealt out so, after the first call a rank evaluates and locates only its run (the solid skips the
+  // others' points), and the ranks then exchange their points' elements (the next call's order, the
+  // repulsion's bins) and, for the repulsion, a membrane's positions: before, every rank formed and located
+  // every point, and that part of the step did not divide by the ranks.
   std::vector<std::vector<solid::QuadratureData>>& all_q = scratch_q_;
   all_q.resize(bodies_.size());
   const bool dealt = fluid_.assembles_points_anywhere();
   int rank = 0, ranks = 1;
   CELLFSI_PETSC(MPI_Comm_rank(fluid_.comm(), &rank));
   CELLFSI_PETSC(MPI_Comm_size(fluid_.comm(), &ranks));
+  const geometry::Patch& patch = fluid_.patch();
   for (size_t b = 0; b < bodies_.size(); ++b) {
     EventScope ev(coupling_events().quadrature);
     auto& warm = quadrature_loc_[b];
     std::vector<char>& own = quadrature_owned_[b];
-    std::size_t offered = 0,
-                outside = SIZE_MAX;  // (a point outside the domain is refused after the call, so
-                                     // that the body's inverted-element report does not claim it)
     const std::size_t n_known = dealt ? warm.size() : 0;  // (the body's points at the previous call)
     std::vector<char>& mine = scratch_mine_;              // (this rank's run among them)
+    std::vector<int>& order = scratch_order_;
     mine.assign(n_known, 0);
+    // The rank that takes the k-th point in element order: equal runs.
+    const auto rank_of = [&](std::size_t k) {
+      return static_cast<int>(
+          std::min(k * static_cast<std::size_t>(ranks) / n_known, static_cast<std::size_t>(ranks - 1)));
+    };
     if (n_known > 0) {
       // The points in element order by a counting sort over the body's range of elements (O(points + that
       // range) where a comparison sort is O(points log points): every rank does it, at every call). Points
       // not found (refused below) first.
-      std::vector<int>& order = scratch_order_;
       std::vector<int>& start = scratch_start_;
       int lowest = std::numeric_limits<int>::max(), highest = -1;
       for (std::size_t i = 0; i < n_known; ++i)
         if (warm[i].found) {
-          const int e = fluid_.patch().element_index(warm[i].element);
+          const int e = patch.element_index(warm[i].element);
           lowest = std::min(lowest, e), highest = std::max(highest, e);
         }
       if (highest < 0) lowest = highest = 0;
       auto key = [&](std::size_t i) {  // 0: not found; 1 + (element - lowest)
-        return warm[i].found ? fluid_.patch().element_index(warm[i].element) - lowest + 1 : 0;
+        return warm[i].found ? patch.element_index(warm[i].element) - lowest + 1 : 0;
       };
       start.assign(static_cast<std::size_t>(highest - lowest) + 3, 0);
       for (std::size_t i = 0; i < n_known; ++i) ++start[static_cast<std::size_t>(key(i)) + 1];
@@ -144,26 +152,75 @@ void FsiCoupler::update_immersed(bool first_iteration) {
       for (std::size_t i = 0; i < n_known; ++i)
         order[start[static_cast<std::size_t>(key(i))]++] = static_cast<int>(i);
       for (std::size_t k = 0; k < n_known; ++k)
-        if (std::min(k * static_cast<std::size_t>(ranks) / n_known, static_cast<std::size_t>(ranks - 1)) ==
-            static_cast<std::size_t>(rank))
-          mine[order[k]] = 1;
+        if (rank_of(k) == rank) mine[order[k]] = 1;
     }
-    all_q[b] = bodies_[b]->quadrature_data(rho1, with_tangent, [&](std::size_t i, const geometry::Vec3& x) {
-      ++offered;
-      if (i >= warm.size()) warm.resize(i + 1);
-      if (i >= own.size()) own.resize(i + 1);
-      warm[i] = locator_.locate(x, &warm[i]);
-      if (!warm[i].found && outside == SIZE_MAX) outside = i;
-      own[i] = warm[i].found && (i < n_known ? mine[i] != 0 : fluid_.owns_element(warm[i].element));
-      return own[i] != 0;
-    });
-    if (offered != all_q[b].size())
-      throw std::logic_error("body '" + bodies_[b]->name() + "' offered " + std::to_string(offered) +
-                             " of its " + std::to_string(all_q[b].size()) +
-                             " quadrature points to the coupler");
-    if (outside != SIZE_MAX) locator_.locate_or_throw(all_q[b][outside].x);  // throws, naming the point
-    warm.resize(all_q[b].size());
-    own.resize(all_q[b].size());
+    // Only this rank's run is evaluated (the points of the previous call, on more than one rank).
+    const bool split = n_known > 0 && ranks > 1;
+    const auto evaluate = [&] {
+      std::size_t offered = 0,
+                  outside = SIZE_MAX;  // (a point outside the domain is refused after the call, so
+                                       // that the body's inverted-element report does not claim it)
+      bodies_[b]->quadrature_data(
+          rho1, with_tangent,
+          [&](std::size_t i, const geometry::Vec3& x) {
+            ++offered;
+            if (i >= warm.size()) warm.resize(i + 1);
+            if (i >= own.size()) own.resize(i + 1);
+            warm[i] = locator_.locate(x, &warm[i]);
+            if (!warm[i].found && outside == SIZE_MAX) outside = i;
+            own[i] = warm[i].found && (i < n_known ? mine[i] != 0 : fluid_.owns_element(warm[i].element));
+            return own[i] != 0;
+          },
+          all_q[b], split ? &mine : nullptr);
+      const std::size_t expected =
+          split ? static_cast<std::size_t>(std::count(mine.begin(), mine.end(), 1)) : all_q[b].size();
+      if (offered != expected)
+        throw std::logic_error("body '" + bodies_[b]->name() + "' offered " + std::to_string(offered) +
+                               " of the " + std::to_string(expected) + " quadrature points asked of it");
+      if (outside != SIZE_MAX) locator_.locate_or_throw(all_q[b][outside].x);  // throws, naming the point
+      warm.resize(all_q[b].size());
+      own.resize(all_q[b].size());
+      if (split)
+        for (std::size_t i = 0; i < n_known; ++i)
+          if (!mine[i]) own[i] = 0;
+    };
+    // A point refused (inverted, outside) on its rank alone stops every rank.
+    if (split)
+      on_every_rank(fluid_.comm(), evaluate);
+    else
+      evaluate();
+    if (!split) continue;
+    // The others' points: each rank's run in element order, its points' elements and (a membrane's, for the
+    // repulsion) positions.
+    const bool positions = opt_.repulsion.enabled && bodies_[b]->is_membrane();
+    const int width = positions ? 4 : 1;
+    std::vector<int>& counts = scratch_counts_;
+    std::vector<int>& displs = scratch_displs_;
+    counts.assign(static_cast<std::size_t>(ranks), 0);
+    for (std::size_t k = 0; k < n_known; ++k) counts[static_cast<std::size_t>(rank_of(k))] += width;
+    displs.assign(static_cast<std::size_t>(ranks), 0);
+    for (int r = 1; r < ranks; ++r) displs[r] = displs[r - 1] + counts[r - 1];
+    std::vector<double>& send = scratch_send_;
+    std::vector<double>& all = scratch_recv_;
+    send.clear();
+    const auto k_begin = static_cast<std::size_t>(displs[rank] / width),
+               k_end = k_begin + static_cast<std::size_t>(counts[rank] / width);
+    for (std::size_t k = k_begin; k < k_end; ++k) {
+      const auto i = static_cast<std::size_t>(order[k]);
+      send.push_back(patch.element_index(warm[i].element));  // (exact in a double)
+      if (positions) send.insert(send.end(), all_q[b][i].x.data(), all_q[b][i].x.data() + 3);
+    }
+    all.resize(static_cast<std::size_t>(width) * n_known);
+    CELLFSI_PETSC(MPI_Allgatherv(send.data(), counts[rank], MPI_DOUBLE, all.data(), counts.data(),
+                                 displs.data(), MPI_DOUBLE, fluid_.comm()));
+    for (std::size_t k = 0; k < n_known; ++k) {
+      const auto i = static_cast<std::size_t>(order[k]);
+      if (mine[i]) continue;
+      const double* v = all.data() + static_cast<std::size_t>(width) * k;
+      warm[i].found = true;  // (its rank refused a point not found)
+      warm[i].element = patch.element_multi_index(static_cast<int>(v[0]));
+      if (positions) all_q[b][i].x = geometry::Vec3(v[1], v[2], v[3]);
+    }
   }
   const std::vector<std::vector<geometry::Vec3>>* contact = nullptr;
   {

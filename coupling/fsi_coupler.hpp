@@ -144,6 +144,8 @@ class FsiCoupler {
   std::vector<std::vector<char>> quadrature_owned_;  // per body and point: this rank's (update_immersed)
   std::vector<char> scratch_mine_;                   // (update_immersed's dealing: kept storage)
   std::vector<int> scratch_order_, scratch_start_;   // (the counting sort's order and bucket starts)
+  std::vector<int> scratch_counts_, scratch_displs_;  // (the exchange of the runs' elements and positions)
+  std::vector<double> scratch_send_, scratch_recv_;
   // update_immersed's buffers of this rank's points (kept between calls).
   std::vector<geometry::Index3> scratch_elements_;
   std::vector<geometry::Param> scratch_xi_;

@@ -277,29 +277,32 @@ bool NurbsSolid::basis_gradients(std::vector<int>& begin, std::vector<int>& unkn
   unknown.reserve(n_listed);
   grad.clear();
   grad.reserve(3 * n_listed);
-  int q = 0;
-  // d N / d x = F^{-T} d N / d X at the configuration quadrature_data() describes.
-  for_each_quadrature_point(displacement_control_alpha(), [&](const Vec3&, const Mat3& F, double) {
-    if (wanted && !(*wanted)[q]) {
-      ++q;
-      return;
-    }
-    Mat3 Fd = Mat3::Identity();
-    Fd.topLeftCorner(dim_, dim_) = F.topLeftCorner(dim_, dim_);
-    const Mat3 Finv = Fd.inverse();
-    for (int k = q_begin_[q]; k < q_begin_[q + 1]; ++k) {
-      const double* dN = q_dN_.data() + static_cast<std::size_t>(k) * dim_;
-      unknown.push_back(q_unknown_[k]);
-      for (int l = 0; l < 3; ++l) {
-        double g = 0;
-        for (int a = 0; a < dim_ && l < dim_; ++a) g += dN[a] * Finv(a, l);
-        grad.push_back(g);
-      }
-    }
-    begin.push_back(static_cast<int>(unknown.size()));
-    ++q;
-  });
-  return q == n_q;
+  int visited = 0;
+  // d N / d x = F^{-T} d N / d X at the configuration quadrature_data() describes (the points not wanted
+  // are not evaluated).
+  for_each_quadrature_point(
+      displacement_control_alpha(),
+      [&](int q, const Vec3&, const Mat3& F, double) {
+        ++visited;
+        Mat3 Fd = Mat3::Identity();
+        Fd.topLeftCorner(dim_, dim_) = F.topLeftCorner(dim_, dim_);
+        const Mat3 Finv = Fd.inverse();
+        for (int k = q_begin_[q]; k < q_begin_[q + 1]; ++k) {
+          const double* dN = q_dN_.data() + static_cast<std::size_t>(k) * dim_;
+          unknown.push_back(q_unknown_[k]);
+          for (int l = 0; l < 3; ++l) {
+            double g = 0;
+            for (int a = 0; a < dim_ && l < dim_; ++a) g += dN[a] * Finv(a, l);
+            grad.push_back(g);
+          }
+        }
+        begin.push_back(static_cast<int>(unknown.size()));
+      },
+      wanted);
+  return visited ==
+         (wanted
+              ? static_cast<int>(std::count_if(wanted->begin(), wanted->end(), [](char f) { return f != 0; }))
+              : n_q);
 }
 
 Eigen::MatrixXd NurbsSolid::displacement_control_alpha() const { return c_n_ + time_.alpha_f * (c_ - c_n_); }
@@ -356,13 +359,18 @@ void point_kinematics(const double* c, const int* unknown, const double* N, cons
 }  // namespace
 
 void NurbsSolid::for_each_quadrature_point(
-    const Eigen::MatrixXd& c, const std::function<void(const Vec3&, const Mat3&, double)>& visit) const {
+    const Eigen::MatrixXd& c, const std::function<void(int, const Vec3&, const Mat3&, double)>& visit,
+    const std::vector<char>* only) const {
   const int n_q = static_cast<int>(q_X_.size());
+  if (only && only->size() != q_X_.size())
+    throw std::invalid_argument("body '" + name_ + "': " + std::to_string(only->size()) +
+                                " point flags for " + std::to_string(n_q) + " quadrature points");
   // The control values row by row (c is column-major: a point's 27 functions would read 3 strided columns).
   std::vector<double> rows(3 * static_cast<std::size_t>(c.rows()), 0.0);
   for (Eigen::Index r = 0; r < c.rows(); ++r)
     for (int i = 0; i < dim_; ++i) rows[3 * r + i] = c(r, i);
   for (int q = 0; q < n_q; ++q) {
+    if (only && !(*only)[q]) continue;
     Vec3 x = q_X_[q];
     Mat3 F;
     if (dim_ == 3)
@@ -372,7 +380,7 @@ void NurbsSolid::for_each_quadrature_point(
       point_kinematics<2>(rows.data(), q_unknown_.data(), q_N_.data(), q_dN_.data(), q_begin_[q],
                           q_begin_[q + 1], x, F);
     try {
-      visit(x, F, q_weight_[q]);
+      visit(q, x, F, q_weight_[q]);
     } catch (const std::runtime_error& e) {  // an inverted element (the material refuses det F <= 0)
       // Which element and point: the points run elements in turn, the same number in each.
       std::vector<geometry::QuadraturePoint> qp;
@@ -397,7 +405,7 @@ void NurbsSolid::set_loads(const std::vector<PatchLoad>& loads, double ramp) {
   std::vector<Vec3> X;
   std::vector<double> w;
   for_each_quadrature_point(Eigen::MatrixXd::Zero(n_reduced_, dim_),
-                            [&](const Vec3& x, const Mat3&, double weight) {
+                            [&](int, const Vec3& x, const Mat3&, double weight) {
                               X.push_back(x);
                               w.push_back(weight);
                             });
@@ -409,31 +417,34 @@ void NurbsSolid::set_loads(const std::vector<PatchLoad>& loads, double ramp) {
 }
 
 std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density, bool with_tangent) const {
-  return quadrature_data(fluid_density, with_tangent, [](std::size_t, const Vec3&) { return true; });
+  std::vector<QuadratureData> out;
+  quadrature_data(
+      fluid_density, with_tangent, [](std::size_t, const Vec3&) { return true; }, out);
+  return out;
 }
 
-std::vector<QuadratureData> NurbsSolid::quadrature_data(
-    double fluid_density, bool with_tangent,
-    const std::function<bool(std::size_t, const Vec3&)>& wanted) const {
+void NurbsSolid::quadrature_data(double fluid_density, bool with_tangent,
+                                 const std::function<bool(std::size_t, const Vec3&)>& wanted,
+                                 std::vector<QuadratureData>& out, const std::vector<char>* only) const {
   if (!(fluid_density > 0)) throw std::invalid_argument("quadrature_data: fluid density must be > 0");
   const double beta = 1.0 - density_ / fluid_density;
-  std::vector<QuadratureData> out;
-  out.reserve(q_X_.size());
+  out.resize(q_X_.size());
   for_each_quadrature_point(
-      displacement_control_alpha(), [&](const Vec3& x, const Mat3& F_global, double weight) {
-        QuadratureData d;
+      displacement_control_alpha(),
+      [&](int q, const Vec3& x, const Mat3& F_global, double weight) {
+        QuadratureData& d = out[q];
+        d = QuadratureData{};
         d.x = x;
         d.weight = weight;
         d.beta = beta;
         d.shear_modulus = material_->tangent_shear_modulus();
-        if (membrane_) d.area = q_area_[out.size()];
+        if (membrane_) d.area = q_area_[q];
         // A membrane surface law takes F in the membrane's frame; tau and c come out the same (Material).
-        const Mat3 F = q_frame_.empty() ? F_global : Mat3(F_global * q_frame_[out.size()]);
-        if (!wanted(out.size(), x)) {
+        const Mat3 F = q_frame_.empty() ? F_global : Mat3(F_global * q_frame_[q]);
+        if (!wanted(q, x)) {
           // Another rank's point: only the laws' own refusal of an inverted element, so that every rank
           // refuses the same configuration.
           Material::check_deformation(F, dim_);
-          out.push_back(d);
           return;
         }
         d.stress = F * material_->second_piola(F, dim_) * F.transpose() / fluid_density;
@@ -443,10 +454,9 @@ std::vector<QuadratureData> NurbsSolid::quadrature_data(
           for (int r = 0, t = 0; r < 6; ++r)
             for (int k = r; k < 6; ++k, ++t) d.tangent[t] = c(r, k) / fluid_density;
         }
-        if (!load_density_.empty()) d.force = load_factor() * load_density_[out.size()] / fluid_density;
-        out.push_back(d);
-      });
-  return out;
+        if (!load_density_.empty()) d.force = load_factor() * load_density_[q] / fluid_density;
+      },
+      only);
 }
 
 std::string NurbsSolid::where_inverted(const Index3& element, const Param& xi, const Vec3& x, const Mat3& F) const {

@@ -36,9 +36,11 @@ class NurbsSolid final : public SolidSolver {
   std::vector<Vec3> collocation_points() const override;
   double kinematic_update(const std::vector<VelocitySample>& samples) override;
   std::vector<QuadratureData> quadrature_data(double fluid_density, bool with_tangent) const override;
-  std::vector<QuadratureData> quadrature_data(
-      double fluid_density, bool with_tangent,
-      const std::function<bool(std::size_t, const Vec3&)>& wanted) const override;
+  using SolidSolver::quadrature_data;
+  void quadrature_data(double fluid_density, bool with_tangent,
+                       const std::function<bool(std::size_t, const Vec3&)>& wanted,
+                       std::vector<QuadratureData>& out,
+                       const std::vector<char>* only = nullptr) const override;
   std::vector<Vec3> interface_points() const override;
   bool control_increment(const std::vector<Vec3>& dv, Eigen::MatrixXd& dc) const override;
   int n_control() const override { return n_reduced_; }
@@ -98,10 +100,12 @@ class NurbsSolid final : public SolidSolver {
   /// membrane's reference frame there (T1, T2, N, for a membrane surface law), else the identity.
   void kinematics(const Eigen::MatrixXd& c, const geometry::Param& xi, const geometry::Index3* element,
                   Vec3& x, Mat3& F, double& ref_jacobian, Mat3* frame = nullptr) const;
-  /// The quadrature points in their fixed order (elements in turn, Gauss points within each): position,
-  /// deformation gradient for displacement control variables c, and reference volume weight.
+  /// The quadrature points in their fixed order (elements in turn, Gauss points within each): index,
+  /// position, deformation gradient for displacement control variables c, and reference volume weight.
+  /// only (if not null, one flag per point): the points not flagged are not evaluated.
   void for_each_quadrature_point(const Eigen::MatrixXd& c,
-                                 const std::function<void(const Vec3&, const Mat3&, double)>& visit) const;
+                                 const std::function<void(int, const Vec3&, const Mat3&, double)>& visit,
+                                 const std::vector<char>* only = nullptr) const;
   std::string name_;
   geometry::Patch reference_;
   std::shared_ptr<const Material> material_;

@@ -76,17 +76,30 @@ class SolidSolver {
   /// the spatial tangent (QuadratureData::has_tangent and tangent), which only an assembly of the coupling's
   /// Jacobian reads; the coupler asks for it at the iterations that may assemble one (a step's first).
   virtual std::vector<QuadratureData> quadrature_data(double fluid_density, bool with_tangent) const = 0;
-  /// quadrature_data() with the material only where it is wanted: `wanted(q, x)` is called once per point,
-  /// in order, with its index and current position (the coupler locates the point there and answers whether
+  /// quadrature_data() with the material only where it is wanted, into `out` (resized to every point; its
+  /// storage is kept between calls: at 64^3 the bodies' data are about 90 MB, and a fresh vector at every
+  /// coupling iteration was that many page faults). `wanted(q, x)` is called once per evaluated point, in
+  /// order, with its index and current position (the coupler locates the point there and answers whether
   /// this fluid rank owns it). A wanted point gets everything; the others carry x, weight, beta and area
-  /// alone (stress, tangent and load zero, has_tangent false). Every point is still checked for an inverted
-  /// element, so that every rank that asks refuses the same configuration. The default computes every point
-  /// in full (a solver that cannot skip one, e.g. a remote body).
-  virtual std::vector<QuadratureData> quadrature_data(
+  /// alone (stress, tangent and load zero, has_tangent false), and are still checked for an inverted
+  /// element, so that every rank that evaluates a point refuses the same configuration. only (if not null,
+  /// one flag per point): the points not flagged are not evaluated at all (out[q] keeps what it held; the
+  /// caller makes a refusal collective). The default computes every point in full (a solver that cannot skip
+  /// one, e.g. a remote body).
+  virtual void quadrature_data(double fluid_density, bool with_tangent,
+                               const std::function<bool(std::size_t, const Vec3&)>& wanted,
+                               std::vector<QuadratureData>& out,
+                               const std::vector<char>* only = nullptr) const {
+    out = quadrature_data(fluid_density, with_tangent);
+    for (std::size_t i = 0; i < out.size(); ++i)
+      if (!only || (*only)[i]) wanted(i, out[i].x);
+  }
+  /// The same, returned.
+  std::vector<QuadratureData> quadrature_data(
       double fluid_density, bool with_tangent,
       const std::function<bool(std::size_t, const Vec3&)>& wanted) const {
-    std::vector<QuadratureData> q = quadrature_data(fluid_density, with_tangent);
-    for (std::size_t i = 0; i < q.size(); ++i) wanted(i, q[i].x);
+    std::vector<QuadratureData> q;
+    quadrature_data(fluid_density, with_tangent, wanted, q);
     return q;
   }
   /// The linearised steps 2-3, for a coupled Jacobian that follows the body's own interpolation

@@ -29,6 +29,7 @@
 #include <cctype>
 #include <cerrno>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -179,6 +180,32 @@ inline const std::vector<std::string> kDefaultCapsule = [] {
 
 // ---------------------------------------------------------------------------------------------------------
 // Reading the output files
+
+/// Two capsules of the pair scene (scenes/capsule_pair_shear.yaml) in a box half as high (0.0032 x 0.0016
+/// cm, 48 x 24 quadratic elements, to 2 ms), stacked across the flow with their mid-lines `gap` [cm] apart;
+/// the contact repulsion's cut-off there is the smallest element, kPairCutoff.
+inline constexpr double kPairCutoff = 0.0032 / 48;
+inline std::vector<std::string> touching_capsules(double gap) {
+  const double a = 1e-4, y = 8e-4 + a + gap / 2;
+  char upper[64], lower[64];
+  std::snprintf(upper, sizeof upper, "0.0016,%.10g", y);
+  std::snprintf(lower, sizeof lower, "0.0016,%.10g", 1.6e-3 - y);
+  return {scene("capsule_pair_shear.yaml"),
+          "-domain_size",
+          "0.0032,0.0016",
+          "-fluid_elements",
+          "48,24",
+          "-fluid_degree",
+          "2",
+          "-solid_upper_center",
+          upper,
+          "-solid_lower_center",
+          lower,
+          "-final_time",
+          "2e-3",
+          "-output_every",
+          "0"};
+}
 
 inline std::string read_text(const fs::path& p) {
   std::ifstream in(p);

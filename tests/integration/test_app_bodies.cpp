@@ -872,25 +872,8 @@ TEST_F(CellfsiApp, TwoCapsulesCloserThanTheCutOffArePushedApartWithoutOverlap) {
   // steps their centres are farther apart across the flow than with a negligible pressure scale, no point of
   // one lies in the other, and the run reports its constants (P0 = G h / a = 1680 * 5e-7 / 1e-4 = 8.4
   // dyn/cm^2). (Four coarse steps: about 2 s.)
-  const double rc = 0.0032 / 48, a = 1e-4, gap = 0.4 * rc, y = 8e-4 + a + gap / 2;
-  char upper[64], lower[64];
-  std::snprintf(upper, sizeof upper, "0.0016,%.10g", y);
-  std::snprintf(lower, sizeof lower, "0.0016,%.10g", 1.6e-3 - y);
-  const std::vector<std::string> base = {scene("capsule_pair_shear.yaml"),
-                                         "-domain_size",
-                                         "0.0032,0.0016",
-                                         "-fluid_elements",
-                                         "48,24",
-                                         "-fluid_degree",
-                                         "2",
-                                         "-solid_upper_center",
-                                         upper,
-                                         "-solid_lower_center",
-                                         lower,
-                                         "-final_time",
-                                         "2e-3",
-                                         "-output_every",
-                                         "0"};
+  const double rc = kPairCutoff, gap = 0.4 * rc;
+  const std::vector<std::string> base = touching_capsules(gap);
   const auto apart = [&] {
     double yu = 0, yl = 0;
     for (const auto& [k, v] : last_row(out_ / "metrics.csv")) {

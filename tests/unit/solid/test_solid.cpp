@@ -376,7 +376,8 @@ TEST(NurbsSolid, QuadratureDataOfAHomogeneousDeformationIn3DIsExact) {
 TEST(NurbsSolid, QuadratureDataAndBasisGradientsOfSomePointsAreThoseOfAll) {
   // A fluid rank asks for the material only at its own points (coupling::FsiCoupler): the points it wants
   // get the numbers of the full call to the bit (the same sums in the same order), the others their
-  // position, weight, beta and area alone; basis_gradients lists the wanted points only, in order. A 3D
+  // position, weight, beta and area alone; basis_gradients lists the wanted points only, in order (and
+  // evaluates no other). A 3D
   // membrane (its areas; with Skalak's law also its surface frame) moved by a linear velocity field, every
   // third point wanted.
   const Vec3 c(6e-4, 6e-4, 6e-4);
@@ -418,6 +419,34 @@ TEST(NurbsSolid, QuadratureDataAndBasisGradientsOfSomePointsAreThoseOfAll) {
       }
     }
     ASSERT_GT(all[0].stress.norm(), 0);  // it is strained: the comparison has numbers to compare
+    // Only the flagged points evaluated at all (the coupler's rank after its first call, which knows its
+    // run): the callback sees those alone, they get the full call's numbers, and the others keep what the
+    // caller's storage held.
+    std::vector<solid::QuadratureData> only(all.size());
+    for (solid::QuadratureData& d : only) d.weight = -1;
+    std::size_t asked = 0;
+    s.quadrature_data(
+        1.025, true,
+        [&](std::size_t i, const Vec3& x) {
+          ++asked;
+          EXPECT_TRUE(wanted[i] != 0) << i;
+          EXPECT_EQ(x, all[i].x);
+          return true;
+        },
+        only, &wanted);
+    ASSERT_EQ(only.size(), all.size());
+    EXPECT_EQ(asked, static_cast<std::size_t>(std::count(wanted.begin(), wanted.end(), 1)));
+    for (size_t i = 0; i < all.size(); ++i) {
+      if (!wanted[i]) {
+        EXPECT_EQ(only[i].weight, -1) << i;
+        continue;
+      }
+      EXPECT_EQ(only[i].x, all[i].x);
+      EXPECT_EQ(only[i].weight, all[i].weight);
+      EXPECT_EQ(only[i].area, all[i].area);
+      EXPECT_EQ(only[i].stress, all[i].stress);
+      EXPECT_EQ(only[i].tangent, all[i].tangent);
+    }
     std::vector<int> begin, unknown, begin_some, unknown_some;
     std::vector<double> grad, grad_some;
     ASSERT_TRUE(s.basis_gradients(begin, unknown, grad));
