@@ -103,6 +103,7 @@ DcFourierSolver::DcFourierSolver(const DivConformingSpace& space, MPI_Comm comm,
   CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
   CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
   for (int m = rank; m < n_modes_; m += size) modes_.push_back(m);
+  comm_size_ = size;
 }
 
 void DcFourierSolver::build(Mat A, bool pin_pressure) {
@@ -432,45 +433,94 @@ void DcFourierSolver::transform(const std::vector<double>& b, std::vector<double
   if (static_cast<int>(b.size()) != space_.n_dofs())
     throw std::invalid_argument("DcFourierSolver: the vector has " + std::to_string(b.size()) +
                                 " entries, not n_dofs() = " + std::to_string(space_.n_dofs()));
-  int size = 1;
+  int rank = 0, size = 1;
+  CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
   CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
-  // 1. Each line's half spectrum, b_hat_mq = sum_il b_il e^{-2 pi i (m i / n_x + q l / n_z)}, m = 0 .. n_x/2,
-  // by banded position and wave vector: spectrum[p * n_modes + q * n_half + m].
+  // Each rank transforms its own run of lines (both ways), the wave vectors' values go to the ranks that
+  // solve them and come back (two MPI_Alltoallv), and the lines are gathered into x on every rank. Before,
+  // every rank transformed every line and the half spectra were summed (one MPI_Allreduce): at 64^3 the
+  // transforms were the part of a 3D step's linear solves that did not divide (bench/scaling_counts_3d.py).
+  const int l0 = line_begin(rank), l1 = line_begin(rank + 1);
+  // 1. Each of this rank's lines' half spectrum, b_hat_mq = sum_il b_il e^{-2 pi i (m i / n_x + q l /
+  // n_z)}, m = 0 .. n_x/2, by banded position and wave vector: spectrum[p * n_modes + q * n_half + m].
   const std::size_t nm = n_modes_;
-  // (A buffer kept between solves: every entry is written by the forward transforms. A new one per solve, 9
-  // MB at 64^3, came back from the kernel as fresh pages to fault in and clear: 5 % of a 3D step, perf.)
+  // (A buffer kept between solves: every entry read is written by the forward transforms or the exchange. A
+  // new one per solve, 9 MB at 64^3, came back from the kernel as fresh pages to fault in and clear: 5 % of
+  // a 3D step, perf.)
   std::vector<Complex>& spectrum = spectrum_;
   spectrum.resize(nm * n_line_);
   auto half = [&](int line) { return reinterpret_cast<fftw_complex*>(&spectrum[position_[line] * nm]); };
   auto plan = [&](int line) -> const Plans& { return *plans_[line_component_[line]]; };
-  for (int l = 0; l < n_line_; ++l)  // FFTW's r2c leaves its input as it is (out of place)
+  for (int l = l0; l < l1; ++l)  // FFTW's r2c leaves its input as it is (out of place)
     fftw_execute_dft_r2c(plan(l).forward, const_cast<double*>(&b[line_first_[l]]), half(l));
   // (-log_view's counts: a real transform of N points as 2.5 N log2 N operations, FFTW's own estimate; both
   // ways, and the inverse's scaling)
   const double n_points = static_cast<double>(nx_) * nz_;
-  CELLFSI_PETSC(PetscLogFlops(n_line_ * (5.0 * n_points * std::log2(n_points) + n_points)));
+  CELLFSI_PETSC(PetscLogFlops((l1 - l0) * (5.0 * n_points * std::log2(n_points) + n_points)));
   // 2. This rank's wave vectors, each result in place of its right-hand side.
   std::vector<Complex> rhs(n_line_);
-  for (size_t k = 0; k < modes_.size(); ++k) {
-    const int m = modes_[k];
-    for (int p = 0; p < n_line_; ++p) rhs[p] = spectrum[p * nm + m];
-    f(k, m, rhs);
-    for (int p = 0; p < n_line_; ++p) spectrum[p * nm + m] = rhs[p];
+  const auto n_modes_of = [&](int r) { return r < n_modes_ ? (n_modes_ - 1 - r) / size + 1 : 0; };
+  if (size == 1) {
+    for (size_t k = 0; k < modes_.size(); ++k) {
+      const int m = modes_[k];
+      for (int p = 0; p < n_line_; ++p) rhs[p] = spectrum[p * nm + m];
+      f(k, m, rhs);
+      for (int p = 0; p < n_line_; ++p) spectrum[p * nm + m] = rhs[p];
+    }
+  } else {
+    // Rank r's lines [line_begin(r), line_begin(r + 1)) and wave vectors r, r + size, ...: a message from r
+    // to s holds r's lines' values at s's wave vectors, line by line.
+    std::vector<int>& send_counts = exchange_counts_[0];
+    std::vector<int>& send_displs = exchange_counts_[1];
+    std::vector<int>& recv_counts = exchange_counts_[2];
+    std::vector<int>& recv_displs = exchange_counts_[3];
+    for (auto* v : {&send_counts, &send_displs, &recv_counts, &recv_displs}) v->assign(size, 0);
+    for (int r = 0; r < size; ++r) {
+      send_counts[r] = 2 * (l1 - l0) * n_modes_of(r);
+      recv_counts[r] = 2 * (line_begin(r + 1) - line_begin(r)) * n_modes_of(rank);
+    }
+    for (int r = 1; r < size; ++r) {
+      send_displs[r] = send_displs[r - 1] + send_counts[r - 1];
+      recv_displs[r] = recv_displs[r - 1] + recv_counts[r - 1];
+    }
+    std::vector<Complex>& out = exchange_send_;
+    std::vector<Complex>& in = exchange_recv_;
+    out.resize(static_cast<std::size_t>(send_displs[size - 1] + send_counts[size - 1]) / 2);
+    in.resize(static_cast<std::size_t>(recv_displs[size - 1] + recv_counts[size - 1]) / 2);
+    std::size_t o = 0;
+    for (int r = 0; r < size; ++r)
+      for (int l = l0; l < l1; ++l)
+        for (int m = r; m < n_modes_; m += size) out[o++] = spectrum[position_[l] * nm + m];
+    CELLFSI_PETSC(MPI_Alltoallv(out.data(), send_counts.data(), send_displs.data(), MPI_DOUBLE, in.data(),
+                                recv_counts.data(), recv_displs.data(), MPI_DOUBLE, comm_));
+    // The values of this rank's wave vector k: in[base[l] + k], base[l] = (recv_displs[r] / 2) + (l -
+    // line_begin(r)) n_mine for line l of rank r.
+    const auto n_mine = modes_.size();
+    std::vector<std::size_t>& base = exchange_base_;
+    base.resize(n_line_);
+    for (int r = 0; r < size; ++r)
+      for (int l = line_begin(r); l < line_begin(r + 1); ++l)
+        base[l] = static_cast<std::size_t>(recv_displs[r] / 2) +
+                  static_cast<std::size_t>(l - line_begin(r)) * n_mine;
+    const auto at = [&](int l, std::size_t k) -> Complex& { return in[base[l] + k]; };
+    for (size_t k = 0; k < n_mine; ++k) {
+      for (int l = 0; l < n_line_; ++l) rhs[position_[l]] = at(l, k);
+      f(k, modes_[k], rhs);
+      for (int l = 0; l < n_line_; ++l) at(l, k) = rhs[position_[l]];
+    }
+    // Back: the same messages the other way.
+    CELLFSI_PETSC(MPI_Alltoallv(in.data(), recv_counts.data(), recv_displs.data(), MPI_DOUBLE, out.data(),
+                                send_counts.data(), send_displs.data(), MPI_DOUBLE, comm_));
+    o = 0;
+    for (int r = 0; r < size; ++r)
+      for (int l = l0; l < l1; ++l)
+        for (int m = r; m < n_modes_; m += size) spectrum[position_[l] * nm + m] = out[o++];
   }
-  // 3. The ranks' wave vectors together, then each line's inverse transform (scaled by 1/(n_x n_z); from the
-  // half spectrum, the other half being its conjugate since x is real).
-  if (size > 1) {
-    std::vector<char> mine(nm, 0);
-    for (int m : modes_) mine[m] = 1;
-    for (int p = 0; p < n_line_; ++p)
-      for (std::size_t m = 0; m < nm; ++m)
-        if (!mine[m]) spectrum[p * nm + m] = 0.0;
-    CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, spectrum.data(), static_cast<int>(2 * spectrum.size()),
-                                MPI_DOUBLE, MPI_SUM, comm_));
-  }
+  // 3. This rank's lines' inverse transforms (scaled by 1/(n_x n_z); from the half spectrum, the other half
+  // being its conjugate since x is real), then every rank's lines into x on every rank.
   x.resize(space_.n_dofs());
   const double scale = 1.0 / (static_cast<double>(nx_) * nz_);  // FFTW's inverse is unscaled
-  for (int l = 0; l < n_line_; ++l) {
+  for (int l = l0; l < l1; ++l) {
     double* line = &x[line_first_[l]];
     fftw_execute_dft_c2r(plan(l).inverse, half(l),
                          line);  // (overwrites the spectrum's line, not needed again)
@@ -478,6 +528,28 @@ void DcFourierSolver::transform(const std::vector<double>& b, std::vector<double
     for (int z = 0; z < nz_; ++z)
       for (int i = 0; i < nx_; ++i) line[static_cast<std::size_t>(stride) * z + i] *= scale;
   }
+  if (size == 1) return;
+  std::vector<int>& counts = exchange_counts_[0];
+  std::vector<int>& displs = exchange_counts_[1];
+  const int per_line = nx_ * nz_;
+  for (int r = 0; r < size; ++r) {
+    counts[r] = (line_begin(r + 1) - line_begin(r)) * per_line;
+    displs[r] = line_begin(r) * per_line;
+  }
+  std::vector<double>& lines = exchange_lines_;
+  lines.resize(static_cast<std::size_t>(n_line_) * per_line);
+  const auto each_value = [&](int l, auto&& visit) {
+    const int stride = plane_stride_[line_component_[l]];
+    std::size_t v = static_cast<std::size_t>(l) * per_line;
+    for (int z = 0; z < nz_; ++z)
+      for (int i = 0; i < nx_; ++i)
+        visit(lines[v++], x[line_first_[l] + static_cast<std::size_t>(stride) * z + i]);
+  };
+  for (int l = l0; l < l1; ++l) each_value(l, [](double& packed, double& value) { packed = value; });
+  CELLFSI_PETSC(MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, lines.data(), counts.data(), displs.data(),
+                               MPI_DOUBLE, comm_));
+  for (int l = 0; l < n_line_; ++l)
+    if (l < l0 || l >= l1) each_value(l, [](double& packed, double& value) { value = packed; });
 }
 
 void DcFourierSolver::solve(const std::vector<double>& b, std::vector<double>& x) const {

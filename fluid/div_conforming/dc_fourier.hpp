@@ -30,9 +30,9 @@
 //
 // Ranks: the wave vectors are dealt out to the ranks (index mod size); every rank reads the stencil rows
 // (those at x and z index 0, MatCreateSubMatrices) and checks deviation() on its own rows (those A holds); b
-// and x are whole on every rank (the fluid's state is replicated, dc_fluid.hpp); a solve transforms every
-// line on every rank, solves its own wave vectors and ends in one MPI_Allreduce of the half spectra before
-// the inverse FFTs.
+// and x are whole on every rank (the fluid's state is replicated, dc_fluid.hpp); a solve transforms each
+// rank's run of lines on that rank, sends each wave vector's values to the rank that solves it and back (two
+// MPI_Alltoallv), inverts its lines and gathers every rank's into x (MPI_Allgatherv).
 //
 // Cost: per solve 2 n_line real FFTs of n_x n_z values and n_z (n_x/2 + 1) banded substitutions of size
 // n_line (O(n log(n_x n_z)) in all); build O(nonzeros) plus the banded LUs. Measured (bench/dc_fourier_solve:
@@ -41,10 +41,11 @@
 // solve (4.1-4.2 with Eigen's kissfft and LAPACK's zgbtrs; the substitutions, written out, are now four
 // fifths of it) and 0.3 s to build; equal to MUMPS to 2.5e-13 of max|x| (fluid/div_conforming/README.md).
 //
-// Limits (next steps, README): b and x whole on every rank, and every rank transforms all lines (only the
-// banded solves are divided among the ranks).
+// Limits (next steps, README): b and x whole on every rank (a rank reads only its lines of b, and needs only
+// its rows of x).
 #include <petscmat.h>
 
+#include <array>
 #include <complex>
 #include <memory>
 #include <vector>
@@ -124,6 +125,15 @@ class DcFourierSolver {
   std::vector<double> pair_taps_;
   mutable std::vector<double> padded_;  // multiply()'s lines of x with halo_ periodic values at both ends
   mutable std::vector<Complex> spectrum_;  // transform()'s half spectra
+  // transform()'s exchanges (kept between solves): counts and displacements, the wave vectors' values both
+  // ways, the lines gathered into x.
+  mutable std::array<std::vector<int>, 4> exchange_counts_;
+  mutable std::vector<Complex> exchange_send_, exchange_recv_;
+  mutable std::vector<double> exchange_lines_;
+  mutable std::vector<std::size_t> exchange_base_;
+  /// The first of rank r's lines (equal runs of the line indices; r = size: n_line_).
+  int line_begin(int r) const { return static_cast<int>(static_cast<long long>(r) * n_line_ / comm_size_); }
+  int comm_size_ = 1;
   std::vector<char> owned_runs_;        // per (line, l): whether it holds a row of this rank's (build())
   double deviation_ = 0;
   bool pinned_ = false, built_ = false;
