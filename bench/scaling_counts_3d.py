@@ -28,15 +28,19 @@ from bench_common import ROOT, commit_of_head, fmt, write_table  # noqa: E402
 
 TOOL = "scaling_counts_3d.py"
 # The step's parts: run_3d_steps.py's events (top level: their times and counts include the events inside).
-PARTS = ["FsiLinearSolve", "FsiJacobian", "FsiResidual", "FsiLocate", "FsiSolidUpdate", "CellfsiTrack"]
+PARTS = [
+    "FsiLinearSolve", "FsiJacobian", "FsiResidual", "FsiLocate", "FsiSolidUpdate", "FsiKinematic", "CellfsiTrack"
+]
 WHAT = {
-    "FsiLinearSolve": "FGMRES: the bulk inverse (FFT of every line on every rank, banded solves dealt out), "
-                      "the points' matrix",
+    "FsiLinearSolve": "FGMRES: the bulk inverse (each rank its lines' FFTs and its wave vectors' banded "
+                      "solves), the points' matrix",
     "FsiJacobian": "the points' tangent (each rank an equal run of the points, or its elements' points)",
     "FsiResidual": "the elements' terms (dealt out), the points' terms (as the Jacobian's)",
-    "FsiLocate": "every point located and formed on every rank, the repulsion; the material at the rank's "
-                 "points (not counted)",
-    "FsiSolidUpdate": "every body's kinematic update on every rank (not counted)",
+    "FsiLocate": "each rank its run of the points located and formed, with their material (not counted; "
+                 "every point at a run's first call), the exchange of their elements, the repulsion over every "
+                 "membrane point (not counted)",
+    "FsiSolidUpdate": "the fluid's velocity at the bodies' collocation points (each rank its share, gathered)",
+    "FsiKinematic": "every body's kinematic update on every rank (not counted)",
     "CellfsiTrack": "the bodies' metrics (not counted)",
     "rest": "the rest of the one-rank step after the first (its wall time less the parts, which average every "
             "step, the first's set-up included: a lower bound; not counted)",

@@ -12,7 +12,10 @@
 namespace cellfsi::coupling {
 
 struct CouplingEvents {
+  // The fluid's velocity at the bodies' collocation points (each rank its share, where the fluid samples
+  // anywhere) and the bodies' kinematic updates (FsiKinematic: every body on every rank).
   PetscLogEvent solid = register_log_event("cellfsi coupling", "FsiSolidUpdate");
+  PetscLogEvent kinematic = register_log_event("cellfsi coupling", "FsiKinematic");
   PetscLogEvent locate = register_log_event("cellfsi coupling", "FsiLocate");
   // Inside FsiLocate's immersed update: the bodies' quadrature points located and their data (stress,
   // tangent: this rank's points only), and the repulsion.

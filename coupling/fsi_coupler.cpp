@@ -428,26 +428,78 @@ CouplerStats FsiCoupler::step() {
   st.solid_residual.assign(bodies_.size(), 0.0);
   double fluid_peak = 0;
   std::vector<double> solid_peak(bodies_.size(), 0.0);
+  int rank = 0, ranks = 1;
+  CELLFSI_PETSC(MPI_Comm_rank(fluid_.comm(), &rank));
+  CELLFSI_PETSC(MPI_Comm_size(fluid_.comm(), &ranks));
   for (int it = 0; it < opt_.max_iterations; ++it) {
-    // Steps 1-3 for every body, from the current fluid iterate.
+    // Steps 1-3 for every body, from the current fluid iterate. Where the fluid samples anywhere (its state
+    // whole on every rank), each rank locates and samples an equal run of the body's collocation points and
+    // the ranks gather their runs (their locations too: the solids' linearisation reads them); before, every
+    // rank sampled every point, which did not divide by the ranks.
     for (size_t b = 0; b < bodies_.size(); ++b) {
       const std::vector<geometry::Vec3> pts = bodies_[b]->collocation_points();
+      const std::size_t n = pts.size();
       auto& warm = collocation_loc_[b];
-      warm.resize(pts.size());
-      std::vector<geometry::Index3> el(pts.size());
-      std::vector<geometry::Param> xi(pts.size());
+      warm.resize(n);
+      const bool split = ranks > 1 && fluid_.samples_anywhere();
+      const std::size_t i0 = split ? n * static_cast<std::size_t>(rank) / static_cast<std::size_t>(ranks) : 0,
+                        i1 = split ? n * static_cast<std::size_t>(rank + 1) / static_cast<std::size_t>(ranks)
+                                   : n;
+      std::vector<geometry::Index3> el(i1 - i0);
+      std::vector<geometry::Param> xi(i1 - i0);
       {
         EventScope ev(coupling_events().locate);
-        for (size_t i = 0; i < pts.size(); ++i) {
-          warm[i] = locator_.locate_or_throw(pts[i], &warm[i]);
-          el[i] = warm[i].element;
-          xi[i] = warm[i].xi;
+        const auto locate = [&] {
+          for (size_t i = i0; i < i1; ++i) {
+            warm[i] = locator_.locate_or_throw(pts[i], &warm[i]);
+            el[i - i0] = warm[i].element;
+            xi[i - i0] = warm[i].xi;
+          }
+        };
+        if (split)
+          on_every_rank(fluid_.comm(), locate);  // (a point outside on one rank stops every rank)
+        else
+          locate();
+      }
+      std::vector<solid::VelocitySample> vs(n);
+      {
+        EventScope ev(coupling_events().solid);
+        const std::vector<fluid::PointSample> v = fluid_.sample_alpha(X_, el, xi);
+        for (size_t i = i0; i < i1; ++i) vs[i].v = v[i - i0].v, vs[i].grad_v = v[i - i0].grad_v;
+        if (split) {
+          // Per point: its element, xi, v and grad v (16 values); rank r's run from n r / ranks on.
+          constexpr int kWidth = 16;
+          std::vector<int> counts(static_cast<std::size_t>(ranks)), displs(static_cast<std::size_t>(ranks));
+          for (int r = 0; r < ranks; ++r) {
+            displs[r] =
+                kWidth * static_cast<int>(n * static_cast<std::size_t>(r) / static_cast<std::size_t>(ranks));
+            counts[r] = kWidth * static_cast<int>(n * static_cast<std::size_t>(r + 1) /
+                                                  static_cast<std::size_t>(ranks)) -
+                        displs[r];
+          }
+          std::vector<double>& all = scratch_recv_;
+          all.resize(kWidth * n);
+          for (size_t i = i0; i < i1; ++i) {
+            double* p = all.data() + kWidth * i;
+            p[0] = fluid_.patch().element_index(warm[i].element);  // (exact in a double)
+            for (int c = 0; c < 3; ++c) p[1 + c] = warm[i].xi[c], p[4 + c] = vs[i].v[c];
+            for (int r = 0; r < 3; ++r)
+              for (int c = 0; c < 3; ++c) p[7 + 3 * r + c] = vs[i].grad_v(r, c);
+          }
+          CELLFSI_PETSC(MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, all.data(), counts.data(),
+                                       displs.data(), MPI_DOUBLE, fluid_.comm()));
+          for (size_t i = 0; i < n; ++i) {
+            if (i >= i0 && i < i1) continue;
+            const double* p = all.data() + kWidth * i;
+            warm[i].found = true;  // (its rank refused a point not found)
+            warm[i].element = fluid_.patch().element_multi_index(static_cast<int>(p[0]));
+            for (int c = 0; c < 3; ++c) warm[i].xi[c] = p[1 + c], vs[i].v[c] = p[4 + c];
+            for (int r = 0; r < 3; ++r)
+              for (int c = 0; c < 3; ++c) vs[i].grad_v(r, c) = p[7 + 3 * r + c];
+          }
         }
       }
-      EventScope ev(coupling_events().solid);
-      const std::vector<fluid::PointSample> v = fluid_.sample_alpha(X_, el, xi);
-      std::vector<solid::VelocitySample> vs(pts.size());
-      for (size_t i = 0; i < pts.size(); ++i) vs[i].v = v[i].v, vs[i].grad_v = v[i].grad_v;
+      EventScope ev(coupling_events().kinematic);
       st.solid_residual[b] = bodies_[b]->kinematic_update(vs);
       if (it == 0) st.solid_residual0[b] = st.solid_residual[b];
     }

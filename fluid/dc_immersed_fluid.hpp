@@ -73,6 +73,7 @@ class DcImmersedFluid final : public ImmersedFluid {
   bool owns_element(const geometry::Index3& e) const override;
   /// True: DivConformingFluid assembles a point in any element (the state is on every rank).
   bool assembles_points_anywhere() const override { return true; }
+  bool samples_anywhere() const override { return true; }
   void set_immersed_points(const std::vector<geometry::Index3>& elements, const std::vector<geometry::Param>& xi,
                            const std::vector<ImmersedPoint>& data) override;
   bool set_solid_linearization(SolidLinearization& lin) override;

@@ -158,6 +158,9 @@ class ImmersedFluid {
   /// elements, and a rank's points lie in a contiguous range of elements. Otherwise (the default) a point
   /// goes to its element's owner (owns_element).
   virtual bool assembles_points_anywhere() const { return false; }
+  /// True where sample_alpha() takes points of any element on any rank (the state is whole on every rank):
+  /// the coupler then gives each rank a share of the collocation points and gathers the samples.
+  virtual bool samples_anywhere() const { return false; }
   /// Immersed points already located (element, xi): this rank's (those in its elements, or those dealt to it
   /// where assembles_points_anywhere()).
   virtual void set_immersed_points(const std::vector<geometry::Index3>& elements,

@@ -1421,6 +1421,11 @@ std::vector<DivConformingFluid::StepSample> DivConformingFluid::sample_step(
                     i == 0 || elements[i] != elements[i - 1]);
     const auto pv = DivConformingSpace::interpolate(eb, 0, D, lv.v.data());
     const auto pa = DivConformingSpace::interpolate_velocity(eb, 0, D, lv.a.data());
+    // (-log_view's counts: the sums of the velocity, its gradient and the acceleration, 2 per function and
+    // value; the basis' own evaluation not counted)
+    double sums = 0;
+    for (int c = 0; c < D; ++c) sums += 2.0 * eb.comp[c].n * (2 + D);
+    CELLFSI_PETSC(PetscLogFlops(sums));
     for (int a = 0; a < D; ++a) {
       out[i].v[a] = pv.v[a];
       out[i].a[a] = pa[a];
