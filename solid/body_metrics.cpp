@@ -199,8 +199,8 @@ void BodyTracker::restore(const std::vector<double>& state) {
 void BodyTracker::measure(const Patch& p, const MetricShare& share, double& area, double& boundary,
                           geometry::RegionMoments& region) const {
   // A membrane: the band's own measure, the mid-surface's and the moments of the region it encloses
-  // (geometry::membrane_shape's integrals); a bulky body: its outer face's measure and its own moments (its
-  // measure is patch_measure's integral at the same points: |det J| = sqrt(det J^T J)).
+  // (geometry::membrane_shape's integrals); a bulky body: its outer face's measure and the moments of the
+  // region that face encloses, which is the body.
   constexpr int kExtra = 2;
   double measures[2] = {0, 0};  // the body's own (a membrane's), the boundary's
   geometry::MomentSums sums;
@@ -211,9 +211,13 @@ void BodyTracker::measure(const Patch& p, const MetricShare& share, double& area
     measures[1] = geometry::patch_measure(mid, kExtra, share.elements);
     sums = geometry::enclosed_moment_sums(mid, kExtra, share.elements);
   } else {
-    measures[1] =
-        geometry::patch_measure(geometry::isoparametric(p, 0, p.knots(0).b()), kExtra, share.elements);
-    sums = geometry::patch_moment_sums(p, kExtra, share.elements);
+    // Its outer face bounds it (direction 0 runs from a degenerate centre): the moments by the divergence
+    // theorem over the face, as a membrane's, where its volume's integrals took 7168 elements at 125 points
+    // for the paper's 3D nucleus (0.21 s of a 64^3 step's 0.32 s of metrics, on every rank) against the
+    // face's 1024 at 25.
+    const Patch face = geometry::isoparametric(p, 0, p.knots(0).b());
+    measures[1] = geometry::patch_measure(face, kExtra, share.elements);
+    sums = geometry::enclosed_moment_sums(face, kExtra, share.elements);
   }
   if (share.sum) {
     double v[15] = {measures[0], measures[1], sums.m0, sums.m1[0], sums.m1[1], sums.m1[2]};
