@@ -29,7 +29,8 @@ from bench_common import ROOT, commit_of_head, fmt, write_table  # noqa: E402
 TOOL = "scaling_counts_3d.py"
 # The step's parts: run_3d_steps.py's events (top level: their times and counts include the events inside).
 PARTS = [
-    "FsiLinearSolve", "FsiJacobian", "FsiResidual", "FsiLocate", "FsiSolidUpdate", "FsiKinematic", "CellfsiTrack"
+    "FsiLinearSolve", "FsiJacobian", "FsiResidual", "FsiLocate", "FsiSolidUpdate", "FsiKinematic", "FsiStepEnds",
+    "CellfsiTrack"
 ]
 WHAT = {
     "FsiLinearSolve": "FGMRES: the bulk inverse (each rank its lines' FFTs and its wave vectors' banded "
@@ -41,6 +42,8 @@ WHAT = {
                  "membrane point (not counted)",
     "FsiSolidUpdate": "the fluid's velocity at the bodies' collocation points (each rank its share, gathered)",
     "FsiKinematic": "every body's kinematic update on every rank (not counted)",
+    "FsiStepEnds": "the fluid's and the bodies' begin and end of a step (the solution gathered to every rank, "
+                   "the divergence diagnostic)",
     "CellfsiTrack": "the bodies' metrics (not counted)",
     "rest": "the rest of the one-rank step after the first (its wall time less the parts, which average every "
             "step, the first's set-up included: a lower bound; not counted)",

@@ -16,6 +16,9 @@ struct CouplingEvents {
   // anywhere) and the bodies' kinematic updates (FsiKinematic: every body on every rank).
   PetscLogEvent solid = register_log_event("cellfsi coupling", "FsiSolidUpdate");
   PetscLogEvent kinematic = register_log_event("cellfsi coupling", "FsiKinematic");
+  // The step's start and end: the fluid's and the bodies' begin_step and end_step (the fluid's end of a step
+  // gathers the solution to every rank and takes its divergence diagnostic).
+  PetscLogEvent step_ends = register_log_event("cellfsi coupling", "FsiStepEnds");
   PetscLogEvent locate = register_log_event("cellfsi coupling", "FsiLocate");
   // Inside FsiLocate's immersed update: the bodies' quadrature points located and their data (stress,
   // tangent: this rank's points only), and the repulsion.

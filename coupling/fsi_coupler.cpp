@@ -421,8 +421,11 @@ CouplerStats FsiCoupler::step() {
   // The cells' insides from the configuration at t_n (once per step, like s^h; the bodies' current_patch()
   // is valid between steps only).
   update_viscosity();
-  fluid_.begin_step(X_);
-  for (auto* b : bodies_) b->begin_step(tp);
+  {
+    EventScope ev(coupling_events().step_ends);
+    fluid_.begin_step(X_);
+    for (auto* b : bodies_) b->begin_step(tp);
+  }
   if (anderson_) anderson_->begin_step();
   st.solid_residual0.assign(bodies_.size(), 0.0);
   st.solid_residual.assign(bodies_.size(), 0.0);
@@ -565,8 +568,11 @@ CouplerStats FsiCoupler::step() {
       st.reason = "no convergence in " + std::to_string(opt_.max_iterations) + " iterations";
     return st;
   }
-  fluid_.end_step(X_);
-  for (auto* b : bodies_) b->end_step();
+  {
+    EventScope ev(coupling_events().step_ends);
+    fluid_.end_step(X_);
+    for (auto* b : bodies_) b->end_step();
+  }
   st.repulsion = repulsion_stats_;
   return st;
 }

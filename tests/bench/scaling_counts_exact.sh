@@ -2,7 +2,7 @@
 # bench/scaling_counts_3d.py on -log_view logs written to be exactly F(p) = a + b / p (issue 45's count-based
 # model): at 1 and 2 ranks, 2 steps. Per step: FsiLinearSolve 3 s and 100 / 60 flops (a 20, b 80: s = 3 x 20 / 100
 # = 0.6 s, d = 2.4 s), FsiJacobian 1 s and 50 / 25 (s 0, d 1), FsiResidual 1 s and 40 / 20, FsiLocate 0.5 s and 10 /
-# 10 (s 0.5), FsiSolidUpdate 0.2 s, FsiKinematic 0 s and CellfsiTrack 0.1 s not counted (s all), the one-rank step 6 s after the
+# 10 (s 0.5), FsiSolidUpdate 0.2 s, FsiKinematic and FsiStepEnds 0 s and CellfsiTrack 0.1 s not counted (s all), the one-rank step 6 s after the
 # first (rest 6 - 5.8 = 0.2 s). At 64 ranks the model's step is 0.6 + 2.4/64 + 2/64 + 0.5 + 0.2 + 0.1 + 0.2 =
 # 1.66875 s (printed 1.668 or 1.669: a tie at three digits); FsiLinearSolve's s 36 % of it. A run missing from
 # --runs is refused (a non-zero exit, and the message).
@@ -23,6 +23,7 @@ for r in 1 2; do
       line FsiLinearSolve 4.0e+00 1.2e+02; line FsiJacobian 1.0e+00 5.0e+01; line FsiResidual 1.0e+00 4.0e+01
     fi
     line FsiLocate 1.0e+00 2.0e+01; line FsiSolidUpdate 4.0e-01 0.0e+00; line FsiKinematic 0.0e+00 0.0e+00
+    line FsiStepEnds 0.0e+00 0.0e+00
     line CellfsiTrack 2.0e-01 0.0e+00
   } > "$work/8cube_${r}rank.log"
 done
