@@ -99,17 +99,19 @@ void FsiCoupler::update_immersed(bool first_iteration) {
   std::vector<int> q_begin, q_unknown;
   std::vector<double> q_grad;
   // Every body's points first, located: the repulsion between them needs them all. The material (stress,
-  // tangent) is evaluated only at this rank's points, the rest carry their positions: those of its fluid
-  // elements, or, where the fluid assembles a point in any element, the rank's equal run of the body's points
-  // in the order of their elements at the previous call (at the first, by element). By element, at 32^3 the
-  // points' terms stopped dividing beyond 2 ranks: the cells sat in two ranks' elements (-log_view's
-  // operation counts). Runs in the body's own order divided them, but a rank's points then spread over the
-  // whole cell and half their rows went to other ranks: 64^3 on 2 ranks took 9.3-9.6 s per step against 8.1.
-  // In element order a rank's run lies in a contiguous range of elements, as the fluid's own ranges do.
-  // Dealt out so, after the first call a rank evaluates and locates only its run (the solid skips the
-  // others' points), and the ranks then exchange their points' elements (the next call's order, the
-  // repulsion's bins) and, for the repulsion, a membrane's positions: before, every rank formed and located
-  // every point, and that part of the step did not divide by the ranks.
+  // tangent) is evaluated only at this rank's points: those of its fluid elements, or, where the fluid
+  // assembles a point in any element, the rank's equal run of the body's points in the order of their
+  // elements at the previous call (at the first, by element). By element, at 32^3 the points' terms stopped
+  // dividing beyond 2 ranks: the cells sat in two ranks' elements (-log_view's operation counts). Runs in the
+  // body's own order divided them, but a rank's points then spread over the whole cell and half their rows
+  // went to other ranks: 64^3 on 2 ranks took 9.3-9.6 s per step against 8.1. In element order a rank's run
+  // lies in a contiguous range of elements, as the fluid's own ranges do. Dealt out so, after the first call
+  // a rank evaluates and locates only its run (the solid skips the others' points), and the ranks then
+  // exchange their points' locations (the next call's order, the repulsion's bins, a warm start) and, for the
+  // repulsion, a membrane's positions: before, every rank formed and located every point, and that part of
+  // the step did not divide by the ranks. So of another rank's point, all_q holds a current position only for
+  // a membrane with the repulsion on (its weight, beta and area, which do not change, from the first call);
+  // its stress, tangent and force are an earlier call's, and only this rank's points (own) are read for them.
   std::vector<std::vector<solid::QuadratureData>>& all_q = scratch_q_;
   all_q.resize(bodies_.size());
   const bool dealt = fluid_.assembles_points_anywhere();
@@ -184,16 +186,17 @@ void FsiCoupler::update_immersed(bool first_iteration) {
         for (std::size_t i = 0; i < n_known; ++i)
           if (!mine[i]) own[i] = 0;
     };
-    // A point refused (inverted, outside) on its rank alone stops every rank.
-    if (split)
+    // A point refused (inverted, outside) on its rank alone stops every rank (and one refused on every rank
+    // is reported once).
+    if (ranks > 1)
       on_every_rank(fluid_.comm(), evaluate);
     else
       evaluate();
     if (!split) continue;
-    // The others' points: each rank's run in element order, its points' elements and (a membrane's, for the
-    // repulsion) positions.
+    // The others' points: each rank's run in element order, its points' elements and xi and (a membrane's,
+    // for the repulsion) positions.
     const bool positions = opt_.repulsion.enabled && bodies_[b]->is_membrane();
-    const int width = positions ? 4 : 1;
+    const int width = positions ? 7 : 4;
     std::vector<int>& counts = scratch_counts_;
     std::vector<int>& displs = scratch_displs_;
     counts.assign(static_cast<std::size_t>(ranks), 0);
@@ -208,6 +211,7 @@ void FsiCoupler::update_immersed(bool first_iteration) {
     for (std::size_t k = k_begin; k < k_end; ++k) {
       const auto i = static_cast<std::size_t>(order[k]);
       send.push_back(patch.element_index(warm[i].element));  // (exact in a double)
+      send.insert(send.end(), warm[i].xi.data(), warm[i].xi.data() + 3);
       if (positions) send.insert(send.end(), all_q[b][i].x.data(), all_q[b][i].x.data() + 3);
     }
     all.resize(static_cast<std::size_t>(width) * n_known);
@@ -219,7 +223,8 @@ void FsiCoupler::update_immersed(bool first_iteration) {
       const double* v = all.data() + static_cast<std::size_t>(width) * k;
       warm[i].found = true;  // (its rank refused a point not found)
       warm[i].element = patch.element_multi_index(static_cast<int>(v[0]));
-      if (positions) all_q[b][i].x = geometry::Vec3(v[1], v[2], v[3]);
+      warm[i].xi = geometry::Param{v[1], v[2], v[3]};
+      if (positions) all_q[b][i].x = geometry::Vec3(v[4], v[5], v[6]);
     }
   }
   const std::vector<std::vector<geometry::Vec3>>* contact = nullptr;

@@ -51,6 +51,12 @@ BodyTracker::BodyTracker(const Patch& reference, bool membrane, int plane_dir, i
   if (plane_dir < 1 || plane_dir >= dim_)
     throw std::invalid_argument("BodyTracker: plane_dir must be 1.." + std::to_string(dim_ - 1));
   if (n_material_points < 4) throw std::invalid_argument("BodyTracker: at least 4 material points");
+  if (!membrane) {
+    // Its inner face (direction 0's start) a point or a line, of no measure: the outer face bounds it.
+    const geometry::KnotVector& k0 = reference.knots(0);
+    face_bounds_ = geometry::patch_measure(geometry::isoparametric(reference, 0, k0.a())) <=
+                   1e-12 * geometry::patch_measure(geometry::isoparametric(reference, 0, k0.b()));
+  }
   geometry::RegionMoments region;
   measure(reference, {}, area0_, boundary0_, region);
   const geometry::PrincipalAxes ax = geometry::principal_axes(region, dim_);
@@ -211,13 +217,14 @@ void BodyTracker::measure(const Patch& p, const MetricShare& share, double& area
     measures[1] = geometry::patch_measure(mid, kExtra, share.elements);
     sums = geometry::enclosed_moment_sums(mid, kExtra, share.elements);
   } else {
-    // Its outer face bounds it (direction 0 runs from a degenerate centre): the moments by the divergence
-    // theorem over the face, as a membrane's, where its volume's integrals took 7168 elements at 125 points
-    // for the paper's 3D nucleus (0.21 s of a 64^3 step's 0.32 s of metrics, on every rank) against the
-    // face's 1024 at 25.
+    // Where its outer face bounds it (direction 0 runs from a degenerate centre, as the scenes' bulky shapes'
+    // do): the moments by the divergence theorem over the face, as a membrane's, where its volume's integrals
+    // took 7168 elements at 125 points for the paper's 3D nucleus (0.21 s of a 64^3 step's 0.32 s of metrics,
+    // on every rank) against the face's 1024 at 25. Otherwise (a hollow body) its volume's.
     const Patch face = geometry::isoparametric(p, 0, p.knots(0).b());
     measures[1] = geometry::patch_measure(face, kExtra, share.elements);
-    sums = geometry::enclosed_moment_sums(face, kExtra, share.elements);
+    sums = face_bounds_ ? geometry::enclosed_moment_sums(face, kExtra, share.elements)
+                        : geometry::patch_moment_sums(p, kExtra, share.elements);
   }
   if (share.sum) {
     double v[15] = {measures[0], measures[1], sums.m0, sums.m1[0], sums.m1[1], sums.m1[2]};

@@ -99,6 +99,7 @@ class BodyTracker {
   std::vector<const Sample*> window(double average_from) const;
 
   bool membrane_;
+  bool face_bounds_ = false;  // a bulky body whose outer face bounds it (its inner face has no measure)
   int dim_, plane_dir_;
   bool elongated_ = false;
   double area0_ = 0, boundary0_ = 0;

@@ -34,12 +34,13 @@
 // rank's run of lines on that rank, sends each wave vector's values to the rank that solves it and back (two
 // MPI_Alltoallv), inverts its lines and gathers every rank's into x (MPI_Allgatherv).
 //
-// Cost: per solve 2 n_line real FFTs of n_x n_z values and n_z (n_x/2 + 1) banded substitutions of size
-// n_line (O(n log(n_x n_z)) in all); build O(nonzeros) plus the banded LUs. Measured (bench/dc_fourier_solve:
-// the Navier-Stokes step tangent at a Couette state, k = 2, one rank, shared 2-core machine): 64 x 32
-// elements (6.6 k unknowns) 0.22 ms per solve and 0.014 s to build; 256 x 128 (100 k unknowns) 2.7 ms per
-// solve (4.1-4.2 with Eigen's kissfft and LAPACK's zgbtrs; the substitutions, written out, are now four
-// fifths of it) and 0.3 s to build; equal to MUMPS to 2.5e-13 of max|x| (fluid/div_conforming/README.md).
+// Cost: per solve 2 n_line real FFTs of n_x n_z values (2 n_line / size on each rank) and n_z (n_x/2 + 1)
+// banded substitutions of size n_line (dealt out likewise) (O(n log(n_x n_z)) in all); build O(nonzeros) plus
+// the banded LUs. Measured (bench/dc_fourier_solve: the Navier-Stokes step tangent at a Couette state, k = 2,
+// one rank, shared 2-core machine): 64 x 32 elements (6.6 k unknowns) 0.22 ms per solve and 0.014 s to build;
+// 256 x 128 (100 k unknowns) 2.7 ms per solve (4.1-4.2 with Eigen's kissfft and LAPACK's zgbtrs; the
+// substitutions, written out, are now four fifths of it) and 0.3 s to build; equal to MUMPS to 2.5e-13 of
+// max|x| (fluid/div_conforming/README.md).
 //
 // Limits (next steps, README): b and x whole on every rank (a rank reads only its lines of b, and needs only
 // its rows of x).
@@ -107,9 +108,10 @@ class DcFourierSolver {
   std::vector<int> position_;       // per line index: its row in the banded systems
   int kl_ = 0, ku_ = 0, ldab_ = 1;  // half-bandwidths below and above, leading dimension 2 kl + ku + 1
   std::vector<Complex> ab_;         // per wave number of modes_: the banded LU of A_m (zgbtrf)
-  /// solve()'s steps: the forward transform of b's lines, f on each of this rank's wave numbers (k: its slot
-  /// in modes_, the wave number's values by banded position, in place), the ranks' spectra summed, the
-  /// inverse transform.
+  /// solve()'s steps: the forward transform of this rank's lines of b, their values sent to the wave numbers'
+  /// ranks, f on each of this rank's wave numbers (k: its slot in modes_, the wave number's values by banded
+  /// position, in place), the values sent back, the inverse transform of this rank's lines, every rank's
+  /// lines gathered into x.
   template <class PerMode>
   void transform(const std::vector<double>& b, std::vector<double>& x, PerMode&& f) const;
   std::vector<PetscBLASInt> ipiv_;         // and its pivots
