@@ -24,6 +24,8 @@ struct CouplingEvents {
   // tangent: this rank's points only), and the repulsion.
   PetscLogEvent quadrature = register_log_event("cellfsi coupling", "FsiQuadrature");
   PetscLogEvent repulsion = register_log_event("cellfsi coupling", "FsiRepulsion");
+  // Inside FsiRepulsion at the first call: the repulsion's construction (its bins and walls), once per run.
+  PetscLogEvent repulsion_setup = register_log_event("cellfsi coupling", "FsiRepulsionSetUp");
   PetscLogEvent residual = register_log_event("cellfsi coupling", "FsiResidual");
   PetscLogEvent jacobian = register_log_event("cellfsi coupling", "FsiJacobian");
   // The kept part's factorisation (cellfsi_band) or the bulk solver's set-up (cellfsi_fourier).

@@ -344,6 +344,8 @@ const std::vector<std::vector<geometry::Vec3>>* FsiCoupler::repulsion_forces(
     scale = std::max(scale, q[b][0].shear_modulus * (volume / area) / radius);
   }
   if (!repulsion_checked_) {
+    // (Once per run: -log_view's FsiRepulsionSetUp, which the count model leaves out, as the bulk's factors.)
+    EventScope ev(coupling_events().repulsion_setup);
     repulsion_checked_ = true;
     if (membranes == 0) return nullptr;
     const double cutoff =
@@ -409,12 +411,14 @@ void FsiCoupler::initialize() {
     bodies_[b]->set_rate(rate);
   }
   update_viscosity();
+  EventScope ev(coupling_events().locate);  // (as in a step: the model finds the repulsion inside it)
   update_immersed(true);
 }
 
 void FsiCoupler::restart() {
   if (anderson_) anderson_->reset();
   update_viscosity();
+  EventScope ev(coupling_events().locate);
   update_immersed(true);
 }
 

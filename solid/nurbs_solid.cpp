@@ -363,8 +363,8 @@ void NurbsSolid::for_each_quadrature_point(
     const std::vector<char>* only) const {
   const int n_q = static_cast<int>(q_X_.size());
   if (only && only->size() != q_X_.size())
-    throw std::invalid_argument("body '" + name_ + "': " + std::to_string(only->size()) +
-                                " point flags for " + std::to_string(n_q) + " quadrature points");
+    throw std::logic_error("body '" + name_ + "': " + std::to_string(only->size()) + " point flags for " +
+                           std::to_string(n_q) + " quadrature points");
   // The control values row by row (c is column-major: a point's 27 functions would read 3 strided columns).
   std::vector<double> rows(3 * static_cast<std::size_t>(c.rows()), 0.0);
   for (Eigen::Index r = 0; r < c.rows(); ++r)

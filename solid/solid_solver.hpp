@@ -10,6 +10,7 @@
 #include <array>
 #include <cstddef>
 #include <functional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -92,8 +93,8 @@ class SolidSolver {
                                const std::vector<char>* only = nullptr) const {
     out = quadrature_data(fluid_density, with_tangent);
     if (only && only->size() != out.size())
-      throw std::invalid_argument("body '" + name() + "': " + std::to_string(only->size()) +
-                                  " point flags for " + std::to_string(out.size()) + " quadrature points");
+      throw std::logic_error("body '" + name() + "': " + std::to_string(only->size()) + " point flags for " +
+                             std::to_string(out.size()) + " quadrature points");
     for (std::size_t i = 0; i < out.size(); ++i)
       if (!only || (*only)[i]) wanted(i, out[i].x);
   }
