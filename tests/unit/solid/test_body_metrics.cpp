@@ -7,6 +7,8 @@
 #include <numbers>
 
 #include "geometry/builders.hpp"
+#include "geometry/measures.hpp"
+#include "geometry/refine.hpp"
 #include "solid/body_metrics.hpp"
 
 using namespace cellfsi;
@@ -300,6 +302,28 @@ TEST(DimensionlessNumbers, ThePapersCapsulesAndCompoundCapsule) {
   EXPECT_NEAR(m.at("Ca"), 0.0520, 1e-4);
   EXPECT_NEAR(m.at("Re"), 0.000322, 1e-6);
   EXPECT_NEAR(solid::filling_fraction(sphere, shell), 0.083, 5e-4);
+}
+
+TEST(BodyTracker, ABulkyBodysMomentsComeFromItsFaceOnlyWhereTheFaceBoundsIt) {
+  // A solid ellipsoid (direction 0 from a degenerate centre): its moments by the divergence theorem over its
+  // outer face equal its volume's, the anisotropy of geometry::patch_moments to round-off and quadrature (the
+  // two rules differ). A thick hollow ellipsoid flagged bulky: its inner face has a measure, so it keeps its
+  // volume's moments (the shell's anisotropy), not those of the ball its outer face encloses, which differ.
+  const auto anisotropy = [](const geometry::RegionMoments& m) {
+    const geometry::PrincipalAxes ax = geometry::principal_axes(m, 3);
+    return ax.values[0] / ax.values[2] - 1;
+  };
+  const Patch ball = geometry::solid_ellipsoid(3e-4, 2e-4, 1e-4, 2, 8, 16, 2, kCentre);
+  const Patch shell = geometry::hollow_ellipsoid(3e-4, 2e-4, 1e-4, 8e-5, 8, 16, 2, kCentre);
+  for (const Patch* p : {&ball, &shell}) {
+    solid::BodyTracker t(*p, false);
+    t.record(0.0, *p);
+    const double expected = anisotropy(geometry::patch_moments(*p));
+    EXPECT_NEAR(as_map(t.summary(0.0)).at("max_anisotropy"), expected, 1e-6 * expected) << (p == &ball);
+  }
+  const double enclosed =
+      anisotropy(geometry::enclosed_moments(geometry::isoparametric(shell, 0, shell.knots(0).b())));
+  EXPECT_GT(std::abs(enclosed - anisotropy(geometry::patch_moments(shell))), 1e-2);  // (the test can tell)
 }
 
 TEST(LateralMigration, OffsetsAndTheTimeToTheCentreLine) {
