@@ -623,13 +623,6 @@ TEST_F(CellfsiApp, FourierBandAndFluidSolversAgree) {
   // capsule (12^3, 1 step). Each linear solve stops at rtol 1e-5 on a correction that is itself below the
   // coupling tolerance (1e-4 of the step's first), so the states agree to far below it (measured: 1e-9 in
   // 2D, 6e-8 at 16^3 in 3D).
-  auto state = [](std::vector<std::pair<std::string, double>> row) {
-    std::erase_if(row, [](const auto& kv) {
-      return kv.first.find("iterations") != std::string::npos ||
-             kv.first.find("factorizations") != std::string::npos;
-    });
-    return row;
-  };
   const std::vector<std::vector<std::string>> cases = {
       with({scene("capsule_shear.yaml")}, with(kCapsule, {"-final_time", "1e-3"})),
       {scene("compound_capsule_shear_3d.yaml"), "-fluid_elements", "12,12,12", "-solid_membrane_elements",
@@ -641,7 +634,8 @@ TEST_F(CellfsiApp, FourierBandAndFluidSolversAgree) {
     for (const char* other : {"cellfsi_band", "asm"}) {
       fs::remove_all(out_);
       ASSERT_EQ(cellfsi(with(args, {"-coupling_pc_type", other}), 120).exit_code, 0) << last_output_;
-      EXPECT_TRUE(rows_agree(state(fourier), state(last_row(out_ / "metrics.csv")), 1e-6, 1e-4)) << other;
+      EXPECT_TRUE(rows_agree(metrics_only(fourier), metrics_only(last_row(out_ / "metrics.csv")), 1e-6, 1e-4))
+          << other;
     }
     fs::remove_all(out_);
   }
@@ -683,15 +677,8 @@ TEST_F(CellfsiApp, OneAndTwoFluidRanksAgree) {
   EXPECT_TRUE(rows_agree(one_r_A, two_r_A, 1e-12, 1.0));  // |r_A| < 1: 1e-12 absolute
   // The fluid's KSP (ASM) on 2 ranks: the state agrees to well below the coupling tolerance (the linear
   // solves stop at rtol 1e-5).
-  auto state = [](std::vector<std::pair<std::string, double>> row) {
-    std::erase_if(row, [](const auto& kv) {
-      return kv.first.find("iterations") != std::string::npos ||
-             kv.first.find("factorizations") != std::string::npos;
-    });
-    return row;
-  };
   ASSERT_EQ(mpi_cellfsi(2, with(args, {"-coupling_pc_type", "asm"})).exit_code, 0) << last_output_;
-  EXPECT_TRUE(rows_agree(state(one), state(last_row(out_ / "metrics.csv")), 1e-6, 1e-4));
+  EXPECT_TRUE(rows_agree(metrics_only(one), metrics_only(last_row(out_ / "metrics.csv")), 1e-6, 1e-4));
 }
 
 TEST_F(CellfsiApp, InterfaceScalingReducesTheAreaError) {

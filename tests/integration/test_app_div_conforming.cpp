@@ -70,11 +70,7 @@ TEST_F(CellfsiApp, DivConformingCapsuleOnOneAndTwoFluidRanksAgrees) {
   const auto one = last_row(out_ / "metrics.csv");
   ASSERT_EQ(mpi_cellfsi(2, args).exit_code, 0) << last_output_;
   EXPECT_EQ(json_string(summary(), "coupling_pc_type").value_or(""), "cellfsi_bulk");
-  auto state = [](std::vector<std::pair<std::string, double>> row) {
-    std::erase_if(row, [](const auto& kv) { return kv.first.find("iterations") != std::string::npos; });
-    return row;
-  };
-  EXPECT_TRUE(rows_agree(state(one), state(last_row(out_ / "metrics.csv")), 1e-8, 1e-4));
+  EXPECT_TRUE(rows_agree(metrics_only(one), metrics_only(last_row(out_ / "metrics.csv")), 1e-8, 1e-4));
 }
 
 TEST_F(CellfsiApp, DivConformingCapsulesInContactOnOneAndTwoFluidRanksAgree) {
@@ -96,11 +92,7 @@ TEST_F(CellfsiApp, DivConformingCapsulesInContactOnOneAndTwoFluidRanksAgree) {
   EXPECT_LT(std::stod(csv.rows.front()[g]), rc);  // (the repulsion acts)
   fs::remove_all(out_);
   ASSERT_EQ(mpi_cellfsi(2, args).exit_code, 0) << last_output_;
-  auto state = [](std::vector<std::pair<std::string, double>> row) {
-    std::erase_if(row, [](const auto& kv) { return kv.first.find("iterations") != std::string::npos; });
-    return row;
-  };
-  EXPECT_TRUE(rows_agree(state(one), state(last_row(out_ / "metrics.csv")), 1e-8, 1e-4));
+  EXPECT_TRUE(rows_agree(metrics_only(one), metrics_only(last_row(out_ / "metrics.csv")), 1e-8, 1e-4));
 }
 
 TEST_F(CellfsiApp, DivConformingElementInvertedOnOneRanksPointsStopsBothRanks) {
@@ -150,11 +142,7 @@ TEST_F(CellfsiApp, DivConformingCompoundCapsuleIn3dFactorisesNothingAndAgreesOnT
   EXPECT_EQ(json_string(js, "status").value_or(""), "completed") << js;
   const auto one = last_row(out_ / "metrics.csv");
   ASSERT_EQ(mpi_cellfsi(2, args).exit_code, 0) << last_output_;
-  auto state = [](std::vector<std::pair<std::string, double>> row) {
-    std::erase_if(row, [](const auto& kv) { return kv.first.find("iterations") != std::string::npos; });
-    return row;
-  };
-  EXPECT_TRUE(rows_agree(state(one), state(last_row(out_ / "metrics.csv")), 1e-8, 1e-4));
+  EXPECT_TRUE(rows_agree(metrics_only(one), metrics_only(last_row(out_ / "metrics.csv")), 1e-8, 1e-4));
 }
 
 TEST_F(CellfsiApp, DivConformingCtcRunsThroughTheCurvedNarrowing) {
