@@ -423,9 +423,12 @@ SceneStep Scene::step() {
     contact_last_ = st.repulsion;
     contact_cell_min_ = std::min(contact_cell_min_, st.repulsion.cell_gap);
     contact_wall_min_ = std::min(contact_wall_min_, st.repulsion.wall_gap);
-    const solid::MetricShare share = metric_share();
+    solid::MetricShare share = metric_share();
+    double operations = 0;  // (the integrals' estimate, each rank its share's: -log_view's count)
+    share.elements.operations = &operations;
     for (size_t b = 0; b < bodies_.size(); ++b)
       trackers_[b].record(fluid_->time(), bodies_[b]->current_patch(), share);
+    CELLFSI_PETSC(PetscLogFlops(operations));
     record_diameters();
     if (suspension_on_) record_suspension();
     accumulate_profile();

@@ -50,6 +50,8 @@ void for_each_point(const Patch& patch, int extra_gauss, const ElementShare& sha
   const std::int64_t n_elements = patch.n_elements();
   const int e_begin = static_cast<int>(n_elements * share.part / share.parts);
   const int e_end = static_cast<int>(n_elements * (share.part + 1) / share.parts);
+  if (share.operations)
+    *share.operations += point_operations(patch) * (e_end - e_begin) * nq[0] * nq[1] * nq[2];
   for (int e = e_begin; e < e_end; ++e) {
     const Index3 m = patch.element_multi_index(e);
     Param lo, hi;
@@ -105,6 +107,17 @@ void for_each_point(const Patch& patch, int extra_gauss, const ElementShare& sha
         }
   }
 }
+
+}  // namespace
+
+double point_operations(const Patch& patch) {
+  int n = 1;
+  for (int d = 0; d < patch.param_dim(); ++d) n *= patch.degree(d) + 1;
+  // Per function: its value and derivatives (about 20), the point (6) and each column of the Jacobian (9).
+  return n * (26.0 + 9.0 * patch.param_dim());
+}
+
+namespace {
 
 /// Reference point to integrate about (reduces cancellation for small bodies far from the origin).
 Vec3 reference_point(const Patch& patch) {

@@ -21,7 +21,13 @@ struct RegionMoments {
 struct ElementShare {
   int part = 0;
   int parts = 1;
+  /// If given, the integrals add to it the operations of their points on this share (an estimate from the
+  /// basis's size: -log_view's counts, by which a strong-scaling model sees that the share divides).
+  double* operations = nullptr;
 };
+/// An estimate of the operations at one quadrature point of a patch: its basis functions' tensor products
+/// and derivatives, the map and its Jacobian.
+double point_operations(const Patch& patch);
 
 /// Raw moments about a reference point (the patch's bounding-box centre, the same for every share): M0 =
 /// int 1, M1 = int (x - ref), M2 = int (x - ref)(x - ref)^T (signed by the orientation for a boundary's).

@@ -245,6 +245,9 @@ double BodyTracker::largest_stretch(const Patch& p, const MetricShare& share) co
   double largest = 0;
   // (The share was checked by measure(), which record() calls first.)
   const std::size_t n = stretch_xi_.size(), parts = share.elements.parts, part = share.elements.part;
+  if (share.elements.operations)
+    *share.elements.operations += static_cast<double>(n * (part + 1) / parts - n * part / parts) *
+                                  (geometry::point_operations(p) + 20.0);
   for (std::size_t i = n * part / parts; i < n * (part + 1) / parts; ++i) {
     const Eigen::Matrix2d m = reference_metric_inverse_[i] * surface_metric(p.evaluate(stretch_xi_[i]), dim_);
     double l2 = m(0, 0);

@@ -340,6 +340,13 @@ TEST(Measures, SharesOfAPatchsElementsAddUpToTheWhole) {
           << parts;
     }
   }
+  // The shares' operation estimates (-log_view's counts) add up to the whole's and are shared out alike.
+  double whole_ops = 0, ops[3] = {0, 0, 0};
+  patch_measure(shell, 2, ElementShare{0, 1, &whole_ops});
+  for (int part = 0; part < 3; ++part) patch_measure(shell, 2, ElementShare{part, 3, &ops[part]});
+  EXPECT_GT(whole_ops, 0.0);
+  EXPECT_NEAR(ops[0] + ops[1] + ops[2], whole_ops, 1e-12 * whole_ops);
+  for (double o : ops) EXPECT_NEAR(o, whole_ops / 3, 0.1 * whole_ops / 3);
   EXPECT_THROW(patch_measure(shell, 2, ElementShare{2, 2}), std::invalid_argument);
   EXPECT_THROW(patch_measure(shell, 2, ElementShare{0, 0}), std::invalid_argument);
 }
