@@ -26,8 +26,9 @@
 //     each refresh (bulk_matrix_ below); or, as bulk_inverse()'s stencil_operator (-coupling_bulk_stencil),
 //     a MATSHELL named cellfsi_dc_stencil: the bulk part applied by the bulk inverse's own stencil
 //     (DcFourierSolver::multiply, no matrix) plus an assembled matrix of the immersed points' tangent alone
-//     (its pattern, the unknowns of the elements that hold points, counted exactly by
-//     DivConformingFluid::create_immersed_matrix whenever those elements change).
+//     (over the unknowns of the elements that hold points alone, its rows dealt out evenly among the ranks,
+//     its pattern counted exactly by DivConformingFluid::create_immersed_matrix whenever those elements
+//     change).
 //   * the region hooks of the equal-order solvers (jacobian_part, jacobian_add_part, region_unknowns) do
 //     not apply: they throw std::logic_error.
 // State: replicated on every rank (DivConformingFluid's; fluid/div_conforming/README.md says what a real
@@ -150,6 +151,13 @@ class DcImmersedFluid final : public ImmersedFluid {
   /// the whole assembled tangent instead (a viscosity field: the bulk is not the stencil's).
   Mat stencil_op_ = nullptr, immersed_ = nullptr;
   std::vector<int> pattern_elements_;  // this rank's elements with points when immersed_'s pattern was made
+  /// immersed_'s rows are its own (DivConformingFluid::ImmersedMatrix: the unknowns it touches, dealt out
+  /// evenly): its product takes x there (immersed_in_), multiplies into immersed_out_ and adds that to y.
+  dc::DivConformingFluid::ImmersedMatrix immersed_layout_;
+  VecScatter immersed_scatter_ = nullptr;
+  Vec immersed_in_ = nullptr, immersed_out_ = nullptr;
+  void make_immersed_matrix();
+  void destroy_immersed_matrix();
   bool op_assembled_ = false;
   std::vector<double> x_nat_, y_nat_;  // the operator's product in the natural numbering
   /// The bulk inverse's last application, z = S^{-1} v: v (a copy), z's id and z's state then. stencil_mult
@@ -166,7 +174,9 @@ class DcImmersedFluid final : public ImmersedFluid {
   /// block of DivConformingFluid::solid_blocks. Empty: the points carry their own consistent tangent.
   SolidLinearization solid_;
   bool solid_given_ = false;
-  std::vector<int> colloc_begin_, colloc_index_;
+  std::vector<int> colloc_begin_, colloc_index_;    // this rank's run of the rows (colloc_displs_[rank] on)
+  std::vector<int> colloc_counts_, colloc_displs_;  // each rank's run of the rows
+  std::size_t colloc_rows_ = 0;                     // every rank's (3 per collocation point)
   std::vector<double> colloc_value_;
   std::vector<dc::DivConformingFluid::SolidBlock> solid_blocks_;
   std::vector<double> dv_, dc_, block_x_, block_y_;

@@ -241,8 +241,13 @@ DivConformingFluid::DivConformingFluid(MPI_Comm comm, const DivConformingSpace& 
   fixed_rows_.push_back(space_.offset(D));  // the pressure pin
   std::sort(fixed_rows_.begin(), fixed_rows_.end());
 
-  // Elements: contiguous ranges of the linear index. Unknowns: to the lowest rank whose elements touch them,
-  // numbered rank by rank (natural order within a rank).
+  // Elements: contiguous ranges of the linear index. Unknowns: numbered by the lowest rank whose elements
+  // touch them, rank by rank (natural order within a rank), and that numbering cut into equal runs of rows.
+  // The first plane of elements touches the first k' + 1 planes of unknowns (the open knot vector's extra
+  // functions), so a rank's rows were those its elements touched first: rank 0 then owned two planes more
+  // than the others, which did not divide (at 64^3 on 8 ranks 1.2 times the smallest share of the products,
+  // -log_view). Cutting the elements to equal rows instead left 1.7 times the smallest share of the element
+  // terms on one rank (the first plane of elements touches three times the unknowns of any other).
   int rank = 0, size = 1;
   CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
   CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
@@ -259,14 +264,13 @@ DivConformingFluid::DivConformingFluid(MPI_Comm comm, const DivConformingSpace& 
     }
   petsc_index_.assign(n, -1);
   PetscInt next = 0;
-  for (int r = 0; r < size; ++r) {
-    if (r == rank) row_begin_ = next;
+  for (int r = 0; r < size; ++r)
     for (int g = 0; g < n; ++g)
       if (owner[g] == r) petsc_index_[g] = next++;
-    if (r == rank) row_end_ = next;
-  }
+  row_begin_ = static_cast<PetscInt>(static_cast<long>(n) * rank / size);
+  row_end_ = static_cast<PetscInt>(static_cast<long>(n) * (rank + 1) / size);
   for (int g : fixed_rows_)
-    if (owner[g] == rank) {
+    if (petsc_index_[g] >= row_begin_ && petsc_index_[g] < row_end_) {
       owned_fixed_.push_back(petsc_index_[g]);
       owned_fixed_natural_.push_back(g);
     }
@@ -1002,7 +1006,9 @@ void DivConformingFluid::immersed_residual(const Levels& lv, Vec F) const {
   flush();
 }
 
-void DivConformingFluid::assemble_immersed(const Levels& lv, Vec F, Mat J) const {
+void DivConformingFluid::assemble_immersed(const Levels& lv, Vec F, Mat J,
+                                           const std::vector<PetscInt>* rows) const {
+  if (!rows) rows = &petsc_index_;
   if (!J && !space_.is_mapped()) return immersed_residual(lv, F);
   const int D = space_.dim();
   ElementBasis eb;
@@ -1045,7 +1051,7 @@ void DivConformingFluid::assemble_immersed(const Levels& lv, Vec F, Mat J) const
         tangent.start(eb, D, &Ke, true);
       }
       idx = local_indices(eb, D);
-      for (PetscInt& g : idx) g = petsc_index_[g];
+      for (PetscInt& g : idx) g = (*rows)[g];
     }
     PointState st;
     const auto pv = DivConformingSpace::interpolate(eb, 0, D, lv.v.data());
@@ -1321,12 +1327,20 @@ void DivConformingFluid::step_tangent_from(Mat bulk, const std::vector<double>& 
   zero_fixed_rows(J, pin_pressure, 1.0);
 }
 
-void DivConformingFluid::immersed_tangent(const std::vector<double>& U, Mat C) {
+void DivConformingFluid::immersed_tangent(const std::vector<double>& U, const ImmersedMatrix& C) {
   const Levels lv = iterate_levels(U);
-  assemble_immersed(lv, nullptr, C);
-  CELLFSI_PETSC(MatAssemblyBegin(C, MAT_FINAL_ASSEMBLY));
-  CELLFSI_PETSC(MatAssemblyEnd(C, MAT_FINAL_ASSEMBLY));
-  zero_fixed_rows(C, false, 0.0);
+  assemble_immersed(lv, nullptr, C.C, &C.row_of);
+  CELLFSI_PETSC(MatAssemblyBegin(C.C, MAT_FINAL_ASSEMBLY));
+  CELLFSI_PETSC(MatAssemblyEnd(C.C, MAT_FINAL_ASSEMBLY));
+  // The fixed rows in S that this rank owns there (the pressure pin is no velocity unknown: not in S).
+  PetscInt begin = 0, end = 0;
+  CELLFSI_PETSC(MatGetOwnershipRange(C.C, &begin, &end));
+  std::vector<PetscInt> rows;
+  for (int g : fixed_rows_) {
+    const PetscInt r = C.row_of[g];
+    if (r >= begin && r < end) rows.push_back(r);
+  }
+  CELLFSI_PETSC(MatZeroRows(C.C, static_cast<PetscInt>(rows.size()), rows.data(), 0.0, nullptr, nullptr));
 }
 
 std::vector<int> DivConformingFluid::immersed_elements() const {
@@ -1336,11 +1350,12 @@ std::vector<int> DivConformingFluid::immersed_elements() const {
   return e;
 }
 
-Mat DivConformingFluid::create_immersed_matrix() const {
+DivConformingFluid::ImmersedMatrix DivConformingFluid::create_immersed_matrix() const {
   // The elements with points on every rank, and each one's unknowns (natural numbering).
   const std::vector<int> mine = immersed_elements();
-  int size = 1;
+  int size = 1, rank = 0;
   CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
+  CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
   int n_mine = static_cast<int>(mine.size());
   std::vector<int> counts(size), displs(size + 1, 0);
   CELLFSI_PETSC(MPI_Allgather(&n_mine, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_));
@@ -1353,6 +1368,11 @@ Mat DivConformingFluid::create_immersed_matrix() const {
   // column (assemble_immersed).
   // (Component i: degree k' + 1 along x_i, k' along the others.)
   const int n_velocity = D * (space_.degree() + 2) * static_cast<int>(std::pow(space_.degree() + 1, D - 1));
+  // (-log_view's count: an estimate of the loops' operations, in units of one unknown visited in the
+  // pattern's count below, weighted by timers at 64^3 (3400 elements, S 33 000 rows): an element of another
+  // rank's evaluated, 15 per unknown; S's sort, 4 per comparison; a row's element appended, 18. Every rank
+  // goes over every element with points and sorts S: 7 of 40 ms on one rank, the part that does not divide.)
+  double operations = 0;
   std::vector<std::vector<int>> unknowns(all.size());
   ElementBasis eb;
   for (size_t k = 0; k < all.size(); ++k) {
@@ -1360,20 +1380,35 @@ Mat DivConformingFluid::create_immersed_matrix() const {
     if (e >= elem_begin_ && e < elem_end_) {
       const auto first = element_unknowns_.begin() + static_cast<std::ptrdiff_t>(e - elem_begin_) * n_local_;
       unknowns[k].assign(first, first + n_velocity);
+      operations += n_velocity;
     } else {
       const Index3 ei = space_.element_multi_index(e);
       space_.evaluate(ei, space_.element_rule(ei, 1), eb);  // indices only
       const std::vector<PetscInt> idx = local_indices(eb, D);
       unknowns[k].assign(idx.begin(), idx.begin() + n_velocity);
+      operations += 15.0 * n_velocity;
     }
   }
+  // S: those unknowns in PETSc order (a rank's run of S then lies mostly in its own rows of the fluid).
+  ImmersedMatrix m;
+  std::vector<std::pair<PetscInt, int>> in_s;  // (PETSc row, natural)
+  m.row_of.assign(space_.n_dofs(), -1);
+  for (const std::vector<int>& us : unknowns)
+    for (int u : us)
+      if (m.row_of[u] < 0) m.row_of[u] = 0, in_s.emplace_back(petsc_index_[u], u);
+  std::sort(in_s.begin(), in_s.end());
+  const auto n_s = static_cast<PetscInt>(in_s.size());
+  operations += 2.0 * n_velocity * all.size() + 4.0 * n_s * std::log2(std::max<double>(n_s, 2));
+  for (PetscInt i = 0; i < n_s; ++i) m.row_of[in_s[i].second] = i;
+  const PetscInt s_begin = n_s * rank / size, s_end = n_s * (rank + 1) / size;
+  for (PetscInt i = s_begin; i < s_end; ++i) m.fluid_rows.push_back(in_s[i].first);
   // Each owned row's elements, then its distinct columns (an element adds its whole block, as its tangent).
-  const PetscInt n_own = row_end_ - row_begin_;
+  const PetscInt n_own = s_end - s_begin;
   std::vector<std::vector<int>> row_elements(n_own);
   for (size_t k = 0; k < all.size(); ++k)
     for (int u : unknowns[k]) {
-      const PetscInt r = petsc_index_[u];
-      if (r >= row_begin_ && r < row_end_) row_elements[r - row_begin_].push_back(static_cast<int>(k));
+      const PetscInt r = m.row_of[u];
+      if (r >= s_begin && r < s_end) row_elements[r - s_begin].push_back(static_cast<int>(k));
     }
   std::vector<PetscInt> d_nnz(n_own, 0), o_nnz(n_own, 0);
   std::vector<PetscInt> stamp(space_.n_dofs(), -1);
@@ -1382,14 +1417,15 @@ Mat DivConformingFluid::create_immersed_matrix() const {
       for (int u : unknowns[k]) {
         if (stamp[u] == i) continue;
         stamp[u] = i;
-        const PetscInt c = petsc_index_[u];
-        (c >= row_begin_ && c < row_end_ ? d_nnz : o_nnz)[i] += 1;
+        const PetscInt c = m.row_of[u];
+        (c >= s_begin && c < s_end ? d_nnz : o_nnz)[i] += 1;
       }
-  Mat C;
-  CELLFSI_PETSC(MatCreateAIJ(comm_, n_own, n_own, space_.n_dofs(), space_.n_dofs(), 0, d_nnz.data(), 0,
-                             o_nnz.data(), &C));
-  CELLFSI_PETSC(MatSetOption(C, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
-  return C;
+  for (PetscInt i = 0; i < n_own; ++i)
+    operations += static_cast<double>(row_elements[i].size()) * (18.0 + n_velocity);
+  CELLFSI_PETSC(PetscLogFlops(operations));
+  CELLFSI_PETSC(MatCreateAIJ(comm_, n_own, n_own, n_s, n_s, 0, d_nnz.data(), 0, o_nnz.data(), &m.C));
+  CELLFSI_PETSC(MatSetOption(m.C, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
+  return m;
 }
 
 void DivConformingFluid::end_step(const std::vector<double>& U) {

@@ -220,10 +220,19 @@ class DivConformingFluid {
   /// another state (the coupling loop's Jacobian: the bulk changes with the flow only through terms of the
   /// order of the Reynolds number). Collective.
   void step_tangent_from(Mat bulk, const std::vector<double>& U, Mat J, bool pin_pressure = true);
-  /// The immersed points' part of the step's tangent at U alone into C (ADD_VALUES, then assembled; the fixed
-  /// rows zero, the pressure pin's row kept as assembled): step_tangent_from(bulk, U, J, false) is bulk + C.
+  /// The immersed points' tangent over the unknowns it touches alone (S: the velocity unknowns of the
+  /// elements with points on any rank), its rows S in PETSc order dealt out in equal runs to the ranks: the
+  /// points' matrix divides by the ranks however few ranks' rows the cells lie in (in the fluid's layout,
+  /// 64^3 at 8 ranks: one rank 0.78e9 of the 1.9e9 operations of its products on one rank, -log_view).
+  struct ImmersedMatrix {
+    Mat C = nullptr;                   // |S| x |S|, AIJ, rows and columns in S's order
+    std::vector<PetscInt> row_of;      // natural unknown -> its row of C, -1 outside S
+    std::vector<PetscInt> fluid_rows;  // this rank's rows of C, as rows of the fluid's PETSc vectors
+  };
+  /// The immersed points' part of the step's tangent at U alone into C.C (ADD_VALUES, then assembled; the
+  /// fixed rows zero): step_tangent_from(bulk, U, J, false) is bulk + C lifted to the fluid's rows.
   /// Collective.
-  void immersed_tangent(const std::vector<double>& U, Mat C);
+  void immersed_tangent(const std::vector<double>& U, const ImmersedMatrix& C);
   /// The solids' stiffness through their collocation (fluid::SolidLinearization): with `on`, the points'
   /// tangent (immersed_tangent, step_tangent*) leaves out the stiffness of every point with
   /// ImmersedPoint::solid_begin >= 0, which solid_blocks() then gives.
@@ -243,11 +252,11 @@ class DivConformingFluid {
   double velocity_alpha() const { return alpha_.alpha_f; }
   /// The elements that hold this rank's immersed points, sorted.
   std::vector<int> immersed_elements() const;
-  /// A matrix preallocated for immersed_tangent: AIJ, each owned row's distinct columns over the elements
-  /// with points on every rank (their velocity blocks: the points' terms have no pressure), counted exactly
-  /// (a MATPREALLOCATOR filled with the blocks took 1.2-1.5 s of each refresh at 32^3; with this count the
-  /// whole refresh takes 1.0 s). Collective.
-  Mat create_immersed_matrix() const;
+  /// A matrix preallocated for immersed_tangent: each owned row's distinct columns over the elements with
+  /// points on every rank (their velocity blocks: the points' terms have no pressure), counted exactly (a
+  /// MATPREALLOCATOR filled with the blocks took 1.2-1.5 s of each refresh at 32^3; with this count the whole
+  /// refresh takes 1.0 s). The caller destroys C. Collective.
+  ImmersedMatrix create_immersed_matrix() const;
   /// Accepts U as U_{n+1}: the rate, the time, the pressure's zero mean, divergence_history().
   void end_step(const std::vector<double>& U);
   /// v and grad v at t_{n+alpha_f} and the acceleration at t_{n+alpha_m} of the step's iterate U at points
@@ -307,7 +316,8 @@ class DivConformingFluid {
   /// class.
   void interior_residual_batched(const Levels& lv, Vec F) const;
   /// Adds the immersed points' terms to F and J (no assembly calls).
-  void assemble_immersed(const Levels& lv, Vec F, Mat J) const;
+  /// (rows: J's row of each natural unknown, petsc_index_ if null)
+  void assemble_immersed(const Levels& lv, Vec F, Mat J, const std::vector<PetscInt>* rows = nullptr) const;
   /// assemble_immersed's residual (J null), by sum factorisation at each point.
   void immersed_residual(const Levels& lv, Vec F) const;
   /// A generalized-alpha step from (Un, Udotn) with iterate U.

@@ -1740,6 +1740,100 @@ TEST(DivConformingParallel, OneAndTwoRanksGiveTheSameState) {
   EXPECT_LE(diff / scale, 1e-10);
 }
 
+TEST(DivConformingParallel, RowsAndThePointsMatrixAreDealtOutEvenly) {
+  // Inside a 2-rank job: the fluid's rows are cut into equal runs, and the immersed points' matrix, whose
+  // points lie in one rank's elements only (the first row of elements, all given to rank 0), has rows of its
+  // own cut into equal runs too (at most one apart). Lifted to the fluid's rows, its product is the points'
+  // part of the whole tangent (with minus without the points) to 1e-12 of its largest entry.
+  const DivConformingSpace sp = channel_2d(2, 12, 8);
+  DcFluidOptions opt;
+  opt.density = 1.0;
+  opt.viscosity = 0.1;
+  opt.dt = 0.05;
+  DivConformingFluid fs(PETSC_COMM_WORLD, sp, opt);
+  int rank = 0, size = 1;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
+  const auto spread = [&](PetscInt n) {  // largest minus smallest over the ranks
+    PetscInt lo = n, hi = n;
+    MPI_Allreduce(MPI_IN_PLACE, &lo, 1, MPIU_INT, MPI_MIN, PETSC_COMM_WORLD);
+    MPI_Allreduce(MPI_IN_PLACE, &hi, 1, MPIU_INT, MPI_MAX, PETSC_COMM_WORLD);
+    return hi - lo;
+  };
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> unit(0.0, 1.0), uni(-1.0, 1.0);
+  std::vector<DivConformingFluid::ImmersedAt> pts = random_immersed_points(sp, 30, rng);
+  for (auto& p : pts) {  // (into the first row of elements)
+    p.element %= 12;
+    p.x[1] = sp.lo(1) + unit(rng) * sp.element_size(1);
+    p.x[0] = sp.lo(0) + (p.element + unit(rng)) * sp.element_size(0);
+  }
+  if (rank != 0) pts.clear();
+  fs.set_immersed_points(pts);
+  fs.begin_step();
+  std::vector<double> U(sp.n_dofs());
+  for (double& u : U) u = uni(rng);
+  for (int r : sp.wall_normal_dofs()) U[r] = 0.0;
+  Vec x = fs.create_vector(), y_whole = nullptr, y_lifted = nullptr;
+  PetscInt m = 0;
+  CELLFSI_PETSC(VecGetLocalSize(x, &m));
+  EXPECT_LE(spread(m), 1);
+  DivConformingFluid::ImmersedMatrix C = fs.create_immersed_matrix();
+  fs.immersed_tangent(U, C);
+  PetscInt rows = 0, n_s = 0;
+  CELLFSI_PETSC(MatGetLocalSize(C.C, &rows, nullptr));
+  CELLFSI_PETSC(MatGetSize(C.C, &n_s, nullptr));
+  EXPECT_GT(n_s, 0);
+  EXPECT_LT(n_s, sp.n_velocity());
+  EXPECT_LE(spread(rows), 1);
+  ASSERT_EQ(static_cast<PetscInt>(C.fluid_rows.size()), rows);
+  // The points' part of the whole tangent.
+  Mat with = nullptr, without = nullptr;
+  CELLFSI_PETSC(MatDuplicate(fs.matrix(), MAT_DO_NOT_COPY_VALUES, &with));
+  CELLFSI_PETSC(MatDuplicate(fs.matrix(), MAT_DO_NOT_COPY_VALUES, &without));
+  fs.step_tangent(U, with, true, false);
+  fs.step_tangent(U, without, false, false);
+  CELLFSI_PETSC(VecSetRandom(x, nullptr));
+  CELLFSI_PETSC(VecDuplicate(x, &y_whole));
+  CELLFSI_PETSC(VecDuplicate(x, &y_lifted));
+  CELLFSI_PETSC(MatMult(with, x, y_whole));
+  CELLFSI_PETSC(MatMult(without, x, y_lifted));
+  CELLFSI_PETSC(VecAXPY(y_whole, -1.0, y_lifted));
+  // C lifted: x at S's rows, C's product, added back.
+  Vec xs = nullptr, ys = nullptr;
+  CELLFSI_PETSC(MatCreateVecs(C.C, &xs, &ys));
+  IS from = nullptr;
+  CELLFSI_PETSC(ISCreateGeneral(PETSC_COMM_WORLD, rows, C.fluid_rows.data(), PETSC_COPY_VALUES, &from));
+  VecScatter to_s = nullptr;
+  CELLFSI_PETSC(VecScatterCreate(x, from, xs, nullptr, &to_s));
+  CELLFSI_PETSC(VecScatterBegin(to_s, x, xs, INSERT_VALUES, SCATTER_FORWARD));
+  CELLFSI_PETSC(VecScatterEnd(to_s, x, xs, INSERT_VALUES, SCATTER_FORWARD));
+  CELLFSI_PETSC(MatMult(C.C, xs, ys));
+  CELLFSI_PETSC(VecSet(y_lifted, 0.0));
+  CELLFSI_PETSC(VecScatterBegin(to_s, ys, y_lifted, ADD_VALUES, SCATTER_REVERSE));
+  CELLFSI_PETSC(VecScatterEnd(to_s, ys, y_lifted, ADD_VALUES, SCATTER_REVERSE));
+  PetscReal scale = 0, diff = 0;
+  CELLFSI_PETSC(VecNorm(y_whole, NORM_INFINITY, &scale));
+  CELLFSI_PETSC(VecAXPY(y_lifted, -1.0, y_whole));
+  CELLFSI_PETSC(VecNorm(y_lifted, NORM_INFINITY, &diff));
+  print0(
+      "  the points' matrix: %d of %d velocity unknowns; lifted product against the tangent's part %.2e of "
+      "%.2e\n",
+      static_cast<int>(n_s), sp.n_velocity(), diff, scale);
+  EXPECT_GT(scale, 0.0);
+  EXPECT_LE(diff, 1e-12 * scale);
+  VecScatterDestroy(&to_s);
+  ISDestroy(&from);
+  VecDestroy(&xs);
+  VecDestroy(&ys);
+  VecDestroy(&x);
+  VecDestroy(&y_whole);
+  VecDestroy(&y_lifted);
+  MatDestroy(&with);
+  MatDestroy(&without);
+  MatDestroy(&C.C);
+}
+
 TEST(DivConformingParallel, TheFourierSolverOnAllRanksEqualsTheDirectSolve) {
   // As DcFourierSolver.EqualsTheDirectSolve, with the operator assembled and the wave vectors solved on all
   // ranks of PETSC_COMM_WORLD (inside div_conforming_parallel_2ranks: 2), MUMPS on one: 1e-12 of max|x|; the
