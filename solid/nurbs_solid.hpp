@@ -42,7 +42,9 @@ class NurbsSolid final : public SolidSolver {
                        std::vector<QuadratureData>& out,
                        const std::vector<char>* only = nullptr) const override;
   std::vector<Vec3> interface_points() const override;
-  bool control_increment(const std::vector<Vec3>& dv, Eigen::MatrixXd& dc) const override;
+  using SolidSolver::control_increment;
+  bool control_increment(const std::vector<Vec3>& dv, Eigen::MatrixXd& dc, int column) const override;
+  double control_increment_operations() const override;
   int n_control() const override { return n_reduced_; }
   bool basis_gradients(std::vector<int>& begin, std::vector<int>& unknown, std::vector<double>& grad,
                        const std::vector<char>* wanted = nullptr) const override;

@@ -111,10 +111,17 @@ class SolidSolver {
   /// (n_control() rows, one per control unknown, dim() columns) when the velocity at the collocation points
   /// (their order) changes by dv, through the last kinematic_update()'s tangent. False: this solver cannot
   /// say (the coupling then uses the consistent tangent for it).
-  virtual bool control_increment(const std::vector<Vec3>& dv, Eigen::MatrixXd& dc) const {
-    (void)dv, (void)dc;
+  /// column >= 0: that column of dc alone (each column is a collocation solve of its own; the others are
+  /// zero), so that the coupler can deal the columns out among the ranks.
+  virtual bool control_increment(const std::vector<Vec3>& dv, Eigen::MatrixXd& dc, int column) const {
+    (void)dv, (void)dc, (void)column;
     return false;
   }
+  bool control_increment(const std::vector<Vec3>& dv, Eigen::MatrixXd& dc) const {
+    return control_increment(dv, dc, -1);
+  }
+  /// An estimate of the operations of control_increment for one column (-log_view's counts; 0: not known).
+  virtual double control_increment_operations() const { return 0; }
   /// The control unknowns behind control_increment (0 where it is not available).
   virtual int n_control() const { return 0; }
   /// Each quadrature point's functions, in quadrature_data()'s order, at t_{n+alpha_f}: point q's are

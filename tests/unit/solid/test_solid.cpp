@@ -197,6 +197,21 @@ TEST(NurbsSolid, ControlIncrementIsTheKinematicUpdatesDerivative) {
       for (int c = 0; c < dim; ++c)
         err = std::max(err, std::abs(dc(k, c) - t.alpha_f * (cb[k][c] - ca[k][c]) / h));
     EXPECT_LT(err, 1e-9 * dc.cwiseAbs().maxCoeff()) << dim << "D";
+    // One column alone (the coupler deals them out to the ranks): that column to round-off, the others zero.
+    for (int c = 0; c < dim; ++c) {
+      Eigen::MatrixXd one;
+      ASSERT_TRUE(a.control_increment(dv, one, c));
+      ASSERT_EQ(one.rows(), dc.rows());
+      ASSERT_EQ(one.cols(), dc.cols());
+      for (int d = 0; d < dim; ++d)
+        EXPECT_LE((one.col(d) - (d == c ? Eigen::VectorXd(dc.col(d)) : Eigen::VectorXd::Zero(dc.rows())))
+                      .cwiseAbs()
+                      .maxCoeff(),
+                  1e-12 * dc.cwiseAbs().maxCoeff())
+            << dim << "D, column " << c << " of " << d;
+    }
+    EXPECT_THROW(a.control_increment(dv, dc, dim), std::invalid_argument);
+    EXPECT_GT(a.control_increment_operations(), 0.0);
   }
 }
 
