@@ -24,6 +24,9 @@ struct CouplingEvents {
   // tangent: this rank's points only), and the repulsion.
   PetscLogEvent quadrature = register_log_event("cellfsi coupling", "FsiQuadrature");
   PetscLogEvent repulsion = register_log_event("cellfsi coupling", "FsiRepulsion");
+  // Inside FsiLocate at a run's first call (once per run): every body's points formed and located on every
+  // rank to deal them out, and the collocation points located.
+  PetscLogEvent locate_setup = register_log_event("cellfsi coupling", "FsiLocateSetUp");
   // Inside FsiRepulsion at the first call: the repulsion's construction (its bins and walls), once per run.
   PetscLogEvent repulsion_setup = register_log_event("cellfsi coupling", "FsiRepulsionSetUp");
   PetscLogEvent residual = register_log_event("cellfsi coupling", "FsiResidual");
@@ -33,6 +36,9 @@ struct CouplingEvents {
   // The preconditioner's set-up at a refresh: the band's Schur complement or the region's LU.
   PetscLogEvent pc_setup = register_log_event("cellfsi coupling", "FsiPCSetUp");
   PetscLogEvent solve = register_log_event("cellfsi coupling", "FsiLinearSolve");
+  // Inside the Krylov products of the stencil operator (-coupling_solid_tangent collocation): the bodies'
+  // control increments (each body's collocation solve on one rank, the results summed over the ranks).
+  PetscLogEvent solid_control = register_log_event("cellfsi coupling", "FsiSolidControl");
   // The viscosity field from the membranes' insides (with an inner viscosity; once per step).
   PetscLogEvent viscosity = register_log_event("cellfsi coupling", "FsiViscosity");
 };

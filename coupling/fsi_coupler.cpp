@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -187,11 +188,15 @@ void FsiCoupler::update_immersed(bool first_iteration) {
           if (!mine[i]) own[i] = 0;
     };
     // A point refused (inverted, outside) on its rank alone stops every rank (and one refused on every rank
-    // is reported once).
+    // is reported once). A run's first call (no points known: every rank forms and locates them all) is
+    // its own event, FsiLocateSetUp, once per run.
+    std::optional<EventScope> first;
+    if (warm.empty()) first.emplace(coupling_events().locate_setup);
     if (ranks > 1)
       on_every_rank(fluid_.comm(), evaluate);
     else
       evaluate();
+    first.reset();
     if (!split) continue;
     // The others' points: each rank's run in element order, its points' elements and xi and (a membrane's,
     // for the repulsion) positions.
@@ -244,6 +249,7 @@ void FsiCoupler::update_immersed(bool first_iteration) {
       const std::vector<geometry::Vec3> pts = bodies_[b]->collocation_points();
       auto& loc = collocation_loc_[b];
       if (loc.size() != pts.size()) {  // (before the first iteration of a run)
+        EventScope first(coupling_events().locate_setup);
         loc.resize(pts.size());
         for (size_t i = 0; i < pts.size(); ++i) loc[i] = locator_.locate_or_throw(pts[i], nullptr);
       }
@@ -289,16 +295,32 @@ void FsiCoupler::update_immersed(bool first_iteration) {
     interface.insert(interface.end(), pts.begin(), pts.end());
   }
   if (!linearized.empty()) {
-    lin.control = [linearized, dv3 = std::vector<solid::Vec3>(), dc = Eigen::MatrixXd()](
-                      const std::vector<double>& dv, std::vector<double>& out) mutable {
-      for (const Linearized& l : linearized) {
-        dv3.resize(l.n_points);
-        for (int i = 0; i < l.n_points; ++i)
-          for (int c = 0; c < 3; ++c) dv3[i][c] = dv[3 * static_cast<size_t>(l.first_point + i) + c];
-        if (!l.body->control_increment(dv3, dc)) continue;
-        for (Eigen::Index r = 0; r < dc.rows(); ++r)
-          for (Eigen::Index c = 0; c < dc.cols(); ++c) out[l.offset + 3 * r + c] = dc(r, c);
+    // Collective: each body's columns (one collocation solve each) dealt out to the ranks in turn, the
+    // increments summed over the ranks (every rank solved every body, which did not divide).
+    lin.control = [linearized, comm = fluid_.comm(), rank, ranks, dv3 = std::vector<solid::Vec3>(),
+                   dc = Eigen::MatrixXd()](const std::vector<double>& dv, std::vector<double>& out) mutable {
+      EventScope ev(coupling_events().solid_control);
+      std::fill(out.begin(), out.end(), 0.0);
+      for (std::size_t k = 0, job = 0; k < linearized.size(); ++k) {
+        const Linearized& l = linearized[k];
+        // (one job per column on more than one rank; one per body on one)
+        const int columns = ranks > 1 ? l.body->dim() : 1;
+        for (int c = 0; c < columns; ++c, ++job) {
+          if (static_cast<int>(job % static_cast<std::size_t>(ranks)) != rank) continue;
+          dv3.resize(l.n_points);
+          for (int i = 0; i < l.n_points; ++i)
+            for (int d = 0; d < 3; ++d) dv3[i][d] = dv[3 * static_cast<size_t>(l.first_point + i) + d];
+          if (!l.body->control_increment(dv3, dc, ranks > 1 ? c : -1)) continue;
+          CELLFSI_PETSC(
+              PetscLogFlops(l.body->control_increment_operations() * (ranks > 1 ? 1 : l.body->dim())));
+          for (Eigen::Index r = 0; r < dc.rows(); ++r)
+            for (Eigen::Index d = 0; d < dc.cols(); ++d)
+              if (ranks == 1 || d == c) out[l.offset + 3 * r + d] = dc(r, d);
+        }
       }
+      if (ranks > 1)
+        CELLFSI_PETSC(
+            MPI_Allreduce(MPI_IN_PLACE, out.data(), static_cast<int>(out.size()), MPI_DOUBLE, MPI_SUM, comm));
     };
     // (A fluid that does not take it says so once; its points keep their consistent tangent.)
     linearization_refused_ = !fluid_.set_solid_linearization(lin);

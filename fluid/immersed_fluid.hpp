@@ -66,7 +66,8 @@ struct SolidLinearization {
   int n_columns = 0;
   std::vector<geometry::Index3> elements;  // the collocation points, every body's in turn
   std::vector<geometry::Param> xi;
-  /// dv: 3 values per collocation point (t_{n+alpha_f} velocity increments); dc: n_columns values.
+  /// dv: 3 values per collocation point (t_{n+alpha_f} velocity increments), the same on every rank; dc:
+  /// n_columns values. May be collective over the fluid's ranks (the coupler's is: each body on one rank).
   std::function<void(const std::vector<double>& dv, std::vector<double>& dc)> control;
   std::vector<int> column;   // per entry: the column of the function's component 0 (1 and 2 follow)
   std::vector<double> grad;  // per entry: 3 values, d N / d x
