@@ -78,13 +78,13 @@ CollocationSolver::CollocationSolver(const geometry::Patch& patch) {
     for (int d = 0; d < 3; ++d) {
       univariate_[d] = A[d].sparseView();
       univariate_[d].makeCompressed();
-      univariate_lu_[d].compute(univariate_[d]);
-      if (univariate_lu_[d].info() != Eigen::Success) {
+      Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(univariate_[d]);
+      if (lu.info() != Eigen::Success) {
         fallback_reason_ = "direction " + std::to_string(d) + "'s collocation matrix is singular";
         break;
       }
       const Eigen::MatrixXd identity = Eigen::MatrixXd::Identity(m_[d], m_[d]);
-      univariate_inverse_[d] = univariate_lu_[d].solve(identity);
+      univariate_inverse_[d] = lu.solve(identity);
     }
   }
   if (fallback_reason_.empty()) {

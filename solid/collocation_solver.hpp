@@ -66,12 +66,9 @@ class CollocationSolver {
   bool by_direction_ = false;
   std::string fallback_reason_;
   std::array<Eigen::SparseMatrix<double>, 3> univariate_;  // A_d
-  std::array<Eigen::SparseLU<Eigen::SparseMatrix<double>>, 3> univariate_lu_;
   /// Each direction's inverse, dense (m_d <= a few hundred): solve() multiplies by it, a matrix product over
-  /// all the lines at once, where the sparse LU's substitutions went column by column. Measured on the 64^3
-  /// compound capsule's bodies (10 500 and 11 628 points, one rank): the kinematic update's step 3 (two
-  /// solves and a product) 1.6-1.7 ms per body against 2.6-3.4 ms; one solve of three right-hand sides
-  /// 0.5-0.7 ms.
+  /// all the lines at once (a sparse LU's substitutions go column by column: 1.6 times the time of the
+  /// kinematic update's step 3 for the 64^3 compound capsule's bodies, 10 500 and 11 628 points).
   std::array<Eigen::MatrixXd, 3> univariate_inverse_;
   Eigen::VectorXd point_weight_;    // D: the weight function at each point
   Eigen::VectorXd inverse_weight_;  // W^{-1}: one per unknown

@@ -220,12 +220,23 @@ Mat3 NurbsSolid::kinematic_tangent(const TimeParameters& t, const Mat3& grad_v, 
 }
 
 double NurbsSolid::kinematic_update(const std::vector<VelocitySample>& samples) {
+  return kinematic_update(samples, KinematicShare{});
+}
+
+double NurbsSolid::kinematic_update(const std::vector<VelocitySample>& samples, const KinematicShare& share) {
   if (static_cast<int>(samples.size()) != n_points())
     throw std::invalid_argument("kinematic_update: expected " + std::to_string(n_points()) +
                                 " samples, got " + std::to_string(samples.size()));
+  if (share.parts < 1 || share.part < 0 || share.part >= share.parts ||
+      (share.parts > 1 && (!share.gather || !share.sum)))
+    throw std::invalid_argument("kinematic_update: part " + std::to_string(share.part) + " of " +
+                                std::to_string(share.parts) + " (and, for more than one, gather and sum)");
+  const int n = n_points();
+  const auto first = [&](int r) { return static_cast<int>(static_cast<long>(n) * r / share.parts); };
+  const int i0 = first(share.part), i1 = first(share.part + 1);
   double norm2 = 0;
-  kinematic_inverse_.resize(n_points());
-  for (int i = 0; i < n_points(); ++i) {
+  kinematic_inverse_.resize(n);
+  for (int i = i0; i < i1; ++i) {
     Vec3 u = Vec3::Zero(), un = Vec3::Zero(), rn = Vec3::Zero();
     u.head(dim_) = u_.row(i).transpose();
     un.head(dim_) = u_n_.row(i).transpose();
@@ -234,14 +245,49 @@ double NurbsSolid::kinematic_update(const std::vector<VelocitySample>& samples) 
     for (int c = dim_; c < 3; ++c) R[c] = 0;
     norm2 += R.squaredNorm();
     // Step 2: a d x d solve per point, by the closed-form inverse (T = alpha_m / (gamma dt) I - alpha_f
-    // grad v: the identity's multiple dominates at the paper's steps). With a pivoted LU per point this loop
-    // took 1.7-1.9 ms per body of the 64^3 compound capsule (10 500 and 11 628 points), now 0.5-0.7 ms.
+    // grad v: the identity's multiple dominates at the paper's steps; a pivoted LU per point took 3 times as
+    // long).
     const Mat3 T = kinematic_tangent(time_, samples[i].grad_v, dim_);
     kinematic_inverse_[i] = T.inverse();
     const Vec3 du = kinematic_inverse_[i] * (-R);
     u_.row(i) += du.head(dim_).transpose();
   }
-  c_ = control_from_points(u_);  // step 3
+  // (about 80 operations a point: the residual, the inverse and its products)
+  double operations = 80.0 * (i1 - i0);
+  if (share.parts > 1) {  // every rank's points: their displacement and tangent inverse
+    const int width = dim_ + 9;
+    std::vector<double> packed(static_cast<std::size_t>(n) * width);
+    for (int i = i0; i < i1; ++i) {
+      double* p = packed.data() + static_cast<std::size_t>(i) * width;
+      for (int c = 0; c < dim_; ++c) p[c] = u_(i, c);
+      for (int k = 0; k < 9; ++k) p[dim_ + k] = kinematic_inverse_[i](k / 3, k % 3);
+    }
+    share.gather(packed.data(), width);
+    for (int i = 0; i < n; ++i) {
+      if (i >= i0 && i < i1) continue;
+      const double* p = packed.data() + static_cast<std::size_t>(i) * width;
+      for (int c = 0; c < dim_; ++c) u_(i, c) = p[c];
+      for (int k = 0; k < 9; ++k) kinematic_inverse_[i](k / 3, k % 3) = p[dim_ + k];
+    }
+    share.sum(&norm2, 1);
+  }
+  // Step 3, column by column on more than one rank (each column is its own collocation solve).
+  const CollocationSolver& cs = *collocation_solver_;
+  const double column_operations =
+      2.0 * cs.solve_operations(1) + 2.0 * static_cast<double>(cs.matrix().nonZeros());
+  if (share.parts == 1) {
+    c_ = control_from_points(u_);
+    operations += dim_ * column_operations;
+  } else {
+    Eigen::MatrixXd c = Eigen::MatrixXd::Zero(n_reduced_, dim_);
+    for (int col = share.part; col < dim_; col += share.parts) {
+      c.col(col) = control_from_points(u_.col(col));
+      operations += column_operations;
+    }
+    share.sum(c.data(), static_cast<int>(c.size()));  // (one rank's column, zeros elsewhere: exact)
+    c_ = std::move(c);
+  }
+  if (share.operations) *share.operations += operations;
   return std::sqrt(norm2);
 }
 

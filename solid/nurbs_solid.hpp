@@ -35,6 +35,7 @@ class NurbsSolid final : public SolidSolver {
   void begin_step(const TimeParameters& time) override;
   std::vector<Vec3> collocation_points() const override;
   double kinematic_update(const std::vector<VelocitySample>& samples) override;
+  double kinematic_update(const std::vector<VelocitySample>& samples, const KinematicShare& share) override;
   std::vector<QuadratureData> quadrature_data(double fluid_density, bool with_tangent) const override;
   using SolidSolver::quadrature_data;
   void quadrature_data(double fluid_density, bool with_tangent,

@@ -41,6 +41,20 @@ struct VelocitySample {
   Mat3 grad_v = Mat3::Zero();
 };
 
+/// How the ranks that hold a body share its kinematic update (the coupler's fluid ranks, where the fluid
+/// samples anywhere and every rank has every sample): rank `part` of `parts` updates its run of the points
+/// (from n part / parts on) and solves the collocation columns c with c % parts == part. `gather` fills every
+/// rank's run of an array of `width` values per point in place from the rank that holds it; `sum` adds an
+/// array over the ranks in place, the same bits on every rank. `operations`, if given, gets an estimate of
+/// this rank's operations (-log_view's counts). The default: one rank does all.
+struct KinematicShare {
+  int part = 0;
+  int parts = 1;
+  std::function<void(double* values, int width)> gather;
+  std::function<void(double* values, int n)> sum;
+  double* operations = nullptr;
+};
+
 /// One solid quadrature point as the fluid needs it (paper Eq. (10), and an external load on the body).
 struct QuadratureData {
   Vec3 x = Vec3::Zero();       // current position (at t_{n+alpha_f})
@@ -73,6 +87,12 @@ class SolidSolver {
   /// Steps 1-3: one Newton update of the kinematic equation (19) from the velocity at the collocation points.
   /// Returns the L2 norm of the kinematic residual R_K before the update.
   virtual double kinematic_update(const std::vector<VelocitySample>& samples) = 0;
+  /// The same, shared among the ranks that hold the body (collective over them when parts > 1; every rank
+  /// ends with the same state). The default does it all on every rank.
+  virtual double kinematic_update(const std::vector<VelocitySample>& samples, const KinematicShare& share) {
+    (void)share;
+    return kinematic_update(samples);
+  }
   /// The Eq. (10) data at the solid's quadrature points (configuration at t_{n+alpha_f}). with_tangent: also
   /// the spatial tangent (QuadratureData::has_tangent and tangent), which only an assembly of the coupling's
   /// Jacobian reads; the coupler asks for it at the iterations that may assemble one (a step's first).

@@ -211,7 +211,16 @@ TEST(NurbsSolid, ControlIncrementIsTheKinematicUpdatesDerivative) {
             << dim << "D, column " << c << " of " << d;
     }
     EXPECT_THROW(a.control_increment(dv, dc, dim), std::invalid_argument);
-    EXPECT_GT(a.control_increment_operations(), 0.0);
+    // A share among ranks needs its exchanges; one rank's share counts its operations.
+    solid::KinematicShare lone;
+    double operations = 0;
+    lone.operations = &operations;
+    b.begin_step(t);
+    b.kinematic_update(vb, lone);
+    EXPECT_GT(operations, 0.0);
+    solid::KinematicShare broken;
+    broken.parts = 2;
+    EXPECT_THROW(b.kinematic_update(vb, broken), std::invalid_argument);
   }
 }
 
