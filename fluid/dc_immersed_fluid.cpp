@@ -19,6 +19,7 @@
 
 #include "common/option_table.hpp"
 #include "common/petsc_error.hpp"
+#include "common/row_scatter.hpp"
 #include "fluid/state_file.hpp"
 #include "geometry/patch_vtk.hpp"
 #include "geometry/quadrature.hpp"
@@ -102,32 +103,23 @@ DcImmersedFluid::~DcImmersedFluid() {
   VecDestroy(&U_);
   MatDestroy(&bulk_matrix_);
   MatDestroy(&stencil_op_);
-  destroy_immersed_matrix();
+  immersed_.destroy();
   VecDestroy(&applied_rhs_);
+  VecScatterDestroy(&colloc_scatter_);
+  VecDestroy(&colloc_x_);
 }
 
-void DcImmersedFluid::destroy_immersed_matrix() {
-  MatDestroy(&immersed_);
-  VecScatterDestroy(&immersed_scatter_);
-  VecDestroy(&immersed_in_);
-  VecDestroy(&immersed_out_);
-}
-
-void DcImmersedFluid::make_immersed_matrix() {
-  // (-log_view: DcImmersedPattern, inside the Jacobian's refresh whenever the elements with points change)
-  static const PetscLogEvent pattern_event = register_log_event("cellfsi fluid", "DcImmersedPattern");
-  EventScope ev(pattern_event);
-  destroy_immersed_matrix();
-  immersed_layout_ = fluid_->create_immersed_matrix();
-  immersed_ = immersed_layout_.C;
-  CELLFSI_PETSC(MatCreateVecs(immersed_, &immersed_in_, &immersed_out_));
-  IS from = nullptr;
-  CELLFSI_PETSC(ISCreateGeneral(comm_, static_cast<PetscInt>(immersed_layout_.fluid_rows.size()),
-                                immersed_layout_.fluid_rows.data(), PETSC_COPY_VALUES, &from));
-  // (forward: x's values at S's rows into immersed_in_; reverse, adding: immersed_out_ into y)
-  const PetscErrorCode ierr = VecScatterCreate(U_, from, immersed_in_, nullptr, &immersed_scatter_);
-  ISDestroy(&from);
-  CELLFSI_PETSC(ierr);
+void DcImmersedFluid::gather_iterate(Vec X) const {
+  // An iterate unchanged since the last gather (the same vector, its state not raised) is not gathered again:
+  // the coupling loop samples, forms the residual and refreshes the Jacobian at one iterate, and each gather
+  // copies and reorders every unknown on every rank.
+  PetscObjectId id = 0;
+  PetscObjectState state = 0;
+  CELLFSI_PETSC(PetscObjectGetId(reinterpret_cast<PetscObject>(X), &id));
+  CELLFSI_PETSC(PetscObjectStateGet(reinterpret_cast<PetscObject>(X), &state));
+  if (id == gathered_id_ && state == gathered_state_ && !work_.empty()) return;
+  fluid_->gather(X, work_);
+  gathered_id_ = id, gathered_state_ = state;
 }
 
 void DcImmersedFluid::sync_solution() { fluid_->scatter(fluid_->state(), U_); }
@@ -235,7 +227,7 @@ std::vector<PointSample> DcImmersedFluid::sample(const std::vector<Vec3>& points
 
 std::vector<PointSample> DcImmersedFluid::sample_alpha(Vec X, const std::vector<geometry::Index3>& elements,
                                                        const std::vector<geometry::Param>& xi) const {
-  fluid_->gather(X, work_);
+  gather_iterate(X);
   std::vector<int> el(elements.size());
   std::vector<Vec3> x(xi.size());
   for (std::size_t i = 0; i < xi.size(); ++i) {
@@ -379,7 +371,7 @@ void DcImmersedFluid::begin_step(Vec X) {
 }
 
 void DcImmersedFluid::residual(Vec X, Vec F) {
-  fluid_->gather(X, work_);
+  gather_iterate(X);
   // (a mapped space has no bulk inverse to take the constant pressure: the pin holds it, as in a step)
   fluid_->step_residual(work_, F, space_->is_mapped());
 }
@@ -389,7 +381,7 @@ void DcImmersedFluid::jacobian(Vec X, Mat J) {
     refresh_stencil_operator(X);
     return;
   }
-  fluid_->gather(X, work_);
+  gather_iterate(X);
   fluid_->set_solid_stiffness_apart(false);  // (an assembled Jacobian carries the points' own stiffness)
   if (space_->is_mapped()) {  // no mean flow to keep (not translation-invariant); the pressure pinned
     fluid_->step_tangent(work_, J, true, true);
@@ -407,12 +399,12 @@ void DcImmersedFluid::jacobian(Vec X, Mat J) {
 }
 
 void DcImmersedFluid::bulk_jacobian(Vec X, Mat J) {
-  fluid_->gather(X, work_);
+  gather_iterate(X);
   fluid_->step_tangent(work_, J, false, false);
 }
 
 void DcImmersedFluid::end_step(Vec X) {
-  fluid_->gather(X, work_);
+  gather_iterate(X);
   fluid_->end_step(work_);
   sync_solution();
 }
@@ -438,7 +430,7 @@ std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X
   // flow, not of the cells' disturbance where the stencil's rows are taken (x index 0).
   // Only the rows the build reads and checks are assembled (DivConformingFluid::bulk_stencil_tangent): the
   // whole matrix is made only where a solve needs it (jacobian_matrix()).
-  fluid_->gather(X, work_);
+  gather_iterate(X);
   Mat S = fluid_->bulk_stencil_tangent(work_);
   // The Jacobian's kept bulk part (-coupling_bulk_stencil false) follows: the next jacobian() makes it again.
   MatDestroy(&bulk_matrix_);
@@ -466,14 +458,12 @@ std::optional<ImmersedFluid::OwnBulkInverse> DcImmersedFluid::bulk_inverse(Vec X
                   "operator circulant to %.2e",
                   space_->n_elements(0), space_->n_elements(2), inv.deviation);
   inv.description = line;
-  inv.apply = [this, b = std::vector<double>(), x = std::vector<double>()](Vec r, Vec out) mutable {
+  inv.apply = [this](Vec r, Vec out) {
     // r kept for the stencil operator's product with `out` (stencil_mult): S out = r (copied first, in case
     // a caller passes r as out).
     if (!applied_rhs_) CELLFSI_PETSC(VecDuplicate(r, &applied_rhs_));
     CELLFSI_PETSC(VecCopy(r, applied_rhs_));
-    fluid_->gather(r, b);
-    bulk_->solve(b, x);
-    fluid_->scatter(x, out);
+    bulk_->solve(r, out);  // (each rank its lines: nothing gathered whole)
     CELLFSI_PETSC(PetscObjectGetId(reinterpret_cast<PetscObject>(out), &applied_id_));
     CELLFSI_PETSC(PetscObjectStateGet(reinterpret_cast<PetscObject>(out), &applied_state_));
   };
@@ -538,6 +528,18 @@ void DcImmersedFluid::build_solid_operator() {
       colloc_begin_.push_back(static_cast<int>(colloc_index_.size()));
     }
   }
+  // The unknowns these rows read, and a scatter of their values from the fluid's vectors: each product reads
+  // them alone (gathering the whole iterate to every rank at each product did not divide).
+  std::vector<int> read(colloc_index_.begin(), colloc_index_.end());
+  std::sort(read.begin(), read.end());
+  read.erase(std::unique(read.begin(), read.end()), read.end());
+  for (int& k : colloc_index_)
+    k = static_cast<int>(std::lower_bound(read.begin(), read.end(), k) - read.begin());
+  std::vector<PetscInt> rows(read.size());
+  for (std::size_t k = 0; k < read.size(); ++k) rows[k] = fluid_->petsc_numbering()[read[k]];
+  VecScatterDestroy(&colloc_scatter_);
+  VecDestroy(&colloc_x_);
+  colloc_scatter_ = make_row_scatter(U_, rows, colloc_x_);
   solid_blocks_ = fluid_->solid_blocks(solid_.column, solid_.grad);
   // (The points' tables are in the blocks now; the product needs the collocation points and control alone.
   // Emptied but kept: set_solid_linearization hands them back to the coupler, which fills them again at the
@@ -546,18 +548,23 @@ void DcImmersedFluid::build_solid_operator() {
   solid_.grad.clear();
 }
 
-void DcImmersedFluid::add_solid_product(Vec y) {
+void DcImmersedFluid::add_solid_product(Vec x, Vec y) {
   const std::size_t rows = colloc_begin_.size() - 1;  // (this rank's run)
   int rank = 0;
   CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
   dv_.assign(colloc_rows_, 0.0);
   double* mine = dv_.data() + colloc_displs_[rank];
+  CELLFSI_PETSC(VecScatterBegin(colloc_scatter_, x, colloc_x_, INSERT_VALUES, SCATTER_FORWARD));
+  CELLFSI_PETSC(VecScatterEnd(colloc_scatter_, x, colloc_x_, INSERT_VALUES, SCATTER_FORWARD));
+  const PetscScalar* xr = nullptr;
+  CELLFSI_PETSC(VecGetArrayRead(colloc_x_, &xr));
   for (std::size_t r = 0; r < rows; ++r) {
     double v = 0;
     for (int k = colloc_begin_[r]; k < colloc_begin_[r + 1]; ++k)
-      v += colloc_value_[k] * x_nat_[colloc_index_[k]];
+      v += colloc_value_[k] * xr[colloc_index_[k]];
     mine[r] = v;
   }
+  CELLFSI_PETSC(VecRestoreArrayRead(colloc_x_, &xr));
   if (colloc_counts_.size() > 1)
     CELLFSI_PETSC(MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, dv_.data(), colloc_counts_.data(),
                                  colloc_displs_.data(), MPI_DOUBLE, comm_));
@@ -584,7 +591,7 @@ void DcImmersedFluid::add_solid_product(Vec y) {
 }
 
 void DcImmersedFluid::refresh_stencil_operator(Vec X) {
-  fluid_->gather(X, work_);
+  gather_iterate(X);
   op_assembled_ = fluid_->has_viscosity_field();
   // The solids' stiffness through their collocation, if the coupler gave it for these points (and the
   // operator is the stencil's: an assembled one carries the points' own tangent).
@@ -598,15 +605,19 @@ void DcImmersedFluid::refresh_stencil_operator(Vec X) {
     // The pattern of the elements that hold points, made again when they changed on any rank (the points
     // move, mostly within their elements between refreshes), then the points' tangent on it.
     std::vector<int> elements = fluid_->immersed_elements();
-    int changed = !immersed_ || elements != pattern_elements_;
+    int changed = !immersed_.C || elements != pattern_elements_;
     CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &changed, 1, MPI_INT, MPI_MAX, comm_));
     if (changed) {
-      make_immersed_matrix();
+      // (-log_view: DcImmersedPattern)
+      static const PetscLogEvent pattern_event = register_log_event("cellfsi fluid", "DcImmersedPattern");
+      EventScope ev(pattern_event);
+      immersed_.destroy();
+      immersed_ = fluid_->create_immersed_matrix();
       pattern_elements_ = std::move(elements);
     } else {
-      CELLFSI_PETSC(MatZeroEntries(immersed_));
+      CELLFSI_PETSC(MatZeroEntries(immersed_.C));
     }
-    fluid_->immersed_tangent(work_, immersed_layout_);
+    fluid_->immersed_tangent(work_, immersed_);
     if (apart) build_solid_operator();
   }
   // (An assembly raises the operator's state: KSP sets its preconditioner up again.)
@@ -637,13 +648,6 @@ PetscErrorCode DcImmersedFluid::stencil_mult(Mat A, Vec x, Vec y) {
   if (self->applied_rhs_ && id == self->applied_id_ && state == self->applied_state_) {
     PetscCall(VecCopy(self->applied_rhs_, y));
     ++self->products_skipped_;
-    if (!self->colloc_begin_.empty()) {  // (the solids' product reads x in the natural numbering)
-      try {
-        self->fluid_->gather(x, self->x_nat_);
-      } catch (const std::exception& e) {
-        SETERRQ(PetscObjectComm(reinterpret_cast<PetscObject>(A)), PETSC_ERR_LIB, "%s", e.what());
-      }
-    }
   } else {
     try {
       self->fluid_->gather(x, self->x_nat_);
@@ -653,17 +657,16 @@ PetscErrorCode DcImmersedFluid::stencil_mult(Mat A, Vec x, Vec y) {
       SETERRQ(PetscObjectComm(reinterpret_cast<PetscObject>(A)), PETSC_ERR_LIB, "%s", e.what());
     }
   }
-  if (self->immersed_) {
-    PetscCall(
-        VecScatterBegin(self->immersed_scatter_, x, self->immersed_in_, INSERT_VALUES, SCATTER_FORWARD));
-    PetscCall(VecScatterEnd(self->immersed_scatter_, x, self->immersed_in_, INSERT_VALUES, SCATTER_FORWARD));
-    PetscCall(MatMult(self->immersed_, self->immersed_in_, self->immersed_out_));
-    PetscCall(VecScatterBegin(self->immersed_scatter_, self->immersed_out_, y, ADD_VALUES, SCATTER_REVERSE));
-    PetscCall(VecScatterEnd(self->immersed_scatter_, self->immersed_out_, y, ADD_VALUES, SCATTER_REVERSE));
+  if (self->immersed_.C) {
+    try {
+      self->immersed_.multiply_add(x, y);
+    } catch (const std::exception& e) {
+      SETERRQ(PetscObjectComm(reinterpret_cast<PetscObject>(A)), PETSC_ERR_LIB, "%s", e.what());
+    }
   }
   if (!self->colloc_begin_.empty()) {
     try {
-      self->add_solid_product(y);
+      self->add_solid_product(x, y);
     } catch (const std::exception& e) {
       SETERRQ(PetscObjectComm(reinterpret_cast<PetscObject>(A)), PETSC_ERR_LIB, "%s", e.what());
     }

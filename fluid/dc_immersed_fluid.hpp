@@ -138,7 +138,10 @@ class DcImmersedFluid final : public ImmersedFluid {
   std::unique_ptr<dc::DivConformingSpace> space_;
   std::unique_ptr<dc::DivConformingFluid> fluid_;
   Vec U_ = nullptr;
-  mutable std::vector<double> work_;  // an iterate in the natural numbering
+  mutable std::vector<double> work_;       // an iterate in the natural numbering (gather_iterate)
+  mutable PetscObjectId gathered_id_ = 0;  // work_'s vector and its state (PETSc's ids start at 1)
+  mutable PetscObjectState gathered_state_ = -1;
+  void gather_iterate(Vec X) const;
   std::vector<dc::DivConformingFluid::ImmersedAt> points_;  // set_immersed_points' (kept storage)
   std::unique_ptr<dc::DcFourierSolver> bulk_;
   /// The coupled Jacobian's bulk part (no immersed points), assembled at the first jacobian() and kept: each
@@ -149,15 +152,10 @@ class DcImmersedFluid final : public ImmersedFluid {
   Mat bulk_matrix_ = nullptr;
   /// bulk_inverse()'s stencil_operator (see the header comment), its immersed part, and whether it applies
   /// the whole assembled tangent instead (a viscosity field: the bulk is not the stencil's).
-  Mat stencil_op_ = nullptr, immersed_ = nullptr;
+  Mat stencil_op_ = nullptr;
+  /// The immersed points' tangent, over the unknowns it touches, its rows dealt out evenly.
+  dc::DivConformingFluid::ImmersedMatrix immersed_;
   std::vector<int> pattern_elements_;  // this rank's elements with points when immersed_'s pattern was made
-  /// immersed_'s rows are its own (DivConformingFluid::ImmersedMatrix: the unknowns it touches, dealt out
-  /// evenly): its product takes x there (immersed_in_), multiplies into immersed_out_ and adds that to y.
-  dc::DivConformingFluid::ImmersedMatrix immersed_layout_;
-  VecScatter immersed_scatter_ = nullptr;
-  Vec immersed_in_ = nullptr, immersed_out_ = nullptr;
-  void make_immersed_matrix();
-  void destroy_immersed_matrix();
   bool op_assembled_ = false;
   std::vector<double> x_nat_, y_nat_;  // the operator's product in the natural numbering
   /// The bulk inverse's last application, z = S^{-1} v: v (a copy), z's id and z's state then. stencil_mult
@@ -174,14 +172,17 @@ class DcImmersedFluid final : public ImmersedFluid {
   /// block of DivConformingFluid::solid_blocks. Empty: the points carry their own consistent tangent.
   SolidLinearization solid_;
   bool solid_given_ = false;
-  std::vector<int> colloc_begin_, colloc_index_;    // this rank's run of the rows (colloc_displs_[rank] on)
+  // this rank's run of the rows (colloc_displs_[rank] on); colloc_index_: places in colloc_x_
+  std::vector<int> colloc_begin_, colloc_index_;
   std::vector<int> colloc_counts_, colloc_displs_;  // each rank's run of the rows
   std::size_t colloc_rows_ = 0;                     // every rank's (3 per collocation point)
   std::vector<double> colloc_value_;
   std::vector<dc::DivConformingFluid::SolidBlock> solid_blocks_;
   std::vector<double> dv_, dc_, block_x_, block_y_;
   void build_solid_operator();
-  void add_solid_product(Vec y);
+  void add_solid_product(Vec x, Vec y);
+  VecScatter colloc_scatter_ = nullptr;  // the fluid's vectors at the unknowns the collocation rows read
+  Vec colloc_x_ = nullptr;
 };
 
 }  // namespace cellfsi::fluid

@@ -67,7 +67,8 @@ struct SolidLinearization {
   std::vector<geometry::Index3> elements;  // the collocation points, every body's in turn
   std::vector<geometry::Param> xi;
   /// dv: 3 values per collocation point (t_{n+alpha_f} velocity increments), the same on every rank; dc:
-  /// n_columns values. May be collective over the fluid's ranks (the coupler's is: each body on one rank).
+  /// n_columns values. May be collective over the fluid's ranks (the coupler's is: each body's columns
+  /// dealt out to the ranks).
   std::function<void(const std::vector<double>& dv, std::vector<double>& dc)> control;
   std::vector<int> column;   // per entry: the column of the function's component 0 (1 and 2 follow)
   std::vector<double> grad;  // per entry: 3 values, d N / d x

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 
@@ -21,6 +22,7 @@
 #include <petscblaslapack.h>
 
 #include "common/petsc_error.hpp"
+#include "common/row_scatter.hpp"
 #include "fluid/div_conforming/dc_kernel.hpp"
 #include "fluid/div_conforming/dc_sum_factorization.hpp"
 #include "geometry/inversion.hpp"
@@ -243,11 +245,9 @@ DivConformingFluid::DivConformingFluid(MPI_Comm comm, const DivConformingSpace& 
 
   // Elements: contiguous ranges of the linear index. Unknowns: numbered by the lowest rank whose elements
   // touch them, rank by rank (natural order within a rank), and that numbering cut into equal runs of rows.
-  // The first plane of elements touches the first k' + 1 planes of unknowns (the open knot vector's extra
-  // functions), so a rank's rows were those its elements touched first: rank 0 then owned two planes more
-  // than the others, which did not divide (at 64^3 on 8 ranks 1.2 times the smallest share of the products,
-  // -log_view). Cutting the elements to equal rows instead left 1.7 times the smallest share of the element
-  // terms on one rank (the first plane of elements touches three times the unknowns of any other).
+  // (The first plane of elements touches the first k' + 1 planes of unknowns, the open knot vector's extra
+  // functions: rows by first touch would give rank 0 two planes more than the others, and elements cut to
+  // equal rows would give it a third of the others' elements.)
   int rank = 0, size = 1;
   CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
   CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
@@ -267,8 +267,12 @@ DivConformingFluid::DivConformingFluid(MPI_Comm comm, const DivConformingSpace& 
   for (int r = 0; r < size; ++r)
     for (int g = 0; g < n; ++g)
       if (owner[g] == r) petsc_index_[g] = next++;
-  row_begin_ = static_cast<PetscInt>(static_cast<long>(n) * rank / size);
-  row_end_ = static_cast<PetscInt>(static_cast<long>(n) * (rank + 1) / size);
+  row_begin_ = static_cast<PetscInt>(static_cast<std::int64_t>(n) * rank / size);
+  row_end_ = static_cast<PetscInt>(static_cast<std::int64_t>(n) * (rank + 1) / size);
+  owned_natural_.assign(static_cast<std::size_t>(row_end_ - row_begin_), -1);
+  for (int g = 0; g < n; ++g)
+    if (petsc_index_[g] >= row_begin_ && petsc_index_[g] < row_end_)
+      owned_natural_[petsc_index_[g] - row_begin_] = g;
   for (int g : fixed_rows_)
     if (petsc_index_[g] >= row_begin_ && petsc_index_[g] < row_end_) {
       owned_fixed_.push_back(petsc_index_[g]);
@@ -480,10 +484,7 @@ Mat DivConformingFluid::create_matrix(const std::vector<char>* wanted, std::vect
     for (int e = 0; e < n_el; ++e)
       for (int a = el_start[e]; a < el_start[e + 1]; ++a) fn_elements[fill[el_unknowns[a]]++] = e;
   }
-  std::vector<int> natural_of(row_end_ - row_begin_, -1);  // owned PETSc row -> natural unknown
-  for (int g = 0; g < n; ++g)
-    if (petsc_index_[g] >= row_begin_ && petsc_index_[g] < row_end_)
-      natural_of[petsc_index_[g] - row_begin_] = g;
+  const std::vector<int>& natural_of = owned_natural_;  // owned PETSc row -> natural unknown
   const PetscInt n_own = row_end_ - row_begin_;
   std::vector<PetscInt> stamp(n, -1), cols;
   // The columns of owned row i (natural unknown g) into cols, PETSc numbering, sorted (none for a row not
@@ -1400,7 +1401,8 @@ DivConformingFluid::ImmersedMatrix DivConformingFluid::create_immersed_matrix() 
   const auto n_s = static_cast<PetscInt>(in_s.size());
   operations += 2.0 * n_velocity * all.size() + 4.0 * n_s * std::log2(std::max<double>(n_s, 2));
   for (PetscInt i = 0; i < n_s; ++i) m.row_of[in_s[i].second] = i;
-  const PetscInt s_begin = n_s * rank / size, s_end = n_s * (rank + 1) / size;
+  const auto s_begin = static_cast<PetscInt>(static_cast<std::int64_t>(n_s) * rank / size),
+             s_end = static_cast<PetscInt>(static_cast<std::int64_t>(n_s) * (rank + 1) / size);
   for (PetscInt i = s_begin; i < s_end; ++i) m.fluid_rows.push_back(in_s[i].first);
   // Each owned row's elements, then its distinct columns (an element adds its whole block, as its tangent).
   const PetscInt n_own = s_end - s_begin;
@@ -1425,7 +1427,24 @@ DivConformingFluid::ImmersedMatrix DivConformingFluid::create_immersed_matrix() 
   CELLFSI_PETSC(PetscLogFlops(operations));
   CELLFSI_PETSC(MatCreateAIJ(comm_, n_own, n_own, n_s, n_s, 0, d_nnz.data(), 0, o_nnz.data(), &m.C));
   CELLFSI_PETSC(MatSetOption(m.C, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
+  CELLFSI_PETSC(MatCreateVecs(m.C, &m.in, &m.out));
+  m.to_s = make_row_scatter(x_, m.fluid_rows, m.in);
   return m;
+}
+
+void DivConformingFluid::ImmersedMatrix::multiply_add(Vec x, Vec y) const {
+  CELLFSI_PETSC(VecScatterBegin(to_s, x, in, INSERT_VALUES, SCATTER_FORWARD));
+  CELLFSI_PETSC(VecScatterEnd(to_s, x, in, INSERT_VALUES, SCATTER_FORWARD));
+  CELLFSI_PETSC(MatMult(C, in, out));
+  CELLFSI_PETSC(VecScatterBegin(to_s, out, y, ADD_VALUES, SCATTER_REVERSE));
+  CELLFSI_PETSC(VecScatterEnd(to_s, out, y, ADD_VALUES, SCATTER_REVERSE));
+}
+
+void DivConformingFluid::ImmersedMatrix::destroy() {
+  MatDestroy(&C);
+  VecScatterDestroy(&to_s);
+  VecDestroy(&in);
+  VecDestroy(&out);
 }
 
 void DivConformingFluid::end_step(const std::vector<double>& U) {
@@ -1486,16 +1505,21 @@ void DivConformingFluid::gather(Vec X, std::vector<double>& U) const {
   U.resize(n);
   for (int i = 0; i < n; ++i) U[i] = xp[petsc_index_[i]];
   CELLFSI_PETSC(VecRestoreArrayRead(x_all_, &xp));
+  // (-log_view's counts: every rank copies and reorders every unknown, which does not divide; 5 operations an
+  // unknown, the loops' time at 64^3 on one rank, 1.6 ms a call, against the linear solves' 3.9 Gflop/s)
+  CELLFSI_PETSC(PetscLogFlops(5.0 * n));
 }
 
 void DivConformingFluid::scatter(const std::vector<double>& U, Vec X) const {
+  if (U.size() != petsc_index_.size())
+    throw std::invalid_argument("DivConformingFluid::scatter: " + std::to_string(U.size()) + " values for " +
+                                std::to_string(petsc_index_.size()) + " unknowns");
+  // This rank's rows only (every unknown on every rank was 0.9 ms a call at 64^3, which did not divide).
   PetscScalar* xp;
   CELLFSI_PETSC(VecGetArray(X, &xp));
-  for (size_t i = 0; i < U.size(); ++i) {
-    const PetscInt r = petsc_index_[i];
-    if (r >= row_begin_ && r < row_end_) xp[r - row_begin_] = U[i];
-  }
+  for (std::size_t k = 0; k < owned_natural_.size(); ++k) xp[k] = U[owned_natural_[k]];
   CELLFSI_PETSC(VecRestoreArray(X, &xp));
+  CELLFSI_PETSC(PetscLogFlops(2.0 * owned_natural_.size()));
 }
 
 DcSolveStats DivConformingFluid::newton(std::vector<double>& U,

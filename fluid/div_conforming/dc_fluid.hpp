@@ -28,9 +28,9 @@
 // Viscosity: uniform (options().viscosity) or a field nu^h on the pressure space (set_viscosity,
 // project_viscosity), used at each point by the viscous and the Nitsche terms, the penalty included.
 //
-// Parallelism: the elements are split into contiguous ranges of their lexicographic index, one per rank; an
-// unknown belongs to the lowest rank whose elements it touches, and the unknowns are renumbered so that each
-// rank's are contiguous (PETSc's MPIAIJ rows). Each rank assembles its elements (entries for other ranks'
+// Parallelism: the elements are split into contiguous ranges of their lexicographic index, one per rank; the
+// unknowns are numbered by the lowest rank whose elements touch them, rank by rank, and that numbering is cut
+// into equal runs of rows (PETSc's MPIAIJ rows). Each rank assembles its elements (entries for other ranks'
 // rows travel through PETSc's stash) and MUMPS solves in parallel. The state (U, its rate) is replicated on
 // every rank: after each linear solve the update is gathered to all (VecScatterCreateToAll). Simple and exact
 // (1 and 2 ranks agree to 7e-15, tested), but O(unknowns) memory and communication per rank: a partition of
@@ -222,12 +222,17 @@ class DivConformingFluid {
   void step_tangent_from(Mat bulk, const std::vector<double>& U, Mat J, bool pin_pressure = true);
   /// The immersed points' tangent over the unknowns it touches alone (S: the velocity unknowns of the
   /// elements with points on any rank), its rows S in PETSc order dealt out in equal runs to the ranks: the
-  /// points' matrix divides by the ranks however few ranks' rows the cells lie in (in the fluid's layout,
-  /// 64^3 at 8 ranks: one rank 0.78e9 of the 1.9e9 operations of its products on one rank, -log_view).
+  /// points' matrix divides by the ranks however few ranks' rows the cells lie in (in the fluid's own rows it
+  /// did not).
   struct ImmersedMatrix {
     Mat C = nullptr;                   // |S| x |S|, AIJ, rows and columns in S's order
     std::vector<PetscInt> row_of;      // natural unknown -> its row of C, -1 outside S
     std::vector<PetscInt> fluid_rows;  // this rank's rows of C, as rows of the fluid's PETSc vectors
+    VecScatter to_s = nullptr;         // the fluid's vectors at S's rows (forward), added back (reverse)
+    Vec in = nullptr, out = nullptr;   // C's vectors
+    /// y += C x lifted to the fluid's rows (x, y: the fluid's vectors). Collective.
+    void multiply_add(Vec x, Vec y) const;
+    void destroy();
   };
   /// The immersed points' part of the step's tangent at U alone into C.C (ADD_VALUES, then assembled; the
   /// fixed rows zero): step_tangent_from(bulk, U, J, false) is bulk + C lifted to the fluid's rows.
@@ -255,7 +260,7 @@ class DivConformingFluid {
   /// A matrix preallocated for immersed_tangent: each owned row's distinct columns over the elements with
   /// points on every rank (their velocity blocks: the points' terms have no pressure), counted exactly (a
   /// MATPREALLOCATOR filled with the blocks took 1.2-1.5 s of each refresh at 32^3; with this count the whole
-  /// refresh takes 1.0 s). The caller destroys C. Collective.
+  /// refresh takes 1.0 s). The caller calls destroy(). Collective.
   ImmersedMatrix create_immersed_matrix() const;
   /// Accepts U as U_{n+1}: the rate, the time, the pressure's zero mean, divergence_history().
   void end_step(const std::vector<double>& U);
@@ -371,6 +376,7 @@ class DivConformingFluid {
   int elem_begin_ = 0, elem_end_ = 0;
   std::vector<PetscInt> petsc_index_;     // natural (dc_space.hpp) -> PETSc numbering
   PetscInt row_begin_ = 0, row_end_ = 0;  // this rank's rows in PETSc numbering
+  std::vector<int> owned_natural_;        // this rank's rows, in order: their natural unknowns
   std::vector<PetscInt> owned_fixed_;     // this rank's fixed rows, PETSc numbering
   std::vector<int> owned_fixed_natural_;  // and their natural indices
   GeneralizedAlpha alpha_;

@@ -12,6 +12,7 @@
 
 #include "common/banded_lapack.hpp"
 #include "common/petsc_error.hpp"
+#include "common/row_scatter.hpp"
 
 namespace cellfsi::fluid::dc {
 
@@ -47,7 +48,10 @@ struct DcFourierSolver::Plans {
   Plans& operator=(const Plans&) = delete;
 };
 
-DcFourierSolver::~DcFourierSolver() = default;
+DcFourierSolver::~DcFourierSolver() {
+  VecScatterDestroy(&lines_scatter_);
+  VecDestroy(&lines_values_);
+}
 
 DcFourierSolver::DcFourierSolver(const DivConformingSpace& space, MPI_Comm comm,
                                  std::vector<PetscInt> petsc_index)
@@ -398,6 +402,8 @@ void DcFourierSolver::multiply(const std::vector<double>& x, std::vector<double>
       }
     }
   }
+  // (-log_view's counts: every line padded on every rank, which does not divide; 3 operations a value)
+  CELLFSI_PETSC(PetscLogFlops(3.0 * static_cast<double>(padded_.size())));
   y.assign(x.size(), 0.0);
   const PairProduct pp{n,
                        nz_,
@@ -428,7 +434,8 @@ void DcFourierSolver::multiply(const std::vector<double>& x, std::vector<double>
 }
 
 template <class PerMode>
-void DcFourierSolver::transform(const std::vector<double>& b, std::vector<double>& x, PerMode&& f) const {
+void DcFourierSolver::transform(const std::vector<double>& b, std::vector<double>& x, PerMode&& f,
+                                bool whole) const {
   if (!built_) throw std::logic_error("DcFourierSolver::solve before build");
   if (static_cast<int>(b.size()) != space_.n_dofs())
     throw std::invalid_argument("DcFourierSolver: the vector has " + std::to_string(b.size()) +
@@ -528,7 +535,7 @@ void DcFourierSolver::transform(const std::vector<double>& b, std::vector<double
     for (int z = 0; z < nz_; ++z)
       for (int i = 0; i < nx_; ++i) line[static_cast<std::size_t>(stride) * z + i] *= scale;
   }
-  if (size == 1) return;
+  if (size == 1 || !whole) return;
   std::vector<int>& counts = exchange_counts_[0];
   std::vector<int>& displs = exchange_counts_[1];
   const int per_line = nx_ * nz_;
@@ -550,15 +557,69 @@ void DcFourierSolver::transform(const std::vector<double>& b, std::vector<double
                                MPI_DOUBLE, comm_));
   for (int l = 0; l < n_line_; ++l)
     if (l < l0 || l >= l1) each_value(l, [](double& packed, double& value) { value = packed; });
+  // (-log_view's counts: every rank unpacks every other rank's lines, which does not divide; 3 operations a
+  // value, as the fluid's gather weighs its copies)
+  CELLFSI_PETSC(PetscLogFlops(3.0 * (n_line_ - (l1 - l0)) * per_line));
 }
 
 void DcFourierSolver::solve(const std::vector<double>& b, std::vector<double>& x) const {
+  solve_lines(b, x, true);
+}
+
+void DcFourierSolver::solve_lines(const std::vector<double>& b, std::vector<double>& x, bool whole) const {
   const std::size_t slice = static_cast<std::size_t>(ldab_) * n_line_;
   const int pin = position_[line_offset_[space_.dim()]];
-  transform(b, x, [&](size_t k, int m, std::vector<Complex>& rhs) {
-    if (m == 0 && pinned_) rhs[pin] = 0.0;  // the pinned unit row fixes the constant
-    banded_substitution(&ab_[k * slice], &ipiv_[k * n_line_], &inverse_diagonal_[k * n_line_], rhs.data());
-  });
+  transform(
+      b, x,
+      [&](size_t k, int m, std::vector<Complex>& rhs) {
+        if (m == 0 && pinned_) rhs[pin] = 0.0;  // the pinned unit row fixes the constant
+        banded_substitution(&ab_[k * slice], &ipiv_[k * n_line_], &inverse_diagonal_[k * n_line_],
+                            rhs.data());
+      },
+      whole);
+}
+
+template <class Visit>
+void DcFourierSolver::for_each_line_unknown(Visit&& visit) const {
+  int rank = 0;
+  CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
+  std::size_t k = 0;
+  for (int l = line_begin(rank); l < line_begin(rank + 1); ++l) {
+    const int stride = plane_stride_[line_component_[l]];
+    for (int z = 0; z < nz_; ++z)
+      for (int i = 0; i < nx_; ++i) visit(k++, line_first_[l] + stride * z + i);
+  }
+}
+
+void DcFourierSolver::solve(Vec b, Vec x) const {
+  if (!built_) throw std::logic_error("DcFourierSolver::solve before build");
+  if (!lines_scatter_) {
+    std::vector<PetscInt> rows;
+    for_each_line_unknown([&](std::size_t, int g) {
+      rows.push_back(petsc_index_.empty() ? static_cast<PetscInt>(g) : petsc_index_[g]);
+    });
+    // (the lines hold every unknown once: n_x n_z values each)
+    if (static_cast<long long>(n_line_) * nx_ * nz_ != space_.n_dofs())
+      throw std::logic_error("DcFourierSolver: the lines do not hold every unknown once");
+    lines_scatter_ = make_row_scatter(b, rows, lines_values_);
+    lines_b_.assign(space_.n_dofs(), 0.0);
+  }
+  CELLFSI_PETSC(VecScatterBegin(lines_scatter_, b, lines_values_, INSERT_VALUES, SCATTER_FORWARD));
+  CELLFSI_PETSC(VecScatterEnd(lines_scatter_, b, lines_values_, INSERT_VALUES, SCATTER_FORWARD));
+  const PetscScalar* in = nullptr;
+  CELLFSI_PETSC(VecGetArrayRead(lines_values_, &in));
+  for_each_line_unknown([&](std::size_t k, int g) { lines_b_[g] = in[k]; });
+  CELLFSI_PETSC(VecRestoreArrayRead(lines_values_, &in));
+  solve_lines(lines_b_, lines_x_, false);  // (this rank's lines of lines_x_ only)
+  PetscScalar* out = nullptr;
+  CELLFSI_PETSC(VecGetArray(lines_values_, &out));
+  std::size_t n = 0;
+  for_each_line_unknown([&](std::size_t k, int g) { out[k] = lines_x_[g], n = k + 1; });
+  CELLFSI_PETSC(VecRestoreArray(lines_values_, &out));
+  CELLFSI_PETSC(VecScatterBegin(lines_scatter_, lines_values_, x, INSERT_VALUES, SCATTER_REVERSE));
+  CELLFSI_PETSC(VecScatterEnd(lines_scatter_, lines_values_, x, INSERT_VALUES, SCATTER_REVERSE));
+  // (-log_view's counts: the two copies of this rank's values, 3 operations a value as the fluid's gather)
+  CELLFSI_PETSC(PetscLogFlops(6.0 * n));
 }
 
 void DcFourierSolver::banded_substitution(const Complex* ab, const PetscBLASInt* ipiv,

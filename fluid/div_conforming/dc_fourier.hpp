@@ -76,6 +76,11 @@ class DcFourierSolver {
   /// x = A^{-1} b (natural numbering, size n_dofs, the same b on every rank; x on every rank). Collective.
   /// Not thread-safe (a work buffer).
   void solve(const std::vector<double>& b, std::vector<double>& x) const;
+  /// The same with b and x PETSc vectors in the matrix's numbering (the layout of the first b given): each
+  /// rank reads only its lines' entries of b and writes only theirs of x (one VecScatter each way), where the
+  /// vector solve() needs b whole on every rank and gathers every line into x on every rank, which does not
+  /// divide by the ranks. Collective.
+  void solve(Vec b, Vec x) const;
   /// y = S x, S the circulant matrix of the stencil build() read (A itself to deviation(); without the pin
   /// build() adds to its own factors). Natural numbering, size n_dofs, every entry on every rank; local (no
   /// communication). How: x's lines copied with a periodic halo, then per (row line, column line) pair and z
@@ -112,8 +117,18 @@ class DcFourierSolver {
   /// ranks, f on each of this rank's wave numbers (k: its slot in modes_, the wave number's values by banded
   /// position, in place), the values sent back, the inverse transform of this rank's lines, every rank's
   /// lines gathered into x.
+  /// whole: every rank's lines gathered into x on every rank (else x holds this rank's lines only).
   template <class PerMode>
-  void transform(const std::vector<double>& b, std::vector<double>& x, PerMode&& f) const;
+  void transform(const std::vector<double>& b, std::vector<double>& x, PerMode&& f, bool whole = true) const;
+  void solve_lines(const std::vector<double>& b, std::vector<double>& x, bool whole) const;
+  /// solve(Vec, Vec)'s move of this rank's lines between the PETSc vectors and the natural-numbered buffers
+  /// (made at its first call): lines_values_ holds them line by line, z-major.
+  mutable VecScatter lines_scatter_ = nullptr;
+  mutable Vec lines_values_ = nullptr;
+  mutable std::vector<double> lines_b_, lines_x_;
+  /// Calls visit(k, natural) for this rank's lines' unknowns, k their place in lines_values_.
+  template <class Visit>
+  void for_each_line_unknown(Visit&& visit) const;
   std::vector<PetscBLASInt> ipiv_;         // and its pivots
   std::vector<Complex> inverse_diagonal_;  // 1 / U's diagonal, per wave number and position
   /// zgbtrs('N') of one right-hand side in place, with the factors of one wave number (see solve()).
