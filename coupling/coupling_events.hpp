@@ -37,7 +37,8 @@ struct CouplingEvents {
   PetscLogEvent pc_setup = register_log_event("cellfsi coupling", "FsiPCSetUp");
   PetscLogEvent solve = register_log_event("cellfsi coupling", "FsiLinearSolve");
   // Inside the Krylov products of the stencil operator (-coupling_solid_tangent collocation): the bodies'
-  // control increments (each body's collocation solve on one rank, the results summed over the ranks).
+  // control increments (each body's columns dealt out to the ranks, one collocation solve each, the results
+  // summed over the ranks).
   PetscLogEvent solid_control = register_log_event("cellfsi coupling", "FsiSolidControl");
   // The viscosity field from the membranes' insides (with an inner viscosity; once per step).
   PetscLogEvent viscosity = register_log_event("cellfsi coupling", "FsiViscosity");

@@ -241,9 +241,14 @@ void FsiCoupler::update_immersed(bool first_iteration) {
     const std::vector<solid::QuadratureData>& q = all_q[b];
     const std::vector<char>& own = quadrature_owned_[b];
     const auto n_own = static_cast<size_t>(std::count(own.begin(), own.end(), 1));
-    const bool linear = collocation && bodies_[b]->n_control() > 0 &&
-                        bodies_[b]->basis_gradients(q_begin, q_unknown, q_grad, &own) &&
-                        q_begin.size() == n_own + 1;
+    bool linear = collocation && bodies_[b]->n_control() > 0 &&
+                  bodies_[b]->basis_gradients(q_begin, q_unknown, q_grad, &own) &&
+                  q_begin.size() == n_own + 1;
+    if (collocation && ranks > 1) {  // (the linearisation's products are collective: every rank alike)
+      int all = linear ? 1 : 0;
+      CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &all, 1, MPI_INT, MPI_MIN, fluid_.comm()));
+      linear = all == 1;
+    }
     const int offset = lin.n_columns;
     if (linear) {
       const std::vector<geometry::Vec3> pts = bodies_[b]->collocation_points();
@@ -534,7 +539,37 @@ CouplerStats FsiCoupler::step() {
         }
       }
       EventScope ev(coupling_events().kinematic);
-      st.solid_residual[b] = bodies_[b]->kinematic_update(vs);
+      // Where every rank has every sample, the ranks share the update: each its run of the points and its
+      // collocation columns (every rank updated every body, which did not divide).
+      solid::KinematicShare share;
+      double operations = 0;
+      share.operations = &operations;
+      if (split) {
+        share.part = rank, share.parts = ranks;
+        const MPI_Comm comm = fluid_.comm();
+        share.gather = [comm, ranks, n, &counts = scratch_counts_, &displs = scratch_displs_](double* v,
+                                                                                              int width) {
+          counts.assign(static_cast<std::size_t>(ranks), 0);
+          displs.assign(static_cast<std::size_t>(ranks), 0);
+          for (int r = 0; r < ranks; ++r) {
+            const auto at = [&](int q) {
+              return width *
+                     static_cast<int>(n * static_cast<std::size_t>(q) / static_cast<std::size_t>(ranks));
+            };
+            displs[r] = at(r);
+            counts[r] = at(r + 1) - at(r);
+          }
+          CELLFSI_PETSC(MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, v, counts.data(), displs.data(),
+                                       MPI_DOUBLE, comm));
+        };
+        // (reduced on rank 0 and broadcast: the residual's norm steers every rank's loop alike)
+        share.sum = [comm, rank](double* v, int m) {
+          CELLFSI_PETSC(MPI_Reduce(rank == 0 ? MPI_IN_PLACE : v, v, m, MPI_DOUBLE, MPI_SUM, 0, comm));
+          CELLFSI_PETSC(MPI_Bcast(v, m, MPI_DOUBLE, 0, comm));
+        };
+      }
+      st.solid_residual[b] = bodies_[b]->kinematic_update(vs, share);
+      CELLFSI_PETSC(PetscLogFlops(operations));
       if (it == 0) st.solid_residual0[b] = st.solid_residual[b];
     }
     // Step 4: immersed contributions of the updated bodies, then the fluid residual. s^h is marked once per
