@@ -30,7 +30,7 @@ TOOL = "scaling_counts_3d.py"
 # The step's parts: run_3d_steps.py's events (top level: their times and counts include the events inside).
 PARTS = [
     "FsiLinearSolve", "FsiJacobian", "FsiResidual", "FsiLocate", "FsiRepulsion", "FsiSolidUpdate", "FsiKinematic",
-    "FsiStepEnds", "CellfsiTrack", "FsiSolidControl", "DcImmersedPattern"
+    "FsiStepEnds", "CellfsiTrack"
 ]
 # Events inside another, in order: each one's time and counts are taken out of the outer one. The repulsion
 # runs inside FsiLocate over every membrane point on every rank and counts nothing: scaled by FsiLocate's
@@ -38,37 +38,40 @@ PARTS = [
 # run) is left out of the model, as the bulk inverse's factorisation (FsiFactor) is.
 # A run's first call of the location (FsiLocateSetUp, inside FsiLocate: every point formed and located on
 # every rank, to deal them out) is left out likewise.
-# The bodies' control increments in the Krylov products (FsiSolidControl) and the points' matrix's pattern in
-# the Jacobian's refresh (DcImmersedPattern), which hold work every rank does, are parts of their own.
-NESTED = [("FsiRepulsion", "FsiLocate"), ("FsiRepulsionSetUp", "FsiRepulsion"), ("FsiLocateSetUp", "FsiLocate"),
-          ("FsiSolidControl", "FsiLinearSolve"), ("DcImmersedPattern", "FsiJacobian")]
+# Only events whose work is the same on every rank are taken out so (-log_view gives the slowest rank's count
+# of each event, not which rank's): the bodies' control increments in the Krylov products (FsiSolidControl,
+# dealt out by columns, some ranks without any) and the points' matrix's pattern (DcImmersedPattern) stay
+# inside the linear solves and the Jacobian, whose counts hold them.
+NESTED = [("FsiRepulsion", "FsiLocate"), ("FsiRepulsionSetUp", "FsiRepulsion"), ("FsiLocateSetUp", "FsiLocate")]
 # Events that came later (FsiKinematic f0b4c65, FsiStepEnds 853ee54, FsiRepulsionSetUp after a28c636,
-# FsiLocateSetUp, FsiSolidControl and DcImmersedPattern after 5ceeae0) or
+# FsiLocateSetUp after 5ceeae0) or
 # that a run without membranes does not log (FsiRepulsion): read as 0 where a log lacks them (an older log's
 # kinematic updates are inside FsiSolidUpdate, its step's ends in the rest).
-OPTIONAL = ["FsiKinematic", "FsiStepEnds", "FsiRepulsion", "FsiRepulsionSetUp", "FsiLocateSetUp", "FsiSolidControl",
-            "DcImmersedPattern"]
+OPTIONAL = ["FsiKinematic", "FsiStepEnds", "FsiRepulsion", "FsiRepulsionSetUp", "FsiLocateSetUp"]
 WHAT = {
     "FsiLinearSolve": "FGMRES: the bulk inverse (each rank its lines' FFTs and its wave vectors' banded "
-                      "solves), the points' matrix (its rows dealt out evenly)",
-    "FsiJacobian": "the points' tangent (each rank an equal run of the points, or its elements' points)",
-    "FsiResidual": "the elements' terms (dealt out), the points' terms (as the Jacobian's)",
+                      "solves; every rank gathers and reorders the whole right-hand side and unpacks every line of "
+                      "the solution), the points' matrix (its rows dealt out evenly), the solids' products (the "
+                      "control increments' solves dealt out by columns: 3 per body, so they stop dividing "
+                      "beyond that many ranks; the iterate gathered whole on every rank)",
+    "FsiJacobian": "the points' tangent (each rank an equal run of the points, or its elements' points), the "
+                   "solids' collocation rows (each rank its run), the points' matrix's pattern (every rank goes "
+                   "over every element with points)",
+    "FsiResidual": "the elements' terms (dealt out), the points' terms (as the Jacobian's); the iterate gathered "
+                   "whole on every rank",
     "FsiLocate": "each rank its run of the points located and formed, with their material (not counted); "
                  "the counting sort and the exchange's unpacking of every point (not counted: a lower bound); "
                  "a run's first call, every point on every rank, is FsiLocateSetUp (once per run, left out)",
     "FsiRepulsion": "the repulsion over every membrane point on every rank (not counted; its construction, "
                     "once per run, left out)",
-    "FsiSolidUpdate": "the fluid's velocity at the bodies' collocation points (each rank its share, gathered; "
-                      "the state's gather to every rank is communication, not in the model)",
-    "FsiKinematic": "every body's kinematic update on every rank (not counted)",
+    "FsiSolidUpdate": "the fluid's velocity at the bodies' collocation points (each rank its share, gathered); "
+                      "the iterate gathered whole on every rank",
+    "FsiKinematic": "the bodies' kinematic updates (each rank its run of the points and its collocation columns, "
+                    "gathered; counted: an estimate)",
     "FsiStepEnds": "the fluid's and the bodies' begin and end of a step (the solution gathered to every rank, "
                    "the divergence diagnostic)",
     "CellfsiTrack": "the bodies' metrics (each rank its share of the elements; counted: an estimate of their "
                     "points' operations)",
-    "FsiSolidControl": "the bodies' control increments in each Krylov product (each body's columns dealt out to "
-                       "the ranks, one collocation solve each, summed over the ranks)",
-    "DcImmersedPattern": "the points' matrix's pattern, made again when the elements with points change (every "
-                         "rank goes over every such element and sorts the matrix's rows; counted: an estimate)",
     "rest": "the rest of the one-rank step after the first (its wall time less the parts, which average every "
             "step, the first's set-up included: a lower bound; not counted)",
 }
