@@ -475,6 +475,7 @@ CouplerStats FsiCoupler::step() {
     // whole on every rank), each rank locates and samples an equal run of the body's collocation points and
     // the ranks gather their runs (their locations too: the solids' linearisation reads them); before, every
     // rank sampled every point, which did not divide by the ranks.
+    int first_column = 0;  // (the kinematic update's collocation columns dealt out over the bodies in turn)
     for (size_t b = 0; b < bodies_.size(); ++b) {
       const std::vector<geometry::Vec3> pts = bodies_[b]->collocation_points();
       const std::size_t n = pts.size();
@@ -546,6 +547,7 @@ CouplerStats FsiCoupler::step() {
       share.operations = &operations;
       if (split) {
         share.part = rank, share.parts = ranks;
+        share.first_column = first_column;  // (the bodies' columns dealt out in turn)
         const MPI_Comm comm = fluid_.comm();
         share.gather = [comm, ranks, n, &counts = scratch_counts_, &displs = scratch_displs_](double* v,
                                                                                               int width) {
@@ -569,6 +571,7 @@ CouplerStats FsiCoupler::step() {
         };
       }
       st.solid_residual[b] = bodies_[b]->kinematic_update(vs, share);
+      first_column += bodies_[b]->dim();
       CELLFSI_PETSC(PetscLogFlops(operations));
       if (it == 0) st.solid_residual0[b] = st.solid_residual[b];
     }

@@ -280,7 +280,8 @@ double NurbsSolid::kinematic_update(const std::vector<VelocitySample>& samples, 
     operations += dim_ * column_operations;
   } else {
     Eigen::MatrixXd c = Eigen::MatrixXd::Zero(n_reduced_, dim_);
-    for (int col = share.part; col < dim_; col += share.parts) {
+    for (int col = 0; col < dim_; ++col) {
+      if ((share.first_column + col) % share.parts != share.part) continue;
       c.col(col) = control_from_points(u_.col(col));
       operations += column_operations;
     }

@@ -43,13 +43,16 @@ struct VelocitySample {
 
 /// How the ranks that hold a body share its kinematic update (the coupler's fluid ranks, where the fluid
 /// samples anywhere and every rank has every sample): rank `part` of `parts` updates its run of the points
-/// (from n part / parts on) and solves the collocation columns c with c % parts == part. `gather` fills every
-/// rank's run of an array of `width` values per point in place from the rank that holds it; `sum` adds an
-/// array over the ranks in place, the same bits on every rank. `operations`, if given, gets an estimate of
-/// this rank's operations (-log_view's counts). The default: one rank does all.
+/// (from n part / parts on) and solves the collocation columns c with (first_column + c) % parts == part
+/// (first_column: the columns of the bodies updated before this one, so that the bodies' columns are dealt
+/// out in turn). `gather` fills every rank's run of an array of `width` values per point in place from the
+/// rank that holds it; `sum` adds an array over the ranks in place, the same bits on every rank.
+/// `operations`, if given, gets an estimate of this rank's operations (-log_view's counts). The default: one
+/// rank does all.
 struct KinematicShare {
   int part = 0;
   int parts = 1;
+  int first_column = 0;
   std::function<void(double* values, int width)> gather;
   std::function<void(double* values, int n)> sum;
   double* operations = nullptr;

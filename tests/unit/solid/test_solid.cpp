@@ -4,10 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <barrier>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
 #include <random>
+#include <thread>
 
 #include "geometry/builders.hpp"
 #include "geometry/measures.hpp"
@@ -221,6 +223,87 @@ TEST(NurbsSolid, ControlIncrementIsTheKinematicUpdatesDerivative) {
     solid::KinematicShare broken;
     broken.parts = 2;
     EXPECT_THROW(b.kinematic_update(vb, broken), std::invalid_argument);
+  }
+}
+
+TEST(NurbsSolid, AKinematicUpdateSharedAmongPartsEqualsTheWholeOne) {
+  // Threads stand for the ranks of a KinematicShare (each updates its run of the points and its columns; the
+  // gather and the sum go through shared memory, summed in part order): on 2 and 4 parts (4: more than the
+  // columns, some parts without one), the columns dealt from first_column 1, the residual's norm, the control
+  // and the linearisation (control_increment, from the gathered tangents) equal to the whole update's to
+  // 1e-12.
+  const solid::TimeParameters t = solid::TimeParameters::from_rho_inf(0.5, 5e-4);
+  const geometry::Patch p =
+      geometry::box(2e-4, 1e-4, 1.5e-4, 3, 2, 2, 2, {false, false, false}, Vec3(1e-4, 2e-4, 3e-4));
+  solid::NurbsSolid whole("whole", p, membrane_material(), 1.1);
+  whole.begin_step(t);
+  const std::vector<Vec3> x = whole.collocation_points();
+  const int n = whole.n_points();
+  Mat3 L;
+  L << 10, 70, -5, -20, 5, 12, 3, -8, -15;
+  std::vector<solid::VelocitySample> vs(n);
+  std::vector<Vec3> dv(n);
+  for (int i = 0; i < n; ++i) {
+    vs[i].v = Vec3(std::sin(1e4 * x[i][1]), std::cos(2e4 * x[i][0]), x[i][2] * 1e3) * 1e-2;
+    vs[i].grad_v = L;
+    dv[i] = Vec3(std::cos(3e4 * x[i][0] + i), 0.5 * std::sin(1e4 * x[i][1]), 0.3);
+  }
+  const double r_whole = whole.kinematic_update(vs);
+  Eigen::MatrixXd dc_whole;
+  ASSERT_TRUE(whole.control_increment(dv, dc_whole));
+  const std::vector<Vec3> c_whole = whole.current_patch().control_points();
+  double scale = 0;
+  for (const Vec3& c : c_whole) scale = std::max(scale, c.cwiseAbs().maxCoeff());
+  for (int parts : {2, 4}) {
+    std::vector<std::unique_ptr<solid::NurbsSolid>> body(parts);
+    for (auto& b : body) {
+      b = std::make_unique<solid::NurbsSolid>("part", p, membrane_material(), 1.1);
+      b->begin_step(t);
+    }
+    std::barrier sync(parts);
+    std::vector<double> shared(static_cast<std::size_t>(n) * 12);
+    std::vector<std::vector<double>> slots(parts);
+    std::vector<double> residual(parts), operations(parts, 0.0);
+    std::vector<std::thread> threads;
+    for (int q = 0; q < parts; ++q)
+      threads.emplace_back([&, q] {
+        solid::KinematicShare share;
+        share.part = q, share.parts = parts, share.first_column = 1;
+        share.operations = &operations[q];
+        share.gather = [&, q](double* v, int width) {
+          const std::size_t a = static_cast<std::size_t>(n) * q / parts * width,
+                            e = static_cast<std::size_t>(n) * (q + 1) / parts * width;
+          std::copy(v + a, v + e, shared.begin() + static_cast<std::ptrdiff_t>(a));
+          sync.arrive_and_wait();
+          std::copy(shared.begin(), shared.begin() + static_cast<std::ptrdiff_t>(n) * width, v);
+          sync.arrive_and_wait();
+        };
+        share.sum = [&, q](double* v, int m) {
+          slots[q].assign(v, v + m);
+          sync.arrive_and_wait();
+          for (int k = 0; k < m; ++k) {
+            double total = 0;
+            for (int r = 0; r < parts; ++r) total += slots[r][k];
+            v[k] = total;
+          }
+          sync.arrive_and_wait();
+        };
+        residual[q] = body[q]->kinematic_update(vs, share);
+      });
+    for (auto& th : threads) th.join();
+    for (int q = 0; q < parts; ++q) {
+      EXPECT_NEAR(residual[q], r_whole, 1e-12 * r_whole) << parts << " parts, part " << q;
+      EXPECT_GT(operations[q], 0.0);
+      const std::vector<Vec3> c = body[q]->current_patch().control_points();
+      double diff = 0;
+      for (std::size_t k = 0; k < c.size(); ++k)
+        diff = std::max(diff, (c[k] - c_whole[k]).cwiseAbs().maxCoeff());
+      EXPECT_LE(diff, 1e-12 * scale) << parts << " parts, part " << q;
+      Eigen::MatrixXd dc;
+      ASSERT_TRUE(body[q]->control_increment(dv, dc));
+      EXPECT_LE((dc - dc_whole).cwiseAbs().maxCoeff(), 1e-12 * dc_whole.cwiseAbs().maxCoeff())
+          << parts << " parts, part " << q;
+    }
   }
 }
 
