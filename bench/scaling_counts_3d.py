@@ -49,11 +49,11 @@ NESTED = [("FsiRepulsion", "FsiLocate"), ("FsiRepulsionSetUp", "FsiRepulsion"), 
 # kinematic updates are inside FsiSolidUpdate, its step's ends in the rest).
 OPTIONAL = ["FsiKinematic", "FsiStepEnds", "FsiRepulsion", "FsiRepulsionSetUp", "FsiLocateSetUp"]
 WHAT = {
-    "FsiLinearSolve": "FGMRES: the bulk inverse (each rank its lines' FFTs and its wave vectors' banded "
-                      "solves; every rank gathers and reorders the whole right-hand side and unpacks every line of "
-                      "the solution), the points' matrix (its rows dealt out evenly), the solids' products (the "
-                      "control increments' solves dealt out by columns: 3 per body, so they stop dividing "
-                      "beyond that many ranks; the iterate gathered whole on every rank)",
+    "FsiLinearSolve": "FGMRES: the bulk inverse (each rank reads its lines, transforms them and solves its wave "
+                      "vectors), the points' matrix (its rows dealt out evenly), the solids' products (each rank "
+                      "reads the unknowns its collocation rows touch; the control increments' solves dealt out "
+                      "by columns, 3 per body, so they stop dividing beyond that many ranks: the fit from 8 "
+                      "ranks holds that only in part)",
     "FsiJacobian": "the points' tangent (each rank an equal run of the points, or its elements' points), the "
                    "solids' collocation rows (each rank its run), the points' matrix's pattern (every rank goes "
                    "over every element with points)",
@@ -65,9 +65,10 @@ WHAT = {
     "FsiRepulsion": "the repulsion over every membrane point on every rank (not counted; its construction, "
                     "once per run, left out)",
     "FsiSolidUpdate": "the fluid's velocity at the bodies' collocation points (each rank its share, gathered); "
-                      "the iterate gathered whole on every rank",
-    "FsiKinematic": "the bodies' kinematic updates (each rank its run of the points and its collocation columns, "
-                    "gathered; counted: an estimate)",
+                      "the iterate gathered whole on every rank once per coupling iteration (the residual and "
+                      "the Jacobian reuse it)",
+    "FsiKinematic": "the bodies' kinematic updates (each rank its run of the points and its collocation "
+                    "columns, dealt out over the bodies in turn, gathered; counted: an estimate)",
     "FsiStepEnds": "the fluid's and the bodies' begin and end of a step (the solution gathered to every rank, "
                    "the divergence diagnostic)",
     "CellfsiTrack": "the bodies' metrics (each rank its share of the elements; counted: an estimate of their "
