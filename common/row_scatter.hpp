@@ -11,8 +11,10 @@
 
 namespace cellfsi {
 
-/// `values` (made here unless given: a sequential vector of rows.size() entries) and the scatter between
-/// `rows` of `from`'s layout (any rank's rows, in the order given) and it. Collective on from's communicator.
+/// `values` (made here unless given: a sequential vector of rows.size() entries; a given one may be a
+/// distributed vector whose local size is rows.size(), its own rows then being the targets) and the scatter
+/// between `rows` of `from`'s layout (any rank's rows, in the order given) and it. Collective on from's
+/// communicator.
 inline VecScatter make_row_scatter(Vec from, const std::vector<PetscInt>& rows, Vec& values) {
   if (!values) CELLFSI_PETSC(VecCreateSeq(PETSC_COMM_SELF, static_cast<PetscInt>(rows.size()), &values));
   IS is = nullptr;

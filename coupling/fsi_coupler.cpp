@@ -551,6 +551,9 @@ CouplerStats FsiCoupler::step() {
         const MPI_Comm comm = fluid_.comm();
         share.gather = [comm, ranks, n, &counts = scratch_counts_, &displs = scratch_displs_](double* v,
                                                                                               int width) {
+          if (static_cast<long long>(width) * static_cast<long long>(n) > std::numeric_limits<int>::max())
+            throw std::runtime_error("the kinematic update's exchange: " + std::to_string(n) + " points of " +
+                                     std::to_string(width) + " values exceed MPI's int counts");
           counts.assign(static_cast<std::size_t>(ranks), 0);
           displs.assign(static_cast<std::size_t>(ranks), 0);
           for (int r = 0; r < ranks; ++r) {

@@ -141,6 +141,8 @@ class DcImmersedFluid final : public ImmersedFluid {
   mutable std::vector<double> work_;       // an iterate in the natural numbering (gather_iterate)
   mutable PetscObjectId gathered_id_ = 0;  // work_'s vector and its state (PETSc's ids start at 1)
   mutable PetscObjectState gathered_state_ = -1;
+  /// (Every rank decides alone whether to skip the gather, which is collective: every write to an iterate
+  /// must happen on every rank, as the coupling loop's do.)
   void gather_iterate(Vec X) const;
   std::vector<dc::DivConformingFluid::ImmersedAt> points_;  // set_immersed_points' (kept storage)
   std::unique_ptr<dc::DcFourierSolver> bulk_;

@@ -1425,10 +1425,15 @@ DivConformingFluid::ImmersedMatrix DivConformingFluid::create_immersed_matrix() 
   for (PetscInt i = 0; i < n_own; ++i)
     operations += static_cast<double>(row_elements[i].size()) * (18.0 + n_velocity);
   CELLFSI_PETSC(PetscLogFlops(operations));
-  CELLFSI_PETSC(MatCreateAIJ(comm_, n_own, n_own, n_s, n_s, 0, d_nnz.data(), 0, o_nnz.data(), &m.C));
-  CELLFSI_PETSC(MatSetOption(m.C, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
-  CELLFSI_PETSC(MatCreateVecs(m.C, &m.in, &m.out));
-  m.to_s = make_row_scatter(x_, m.fluid_rows, m.in);
+  try {  // (a failure leaves nothing made behind)
+    CELLFSI_PETSC(MatCreateAIJ(comm_, n_own, n_own, n_s, n_s, 0, d_nnz.data(), 0, o_nnz.data(), &m.C));
+    CELLFSI_PETSC(MatSetOption(m.C, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
+    CELLFSI_PETSC(MatCreateVecs(m.C, &m.in, &m.out));
+    m.to_s = make_row_scatter(x_, m.fluid_rows, m.in);
+  } catch (...) {
+    m.destroy();
+    throw;
+  }
   return m;
 }
 
