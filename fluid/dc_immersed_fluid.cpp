@@ -492,7 +492,7 @@ void DcImmersedFluid::build_solid_operator() {
   const double alpha_f = fluid_->velocity_alpha();
   const std::size_t n = solid_.elements.size();
   // This rank's run of the collocation points (3 rows each), the others' gathered at each product: every rank
-  // evaluated the space at every point, 0.22 s of a 64^3 step on one rank (perf), which did not divide.
+  // evaluated the space at every point, about 0.2 s of a 64^3 step on one rank (perf), which did not divide.
   int rank = 0, size = 1;
   CELLFSI_PETSC(MPI_Comm_rank(comm_, &rank));
   CELLFSI_PETSC(MPI_Comm_size(comm_, &size));
@@ -569,7 +569,7 @@ void DcImmersedFluid::add_solid_product(Vec x, Vec y) {
     CELLFSI_PETSC(MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, dv_.data(), colloc_counts_.data(),
                                  colloc_displs_.data(), MPI_DOUBLE, comm_));
   // (-log_view's counts: these sums and each block's product; the bodies' collocation solves in control()
-  // are not counted: FsiSolidControl)
+  // are the coupler's to count, FsiSolidControl)
   CELLFSI_PETSC(PetscLogFlops(2.0 * colloc_index_.size()));
   dc_.assign(solid_.n_columns, 0.0);
   solid_.control(dv_, dc_);
