@@ -256,7 +256,8 @@ double NurbsSolid::kinematic_update(const std::vector<VelocitySample>& samples, 
   double operations = 80.0 * (i1 - i0);
   if (share.parts > 1) {  // every rank's points: their displacement and tangent inverse
     const int width = dim_ + 9;
-    std::vector<double> packed(static_cast<std::size_t>(n) * width);
+    std::vector<double>& packed = kinematic_packed_;  // (kept: this runs at every coupling iteration)
+    packed.resize(static_cast<std::size_t>(n) * width);
     for (int i = i0; i < i1; ++i) {
       double* p = packed.data() + static_cast<std::size_t>(i) * width;
       for (int c = 0; c < dim_; ++c) p[c] = u_(i, c);
@@ -302,24 +303,26 @@ bool NurbsSolid::control_increment(const std::vector<Vec3>& dv, Eigen::MatrixXd&
   if (column >= dim_)
     throw std::invalid_argument("control_increment: column " + std::to_string(column) + " of " +
                                 std::to_string(dim_));
-  Eigen::MatrixXd du(n_points(), dim_);
-  for (int i = 0; i < n_points(); ++i) {
-    const Vec3 d = kinematic_inverse_[i] * dv[i];
-    du.row(i) = d.head(dim_).transpose();
-  }
   if (column < 0) {
+    Eigen::MatrixXd du(n_points(), dim_);
+    for (int i = 0; i < n_points(); ++i) {
+      const Vec3 d = kinematic_inverse_[i] * dv[i];
+      du.row(i) = d.head(dim_).transpose();
+    }
     dc = time_.alpha_f * collocation_solver_->solve(du);
-  } else {
+  } else {  // (that component of the tangents' products alone)
+    Eigen::MatrixXd du(n_points(), 1);
+    for (int i = 0; i < n_points(); ++i) du(i, 0) = kinematic_inverse_[i].row(column).dot(dv[i]);
     dc.setZero(n_reduced_, dim_);
-    dc.col(column) = time_.alpha_f * collocation_solver_->solve(du.col(column));
+    dc.col(column) = time_.alpha_f * collocation_solver_->solve(du);
   }
   return true;
 }
 
 double NurbsSolid::control_increment_operations() const {
-  // The tangents' products (a 3 x 3 matrix times a vector per point, for every column) and one column's
-  // solve.
-  return 15.0 * n_points() + collocation_solver_->solve_operations(1);
+  // One component of the tangents' products (a row of a 3 x 3 matrix times a vector per point) and one
+  // column's solve.
+  return 5.0 * n_points() + collocation_solver_->solve_operations(1);
 }
 
 bool NurbsSolid::basis_gradients(std::vector<int>& begin, std::vector<int>& unknown,

@@ -127,6 +127,7 @@ class NurbsSolid final : public SolidSolver {
   // The inverse of the last kinematic_update()'s tangent at each collocation point (control_increment, which
   // runs at every product of the coupled Krylov solve).
   std::vector<Mat3> kinematic_inverse_;
+  std::vector<double> kinematic_packed_;  // kinematic_update's exchange of a share's points
   std::vector<Vec3> load_density_;    // external force per reference volume at the quadrature points
   double load_ramp_ = 0;              // [s]: the loads grow from 0 to full over it (0: full at once)
   bool stepping_ = false;  // a step has begun (time_ is a step's, not the constructor's placeholder)
