@@ -30,10 +30,10 @@ namespace cellfsi::app {
 
 namespace {
 
-/// The scene run by `cellfsi` with no scene file (scenes/capsule_shear_quick.yaml: the capsule in shear at
-/// the coarsest mesh whose theta is within 1 deg of the converged value), found next to the executable: in
-/// <prefix>/share/cellfsi/scenes of an installation, in <build>/share/cellfsi/scenes of a build (CMake copies
-/// the scenes there). Empty if it is not there.
+/// The scene run by `cellfsi` with no scene file (scenes/capsule_shear_quick.yaml: the capsule in shear on
+/// the divergence-conforming space, within 0.25 deg of the converged inclination), found next to the
+/// executable: in <prefix>/share/cellfsi/scenes of an installation, in <build>/share/cellfsi/scenes of a
+/// build (CMake copies the scenes there). Empty if it is not there.
 std::string default_scene_path() {
   std::error_code ec;
   const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);

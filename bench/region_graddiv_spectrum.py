@@ -69,7 +69,7 @@ def save_region(args, s):
     cmd = [os.path.join(args.build, "apps", "cellfsi"), scene, "-fluid_elements", f"{n},{n},{n}",
            "-solid_membrane_elements", "1,0,0", "-solid_nucleus_elements", "0,0,0", "-final_time", "5e-4",
            "-output_every", "0", "-checkpoint_every", "0", "-s_interface", f"{s:g}", "-output_dir", out,
-           "-output_dir_adopt", "-coupling_fourier_region_ksp_view_mat", f"binary:{mat}"]
+           "-output_dir_adopt", "-coupling_fourier_region_ksp_view_mat", f"binary:{mat}", "-fluid_space", "equal_order"]
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
     with open(out + ".log", "w") as log:
         if subprocess.call(cmd, stdout=log, stderr=subprocess.STDOUT, env=env) != 0:

@@ -25,7 +25,7 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_common import ROOT, fmt, provenance, write_table  # noqa: E402
+from bench_common import ROOT, fmt, paper_space, provenance, write_table  # noqa: E402
 
 TOOL = "run_3d_steps.py"
 # The coupling's log events (coupling/coupling_events.hpp), per step; FsiFactor (the Fourier bulk's banded
@@ -79,7 +79,7 @@ def run_case(args, n, ranks, steps):
             del bodies[i:i + 2]
     cmd = [os.path.join(args.build, "apps", "cellfsi"), os.path.join(ROOT, "scenes", "compound_capsule_shear_3d.yaml"),
            "-fluid_elements", f"{n},{n},{n}", "-final_time", repr(steps * 5e-4), "-output_every", "0",
-           "-log_view", "-output_dir", out_dir] + bodies + extra
+           "-log_view", "-output_dir", out_dir] + bodies + paper_space(extra)
     time_base = os.path.join(args.runs, tag + ".time")
     for old in glob.glob(time_base + ".*"):
         os.remove(old)

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds the cellfsi executable (and nothing else: no tests, no benchmarks), and
-# runs the default scene: the elliptic capsule in shear flow of paper Sec. 3.3 at 160 x 80 cubic elements to
-# t = 0.25 s, output in out/capsule_shear_quick/.
+# runs the default scene: the elliptic capsule in shear flow of paper Sec. 3.3 at 128 x 64 elements of the
+# divergence-conforming space to t = 0.25 s, output in out/capsule_shear_quick/.
 # Exits with the program's status.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."

@@ -127,7 +127,7 @@ TEST_F(CellfsiApp, CoarseCapsuleInclinationWithCentralAndSupportMarking) {
   const std::vector<std::string> run = {
       scene("capsule_shear.yaml"), "-fluid_elements", "96,48", "-fluid_degree", "2",
       "-solid_membrane_elements", "1,0", "-dt", "2e-3", "-final_time", "0.12",
-      "-metrics_average_from", "0.08", "-output_every", "0", "-s_interface", "1e10"};
+      "-metrics_average_from", "0.08", "-output_every", "0", "-s_interface", "1e10", "-fluid_space", "equal_order"};
   // clang-format on
   double theta[2] = {0, 0};
   const char* markings[2] = {"central", "support"};
@@ -147,10 +147,10 @@ TEST_F(CellfsiApp, ThreeDimensionalCompoundCapsuleWritesItsSeries) {
   // The 3D compound capsule of paper Sec. 3.6 (scenes/compound_capsule_shear_3d.yaml) at 12^3, two steps with
   // output: the polar points of the ellipsoid and the sphere, where F is undefined, no longer stop the
   // writer; the summary carries the paper's numbers (Delta_m = 0.960, chi = 0.387, phi = 0.083).
-  const RunResult r = cellfsi(
-      {scene("compound_capsule_shear_3d.yaml"), "-fluid_elements", "12,12,12", "-solid_membrane_elements",
-       "1,0,0", "-solid_nucleus_elements", "0,0,0", "-final_time", "1e-3", "-output_every", "1"},
-      120);
+  const RunResult r = cellfsi({scene("compound_capsule_shear_3d.yaml"), "-fluid_elements", "12,12,12",
+                               "-solid_membrane_elements", "1,0,0", "-solid_nucleus_elements", "0,0,0",
+                               "-final_time", "1e-3", "-output_every", "1", "-fluid_space", "equal_order"},
+                              120);
   ASSERT_FALSE(r.timed_out) << r.output;
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const std::string js = summary();
@@ -626,7 +626,8 @@ TEST_F(CellfsiApp, FourierBandAndFluidSolversAgree) {
   const std::vector<std::vector<std::string>> cases = {
       with({scene("capsule_shear.yaml")}, with(kCapsule, {"-final_time", "1e-3"})),
       {scene("compound_capsule_shear_3d.yaml"), "-fluid_elements", "12,12,12", "-solid_membrane_elements",
-       "1,0,0", "-solid_nucleus_elements", "0,0,0", "-final_time", "5e-4", "-output_every", "0"}};
+       "1,0,0", "-solid_nucleus_elements", "0,0,0", "-final_time", "5e-4", "-output_every", "0",
+       "-fluid_space", "equal_order"}};
   for (const auto& args : cases) {
     ASSERT_EQ(cellfsi(args, 120).exit_code, 0) << last_output_;
     EXPECT_EQ(json_string(summary(), "coupling_pc_type").value_or(""), "cellfsi_fourier");  // the automatic choice
@@ -685,10 +686,11 @@ TEST_F(CellfsiApp, InterfaceScalingReducesTheAreaError) {
   // Paper Fig. 1b on a coarse mesh: the spurious area change falls as s_I grows.
   double previous = 1e300;
   for (const char* s_i : {"1", "1e5", "1e10"}) {
-    const RunResult r = cellfsi(with({scene("capsule_shear.yaml")},
-                                     {"-fluid_elements", "48,24", "-solid_membrane_elements", "1,0",
-                                      "-final_time", "0.02", "-output_every", "0", "-s_interface", s_i}),
-                                120);
+    const RunResult r =
+        cellfsi(with({scene("capsule_shear.yaml")},
+                     {"-fluid_elements", "48,24", "-solid_membrane_elements", "1,0", "-final_time", "0.02",
+                      "-output_every", "0", "-s_interface", s_i, "-fluid_space", "equal_order"}),
+                120);
     ASSERT_EQ(r.exit_code, 0) << r.output;
     const double ra = std::abs(json_number(summary(), "membrane_r_A").value_or(1e300));
     std::printf("  s_I = %s: |r_A| = %.3e\n", s_i, ra);
@@ -744,8 +746,10 @@ namespace {
 /// The 3D compound capsule at 12^3 (the coarsest mesh its nucleus allows) with automatic body elements, two
 /// steps, no output.
 std::vector<std::string> compound_capsule_12(const std::string& scene_file) {
-  return {scene_file, "-fluid_elements", "12,12,12", "-solid_membrane_elements", "1,0,0", "-solid_nucleus_elements",
-          "0,0,0", "-final_time", "1e-3", "-output_every", "0"};
+  return {scene_file,   "-fluid_elements",         "12,12,12", "-solid_membrane_elements",
+          "1,0,0",      "-solid_nucleus_elements", "0,0,0",    "-final_time",
+          "1e-3",       "-output_every",           "0",        "-fluid_space",
+          "equal_order"};
 }
 
 // The solver paths of a 3D coupled step, on the compound capsule at 12^3, two steps, in one test so that runs
@@ -830,11 +834,11 @@ TEST_F(CellfsiApp, ThreeDSolverPathsAgree) {
 
 TEST_F(CellfsiApp, RegionFactorisationOptionsTheSinglePrecisionLUDoesNotReadAreRefused) {
   // A factorisation option for the region, which the single-precision LU does not read: one error saying so.
-  const RunResult r = cellfsi({scene("compound_capsule_shear_3d.yaml"), "-fluid_elements", "12,12,12",
-                               "-solid_membrane_elements", "1,0,0", "-solid_nucleus_elements", "0,0,0",
-                               "-final_time", "5e-4", "-output_every", "0",
-                               "-coupling_fourier_region_mat_mumps_icntl_14", "40"},
-                              120);
+  const RunResult r = cellfsi(
+      {scene("compound_capsule_shear_3d.yaml"), "-fluid_elements", "12,12,12", "-solid_membrane_elements",
+       "1,0,0", "-solid_nucleus_elements", "0,0,0", "-final_time", "5e-4", "-output_every", "0",
+       "-fluid_space", "equal_order", "-coupling_fourier_region_mat_mumps_icntl_14", "40"},
+      120);
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
   EXPECT_NE(r.output.find("-coupling_fourier_region_pc_type lu"), std::string::npos) << r.output;
