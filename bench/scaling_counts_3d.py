@@ -57,20 +57,20 @@ WHAT = {
     "FsiJacobian": "the points' tangent (each rank an equal run of the points, or its elements' points), the "
                    "solids' collocation rows (each rank its run), the points' matrix's pattern (every rank goes "
                    "over every element with points)",
-    "FsiResidual": "the elements' terms (dealt out), the points' terms (as the Jacobian's); the iterate gathered "
-                   "whole on every rank",
+    "FsiResidual": "the elements' terms (dealt out), the points' terms (as the Jacobian's); each rank gathers "
+                   "and steps to the alpha levels only the unknowns its elements and its points' elements read "
+                   "(its part of the iterate)",
     "FsiLocate": "each rank its run of the points located and formed, with their material (not counted); "
                  "the counting sort and the exchange's unpacking of every point (not counted: a lower bound); "
                  "a run's first call, every point on every rank, is FsiLocateSetUp (once per run, left out)",
     "FsiRepulsion": "the repulsion over every membrane point on every rank (not counted; its construction, "
                     "once per run, left out)",
-    "FsiSolidUpdate": "the fluid's velocity at the bodies' collocation points (each rank its share, gathered); "
-                      "the iterate gathered whole on every rank once per coupling iteration (the residual and "
-                      "the Jacobian reuse it)",
+    "FsiSolidUpdate": "the fluid's velocity at the bodies' collocation points (each rank its share, gathered), "
+                      "from the unknowns of their elements alone (each rank its part of the iterate)",
     "FsiKinematic": "the bodies' kinematic updates (each rank its run of the points and its collocation "
                     "columns, dealt out over the bodies in turn, gathered; counted: an estimate)",
-    "FsiStepEnds": "the fluid's and the bodies' begin and end of a step (the solution gathered to every rank, "
-                   "the divergence diagnostic)",
+    "FsiStepEnds": "the fluid's and the bodies' begin and end of a step (the solution gathered whole to every "
+                   "rank once per step, the divergence diagnostic)",
     "CellfsiTrack": "the bodies' metrics (each rank its share of the elements; counted: an estimate of their "
                     "points' operations)",
     "rest": "the rest of the one-rank step after the first (its wall time less the parts, which average every "

@@ -117,9 +117,31 @@ void DcImmersedFluid::gather_iterate(Vec X) const {
   PetscObjectState state = 0;
   CELLFSI_PETSC(PetscObjectGetId(reinterpret_cast<PetscObject>(X), &id));
   CELLFSI_PETSC(PetscObjectStateGet(reinterpret_cast<PetscObject>(X), &state));
-  if (id == gathered_id_ && state == gathered_state_ && !work_.empty()) return;
+  if (id == gathered_id_ && state == gathered_state_ && gathered_whole_) return;
   fluid_->gather(X, work_);
   gathered_id_ = id, gathered_state_ = state;
+  gathered_whole_ = true;
+}
+
+void DcImmersedFluid::gather_iterate_part(Vec X, int part, const std::vector<int>& elements) const {
+  PetscObjectId id = 0;
+  PetscObjectState state = 0;
+  CELLFSI_PETSC(PetscObjectGetId(reinterpret_cast<PetscObject>(X), &id));
+  CELLFSI_PETSC(PetscObjectStateGet(reinterpret_cast<PetscObject>(X), &state));
+  const bool same = id == gathered_id_ && state == gathered_state_;
+  const auto p = static_cast<std::size_t>(part);
+  int held = same && (gathered_whole_ || (gathered_part_[p] && gathered_elements_[p] == elements));
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &held, 1, MPI_INT, MPI_MIN, comm_));
+  // (held: the part is still set to these elements, for the levels DivConformingFluid computes on it)
+  fluid_->gather_part(X, work_, part, elements, !held);
+  if (held) return;
+  if (!same) {  // (work_'s other entries hold an older iterate now)
+    gathered_id_ = id, gathered_state_ = state;
+    gathered_whole_ = false;
+    gathered_part_ = {false, false};
+  }
+  gathered_part_[p] = true;
+  gathered_elements_[p] = elements;
 }
 
 void DcImmersedFluid::sync_solution() { fluid_->scatter(fluid_->state(), U_); }
@@ -227,14 +249,19 @@ std::vector<PointSample> DcImmersedFluid::sample(const std::vector<Vec3>& points
 
 std::vector<PointSample> DcImmersedFluid::sample_alpha(Vec X, const std::vector<geometry::Index3>& elements,
                                                        const std::vector<geometry::Param>& xi) const {
-  gather_iterate(X);
   std::vector<int> el(elements.size());
   std::vector<Vec3> x(xi.size());
   for (std::size_t i = 0; i < xi.size(); ++i) {
     el[i] = patch_.element_index(elements[i]);
     x[i] = space_point(xi[i]);
   }
-  const std::vector<dc::DivConformingFluid::StepSample> s = fluid_->sample_step(work_, el, x);
+  // (this rank's samples read the unknowns of their elements alone)
+  std::vector<int> sampled = el;
+  std::sort(sampled.begin(), sampled.end());
+  sampled.erase(std::unique(sampled.begin(), sampled.end()), sampled.end());
+  constexpr int part = dc::DivConformingFluid::kSamplePart;
+  gather_iterate_part(X, part, sampled);
+  const std::vector<dc::DivConformingFluid::StepSample> s = fluid_->sample_step(work_, el, x, part);
   std::vector<PointSample> out(s.size());
   for (std::size_t i = 0; i < s.size(); ++i) {
     out[i].found = true;
@@ -371,9 +398,11 @@ void DcImmersedFluid::begin_step(Vec X) {
 }
 
 void DcImmersedFluid::residual(Vec X, Vec F) {
-  gather_iterate(X);
+  // (this rank's elements and its points' read their unknowns alone)
+  constexpr int part = dc::DivConformingFluid::kAssemblyPart;
+  gather_iterate_part(X, part, fluid_->immersed_elements());
   // (a mapped space has no bulk inverse to take the constant pressure: the pin holds it, as in a step)
-  fluid_->step_residual(work_, F, space_->is_mapped());
+  fluid_->step_residual(work_, F, space_->is_mapped(), part);
 }
 
 void DcImmersedFluid::jacobian(Vec X, Mat J) {
@@ -591,7 +620,6 @@ void DcImmersedFluid::add_solid_product(Vec x, Vec y) {
 }
 
 void DcImmersedFluid::refresh_stencil_operator(Vec X) {
-  gather_iterate(X);
   op_assembled_ = fluid_->has_viscosity_field();
   // The solids' stiffness through their collocation, if the coupler gave it for these points (and the
   // operator is the stencil's: an assembled one carries the points' own tangent).
@@ -600,11 +628,15 @@ void DcImmersedFluid::refresh_stencil_operator(Vec X) {
   solid_given_ = false;
   if (!apart) solid_blocks_.clear(), colloc_begin_.clear();
   if (op_assembled_) {  // the field moves with the cells: the bulk is not the stencil's
+    gather_iterate(X);
     fluid_->step_tangent(work_, fluid_->matrix(), true, false);
   } else {
     // The pattern of the elements that hold points, made again when they changed on any rank (the points
-    // move, mostly within their elements between refreshes), then the points' tangent on it.
+    // move, mostly within their elements between refreshes), then the points' tangent on it (its unknowns
+    // alone gathered: the residual's part).
     std::vector<int> elements = fluid_->immersed_elements();
+    constexpr int part = dc::DivConformingFluid::kAssemblyPart;
+    gather_iterate_part(X, part, elements);
     int changed = !immersed_.C || elements != pattern_elements_;
     CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &changed, 1, MPI_INT, MPI_MAX, comm_));
     if (changed) {
@@ -617,7 +649,7 @@ void DcImmersedFluid::refresh_stencil_operator(Vec X) {
     } else {
       CELLFSI_PETSC(MatZeroEntries(immersed_.C));
     }
-    fluid_->immersed_tangent(work_, immersed_);
+    fluid_->immersed_tangent(work_, immersed_, part);
     if (apart) build_solid_operator();
   }
   // (An assembly raises the operator's state: KSP sets its preconditioner up again.)

@@ -138,12 +138,23 @@ class DcImmersedFluid final : public ImmersedFluid {
   std::unique_ptr<dc::DivConformingSpace> space_;
   std::unique_ptr<dc::DivConformingFluid> fluid_;
   Vec U_ = nullptr;
-  mutable std::vector<double> work_;       // an iterate in the natural numbering (gather_iterate)
+  mutable std::vector<double> work_;       // an iterate in the natural numbering (gather_iterate*)
   mutable PetscObjectId gathered_id_ = 0;  // work_'s vector and its state (PETSc's ids start at 1)
   mutable PetscObjectState gathered_state_ = -1;
-  /// (Every rank decides alone whether to skip the gather, which is collective: every write to an iterate
-  /// must happen on every rank, as the coupling loop's do.)
+  /// What work_ holds of that iterate: every unknown, or the parts of DivConformingFluid::gather_part
+  /// gathered for it (with their elements).
+  mutable bool gathered_whole_ = false;
+  mutable std::array<bool, 2> gathered_part_{false, false};
+  mutable std::array<std::vector<int>, 2> gathered_elements_;
+  /// Every unknown of X into work_, unless it holds them already. (Every rank decides alone whether to skip
+  /// the gather, which is collective: every write to an iterate must happen on every rank, as the coupling
+  /// loop's do.)
   void gather_iterate(Vec X) const;
+  /// A part of X into work_ (DivConformingFluid::gather_part): the unknowns this rank reads for its residual
+  /// and points' tangent (kAssemblyPart, its points' elements) or for its samples (kSamplePart), unless work_
+  /// holds them already on every rank. What a coupling iteration gathers: a share of the unknowns per rank,
+  /// where gather_iterate moves every unknown to every rank. Collective.
+  void gather_iterate_part(Vec X, int part, const std::vector<int>& elements) const;
   std::vector<dc::DivConformingFluid::ImmersedAt> points_;  // set_immersed_points' (kept storage)
   std::unique_ptr<dc::DcFourierSolver> bulk_;
   /// The coupled Jacobian's bulk part (no immersed points), assembled at the first jacobian() and kept: each

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <iterator>
 #include <stdexcept>
 #include <string>
 
@@ -350,6 +351,8 @@ DivConformingFluid::~DivConformingFluid() {
   VecDestroy(&x_all_);
   VecDestroy(&x_);
   VecDestroy(&F_);
+  own_unknowns_.destroy();
+  for (GatherPart& g : parts_) g.of_elements.destroy();
 }
 
 template <class F>
@@ -1239,11 +1242,16 @@ void DivConformingFluid::set_immersed_points(const std::vector<ImmersedAt>& poin
 void DivConformingFluid::begin_step() {
   Un_ = U_;
   Udotn_ = Udot_;
+  for (GatherPart& g : parts_) g.elements.clear();  // (gather_part's sets: the next call makes them anew)
 }
 
-void DivConformingFluid::step_residual(const std::vector<double>& U, Vec F, bool pin_pressure) {
+void DivConformingFluid::step_residual(const std::vector<double>& U, Vec F, bool pin_pressure,
+                                       std::optional<int> part) {
   if (Un_.empty()) throw std::logic_error("DivConformingFluid::step_residual before begin_step");
-  assemble(step_levels(U, Un_, Udotn_), F, nullptr);
+  if (part)
+    assemble(part_levels(U, *part), F, nullptr);
+  else
+    assemble(step_levels(U, Un_, Udotn_), F, nullptr);
   PetscScalar* f;
   CELLFSI_PETSC(VecGetArray(F, &f));
   const PetscInt pin = petsc_index_[space_.offset(space_.dim())];
@@ -1328,9 +1336,11 @@ void DivConformingFluid::step_tangent_from(Mat bulk, const std::vector<double>& 
   zero_fixed_rows(J, pin_pressure, 1.0);
 }
 
-void DivConformingFluid::immersed_tangent(const std::vector<double>& U, const ImmersedMatrix& C) {
-  const Levels lv = iterate_levels(U);
-  assemble_immersed(lv, nullptr, C.C, &C.row_of);
+void DivConformingFluid::immersed_tangent(const std::vector<double>& U, const ImmersedMatrix& C,
+                                          std::optional<int> part) {
+  Levels whole;
+  if (!part) whole = iterate_levels(U);
+  assemble_immersed(part ? part_levels(U, *part) : whole, nullptr, C.C, &C.row_of);
   CELLFSI_PETSC(MatAssemblyBegin(C.C, MAT_FINAL_ASSEMBLY));
   CELLFSI_PETSC(MatAssemblyEnd(C.C, MAT_FINAL_ASSEMBLY));
   // The fixed rows in S that this rank owns there (the pressure pin is no velocity unknown: not in S).
@@ -1465,10 +1475,14 @@ void DivConformingFluid::end_step(const std::vector<double>& U) {
   Udotn_.clear();
 }
 
-std::vector<DivConformingFluid::StepSample> DivConformingFluid::sample_step(
-    const std::vector<double>& U, const std::vector<int>& elements, const std::vector<Vec3>& x) const {
+std::vector<DivConformingFluid::StepSample> DivConformingFluid::sample_step(const std::vector<double>& U,
+                                                                            const std::vector<int>& elements,
+                                                                            const std::vector<Vec3>& x,
+                                                                            std::optional<int> part) const {
   const int D = space_.dim();
-  const Levels lv = iterate_levels(U);
+  Levels whole;
+  if (!part) whole = iterate_levels(U);
+  const Levels& lv = part ? part_levels(U, *part) : whole;
   std::vector<StepSample> out(x.size());
   ElementBasis eb;
   TensorRule rule;  // (one point; kept, so that the loop allocates nothing)
@@ -1513,6 +1527,118 @@ void DivConformingFluid::gather(Vec X, std::vector<double>& U) const {
   // (-log_view's counts: every rank copies and reorders every unknown, which does not divide; 5 operations an
   // unknown, the loops' time at 64^3 on one rank, 1.6 ms a call, against the linear solves' 3.9 Gflop/s)
   CELLFSI_PETSC(PetscLogFlops(5.0 * n));
+}
+
+void DivConformingFluid::UnknownSet::make(Vec X, const std::vector<PetscInt>& petsc_index) {
+  destroy();
+  std::vector<PetscInt> rows(unknowns.size());
+  for (std::size_t k = 0; k < rows.size(); ++k) rows[k] = petsc_index[unknowns[k]];
+  CELLFSI_PETSC(VecCreateSeq(PETSC_COMM_SELF, static_cast<PetscInt>(rows.size()), &values));
+  IS from = nullptr;
+  CELLFSI_PETSC(ISCreateGeneral(PETSC_COMM_SELF, static_cast<PetscInt>(rows.size()), rows.data(),
+                                PETSC_COPY_VALUES, &from));
+  const PetscErrorCode made = VecScatterCreate(X, from, values, nullptr, &scatter);
+  ISDestroy(&from);
+  CELLFSI_PETSC(made);
+}
+
+void DivConformingFluid::UnknownSet::move(Vec X, std::vector<double>& U) const {
+  CELLFSI_PETSC(VecScatterBegin(scatter, X, values, INSERT_VALUES, SCATTER_FORWARD));
+  CELLFSI_PETSC(VecScatterEnd(scatter, X, values, INSERT_VALUES, SCATTER_FORWARD));
+  const PetscScalar* v;
+  CELLFSI_PETSC(VecGetArrayRead(values, &v));
+  for (std::size_t k = 0; k < unknowns.size(); ++k) U[static_cast<std::size_t>(unknowns[k])] = v[k];
+  CELLFSI_PETSC(VecRestoreArrayRead(values, &v));
+  // (-log_view's counts: as gather()'s, 5 operations an unknown moved, here this rank's share)
+  CELLFSI_PETSC(PetscLogFlops(5.0 * static_cast<double>(unknowns.size())));
+}
+
+void DivConformingFluid::UnknownSet::destroy() {
+  VecScatterDestroy(&scatter);
+  VecDestroy(&values);
+}
+
+void DivConformingFluid::gather_part(Vec X, std::vector<double>& U, int part,
+                                     const std::vector<int>& elements, bool move) const {
+  if (part != kAssemblyPart && part != kSamplePart)
+    throw std::invalid_argument("DivConformingFluid::gather_part: part " + std::to_string(part));
+  GatherPart& g = parts_[static_cast<std::size_t>(part)];
+  // (-log_view: DcGatherPart, its sets made again DcGatherPartSetUp)
+  static const PetscLogEvent event = register_log_event("cellfsi fluid", "DcGatherPart");
+  static const PetscLogEvent set_up_event = register_log_event("cellfsi fluid", "DcGatherPartSetUp");
+  EventScope ev(event);
+  if (part == kAssemblyPart && !own_unknowns_.scatter) {  // (every rank at its first call: collective)
+    own_unknowns_.unknowns = element_unknowns_;
+    std::vector<int>& u = own_unknowns_.unknowns;
+    std::sort(u.begin(), u.end());
+    u.erase(std::unique(u.begin(), u.end()), u.end());
+    own_unknowns_.make(X, petsc_index_);
+  }
+  // The elements' unknowns (outside this rank's elements for kAssemblyPart), made again on every rank when
+  // one rank's elements are not all among those its set covers (VecScatterCreate is collective); then it
+  // covers these and the ones before, so that points moving to and fro between elements do not make it again
+  // at every call (a set over the elements the points visited since the step's start: begin_step resets it).
+  int changed = !g.of_elements.scatter ||
+                !std::includes(g.elements.begin(), g.elements.end(), elements.begin(), elements.end());
+  CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &changed, 1, MPI_INT, MPI_MAX, comm_));
+  if (changed) {
+    EventScope set_up(set_up_event);
+    std::vector<int> both;
+    std::set_union(g.elements.begin(), g.elements.end(), elements.begin(), elements.end(),
+                   std::back_inserter(both));
+    g.elements = std::move(both);
+    std::vector<int>& u = g.of_elements.unknowns;
+    u.clear();
+    std::vector<int> scratch;
+    for (int e : g.elements) {
+      if (part == kAssemblyPart && e >= elem_begin_ && e < elem_end_) continue;
+      const int* local = nullptr;
+      if (e >= elem_begin_ && e < elem_end_) {
+        local = unknowns_of(e, scratch);
+      } else {
+        auto [it, fresh] = foreign_unknowns_.try_emplace(e);
+        if (fresh) {
+          const int* computed = unknowns_of(e, scratch);
+          it->second.assign(computed, computed + n_local_);
+        }
+        local = it->second.data();
+      }
+      u.insert(u.end(), local, local + n_local_);
+    }
+    std::sort(u.begin(), u.end());
+    u.erase(std::unique(u.begin(), u.end()), u.end());
+    g.of_elements.make(X, petsc_index_);
+  }
+  if (!move) return;
+  U.resize(static_cast<std::size_t>(space_.n_dofs()));
+  if (part == kAssemblyPart) own_unknowns_.move(X, U);
+  g.of_elements.move(X, U);
+}
+
+const DivConformingFluid::Levels& DivConformingFluid::part_levels(const std::vector<double>& U,
+                                                                  int part) const {
+  GatherPart& g = parts_[static_cast<std::size_t>(part)];
+  const bool started = !Un_.empty();
+  const std::vector<double>&Un = started ? Un_ : U_, &Udotn = started ? Udotn_ : Udot_;
+  const std::size_t n = static_cast<std::size_t>(space_.n_dofs());
+  const int nv = space_.n_velocity();
+  Levels& lv = g.levels;
+  if (lv.v.size() != n) lv.v.assign(n, 0.0), lv.a.assign(n, 0.0);  // (a's pressure entries stay 0)
+  auto step = [&](const std::vector<int>& unknowns) {
+    for (int i : unknowns) {
+      if (i < nv) {
+        lv.v[i] = alpha_.value_alpha_f(U[i], Un[i]);
+        lv.a[i] = alpha_.rate_alpha_m(U[i], Un[i], Udotn[i]);
+      } else {
+        lv.v[i] = U[i];  // pressure at t_{n+1}
+      }
+    }
+    CELLFSI_PETSC(PetscLogFlops(5.0 * static_cast<double>(unknowns.size())));
+  };
+  if (part == kAssemblyPart) step(own_unknowns_.unknowns);
+  step(g.of_elements.unknowns);
+  set_step_scalars(lv);
+  return lv;
 }
 
 void DivConformingFluid::scatter(const std::vector<double>& U, Vec X) const {
@@ -1762,13 +1888,19 @@ DivConformingFluid::Levels DivConformingFluid::step_levels(const std::vector<dou
     lv.a[i] = alpha_.rate_alpha_m(U[i], Un[i], Udotn[i]);
   }
   for (int i = nv; i < n; ++i) lv.v[i] = U[i];  // pressure at t_{n+1}
+  set_step_scalars(lv);
+  // (-log_view's counts: every unknown on every rank, 5 operations each; part_levels takes a rank's share)
+  CELLFSI_PETSC(PetscLogFlops(5.0 * n));
+  return lv;
+}
+
+void DivConformingFluid::set_step_scalars(Levels& lv) const {
   lv.dv_dU = alpha_.alpha_f;
   lv.da_dU = alpha_.rate_alpha_m_scale();
   lv.nu = opt_.viscosity / opt_.density;
   lv.convection = opt_.stokes ? 0.0 : 1.0;
   lv.t = time_ + alpha_.alpha_f * opt_.dt;
   lv.g = body_force_per_mass(lv.t);
-  return lv;
 }
 
 std::function<Vec3(const Vec3&)> DivConformingFluid::body_force_per_mass(double t) const {

@@ -41,7 +41,9 @@
 #include <array>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "common/generalized_alpha.hpp"
@@ -205,7 +207,9 @@ class DivConformingFluid {
   /// fixed rows (walls' normal velocities, the pressure pin) zero. Collective.
   /// pin_pressure false: the pin's row keeps its continuity residual (a solver that handles the constant
   /// pressure itself, as the coupled solve with the bulk inverse).
-  void step_residual(const std::vector<double>& U, Vec F, bool pin_pressure = true);
+  /// part: U holds the iterate only at that part's unknowns (gather_part), and only those are read.
+  void step_residual(const std::vector<double>& U, Vec F, bool pin_pressure = true,
+                     std::optional<int> part = std::nullopt);
   /// Its exact tangent into J (a matrix like jacobian()'s), the fixed rows unit rows. with_immersed false:
   /// the bulk operator (no immersed points, the uniform viscosity). Collective.
   /// pin_pressure false: the pressure pin's row is left as assembled (a translation-invariant operator for
@@ -237,7 +241,9 @@ class DivConformingFluid {
   /// The immersed points' part of the step's tangent at U alone into C.C (ADD_VALUES, then assembled; the
   /// fixed rows zero): step_tangent_from(bulk, U, J, false) is bulk + C lifted to the fluid's rows.
   /// Collective.
-  void immersed_tangent(const std::vector<double>& U, const ImmersedMatrix& C);
+  /// part: as step_residual's (kAssemblyPart covers the points).
+  void immersed_tangent(const std::vector<double>& U, const ImmersedMatrix& C,
+                        std::optional<int> part = std::nullopt);
   /// The solids' stiffness through their collocation (fluid::SolidLinearization): with `on`, the points'
   /// tangent (immersed_tangent, step_tangent*) leaves out the stiffness of every point with
   /// ImmersedPoint::solid_begin >= 0, which solid_blocks() then gives.
@@ -270,13 +276,26 @@ class DivConformingFluid {
     Vec3 v = Vec3::Zero(), a = Vec3::Zero();
     geometry::Mat3 grad_v = geometry::Mat3::Zero();
   };
+  /// part: as step_residual's (the part gathered with these elements).
   std::vector<StepSample> sample_step(const std::vector<double>& U, const std::vector<int>& elements,
-                                      const std::vector<Vec3>& x) const;
+                                      const std::vector<Vec3>& x,
+                                      std::optional<int> part = std::nullopt) const;
   /// A global vector in the PETSc numbering (the linear solver's), and the moves between it and the
   /// natural numbering on every rank. Collective.
   Vec create_vector() const;
   void gather(Vec X, std::vector<double>& U) const;
   void scatter(const std::vector<double>& U, Vec X) const;
+  /// The parts of an iterate a rank reads in a coupling iteration: kAssemblyPart, the unknowns of its own
+  /// elements and of the elements given (those of its immersed points: step_residual, immersed_tangent);
+  /// kSamplePart, those of the elements given alone (the points it samples: sample_step).
+  static constexpr int kAssemblyPart = 0, kSamplePart = 1;
+  /// U (natural numbering, resized to every unknown) at the part's unknowns only, the other entries left as
+  /// they were: where gather() moves every unknown to every rank, this moves a rank's share, so that its cost
+  /// divides by the ranks. One VecScatter is kept per part, made again when the elements change on any rank
+  /// (elements: linear indices, sorted, unique). move false: U already holds them (a whole gather); only the
+  /// part is set for part_levels. Collective.
+  void gather_part(Vec X, std::vector<double>& U, int part, const std::vector<int>& elements,
+                   bool move = true) const;
   /// The matrix the tangents are assembled into (jacobian(), step_tangent), and the fluid's own solver's;
   /// made at the first call (its pattern: every element's unknowns, about 600 entries a row in 3D at k' = 2,
   /// 84 M at 32^3), so a coupled run that never needs it (-coupling_bulk_stencil) never holds it.
@@ -330,6 +349,11 @@ class DivConformingFluid {
                      const std::vector<double>& Udotn) const;
   /// step_levels of the current step's iterate U (from U_n within a step, from the state before one).
   Levels iterate_levels(const std::vector<double>& U) const;
+  /// iterate_levels at a part's unknowns alone (gather_part), in that part's kept storage: the other entries
+  /// are stale, and the reference holds until the part's next call.
+  const Levels& part_levels(const std::vector<double>& U, int part) const;
+  /// Levels' scalars (dv_dU, da_dU, nu, convection, t, g) of a generalized-alpha step.
+  void set_step_scalars(Levels& lv) const;
   /// Zeroes this rank's fixed rows of J with `diagonal` on them (the pressure pin's row too if pin_pressure).
   /// Collective.
   void zero_fixed_rows(Mat J, bool pin_pressure, double diagonal, const RowSubset* subset = nullptr) const;
@@ -405,6 +429,26 @@ class DivConformingFluid {
   KSP ksp_ = nullptr;
   Vec F_ = nullptr, x_ = nullptr, x_all_ = nullptr;  // residual, update, update on every rank
   VecScatter to_all_ = nullptr;
+  /// Unknowns (natural, sorted, unique) moved from a PETSc vector by one scatter into `values`.
+  struct UnknownSet {
+    std::vector<int> unknowns;
+    VecScatter scatter = nullptr;
+    Vec values = nullptr;
+    void make(Vec X, const std::vector<PetscInt>& petsc_index);  // (collective)
+    void move(Vec X, std::vector<double>& U) const;              // (collective)
+    void destroy();
+  };
+  /// gather_part's state: the unknowns of this rank's own elements (made once), and per part those of its
+  /// elements (made again when they change) and part_levels' storage.
+  mutable UnknownSet own_unknowns_;
+  /// Other ranks' elements' unknowns (unknowns_of), kept: the points' elements change at every iteration.
+  mutable std::unordered_map<int, std::vector<int>> foreign_unknowns_;
+  struct GatherPart {
+    std::vector<int> elements;  // those the part's set covers (a superset of the last call's)
+    UnknownSet of_elements;
+    Levels levels;
+  };
+  mutable std::array<GatherPart, 2> parts_;
 };
 
 }  // namespace cellfsi::fluid::dc
