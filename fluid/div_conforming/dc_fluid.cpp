@@ -1568,10 +1568,13 @@ void DivConformingFluid::gather_part(Vec X, std::vector<double>& U, int part,
   static const PetscLogEvent set_up_event = register_log_event("cellfsi fluid", "DcGatherPartSetUp");
   EventScope ev(event);
   if (part == kAssemblyPart && !own_unknowns_.scatter) {  // (every rank at its first call: collective)
-    own_unknowns_.unknowns = element_unknowns_;
+    // (marked, then listed in order: sorting the elements' lists, 18 M entries at 64^3 on 2 ranks, took 1 s)
+    std::vector<char> mine(static_cast<std::size_t>(space_.n_dofs()), 0);
+    for (int i : element_unknowns_) mine[static_cast<std::size_t>(i)] = 1;
     std::vector<int>& u = own_unknowns_.unknowns;
-    std::sort(u.begin(), u.end());
-    u.erase(std::unique(u.begin(), u.end()), u.end());
+    u.clear();
+    for (std::size_t i = 0; i < mine.size(); ++i)
+      if (mine[i]) u.push_back(static_cast<int>(i));
     own_unknowns_.make(X, petsc_index_);
   }
   // The elements' unknowns (outside this rank's elements for kAssemblyPart), made again on every rank when
