@@ -14,11 +14,25 @@ import tempfile
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
-def paper_space(options):
-    """The options with the paper's equal-order space (-fluid_space equal_order) added unless they name a space:
-    the drivers' tables were measured on it, and several scenes now default to the divergence-conforming space
-    (README, "Which space a scene uses"); --extra "-fluid_space div_conforming ..." runs that one."""
-    return list(options) if "-fluid_space" in options else list(options) + ["-fluid_space", "equal_order"]
+# The paper's membrane of the scenes that now take theirs from the mesh (on the divergence-conforming space), or
+# a finer one in 3D: what the drivers' tables of them were measured with.
+PAPER_MEMBRANE = {"capsule_shear": "1,208", "capsule_channel_migration": "1,360", "compound_capsule_shear_3d": "1,32,96"}
+
+
+def paper_space(options, scene=None):
+    """The options with the paper's equal-order space (-fluid_space equal_order) added unless they name a space,
+    and for `scene` (a file name) the paper's membrane unless they name one (PAPER_MEMBRANE): the drivers' tables
+    were measured so, and several scenes now default to the divergence-conforming space with other membranes
+    (README, "Which space a scene uses"); --extra "-fluid_space div_conforming ..." runs that space as the
+    scene has it."""
+    out = list(options)
+    if "-fluid_space" in out:
+        return out
+    out += ["-fluid_space", "equal_order"]
+    stem = os.path.splitext(os.path.basename(scene))[0] if scene else None
+    if stem in PAPER_MEMBRANE and "-solid_membrane_elements" not in out:
+        out += ["-solid_membrane_elements", PAPER_MEMBRANE[stem]]
+    return out
 
 
 def run_one(args, tag, scene, options):
@@ -31,7 +45,7 @@ def run_one(args, tag, scene, options):
             if json.load(f).get("status") == "completed":
                 return tag, "kept"
     cmd = [os.path.join(args.build, "apps", "cellfsi"), os.path.join(ROOT, "scenes", scene), "-output_dir",
-           out_dir] + paper_space(options)
+           out_dir] + paper_space(options, scene)
     rc, _ = launch(cmd, os.path.join(args.runs, tag + ".log"))
     return tag, f"exit {rc}"
 

@@ -41,8 +41,11 @@ run_one() {
   local tag="$1"; shift
   local dir="$RUNS/$tag"
   if grep -q '"status": "completed"' "$dir/summary.json" 2>/dev/null; then return 0; fi
-  # (the paper's space, which the scene leaves for the divergence-conforming one; a later -fluid_space wins)
-  "$BIN" scenes/capsule_shear.yaml -fluid_space equal_order -output_dir "$dir" -output_every 0 \
+  # (the paper's space, which the scene leaves for the divergence-conforming one, unless the options name a
+  # space: an option may be given once)
+  local space=(-fluid_space equal_order)
+  [[ " $* $EXTRA_OPTIONS " == *" -fluid_space "* ]] && space=()
+  "$BIN" scenes/capsule_shear.yaml "${space[@]}" -output_dir "$dir" -output_every 0 \
     -solid_membrane_elements 1,0 "$@" $EXTRA_OPTIONS \
     > "$RUNS/$tag.log" 2>&1
 }

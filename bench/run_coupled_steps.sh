@@ -93,8 +93,11 @@ for c in $CASES; do
   if [[ -n "$nz" ]]; then
     args=("$work/compound3d.yaml" -fluid_elements "$nx,$ny,$nz" -final_time "$(python3 -c "print($steps * 5e-4)")")
   else
-    # (the paper's space, whose solvers -coupling_pc_type names; the scene's own is the divergence-conforming one)
-    args=(scenes/capsule_shear.yaml -fluid_space equal_order -fluid_elements "$nx,$ny" -dt 1e-3 -solid_membrane_elements 1,0
+    # (the paper's space, whose solvers -coupling_pc_type names, unless EXTRA names one; the scene's own is
+    # the divergence-conforming one)
+    space=(-fluid_space equal_order)
+    [[ " $EXTRA " == *" -fluid_space "* ]] && space=()
+    args=(scenes/capsule_shear.yaml "${space[@]}" -fluid_elements "$nx,$ny" -dt 1e-3 -solid_membrane_elements 1,0
           -final_time "$(python3 -c "print($steps * 1e-3)")")
   fi
   launch=()

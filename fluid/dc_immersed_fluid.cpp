@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <iterator>
 #include <stdexcept>
 
 #include <petsc/private/petscimpl.h>  // PetscObjectStateGet (private in PETSc 3.18; the PC types use it too)
@@ -130,7 +131,12 @@ void DcImmersedFluid::gather_iterate_part(Vec X, int part, const std::vector<int
   CELLFSI_PETSC(PetscObjectStateGet(reinterpret_cast<PetscObject>(X), &state));
   const bool same = id == gathered_id_ && state == gathered_state_;
   const auto p = static_cast<std::size_t>(part);
-  int held = same && (gathered_whole_ || (gathered_part_[p] && gathered_elements_[p] == elements));
+  // (held when these elements are among those gathered for this iterate: the bodies' samples come one body at
+  // a time)
+  int held =
+      same && (gathered_whole_ ||
+               (gathered_part_[p] && std::includes(gathered_elements_[p].begin(), gathered_elements_[p].end(),
+                                                   elements.begin(), elements.end())));
   CELLFSI_PETSC(MPI_Allreduce(MPI_IN_PLACE, &held, 1, MPI_INT, MPI_MIN, comm_));
   // (held: the part is still set to these elements, for the levels DivConformingFluid computes on it)
   fluid_->gather_part(X, work_, part, elements, !held);
@@ -140,8 +146,15 @@ void DcImmersedFluid::gather_iterate_part(Vec X, int part, const std::vector<int
     gathered_whole_ = false;
     gathered_part_ = {false, false};
   }
+  if (gathered_part_[p]) {  // (this iterate's earlier elements and these)
+    std::vector<int> both;
+    std::set_union(gathered_elements_[p].begin(), gathered_elements_[p].end(), elements.begin(),
+                   elements.end(), std::back_inserter(both));
+    gathered_elements_[p] = std::move(both);
+  } else {
+    gathered_elements_[p] = elements;
+  }
   gathered_part_[p] = true;
-  gathered_elements_[p] = elements;
 }
 
 void DcImmersedFluid::sync_solution() { fluid_->scatter(fluid_->state(), U_); }

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <iterator>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -1595,18 +1596,19 @@ void DivConformingFluid::gather_part(Vec X, std::vector<double>& U, int part,
     std::vector<int> scratch;
     for (int e : g.elements) {
       if (part == kAssemblyPart && e >= elem_begin_ && e < elem_end_) continue;
-      const int* local = nullptr;
       if (e >= elem_begin_ && e < elem_end_) {
-        local = unknowns_of(e, scratch);
-      } else {
-        auto [it, fresh] = foreign_unknowns_.try_emplace(e);
-        if (fresh) {
-          const int* computed = unknowns_of(e, scratch);
-          it->second.assign(computed, computed + n_local_);
-        }
-        local = it->second.data();
+        const int* local = unknowns_of(e, scratch);
+        u.insert(u.end(), local, local + n_local_);
+        continue;
       }
-      u.insert(u.end(), local, local + n_local_);
+      // (kept per element: about 0.5 kB each in 3D, over the elements a rank's points and samples visit; the
+      // size from the evaluation itself, since a rank without elements has no n_local_)
+      auto [it, fresh] = foreign_unknowns_.try_emplace(e);
+      if (fresh) {
+        unknowns_of(e, scratch);
+        it->second = scratch;
+      }
+      u.insert(u.end(), it->second.begin(), it->second.end());
     }
     std::sort(u.begin(), u.end());
     u.erase(std::unique(u.begin(), u.end()), u.end());
@@ -1626,7 +1628,12 @@ const DivConformingFluid::Levels& DivConformingFluid::part_levels(const std::vec
   const std::size_t n = static_cast<std::size_t>(space_.n_dofs());
   const int nv = space_.n_velocity();
   Levels& lv = g.levels;
-  if (lv.v.size() != n) lv.v.assign(n, 0.0), lv.a.assign(n, 0.0);  // (a's pressure entries stay 0)
+  if (lv.v.size() !=
+      n) {  // (NaN where no part has stepped yet: a read outside the part shows; a's pressure 0)
+    lv.v.assign(n, std::numeric_limits<double>::quiet_NaN());
+    lv.a.assign(n, 0.0);
+    std::fill(lv.a.begin(), lv.a.begin() + nv, std::numeric_limits<double>::quiet_NaN());
+  }
   auto step = [&](const std::vector<int>& unknowns) {
     for (int i : unknowns) {
       if (i < nv) {

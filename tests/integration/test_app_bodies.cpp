@@ -290,10 +290,10 @@ TEST_F(CellfsiApp, RunFailingInItsFirstStepSaysWhereAndKeepsTheColumns) {
   // paper's iteration; the Anderson-accelerated one, the default, gets through it). The run exits with 2, the
   // message and summary.json name the step and the time, and metrics.csv has its header (before: a 0-byte
   // file and no step or time).
-  const RunResult r =
-      cellfsi({scene("capsule_shear.yaml"), "-fluid_elements", "192,96", "-dt", "4e-3", "-final_time", "8e-3",
-               "-solid_membrane_elements", "1,0", "-output_every", "0", "-coupling_acceleration", "none"},
-              120);
+  const RunResult r = cellfsi({scene("capsule_shear.yaml"), "-fluid_elements", "192,96", "-dt", "4e-3",
+                               "-final_time", "8e-3", "-solid_membrane_elements", "1,0", "-output_every", "0",
+                               "-coupling_acceleration", "none", "-fluid_space", "equal_order"},
+                              120);
   ASSERT_FALSE(r.timed_out) << r.output;
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("in step 1 at t = 0.004 s"), std::string::npos) << r.output;
@@ -431,10 +431,10 @@ TEST_F(CellfsiApp, TwelveRbcsPlacedEvenlyOrStaggeredAreAcceptedAndOverlapsRefuse
 }
 
 TEST_F(CellfsiApp, MigrationSceneReportsTheLateralOffset) {
-  const RunResult r =
-      cellfsi({scene("capsule_channel_migration.yaml"), "-fluid_elements", "64,32", "-fluid_degree", "2",
-               "-solid_membrane_elements", "1,0", "-final_time", "5e-4", "-output_every", "0"},
-              120);
+  const RunResult r = cellfsi({scene("capsule_channel_migration.yaml"), "-fluid_elements", "64,32",
+                               "-fluid_degree", "2", "-solid_membrane_elements", "1,0", "-final_time", "5e-4",
+                               "-output_every", "0", "-fluid_space", "equal_order"},
+                              120);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const std::string js = summary();
   EXPECT_NEAR(json_number(js, "membrane_lateral_offset_start").value_or(0), 2e-4, 1e-8) << js;

@@ -1845,9 +1845,10 @@ TEST(DivConformingParallel, APartOfTheIterateServesTheResidualThePointsTangentAn
   // Inside a 2-rank job (and alone): each rank gathers only the unknowns its residual and points' tangent
   // read (its elements' and its points' elements') or its samples read (gather_part), the others left NaN.
   // The residual, the points' tangent and the samples from that part equal those from the whole iterate to
-  // 1e-14 (the same sums; a read outside the part would give NaN; measured equal), and on 2 ranks a rank's
-  // part is a share of the unknowns (measured 0.68-0.72 with 4 points each anywhere in this small channel,
-  // its elements' halo included; asserted at most 0.8).
+  // 1e-14 (the same sums; measured equal; U and the part's levels hold NaN where nothing was gathered or
+  // stepped, so a read outside the part gives NaN), and on 2 ranks a rank's part is a share of the unknowns
+  // (measured 0.68-0.72 with 4 points each anywhere in this small channel, its elements' halo included;
+  // asserted at most 0.8).
   const DivConformingSpace sp = channel_2d(2, 12, 8);
   DivConformingFluid fs(PETSC_COMM_WORLD, sp, parallel_channel_options());
   int rank = 0, size = 1;
