@@ -1628,8 +1628,8 @@ const DivConformingFluid::Levels& DivConformingFluid::part_levels(const std::vec
   const std::size_t n = static_cast<std::size_t>(space_.n_dofs());
   const int nv = space_.n_velocity();
   Levels& lv = g.levels;
-  if (lv.v.size() !=
-      n) {  // (NaN where no part has stepped yet: a read outside the part shows; a's pressure 0)
+  // (NaN where no part has stepped yet, so that a read outside the part shows; the rate's pressure entries 0)
+  if (lv.v.size() != n) {
     lv.v.assign(n, std::numeric_limits<double>::quiet_NaN());
     lv.a.assign(n, 0.0);
     std::fill(lv.a.begin(), lv.a.begin() + nv, std::numeric_limits<double>::quiet_NaN());
