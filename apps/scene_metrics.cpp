@@ -285,8 +285,9 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     m.emplace_back("repulsion_pressure", r->scale());
     if (std::isfinite(contact_cell_min_)) m.emplace_back("contact_cell_gap_min", contact_cell_min_);
     if (std::isfinite(contact_wall_min_)) m.emplace_back("contact_wall_gap_min", contact_wall_min_);
-    if (membranes_ >= 2) m.emplace_back("contact_overlap_points_max", overlaps_max_);
   }
+  // Membranes that crossed, with or without the repulsion (a run without it shows what it prevents).
+  if (membranes_ >= 2) m.emplace_back("contact_overlap_points_max", overlaps_max_);
   if (!bodies_.empty()) {
     m.emplace_back("s_interface", s_.coupling.s_interface);
     if (s_.s_interface_auto) m.emplace_back("s_interface_target", s_.s_interface_target);
@@ -417,13 +418,14 @@ std::vector<std::pair<std::string, double>> Scene::metrics() {
   last_ = flow_metrics();
   // The contact repulsion's least distances at this step [cm] (inf: none within its cut-off).
   if (coupler_ && coupler_->repulsion()) {
-    if (membranes_ >= 2) {
-      last_.emplace_back("contact_cell_gap", contact_last_.cell_gap);
-      const int overlaps = membrane_overlaps();
-      overlaps_max_ = std::max(overlaps_max_, overlaps);
-      last_.emplace_back("contact_overlap_points", overlaps);
-    }
+    if (membranes_ >= 2) last_.emplace_back("contact_cell_gap", contact_last_.cell_gap);
     if (s_.coupling.repulsion.walls) last_.emplace_back("contact_wall_gap", contact_last_.wall_gap);
+  }
+  // Points of a membrane inside another, with or without the repulsion.
+  if (membranes_ >= 2) {
+    const int overlaps = membrane_overlaps();
+    overlaps_max_ = std::max(overlaps_max_, overlaps);
+    last_.emplace_back("contact_overlap_points", overlaps);
   }
   if (s_.domain == "narrowing") {
     // Red cells in the narrowing: the cell-free layer in the throat, from its walls to the nearest red-cell

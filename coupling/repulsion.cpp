@@ -218,8 +218,35 @@ RepulsionStats Repulsion::forces(const std::vector<RepulsionBody>& bodies,
       }
       if (meet) active[a] = active[b] = 1;
     }
+  // A membrane that spans a period less r_c meets its own periodic image (a cell stretched along a short
+  // periodic box): its points take part against their images, not against their neighbours in one image.
+  const std::vector<char> with_others = active;
+  std::vector<char> self(nb, 0);
+  for (int a = 0; a < nb; ++a) {
+    if (!n_points(a)) continue;
+    for (const Vec3& s : images) {
+      if (s.isZero()) continue;
+      bool m = true;
+      for (int d = 0; d < dim_; ++d)
+        m = m && lo[a][d] - cutoff_ <= hi[a][d] + s[d] && lo[a][d] + s[d] <= hi[a][d] + cutoff_;
+      self[a] = self[a] || m;
+    }
+    active[a] = active[a] || self[a];
+  }
   for (int b = 0; b < nb; ++b) n_active += active[b];
-  if (n_active < 2) return st;
+  if (n_active == 0) return st;
+  // Whether a point of such a body can meet its own image: some image of it lies in the body's box grown by
+  // r_c (only the points at the box's ends; the others skip their own body's points).
+  const auto near_own_image = [&](int a, const Vec3& x) {
+    for (const Vec3& s : images) {
+      if (s.isZero()) continue;
+      bool m = true;
+      for (int d = 0; d < dim_; ++d)
+        m = m && lo[a][d] - cutoff_ <= x[d] + s[d] && x[d] + s[d] <= hi[a][d] + cutoff_;
+      if (m) return true;
+    }
+    return false;
+  };
 
   // The active bodies' points sorted into the fluid elements that hold them (counting sort).
   const int n_el = n_[0] * n_[1] * n_[2];
@@ -249,6 +276,21 @@ RepulsionStats Repulsion::forces(const std::vector<RepulsionBody>& bodies,
       for (int o = -reach_[d]; o <= reach_[d]; ++o) offsets[d].push_back(o);
     }
   }
+  // The nearest image of a separation as geometry::nearest_image gives it, with the periods looked up once
+  // (it runs for every candidate pair); `wrapped`: whether it is another image than r itself.
+  std::vector<std::pair<Vec3, double>> periods;
+  for (int d = 0; d < patch_.param_dim(); ++d) {
+    const Vec3& s = patch_.shift(d);
+    if (patch_.knots(d).periodic() && !s.isZero()) periods.emplace_back(s, s.squaredNorm());
+  }
+  const auto image_of = [&periods](Vec3 r, bool& wrapped) {
+    wrapped = false;
+    for (const auto& [s, s2] : periods) {
+      const double k = std::round(r.dot(s) / s2);
+      if (k != 0) r -= k * s, wrapped = true;
+    }
+    return r;
+  };
   const double rc2 = cutoff_ * cutoff_;
   std::vector<double> best(nb);
   std::vector<int> best_point(nb), touched;
@@ -256,6 +298,8 @@ RepulsionStats Repulsion::forces(const std::vector<RepulsionBody>& bodies,
     if (!active[a]) continue;
     for (int i = 0; i < n_points(a); ++i) {
       const Vec3& x = (*bodies[a].x)[i];
+      const bool own = self[a] && near_own_image(a, x);
+      if (!with_others[a] && !own) continue;
       const geometry::Index3 e = element_of(a, i);
       touched.clear();
       for (int o2 : offsets[2])
@@ -273,8 +317,13 @@ RepulsionStats Repulsion::forces(const std::vector<RepulsionBody>& bodies,
             const int l = linear(f);
             for (int k = begin[l]; k < begin[l + 1]; ++k) {
               const auto [b, j] = entry[k];
-              if (b == a) continue;
-              const double r2 = separation(x, (*bodies[b].x)[j]).squaredNorm();
+              if (b == a && !own) continue;
+              const Vec3 direct = x - (*bodies[b].x)[j];
+              bool wrapped = false;
+              const Vec3 r = image_of(direct, wrapped);
+              // (A body's own point only through another image.)
+              if (b == a && !wrapped) continue;
+              const double r2 = r.squaredNorm();
               if (r2 >= rc2) continue;
               if (std::find(touched.begin(), touched.end(), b) == touched.end()) {
                 touched.push_back(b);
@@ -288,7 +337,8 @@ RepulsionStats Repulsion::forces(const std::vector<RepulsionBody>& bodies,
           }
       for (int b : touched) {
         const int j = best_point[b];
-        const Vec3 r = separation(x, (*bodies[b].x)[j]);
+        bool wrapped;
+        const Vec3 r = image_of(x - (*bodies[b].x)[j], wrapped);
         const double dist = r.norm();
         st.cell_gap = std::min(st.cell_gap, dist);
         const double p = repulsion_pressure(dist, cutoff_, scale_);

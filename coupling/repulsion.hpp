@@ -15,8 +15,9 @@
 // nearest point p of every other membrane within r_c: the pair gets the force a_q P(d) / 2 along x_q - x_p on
 // q and its opposite on p (both points see each other, so two parallel sheets feel P(d) each, and the forces
 // on the fluid sum to zero exactly). A point within r_c of a wall gets a_q P(d_w) along the wall's normal;
-// the wall takes the reaction. A body's own points never repel each other, and bulky bodies (a nucleus, a
-// disk) take no part: their points are inside them, not on a surface.
+// the wall takes the reaction. A body's own points never repel each other within one periodic image (a
+// membrane that spans a period less r_c meets its own image in the next period), and bulky bodies (a nucleus,
+// a disk) take no part: their points are inside them, not on a surface.
 //
 // The pairs are found through the point location the coupling already has: the points are sorted into the
 // fluid elements that hold them, and a point looks only at the elements within r_c of its own (wrapping

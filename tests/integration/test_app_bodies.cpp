@@ -897,11 +897,18 @@ TEST_F(CellfsiApp, TwoCapsulesCloserThanTheCutOffArePushedApartWithoutOverlap) {
   // opposite forces within one fluid element move their points apart only by the difference of the fluid's
   // response there); without it the distance is the same to round-off.
   EXPECT_GT(apart_on - apart_off, 0.01 * gap) << apart_on << " " << apart_off;
-  // Off: no repulsion, no contact columns; a negative cut-off is refused.
+  // Off: no repulsion, no gap columns, but the points of a membrane inside the other still counted (none:
+  // bodies placed overlapping are refused, and one step does not bring them together); a negative cut-off is
+  // refused.
   fs::remove_all(out_);
   ASSERT_EQ(cellfsi(with(base, {"-coupling_repulsion", "false", "-final_time", "5e-4"}), 120).exit_code, 0)
       << last_output_;
-  EXPECT_LT(read_csv(out_ / "metrics.csv").column("contact_cell_gap"), 0);
+  const Csv off_csv = read_csv(out_ / "metrics.csv");
+  EXPECT_LT(off_csv.column("contact_cell_gap"), 0);
+  const int o = off_csv.column("contact_overlap_points");
+  ASSERT_GE(o, 0);
+  EXPECT_EQ(std::stod(off_csv.rows.front()[o]), 0.0);
+  EXPECT_EQ(json_number(summary(), "contact_overlap_points_max"), 0.0);
   fs::remove_all(out_);
   expect_one_clear_error(cellfsi(with(base, {"-coupling_repulsion_cutoff", "-1"})));
   EXPECT_NE(last_output_.find("option -coupling_repulsion_cutoff = -1 is invalid"), std::string::npos)
