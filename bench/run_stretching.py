@@ -236,7 +236,8 @@ def table(args, runs, res, command):
     lines = [provenance(args, command), ""]
     elements = next((row["elements"] for law in args.laws for row in res[law]["runs"] if "elements" in row), None)
     lines += [f"Mesh: fluid {args.mesh or scene_mesh()} quadratic elements, membrane "
-              f"{' x '.join(str(int(e)) for e in elements) if elements else '-'} (automatic); G h of the runs "
+              f"{' x '.join(str(int(e)) for e in elements) if elements else '-'} "
+              f"({'given' if '-solid_rbc_elements' in args.extra else 'automatic'}); G h of the runs "
               f"{fmt(res[args.laws[0]]['G_h_run_uN_per_m'], '.2f')} uN/m.", ""]
     complete = True
     lines += ["Runs (the scene's G h; equilibrium: the first time neither diameter changed by more than "

@@ -12,12 +12,15 @@
 // only by the difference of the fluid's smoothed response at 0 and at d, which falls like d^2, so a law
 // that grows more slowly (1 / d) would push less and less as the membranes close in.
 // Each quadrature point q of a membrane, of reference mid-surface area a_q (QuadratureData::area), finds the
-// nearest point p of every other membrane within r_c: the pair gets the force a_q P(d) / 2 along x_q - x_p on
-// q and its opposite on p (both points see each other, so two parallel sheets feel P(d) each, and the forces
-// on the fluid sum to zero exactly). A point within r_c of a wall gets a_q P(d_w) along the wall's normal;
-// the wall takes the reaction. A body's own points never repel each other within one periodic image (a
-// membrane that spans a period less r_c meets its own image in the next period), and bulky bodies (a nucleus,
-// a disk) take no part: their points are inside them, not on a surface.
+// nearest point p of every other membrane (or of its own image, below) within r_c: the pair gets the force
+// a_q P(d) / 2 along x_q - x_p on q and its opposite on p (both points see each other, so two parallel sheets
+// feel P(d) each, and the forces on the fluid sum to zero exactly). A point within r_c of a wall gets a_q
+// P(d_w) along the wall's normal; the wall takes the reaction. A body's own points never repel each other
+// within one periodic image (a membrane that spans a period less r_c meets its own image in the next period),
+// and bulky bodies (a nucleus, a disk) take no part: their points are inside them, not on a surface. A
+// membrane's points are taken as one continuous surface in unwrapped coordinates (as the solids keep them),
+// shorter than a period: points wrapped into the period, or a membrane joined to its own image, would repel
+// their neighbours across the period.
 //
 // The pairs are found through the point location the coupling already has: the points are sorted into the
 // fluid elements that hold them, and a point looks only at the elements within r_c of its own (wrapping

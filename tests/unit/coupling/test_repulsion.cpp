@@ -154,7 +154,8 @@ TEST(Repulsion, ABodyThatDriftedByWholePeriodsMeetsItsNeighbourAllTheSame) {
 
 TEST(Repulsion, TheElementSearchFindsWhatAllPairsFind) {
   // Three bodies of random points in a periodic rectangle, crowded near x = 0 so that pairs wrap around the
-  // period; a cut-off of 1.5 elements (two layers of elements searched).
+  // period; a cut-off of 1.5 elements (two layers of elements searched). (Each body's points are wrapped into
+  // the period, so its points on either side of x = 0 also meet as through its own image, in both searches.)
   const double lx = 1e-3, ly = 5e-4, rc = 1.5 * lx / 40, p0 = 50;
   const geometry::Patch fluid = geometry::rectangle(lx, ly, 40, 20, 3, {true, false});
   std::mt19937 gen(7);
@@ -209,7 +210,8 @@ TEST(Repulsion, TheSearchOnTheCurvedNarrowingFindsWhatAllPairsFind) {
 
 TEST(Repulsion, In3DTheSearchFindsWhatAllPairsFindAndTheWallsPush) {
   // A box periodic in x and z (walls in y), two bodies of random points crowded near the x = 0 end, a cut-off
-  // of 1.2 elements; and a point near each wall (the walls as triangles).
+  // of 1.2 elements; and a point near each wall (the walls as triangles). (Wrapped into the period, each body
+  // also meets its own image across x = 0, in both searches.)
   const double L = 6e-4, rc = 1.2 * L / 12, p0 = 30;
   const geometry::Patch fluid = geometry::box(L, L, L, 12, 12, 12, 2, {true, false, true});
   std::mt19937 gen(11);
@@ -328,6 +330,12 @@ TEST(Repulsion, AMembraneSpanningThePeriodMeetsItsOwnImage) {
   // The right tip is pushed back (-x), the left one forward (+x).
   EXPECT_LT(f[0][0][0], 0.0);
   EXPECT_GT(f[0][2000][0], 0.0);
+  // The same ring carried two periods along x (a body's points are not wrapped): the same forces.
+  Cloud far = c;
+  for (Vec3& x : far.x[0]) x[0] += 2 * lx;
+  std::vector<std::vector<Vec3>> g;
+  rep.forces(far.bodies(fluid), g);
+  for (size_t i = 0; i < f[0].size(); ++i) EXPECT_LT((g[0][i] - f[0][i]).norm(), 1e-9 * scale) << i;
   Cloud shorter = ring(0.45);
   const coupling::RepulsionStats none = rep.forces(shorter.bodies(fluid), f);
   EXPECT_EQ(none.cell_pairs, 0);
