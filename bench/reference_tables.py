@@ -454,7 +454,9 @@ def t_stretching():
                              ("stretching_skalak_dc_24x8x12.md", "24x8x12", ["skalak"]),
                              ("stretching_skalak_dc.md", "36x12x18", ["skalak"]),
                              ("stretching_skalak_dc_48x16x24.md", "48x16x24", ["skalak"]),
-                             ("stretching_skalak_dc_fine_membrane.md", "36x12x18", ["skalak"])]:
+                             ("stretching_skalak_dc_fine_membrane.md", "36x12x18", ["skalak"]),
+                             ("stretching_skalak_dc_24x8x12_c3.md", "24x8x12", ["skalak"]),
+                             ("stretching_skalak_dc_24x8x12_c1.md", "24x8x12", ["skalak"])]:
         path = os.path.join(VAL, name)
         if not os.path.exists(path):
             continue
@@ -477,7 +479,9 @@ def t_stretching():
             if law == "skalak":  # the area-preserving law: D_T is what it is for
                 rms_t = num(fit[law]["RMS D_T um"])
                 space = " on the divergence-conforming space" if "div_conforming" in command else ""
-                what, value = f"skalak (C = 10){space}: G h fitted to D_A, RMS of D_A and D_T", \
+                c = re.search(r"-solid_rbc_area_dilation (\S+)", command)
+                what, value = f"skalak (C = {c.group(1).strip(chr(39)) if c else 10}){space}: G h fitted to D_A, " \
+                              "RMS of D_A and D_T", \
                     f"{gh:.2f} uN/m{' (at the edge)' if 'edge' in fit[law]['G h uN/m'] else ''}, {rms:.2f} / {rms_t:.2f} um"
                 dts = sorted({float(r["dt s"]) for r in mine}, reverse=True)
                 diff = f"RMS {rms:.2f} / {rms_t:.2f} um"
