@@ -1439,6 +1439,10 @@ DivConformingFluid::ImmersedMatrix DivConformingFluid::create_immersed_matrix() 
   try {  // (a failure leaves nothing made behind)
     CELLFSI_PETSC(MatCreateAIJ(comm_, n_own, n_own, n_s, n_s, 0, d_nnz.data(), 0, o_nnz.data(), &m.C));
     CELLFSI_PETSC(MatSetOption(m.C, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
+    // The fixed rows are zeroed after each assembly (immersed_tangent): without this, MatZeroRows drops their
+    // entries and the next assembly on the same pattern (the points' elements unchanged) finds no room for
+    // them.
+    CELLFSI_PETSC(MatSetOption(m.C, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
     CELLFSI_PETSC(MatCreateVecs(m.C, &m.in, &m.out));
     m.to_s = make_row_scatter(x_, m.fluid_rows, m.in);
   } catch (...) {
