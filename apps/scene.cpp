@@ -122,6 +122,8 @@ std::shared_ptr<const solid::Material> make_material(const BodySettings& b) {
     return std::make_shared<solid::DeviatoricStrainHardening>(b.shear_modulus, b.hardening_c3);
   if (b.material == "skalak")
     return std::make_shared<solid::SkalakMembrane>(b.shear_modulus, b.area_dilation);
+  if (b.material == "strain_hardening_membrane")
+    return std::make_shared<solid::StrainHardeningMembrane>(b.shear_modulus, b.hardening_c3, b.area_dilation);
   if (b.material != "neo_hookean") throw std::invalid_argument("unknown material law '" + b.material + "'");
   return std::make_shared<solid::DeviatoricNeoHookean>(b.shear_modulus);
 }

@@ -37,10 +37,11 @@ struct BodySettings {
   std::array<int, 3> elements{0, 0, 0};  // Lagrangian elements per direction; 0: from the fluid mesh
   int degree = 2;
   double shear_modulus = 7500;           // G [dyn/cm^2], the small-strain shear modulus of every material law
-  std::string material = "neo_hookean";  // neo_hookean | mooney_rivlin | strain_hardening | skalak
+  std::string material = "neo_hookean";  // neo_hookean | mooney_rivlin | strain_hardening | skalak |
+                                         // strain_hardening_membrane
   double mooney_rivlin_fraction = 0.5;   // mooney_rivlin: a, the I2 term's share
-  double hardening_c3 = 1.0 / 30;        // strain_hardening: C3 / G (Mills et al. 2004)
-  double area_dilation = 10;             // skalak: C, area-dilation modulus G h (1 + 2C)
+  double hardening_c3 = 1.0 / 30;        // strain_hardening(_membrane): C3 / G (Mills et al. 2004)
+  double area_dilation = 10;             // skalak, strain_hardening_membrane: C, area modulus G h (1 + 2C)
   double density = 1.1;                  // rho_2 [g/cm^3]
   double inner_viscosity = 0;            // membranes: mu of the fluid inside [g/(cm s)] (0: the fluid's)
   // The optical-tweezers stretching test (membranes; solid/external_load.hpp): a force stretch_force [dyn] on

@@ -347,8 +347,10 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     m.emplace_back(name + "_shear_modulus", bs.shear_modulus);
     if (bs.material == "mooney_rivlin")
       m.emplace_back(name + "_mooney_rivlin_fraction", bs.mooney_rivlin_fraction);
-    if (bs.material == "strain_hardening") m.emplace_back(name + "_hardening_c3", bs.hardening_c3);
-    if (bs.material == "skalak") m.emplace_back(name + "_area_dilation", bs.area_dilation);
+    const bool surface_law = bs.material == "skalak" || bs.material == "strain_hardening_membrane";
+    if (bs.material == "strain_hardening" || bs.material == "strain_hardening_membrane")
+      m.emplace_back(name + "_hardening_c3", bs.hardening_c3);
+    if (surface_law) m.emplace_back(name + "_area_dilation", bs.area_dilation);
     if (equilibrium_[b]) {
       // The stretching test: the pull, the final diameters and when equilibrium came (NaN: not reached).
       m.emplace_back(name + "_stretch_force", bs.stretch_force);
@@ -371,9 +373,9 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
       m.emplace_back(name + "_enclosed_change",
                      geometry::membrane_shape(bodies_[b]->current_patch(), 0).enclosed / enclosed0 - 1);
       // The bending modulus the solid shell implies, in erg: an incompressible thin plate's E h^3 / (12 (1 -
-      // nu^2)) with E = 3 G, nu = 1/2 (G h^3 / 3); Skalak's law, G (1 + C) h^3 / 6 (its area term stiffens
-      // every layer: docs/materials.md; C = 1 is the plate's).
-      const double bending = bs.material == "skalak" ? (1 + bs.area_dilation) / 6 : 1.0 / 3;
+      // nu^2)) with E = 3 G, nu = 1/2 (G h^3 / 3); the surface laws (skalak, strain_hardening_membrane),
+      // G (1 + C) h^3 / 6 (their area term stiffens every layer: docs/materials.md; C = 1 is the plate's).
+      const double bending = surface_law ? (1 + bs.area_dilation) / 6 : 1.0 / 3;
       if (reference.physical_dim() == 3)
         m.emplace_back(name + "_bending_modulus", bending * bs.shear_modulus * std::pow(bs.thickness, 3));
     }

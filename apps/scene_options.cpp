@@ -34,7 +34,8 @@ const std::vector<std::string> kSolidTangents{"isotropic", "consistent", "colloc
 const std::vector<std::string> kShapes{"hollow_ellipse",   "ellipse",   "rbc",
                                        "hollow_ellipsoid", "ellipsoid", "rbc_3d"};
 const std::vector<std::string> kArrangements{"even", "staggered", "random", "scattered"};
-const std::vector<std::string> kMaterials{"neo_hookean", "mooney_rivlin", "strain_hardening", "skalak"};
+const std::vector<std::string> kMaterials{"neo_hookean", "mooney_rivlin", "strain_hardening", "skalak",
+                                          "strain_hardening_membrane"};
 // C3 / G of the strain-hardening law: Mills et al. (2004) fitted 1/30; 100 makes the law 600 times stiffer
 // than neo-Hookean at I1 - 3 = 1 (a stretch of 1.9), far beyond any cell.
 constexpr double kMaxHardening = 100;
@@ -293,11 +294,12 @@ void declare_body_options(OptionTable& t, BodySettings& b, BodyOptionValues& v, 
             "neo_hookean whatever a)",
             between(0, 1, "", "(0: neo-Hookean)"))
       .real("hardening_c3", b.hardening_c3,
-            "strain_hardening: C3 / G in W = G/2 (I1 - 3) + C3 (I1 - 3)^3 (Mills et al. 2004: 1/30)",
+            "strain_hardening: C3 / G in W = G/2 (I1 - 3) + C3 (I1 - 3)^3 (Mills et al. 2004: 1/30); "
+            "strain_hardening_membrane: the same with the in-plane shape change in place of I1 - 3",
             between(0, kMaxHardening, "", "(0: neo-Hookean)"))
       .real("area_dilation", b.area_dilation,
             "skalak: C in Skalak's W_s = G h / 4 (I1^2 + 2 I1 - 2 I2 + C I2^2), the area-dilation modulus "
-            "G h (1 + 2C) (3D membranes; docs/materials.md)",
+            "G h (1 + 2C); strain_hardening_membrane: the same modulus (3D membranes; docs/materials.md)",
             between(0, kMaxAreaRatio, "", "(0: area modulus G h, the C term off)"))
       .real("density", b.density, "rho_2 [g/cm^3]", material(1e-6, 1e3, "[g/cm^3]"))
       .real("inner_viscosity", b.inner_viscosity,
@@ -418,18 +420,22 @@ void check_law_and_elements(OptionTable& t, BodySettings& b, const BodyOptionVal
   if (t.given("mooney_rivlin_fraction") && b.material != "mooney_rivlin")
     t.bad("mooney_rivlin_fraction", option_value_text(b.mooney_rivlin_fraction),
           "only with -" + pre + "material mooney_rivlin" + law_now);
-  if (t.given("hardening_c3") && b.material != "strain_hardening")
+  const bool surface_law = b.material == "skalak" || b.material == "strain_hardening_membrane";
+  if (t.given("hardening_c3") && b.material != "strain_hardening" &&
+      b.material != "strain_hardening_membrane")
     t.bad("hardening_c3", option_value_text(b.hardening_c3),
-          "only with -" + pre + "material strain_hardening" + law_now);
-  if (t.given("area_dilation") && b.material != "skalak")
+          "only with -" + pre + "material strain_hardening or strain_hardening_membrane" + law_now);
+  if (t.given("area_dilation") && !surface_law)
     t.bad("area_dilation", option_value_text(b.area_dilation),
-          "only with -" + pre + "material skalak" + law_now);
-  // Skalak's is a law of a membrane's surface: it needs the membrane's normal, which a bulky body has not,
-  // and in 2D (plane strain) its two constants cannot be told apart (docs/materials.md).
-  if (b.material == "skalak" && !(D == 3 && b.membrane()))
+          "only with -" + pre + "material skalak or strain_hardening_membrane" + law_now);
+  // skalak and strain_hardening_membrane are laws of a membrane's surface: they need the membrane's normal,
+  // which a bulky body has not, and in 2D (plane strain) their constants cannot be told apart
+  // (docs/materials.md).
+  if (surface_law && !(D == 3 && b.membrane()))
     t.bad("material", b.material,
           "neo_hookean, mooney_rivlin or strain_hardening for " +
-              std::string(D == 3 ? "a bulky body" : "a 2D body") + " (skalak: 3D membranes only)");
+              std::string(D == 3 ? "a bulky body" : "a 2D body") + " (" + b.material +
+              ": 3D membranes only)");
   const std::vector<int>& elements = v.elements;
   if (b.membrane() && elements[0] > 1)
     t.bad("elements", std::to_string(elements[0]), "1 element through a membrane's thickness");

@@ -9,20 +9,21 @@ and a figure of the axial and transverse diameters D_A, D_T against the force wi
     python3 bench/run_stretching.py --laws skalak --extra '-solid_rbc_stretch_ramp 0.005'   # stretching_skalak.md
 
 The fit. At a fixed thickness h every stress of a law scales with G (strain_hardening: with C3 / G fixed;
-skalak: with C fixed), and the fluid changes only how fast the cell comes to rest, so the equilibrium diameters
-depend on F / (G h) alone: the runs at the scene's G h (6 uN/m) and forces F give D(F) at any other G h' as
-D(F G h / G h'), read off the runs' curve by linear interpolation. The fitted G h' of a law minimises the squared
-differences from Mills' means of D_A (and, in a second fit, of D_A and D_T together) over their forces (a search
-over G h' on a grid 0.01 uN/m fine); only the G h' for which every data force maps inside the simulated range are
-considered. The figure draws each law at its G h fitted to D_A.
+skalak and strain_hardening_membrane: with C fixed), and the fluid changes only how fast the cell comes to rest,
+so the equilibrium diameters depend on F / (G h) alone: the runs at the scene's G h (6 uN/m) and forces F give
+D(F) at any other G h' as D(F G h / G h'), read off the runs' curve by linear interpolation. The fitted G h' of a
+law minimises the squared differences from Mills' means of D_A (and, in a second fit, of D_A and D_T together)
+over their forces (a search over G h' on a grid 0.01 uN/m fine); only the G h' for which every data force maps
+inside the simulated range are considered. The figure draws each law at its G h fitted to D_A.
 
 Options: --forces PN,PN (every law; default per law, FORCES below) --laws LAW,LAW (neo_hookean,strain_hardening;
-  or skalak) --mesh NXxNYxNZ (36x12x18, the scene's) --dt S (the scene's, 1e-3; a run whose membrane inverts or
-  whose coupling diverges runs again at dt / 2, then dt / 4) --final-time S (the scene's) --extra 'OPTIONS' (to
-  every run; e.g. '-solid_rbc_stretch_ramp 0.005', the force grown over 5 ms)
+  or skalak; or strain_hardening_membrane) --mesh NXxNYxNZ (36x12x18, the scene's) --dt S (the scene's, 1e-3; a
+  run whose membrane inverts or whose coupling diverges runs again at dt / 2, then dt / 4) --final-time S (the
+  scene's) --extra 'OPTIONS' (to every run; e.g. '-solid_rbc_stretch_ramp 0.005', the force grown over 5 ms)
   --runs DIR (out/STEM) --build DIR (build) --results FILE (docs/validation/STEM.json)
   --table FILE (docs/validation/STEM.md) --figure FILE (docs/figures/STEM.png) --report (no runs); STEM is
-  stretching, with _skalak when --laws has skalak and _MESH for a mesh other than the scene's
+  stretching, with _skalak when --laws has skalak, _hardening_membrane when it has strain_hardening_membrane,
+  and _MESH for a mesh other than the scene's
 A run whose summary.json says "completed", or that inverted or whose coupling diverged (then the next dt runs: a
 sudden pull's first steps are the hard ones), is not run again (one made with other options is refused). Exit
 code 3 when a run did not complete."""
@@ -40,15 +41,21 @@ TOOL = "run_stretching.py"
 SCENE = "rbc_stretch_3d.yaml"
 PN = 1e-7  # dyn
 UN_PER_M = 1e-3  # dyn/cm
-# strain_hardening with the scene's C3 = G/30 (Mills et al.), skalak with its default C = 10 (docs/materials.md)
-LAWS = {"neo_hookean": [], "strain_hardening": [], "skalak": []}
+# strain_hardening with the scene's C3 = G/30 (Mills et al.), skalak with its default C = 10, and
+# strain_hardening_membrane (Mills' hardening of the shape with the area term of skalak's C = 10;
+# docs/materials.md)
+LAWS = {"neo_hookean": [], "strain_hardening": [], "skalak": [], "strain_hardening_membrane": []}
+SURFACE_LAWS = ("skalak", "strain_hardening_membrane")  # their bending modulus is G (1 + C) h^3 / 6
 # The default forces [pN] per law at the scene's G h = 6 uN/m: the neo-Hookean cell is 22.5 um long at 190 pN,
 # near the box's 24 um (its periodic image), so its sweep ends there; the strain-hardening one goes on to 250 pN
 # so that its fit may take G h down to 4.6 uN/m.
 # Skalak's law keeps the area and stiffens fast: at G h = 6 uN/m 190 pN stretches the cell to only 13.8 um (1 um
 # elements), Mills' 16.3 needs about twice the force, so its sweep goes on to 400 pN.
+# strain_hardening_membrane is softer at large strains (17.0 um at 190 pN, 1 um elements): to 250 pN, and from 8 pN
+# so that its fit may take G h above 6 uN/m.
 FORCES = {"neo_hookean": "15,30,50,80,120,190", "strain_hardening": "15,30,50,80,120,190,250",
-          "skalak": "15,30,50,80,120,190,250,320,400"}
+          "skalak": "15,30,50,80,120,190,250,320,400",
+          "strain_hardening_membrane": "8,15,30,50,80,120,190,250"}
 
 # Mills et al. (2004), the experimental diameters against the force: mean, lowest and highest [um], at force F
 # [pN], as digitised in HemoCell's stretchCell validation file (github.com/UvaCsl/HemoCell,
@@ -203,8 +210,8 @@ def results(args, runs):
         gh0 = None
         if any_s:
             g = any_s["rbc_shear_modulus"]
-            # The shell's bending modulus: G h^3 / 3, Skalak's G (1 + C) h^3 / 6 (docs/materials.md).
-            k = (1 + any_s["rbc_area_dilation"]) / 6 if any_s.get("rbc_material") == "skalak" else 1 / 3
+            # The shell's bending modulus: G h^3 / 3, the surface laws' G (1 + C) h^3 / 6 (docs/materials.md).
+            k = (1 + any_s["rbc_area_dilation"]) / 6 if any_s.get("rbc_material") in SURFACE_LAWS else 1 / 3
             h = (any_s["rbc_bending_modulus"] / (k * g)) ** (1 / 3)
             gh0 = g * h / UN_PER_M
         out[law] = {"forces_pN": fs, "axial_um": da, "transverse_um": dt, "G_h_run_uN_per_m": gh0,
@@ -342,6 +349,7 @@ def main():
     # Default outputs: stretching[_skalak][_MESH] (a sweep with Skalak's law and a mesh other than the scene's have
     # pages of their own, so that one sweep does not overwrite another's).
     stem = "stretching" + ("_skalak" if "skalak" in args.laws else "") + \
+        ("_hardening_membrane" if "strain_hardening_membrane" in args.laws else "") + \
         ("" if args.mesh == "36x12x18" else f"_{args.mesh}")
     args.runs = args.runs or os.path.join(ROOT, "out", stem)
     args.results = args.results or os.path.join(ROOT, "docs", "validation", stem + ".json")

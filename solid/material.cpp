@@ -25,6 +25,13 @@ Mat3 deformation_block(const Mat3& F, int d, double& J) {
   return Fd;
 }
 
+/// A material constant's refusal: "WHAT = v is invalid; valid: > 0" (or ">= 0"), also for a value not finite.
+void require_constant(double v, bool zero_allowed, const std::string& what) {
+  if ((zero_allowed ? v >= 0 : v > 0) && std::isfinite(v)) return;
+  throw std::invalid_argument(what + " = " + number_text(v) +
+                              " is invalid; valid: " + (zero_allowed ? ">= 0" : "> 0"));
+}
+
 }  // namespace
 
 void Material::check_deformation(const Mat3& F, int dim) {
@@ -107,9 +114,7 @@ Voigt6 Material::spatial_tangent(const Mat3& F, int dim) const {
 }
 
 DeviatoricNeoHookean::DeviatoricNeoHookean(double shear_modulus) : G_(shear_modulus) {
-  if (!(shear_modulus > 0) || !std::isfinite(shear_modulus))
-    throw std::invalid_argument("shear modulus G = " + number_text(shear_modulus) +
-                                " is invalid; valid: > 0");
+  require_constant(shear_modulus, false, "shear modulus G");
 }
 
 Mat3 DeviatoricNeoHookean::second_piola(const Mat3& F, int dim) const {
@@ -162,9 +167,7 @@ double DeviatoricMooneyRivlin::strain_energy(const Mat3& F, int dim) const {
 
 DeviatoricStrainHardening::DeviatoricStrainHardening(double shear_modulus, double c3_ratio)
     : G_(shear_modulus), r_(c3_ratio), neo_hookean_(shear_modulus) {
-  if (!(c3_ratio >= 0) || !std::isfinite(c3_ratio))
-    throw std::invalid_argument("strain-hardening C3 / G = " + number_text(c3_ratio) +
-                                " is invalid; valid: >= 0");
+  require_constant(c3_ratio, true, "strain-hardening C3 / G");
 }
 
 Mat3 DeviatoricStrainHardening::second_piola(const Mat3& F, int dim) const {
@@ -186,13 +189,9 @@ double DeviatoricStrainHardening::strain_energy(const Mat3& F, int dim) const {
 }
 
 SkalakMembrane::SkalakMembrane(double shear_modulus, double area_ratio) : G_(shear_modulus), C_(area_ratio) {
-  if (!(shear_modulus > 0) || !std::isfinite(shear_modulus))
-    throw std::invalid_argument("shear modulus G = " + number_text(shear_modulus) +
-                                " is invalid; valid: > 0");
+  require_constant(shear_modulus, false, "shear modulus G");
   // The area-dilation modulus G h (1 + 2C) must be positive; C >= 0 also keeps W convex in the area.
-  if (!(area_ratio >= 0) || !std::isfinite(area_ratio))
-    throw std::invalid_argument("Skalak area-dilation ratio C = " + number_text(area_ratio) +
-                                " is invalid; valid: >= 0");
+  require_constant(area_ratio, true, "Skalak area-dilation ratio C");
 }
 
 namespace {
@@ -224,6 +223,49 @@ double SkalakMembrane::strain_energy(const Mat3& F, int dim) const {
   const Mat3 C = right_cauchy_green_3d(F, dim, "the Skalak law");
   const double i1 = C(0, 0) + C(1, 1) - 2, i2 = C(0, 0) * C(1, 1) - C(0, 1) * C(0, 1) - 1;
   return 0.25 * G_ * (i1 * i1 + 2 * i1 - 2 * i2 + C_ * i2 * i2) +
+         0.5 * G_ * (C(0, 2) * C(0, 2) + C(1, 2) * C(1, 2));
+}
+
+StrainHardeningMembrane::StrainHardeningMembrane(double shear_modulus, double c3_ratio, double area_ratio)
+    : G_(shear_modulus), r_(c3_ratio), C_(area_ratio) {
+  require_constant(shear_modulus, false, "shear modulus G");
+  require_constant(c3_ratio, true, "strain-hardening C3 / G");
+  require_constant(area_ratio, true, "area-dilation ratio C");
+}
+
+namespace {
+/// The in-plane invariants of the membrane law: the shape change beta, the area stretch J_s and I2s = J_s^2
+/// - 1.
+struct SurfaceInvariants {
+  double beta, area, i2;
+};
+SurfaceInvariants surface_invariants(const Mat3& C) {
+  const double det = C(0, 0) * C(1, 1) - C(0, 1) * C(0, 1), area = std::sqrt(det);
+  return {(C(0, 0) + C(1, 1)) / area - 2, area, det - 1};
+}
+}  // namespace
+
+Mat3 StrainHardeningMembrane::second_piola(const Mat3& F, int dim) const {
+  const Mat3 C = right_cauchy_green_3d(F, dim, "the strain-hardening membrane law");
+  const SurfaceInvariants v = surface_invariants(C);
+  // 2 dW/dC_s: the shape term through dbeta/dC_s = (I - (tr C_s / 2) C_s^{-1}) / J_s, C_s^{-1} = cof / J_s^2;
+  // the area term through dI2s/dC_s = cof(C_s).
+  const double shape = G_ * (1 + 6 * r_ * v.beta * v.beta) / v.area;
+  const double half_trace_over_det = 0.5 * (C(0, 0) + C(1, 1)) / (v.area * v.area);
+  const double area = 0.5 * G_ * (1 + 2 * C_) * v.i2;
+  Mat3 S = Mat3::Zero();
+  S(0, 0) = shape * (1 - half_trace_over_det * C(1, 1)) + area * C(1, 1);
+  S(1, 1) = shape * (1 - half_trace_over_det * C(0, 0)) + area * C(0, 0);
+  S(0, 1) = S(1, 0) = (shape * half_trace_over_det - area) * C(0, 1);
+  S(0, 2) = S(2, 0) = G_ * C(0, 2);
+  S(1, 2) = S(2, 1) = G_ * C(1, 2);
+  return S;
+}
+
+double StrainHardeningMembrane::strain_energy(const Mat3& F, int dim) const {
+  const Mat3 C = right_cauchy_green_3d(F, dim, "the strain-hardening membrane law");
+  const SurfaceInvariants v = surface_invariants(C);
+  return G_ * (0.5 * v.beta + r_ * v.beta * v.beta * v.beta) + 0.125 * G_ * (1 + 2 * C_) * v.i2 * v.i2 +
          0.5 * G_ * (C(0, 2) * C(0, 2) + C(1, 2) * C(1, 2));
 }
 

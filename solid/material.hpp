@@ -136,4 +136,32 @@ class SkalakMembrane final : public Material {
   double G_, C_;
 };
 
+/// Mills et al.'s strain hardening with an area term, a surface law for this code's thick membrane (3D only;
+/// F in the membrane's frame as for SkalakMembrane):
+///   W = G (beta/2 + r beta^3) + G (1 + 2C)/8 I2s^2 + G/2 (C13^2 + C23^2),
+/// beta = (C11 + C22) / J_s - 2 = lambda1/lambda2 + lambda2/lambda1 - 2 the in-plane change of shape (zero
+/// for any change of area alone), J_s = sqrt(C11 C22 - C12^2) = lambda1 lambda2 the area stretch, I2s = J_s^2
+/// - 1, r = `c3_ratio` (Mills': 1/30) and C = `area_ratio`. Where the area is kept (J_s = 1) beta is I1b - 3
+/// of the incompressible sheet, so the shape term is Mills' Yeoh law on the same stretches; the area term
+/// gives the area-dilation modulus G h (1 + 2C) of Skalak's law with the same C, so at small strains the two
+/// laws are the same (shear G h, area G h (1 + 2C), bending G (1 + C) h^3 / 6) and they part only at large
+/// ones. With cof(C_s) = [C22, -C12; -C12, C11] = J_s^2 C_s^{-1}:
+///   S_ab = G (1 + 6 r beta^2) (delta_ab - (tr C_s / 2) C_s^{-1}_ab) / J_s + G (1 + 2C)/2 I2s cof(C_s)_ab,
+///   S_a3 = G C_a3, S_33 = 0.
+class StrainHardeningMembrane final : public Material {
+ public:
+  StrainHardeningMembrane(double shear_modulus, double c3_ratio, double area_ratio);
+  /// dim must be 3, as for SkalakMembrane.
+  Mat3 second_piola(const Mat3& F, int dim) const override;
+  double strain_energy(const Mat3& F, int dim) const override;
+  std::string name() const override { return "strain_hardening_membrane"; }
+  double tangent_shear_modulus() const override { return G_; }
+  bool membrane_surface_law() const override { return true; }
+  double c3_ratio() const { return r_; }
+  double area_ratio() const { return C_; }
+
+ private:
+  double G_, r_, C_;
+};
+
 }  // namespace cellfsi::solid

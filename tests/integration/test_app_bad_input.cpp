@@ -405,21 +405,26 @@ TEST_F(CellfsiApp, BadMaterialLawsAndTheirConstantsAreRejected) {
   // nothing).
   const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
       {{"-solid_membrane_material", "hooke"},
-       "-solid_membrane_material = hooke is invalid; valid: neo_hookean, mooney_rivlin, strain_hardening or "
-       "skalak"},
+       "-solid_membrane_material = hooke is invalid; valid: neo_hookean, mooney_rivlin, strain_hardening, "
+       "skalak "
+       "or strain_hardening_membrane"},
       {{"-solid_membrane_material", "skalak"},
        "-solid_membrane_material = skalak is invalid; valid: neo_hookean, mooney_rivlin or strain_hardening "
        "for a 2D body (skalak: 3D membranes only)"},
+      {{"-solid_membrane_material", "strain_hardening_membrane"},
+       "-solid_membrane_material = strain_hardening_membrane is invalid; valid: neo_hookean, mooney_rivlin "
+       "or "
+       "strain_hardening for a 2D body (strain_hardening_membrane: 3D membranes only)"},
       {{"-solid_membrane_area_dilation", "5"},
-       "-solid_membrane_area_dilation = 5 is invalid; valid: only with -solid_membrane_material skalak (the "
-       "material is neo_hookean)"},
+       "-solid_membrane_area_dilation = 5 is invalid; valid: only with -solid_membrane_material skalak or "
+       "strain_hardening_membrane (the material is neo_hookean)"},
       {{"-solid_membrane_material", "mooney_rivlin", "-solid_membrane_mooney_rivlin_fraction", "1.5"},
        "-solid_membrane_mooney_rivlin_fraction = 1.5 is invalid; valid: 0 ... 1 (0: neo-Hookean)"},
       {{"-solid_membrane_material", "strain_hardening", "-solid_membrane_hardening_c3", "-0.1"},
        "-solid_membrane_hardening_c3 = -0.1 is invalid; valid: 0 ... 100"},
       {{"-solid_membrane_hardening_c3", "0.1"},
        "-solid_membrane_hardening_c3 = 0.1 is invalid; valid: only with -solid_membrane_material "
-       "strain_hardening (the material is neo_hookean)"},
+       "strain_hardening or strain_hardening_membrane (the material is neo_hookean)"},
       {{"-solid_membrane_material", "strain_hardening", "-solid_membrane_mooney_rivlin_fraction", "0.2"},
        "-solid_membrane_mooney_rivlin_fraction = 0.2 is invalid; valid: only with -solid_membrane_material "
        "mooney_rivlin (the material is strain_hardening)"}};

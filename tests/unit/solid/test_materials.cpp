@@ -391,16 +391,14 @@ TEST(SkalakMembrane, FreeEdgedStripGivesSkalaksTensionAndKeepsItsArea) {
               2 * (1 + 2 * kAreaRatio) / (1 + kAreaRatio), 1e-3);
 }
 
-TEST(SkalakMembrane, StressIsTheDerivativeOfTheEnergyAndTheTangentItsOwn) {
-  // F S = dW/dF by central differences; the spatial tangent (the base class's numerical one) against a
-  // perturbed deformation's stress; stress-free at rest, symmetric, objective, and turning the reference
-  // frame about the normal (axis 3) changes nothing while turning it about another axis does.
-  const solid::SkalakMembrane m(kG, kAreaRatio);
-  EXPECT_LT(m.second_piola(Mat3::Identity(), 3).norm(), 1e-12 * kG);
-  EXPECT_EQ(m.strain_energy(Mat3::Identity(), 3), 0.0);
-  EXPECT_EQ(m.tangent_shear_modulus(), kG);
-  EXPECT_TRUE(m.membrane_surface_law());
-  EXPECT_FALSE(solid::DeviatoricNeoHookean(kG).membrane_surface_law());
+namespace {
+
+/// A surface law's checks at random 3D deformations (up to 60 % distortion, 4 per size): F S = dW/dF by
+/// central differences, the spatial tangent (the base class's numerical one) against a perturbed
+/// deformation's stress (errors over `stiffness`, the law's largest modulus), S symmetric, W >= 0, objective,
+/// and W unchanged when the frame turns about the normal (axis 3) but changed when it turns about another
+/// axis. Returns the largest errors of the energy's derivative and of the tangent.
+std::pair<double, double> check_surface_law(const solid::Material& m, double stiffness) {
   std::mt19937 rng(23);
   std::uniform_real_distribution<double> U(-1, 1);
   const double h = 1e-6;
@@ -438,46 +436,65 @@ TEST(SkalakMembrane, StressIsTheDerivativeOfTheEnergyAndTheTangentItsOwn) {
       strain << D(0, 0), D(1, 1), D(2, 2), 2 * D(1, 2), 2 * D(0, 2), 2 * D(0, 1);
       const solid::Voigt6 c = m.spatial_tangent(F, 3);
       const double e = (solid::voigt(dtau - L * tau - tau * L.transpose()) - c * strain).norm() /
-                       (kG * (1 + kAreaRatio) * L.norm() * std::max(1.0, F.squaredNorm() * F.squaredNorm()));
+                       (stiffness * L.norm() * std::max(1.0, F.squaredNorm() * F.squaredNorm()));
       worst_tangent = std::max(worst_tangent, e);
       EXPECT_LT(e, 1e-7);
     }
+  return {worst_energy, worst_tangent};
+}
+
+}  // namespace
+
+TEST(SkalakMembrane, StressIsTheDerivativeOfTheEnergyAndTheTangentItsOwn) {
+  // Stress-free at rest, then check_surface_law's derivatives and invariances.
+  const solid::SkalakMembrane m(kG, kAreaRatio);
+  EXPECT_LT(m.second_piola(Mat3::Identity(), 3).norm(), 1e-12 * kG);
+  EXPECT_EQ(m.strain_energy(Mat3::Identity(), 3), 0.0);
+  EXPECT_EQ(m.tangent_shear_modulus(), kG);
+  EXPECT_TRUE(m.membrane_surface_law());
+  EXPECT_FALSE(solid::DeviatoricNeoHookean(kG).membrane_surface_law());
+  const auto [worst_energy, worst_tangent] = check_surface_law(m, kG * (1 + kAreaRatio));
   EXPECT_LT(worst_energy, 1e-7);
   std::printf("Skalak C = %g: largest |dW/dF - F S| / |F S| = %.1e; tangent error %.1e\n", kAreaRatio,
               worst_energy, worst_tangent);
 }
 
-TEST(SkalakMembrane, TransverseShearAndBendingOfTheThickShellCostEnergy) {
-  // Shear across the thickness, F = I + gamma e1 (x) e3, leaves the in-plane block of C as it is, so Skalak's
-  // surface energy alone would not see it (layers sliding freely); the transverse term gives it G gamma^2 / 2
-  // and the shear stress G gamma, as an isotropic solid of shear modulus G would.
-  const solid::SkalakMembrane m(kG, kAreaRatio);
+namespace {
+
+/// The thick shell's terms of a surface law of area ratio C. Shear across the thickness, F = I + gamma e1 (x)
+/// e3, leaves the in-plane block of C as it is, so a surface energy alone would not see it (layers sliding
+/// freely); the transverse term gives it G gamma^2 / 2 and the shear stress G gamma, as an isotropic solid of
+/// shear modulus G would. Cylindrical bending of a flat shell of thickness h by curvature kappa (x1 stretched
+/// by 1 + kappa z, x2 held, J = 1): the energy per unit area, by Gauss quadrature of the law through the
+/// thickness, against G (1 + C) kappa^2 h^3 / 12 (the small-strain bending stiffness of both surface laws;
+/// the neo-Hookean sheet's is G kappa^2 h^3 / 6: C = 1 gives the same).
+void expect_thick_shell_terms(const solid::Material& m, double C) {
   for (double gamma : {1e-3, 0.1, 0.5}) {
     Mat3 F = Mat3::Identity();
     F(0, 2) = gamma;
-    EXPECT_NEAR(m.strain_energy(F, 3), 0.5 * kG * gamma * gamma, 1e-12 * kG);
-    EXPECT_NEAR(cauchy(m, F, 3)(0, 2), kG * gamma, 1e-10 * kG);
+    EXPECT_NEAR(m.strain_energy(F, 3), 0.5 * kG * gamma * gamma, 1e-12 * kG) << m.name();
+    EXPECT_NEAR(cauchy(m, F, 3)(0, 2), kG * gamma, 1e-10 * kG) << m.name();
   }
-  // Cylindrical bending of a flat shell of thickness h by curvature kappa (x1 stretched by 1 + kappa z, x2
-  // held, J = 1): the energy per unit area, by Gauss quadrature of the law through the thickness, against
-  // G (1 + C) kappa^2 h^3 / 12 (the law's small-strain bending stiffness; the neo-Hookean sheet's is
-  // G kappa^2 h^3 / 6: C = 1 gives the same).
   const double h = 3.1623e-5, kappa = 1.0;  // kappa h = 3e-5: small strain
   const double gauss[3] = {-std::sqrt(0.6), 0.0, std::sqrt(0.6)}, weight[3] = {5.0 / 9, 8.0 / 9, 5.0 / 9};
-  for (double C : {1.0, kAreaRatio}) {
-    const solid::SkalakMembrane law(kG, C);
-    double energy = 0, neo = 0;
-    for (int g = 0; g < 3; ++g) {
-      const double z = 0.5 * h * gauss[g], l = 1 + kappa * z;
-      const Mat3 F = diagonal(l, 1, 1 / l);
-      energy += 0.5 * h * weight[g] * law.strain_energy(F, 3);
-      neo += 0.5 * h * weight[g] * solid::DeviatoricNeoHookean(kG).strain_energy(F, 3);
-    }
-    EXPECT_NEAR(energy / (kG * (1 + C) * kappa * kappa * h * h * h / 12), 1.0, 1e-4) << "C = " << C;
-    if (C == 1.0) {
-      EXPECT_NEAR(energy / neo, 1.0, 1e-4);
-    }
+  double energy = 0, neo = 0;
+  for (int g = 0; g < 3; ++g) {
+    const double z = 0.5 * h * gauss[g], l = 1 + kappa * z;
+    const Mat3 F = diagonal(l, 1, 1 / l);
+    energy += 0.5 * h * weight[g] * m.strain_energy(F, 3);
+    neo += 0.5 * h * weight[g] * solid::DeviatoricNeoHookean(kG).strain_energy(F, 3);
   }
+  EXPECT_NEAR(energy / (kG * (1 + C) * kappa * kappa * h * h * h / 12), 1.0, 1e-4)
+      << m.name() << " C = " << C;
+  if (C == 1.0) {
+    EXPECT_NEAR(energy / neo, 1.0, 1e-4) << m.name();
+  }
+}
+
+}  // namespace
+
+TEST(SkalakMembrane, TransverseShearAndBendingOfTheThickShellCostEnergy) {
+  for (double C : {1.0, kAreaRatio}) expect_thick_shell_terms(solid::SkalakMembrane(kG, C), C);
 }
 
 TEST(SkalakMembrane, BadConstantsTwoDimensionsAndInvertedElementsAreRefused) {
@@ -490,6 +507,133 @@ TEST(SkalakMembrane, BadConstantsTwoDimensionsAndInvertedElementsAreRefused) {
     ADD_FAILURE() << "2D accepted";
   } catch (const std::invalid_argument& e) {
     EXPECT_STREQ(e.what(), "the Skalak law is a law of a 3D membrane's surface; dim = 2");
+  }
+  Mat3 inverted = Mat3::Identity();
+  inverted(2, 2) = -1;
+  EXPECT_THROW(m.second_piola(inverted, 3), std::runtime_error);
+  EXPECT_THROW(m.strain_energy(inverted, 3), std::runtime_error);
+}
+
+// Mills et al.'s strain hardening with Skalak's area term (solid::StrainHardeningMembrane), a surface law in
+// the membrane's frame like Skalak's.
+namespace {
+
+/// The law's surface energy W_s / (G h) in the principal stretches, and its derivatives, written
+/// independently of the tensor form in material.cpp: beta = lambda1/lambda2 + lambda2/lambda1 - 2, W = beta/2
+/// + r beta^3 + (1 + 2C)/8 (lambda1^2 lambda2^2 - 1)^2.
+struct PrincipalHardening {
+  double r, C;
+  double dW(double l1, double l2, int which) const {  // dW/dlambda_which
+    const double beta = l1 / l2 + l2 / l1 - 2, i2 = l1 * l1 * l2 * l2 - 1;
+    const double shape = 0.5 + 3 * r * beta * beta, area = 0.5 * (1 + 2 * C) * i2;
+    return which == 1 ? shape * (1 / l2 - l2 / (l1 * l1)) + area * l1 * l2 * l2
+                      : shape * (1 / l1 - l1 / (l2 * l2)) + area * l1 * l1 * l2;
+  }
+  /// The free edge's lateral stretch (T2 = 0, by bisection) and T1 / (G h) = (1/lambda2) dW/dlambda1.
+  double lateral(double l1) const {
+    double lo = 0.05, hi = 5;
+    for (int it = 0; it < 200 && hi - lo > 1e-15 * hi; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (dW(l1, mid, 2) < 0 ? lo : hi) = mid;
+    }
+    return 0.5 * (lo + hi);
+  }
+  double tension(double l1) const { return dW(l1, lateral(l1), 1) / lateral(l1); }
+};
+
+}  // namespace
+
+TEST(StrainHardeningMembrane, FreeEdgedStripGivesTheTensionOfItsPrincipalStretches) {
+  // The thick sheet stretched along x1 (lateral stretch from the law's stress alone, as for Skalak's) against
+  // the principal-stretch form above; at small strain the same slope as Skalak's law of the same C (the same
+  // shear and area moduli); Mills' hardening raises the tension at large strain; C = 100 keeps the area
+  // within 1 % to e1 = 1. Skalak's law keeps it better at the same C (1.1 % against 6.4 % at C = 10, e1 = 1):
+  // its shear term grows with the area too.
+  for (double r : {0.0, kHardening})
+    for (double C : {0.0, 1.0, kAreaRatio, 100.0}) {
+      const solid::StrainHardeningMembrane m(kG, r, C);
+      const PrincipalHardening exact{r, C};
+      double worst = 0, area_at_1 = 0;
+      for (double e1 : {0.01, 0.1, 0.5, 1.0, 2.0}) {
+        const double lambda = std::sqrt(1 + 2 * e1);
+        double lateral = 0;
+        const double t = strip_tension(m, lambda, 3, &lateral), t_exact = exact.tension(lambda);
+        worst = std::max(worst, std::abs(t - t_exact) / t_exact);
+        EXPECT_NEAR(t, t_exact, 1e-9 * t_exact) << "r = " << r << " C = " << C << " e1 = " << e1;
+        EXPECT_NEAR(lateral, exact.lateral(lambda), 1e-12) << "r = " << r << " C = " << C << " e1 = " << e1;
+        if (C == 100.0 &&
+            e1 <= 1.0) {  // hardening of the shape term pulls the area open at larger e1 (3 % at 2)
+          EXPECT_NEAR(lambda * lateral, 1.0, 0.01) << "area stretch at e1 = " << e1;
+        }
+        if (e1 == 1.0) area_at_1 = lambda * lateral;
+      }
+      std::printf(
+          "strain-hardening membrane r = %.4f C = %5g: largest relative error of T1 %.1e; area stretch at "
+          "e1 = 1: %.4f\n",
+          r, C, worst, area_at_1);
+    }
+  const double small = std::sqrt(1 + 2e-5), large = std::sqrt(3.0);
+  for (double C : {1.0, kAreaRatio}) {
+    EXPECT_NEAR(strip_tension(solid::StrainHardeningMembrane(kG, kHardening, C), small, 3) / 1e-5,
+                2 * (1 + 2 * C) / (1 + C), 1e-3)
+        << C;
+    EXPECT_NEAR(strip_tension(solid::StrainHardeningMembrane(kG, kHardening, C), small, 3),
+                strip_tension(solid::SkalakMembrane(kG, C), small, 3),
+                1e-3 * strip_tension(solid::SkalakMembrane(kG, C), small, 3))
+        << C;
+  }
+  EXPECT_GT(strip_tension(solid::StrainHardeningMembrane(kG, kHardening, kAreaRatio), large, 3),
+            1.1 * strip_tension(solid::StrainHardeningMembrane(kG, 0.0, kAreaRatio), large, 3));
+}
+
+TEST(StrainHardeningMembrane, WhereTheAreaIsKeptItIsMillsLawAndAChangeOfAreaCostsOnlyTheAreaTerm) {
+  // In-plane deformations that keep the area (J_s = 1; the thickness unchanged, so J = 1 too): the energy is
+  // DeviatoricStrainHardening's, Mills' Yeoh law, at the same F. A change of area alone, diag(a, a, 1/a^2):
+  // beta = 0, so W = G (1 + 2C)/8 (a^4 - 1)^2.
+  const solid::StrainHardeningMembrane m(kG, kHardening, kAreaRatio);
+  const solid::DeviatoricStrainHardening mills(kG, kHardening);
+  for (double s : {0.05, 0.3, 1.0}) {
+    const Mat3 stretch = diagonal(1 + s, 1 / (1 + s), 1);
+    Mat3 shear = Mat3::Identity();
+    shear(0, 1) = 2 * s;
+    for (const Mat3& F : {stretch, shear, Mat3(rotation(3, 0.4) * shear)}) {
+      const double w = mills.strain_energy(F, 3);
+      EXPECT_NEAR(m.strain_energy(F, 3), w, 1e-12 * w) << "s = " << s;
+    }
+    const double a = 1 + s;
+    const double w_area = kG * (1 + 2 * kAreaRatio) / 8 * std::pow(std::pow(a, 4) - 1, 2);
+    EXPECT_NEAR(m.strain_energy(diagonal(a, a, 1 / (a * a)), 3), w_area, 1e-12 * w_area) << "a = " << a;
+  }
+}
+
+TEST(StrainHardeningMembrane, StressIsTheDerivativeOfTheEnergyTheTangentItsOwnAndTheShellIsSkalaks) {
+  // As SkalakMembrane's: stress-free at rest, check_surface_law's derivatives and invariances, and the thick
+  // shell's transverse-shear and bending terms (the same as Skalak's law of the same C at small strain).
+  const solid::StrainHardeningMembrane m(kG, kHardening, kAreaRatio);
+  EXPECT_LT(m.second_piola(Mat3::Identity(), 3).norm(), 1e-12 * kG);
+  EXPECT_EQ(m.strain_energy(Mat3::Identity(), 3), 0.0);
+  EXPECT_EQ(m.tangent_shear_modulus(), kG);
+  EXPECT_TRUE(m.membrane_surface_law());
+  const auto [worst_energy, worst_tangent] = check_surface_law(m, kG * (1 + 2 * kAreaRatio));
+  EXPECT_LT(worst_energy, 1e-7);
+  std::printf("strain-hardening membrane: largest |dW/dF - F S| / |F S| = %.1e; tangent error %.1e\n",
+              worst_energy, worst_tangent);
+  for (double C : {1.0, kAreaRatio})
+    expect_thick_shell_terms(solid::StrainHardeningMembrane(kG, kHardening, C), C);
+}
+
+TEST(StrainHardeningMembrane, BadConstantsTwoDimensionsAndInvertedElementsAreRefused) {
+  for (double bad : {-0.1, double(INFINITY), double(NAN)}) {
+    EXPECT_THROW(solid::StrainHardeningMembrane(kG, bad, kAreaRatio), std::invalid_argument) << bad;
+    EXPECT_THROW(solid::StrainHardeningMembrane(kG, kHardening, bad), std::invalid_argument) << bad;
+  }
+  EXPECT_THROW(solid::StrainHardeningMembrane(0.0, kHardening, kAreaRatio), std::invalid_argument);
+  const solid::StrainHardeningMembrane m(kG, kHardening, kAreaRatio);
+  try {
+    m.second_piola(Mat3::Identity(), 2);
+    ADD_FAILURE() << "2D accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "the strain-hardening membrane law is a law of a 3D membrane's surface; dim = 2");
   }
   Mat3 inverted = Mat3::Identity();
   inverted(2, 2) = -1;
