@@ -197,6 +197,10 @@ class Scene {
   /// Points of the membranes' mid-surfaces (sampled) that lie inside another membrane (in any periodic
   /// image): 0 while no two membranes overlap.
   int membrane_overlaps() const;
+  /// Without the repulsion, the least distance of the membranes' mid-surfaces (sampled as for
+  /// membrane_overlaps) from the walls [cm]; NaN where the domain has no wall (the repulsion, when on,
+  /// reports its own points' gap instead).
+  double membrane_wall_gap();
   /// Adds the current mid-length profile to the window's average (channel flows).
   void accumulate_profile();
   double average_from() const;  // start of the metrics' averaging window [s]
@@ -230,6 +234,7 @@ class Scene {
   double contact_wall_min_ = std::numeric_limits<double>::infinity();
   int membranes_ = 0;
   int overlaps_max_ = 0;     // the most membrane_overlaps() over the run
+  std::unique_ptr<coupling::Repulsion> wall_probe_;  // membrane_wall_gap's walls (no force: P0 = 0)
   double profile_from_ = 0;  // the window start the profile is summed from (average_from() of its run)
 };
 

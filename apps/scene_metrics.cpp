@@ -285,6 +285,8 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     m.emplace_back("repulsion_pressure", r->scale());
     if (std::isfinite(contact_cell_min_)) m.emplace_back("contact_cell_gap_min", contact_cell_min_);
     if (std::isfinite(contact_wall_min_)) m.emplace_back("contact_wall_gap_min", contact_wall_min_);
+  } else if (std::isfinite(contact_wall_min_)) {
+    m.emplace_back("contact_wall_gap_min", contact_wall_min_);  // (sampled, without the repulsion)
   }
   // Membranes that crossed, with or without the repulsion (a run without it shows what it prevents).
   if (membranes_ >= 2) m.emplace_back("contact_overlap_points_max", overlaps_max_);
@@ -422,6 +424,13 @@ std::vector<std::pair<std::string, double>> Scene::metrics() {
   if (coupler_ && coupler_->repulsion()) {
     if (membranes_ >= 2) last_.emplace_back("contact_cell_gap", contact_last_.cell_gap);
     if (s_.coupling.repulsion.walls) last_.emplace_back("contact_wall_gap", contact_last_.wall_gap);
+  } else if (coupler_ && membranes_ >= 1 && !s_.coupling.repulsion.enabled) {
+    // Without the repulsion: the membranes' least distance from the walls, sampled (where there are walls).
+    const double gap = membrane_wall_gap();
+    if (!std::isnan(gap)) {
+      contact_wall_min_ = std::min(contact_wall_min_, gap);
+      last_.emplace_back("contact_wall_gap", gap);
+    }
   }
   // Points of a membrane inside another, with or without the repulsion.
   if (membranes_ >= 2) {
@@ -496,6 +505,25 @@ int Scene::membrane_overlaps() const {
       }
     }
   return count;
+}
+
+double Scene::membrane_wall_gap() {
+  if (!wall_probe_)
+    wall_probe_ =
+        std::make_unique<coupling::Repulsion>(patch_, geometry::smallest_element_extent(patch_), 0.0);
+  Vec3 lo, hi, normal;
+  patch_.bounding_box(lo, hi);
+  if (!std::isfinite(wall_probe_->wall_distance(0.5 * (lo + hi), normal)))
+    return std::numeric_limits<double>::quiet_NaN();
+  double gap = std::numeric_limits<double>::infinity();
+  for (const solid::SolidSolver* b : bodies_) {
+    if (!b->is_membrane()) continue;
+    const geometry::Patch p = b->current_patch();
+    for (const Vec3& x :
+         s_.dim == 2 ? solid::mid_surface_points(p, 256, 1) : solid::mid_surface_points(p, 17, 33))
+      gap = std::min(gap, wall_probe_->wall_distance(x, normal));
+  }
+  return gap;
 }
 
 std::vector<std::pair<std::string, double>> Scene::shape_symmetry(std::size_t b) const {

@@ -915,14 +915,19 @@ TEST_F(CellfsiApp, TwoCapsulesCloserThanTheCutOffArePushedApartWithoutOverlap) {
   // opposite forces within one fluid element move their points apart only by the difference of the fluid's
   // response there); without it the distance is the same to round-off.
   EXPECT_GT(apart_on - apart_off, 0.01 * gap) << apart_on << " " << apart_off;
-  // Off: no repulsion, no gap columns, but the points of a membrane inside the other still counted (none:
-  // bodies placed overlapping are refused, and one step does not bring them together); a negative cut-off is
-  // refused.
+  // Off: no repulsion, no cell gap column, but the points of a membrane inside the other still counted (none:
+  // bodies placed overlapping are refused, and one step does not bring them together) and the membranes'
+  // distance from the walls sampled (the capsules' outer points 6 um - gap / 2 from the walls 16 um apart;
+  // one step moves them by under 1e-8 cm); a negative cut-off is refused.
   fs::remove_all(out_);
   ASSERT_EQ(cellfsi(with(base, {"-coupling_repulsion", "false", "-final_time", "5e-4"}), 120).exit_code, 0)
       << last_output_;
   const Csv off_csv = read_csv(out_ / "metrics.csv");
   EXPECT_LT(off_csv.column("contact_cell_gap"), 0);
+  const int w = off_csv.column("contact_wall_gap");
+  ASSERT_GE(w, 0);
+  EXPECT_NEAR(std::stod(off_csv.rows.front()[w]), 6e-4 - gap / 2, 1e-7);
+  EXPECT_NEAR(json_number(summary(), "contact_wall_gap_min").value_or(0), 6e-4 - gap / 2, 1e-7);
   const int o = off_csv.column("contact_overlap_points");
   ASSERT_GE(o, 0);
   EXPECT_EQ(std::stod(off_csv.rows.front()[o]), 0.0);
