@@ -441,7 +441,25 @@ def t_rbc_shear_3d():
              f"{d['jeffery']:.3f} (Jeffery's rigid oblate spheroid, r = 0.328)",
              f"{100 * (d['half_turn'] / d['jeffery'] - 1):+.0f} %", f"{d['s_step']}", d["memory"], d["commit"],
              code("cellfsi scenes/rbc_shear_3d.yaml -s_interface 1e9")]]
-    return table(rows, [f"REGISTRY['rbc_shear_3d'] ({note_link(d['note'])}; one rank beside other jobs)"])
+    sources = [f"REGISTRY['rbc_shear_3d'] ({note_link(d['note'])}; one rank beside other jobs)"]
+    # Ca 0.46 on the divergence-conforming space (bench/run_rbc_shear_3d.py): each box's half turns.
+    path = os.path.join(VAL, "rbc_shear_3d_ca046.md")
+    if os.path.exists(path):
+        sources.append(link_from_page(path))
+        for r in md_tables(path)[0]:
+            box, mesh = r["box, fluid elements"].split(", ")
+            half = [float(h) for h in r["half turns"].split(", ")] if r["half turns"] != "-" else []
+            flips = r["flips"]
+            what = ", ".join(f"{h:.1f}" for h in half) if half else f"flips at {flips} ms"
+            diff = ", ".join(f"{100 * (h / (1e3 * JEFFERY_RBC) - 1):+.0f} %" for h in half) if half else "-"
+            rows.append([f"{mesh.replace(' x ', 'x')} ({box} box), membrane 1 x {r['membrane']}", 2, "1e-4",
+                         "Ca 0.46, divergence-conforming space: half turns ms", what,
+                         f"{1e3 * JEFFERY_RBC:.1f} (Jeffery's rigid oblate spheroid, r = 0.328)", diff,
+                         r["s/step"], "-", commit_of(path), code("python3 bench/run_rbc_shear_3d.py")])
+    return table(rows, sources)
+
+
+JEFFERY_RBC = 3.141592653589793 * (0.328 + 1 / 0.328) / 700  # s: the half turn at Ca 0.46 (700 1/s)
 
 
 HARDENING_MEMBRANE = "strain_hardening_membrane"

@@ -1,0 +1,182 @@
+#!/usr/bin/env python3
+"""The 3D red blood cell in shear at Ca 0.46 (issue 47, item 3; docs/validation.md, "A red blood cell in 3D"):
+scenes/rbc_shear_3d.yaml at 700 1/s on the divergence-conforming space with its automatic membrane, in the
+scene's 12 um box, in a box twice as long along the flow (24 um, the same 0.75 um elements), and in one also
+twice as high (walls 24 um apart, to 25 ms), one rank each, one after the other. Writes a table
+(docs/validation/rbc_shear_3d_ca046.md) of the motion each run shows: the times theta (the long axis's
+inclination in the shear plane, metrics.csv) crosses zero downward and flips through +-90 deg, the half turns
+between them against Jeffery's rigid oblate spheroid (r = 0.328: pi (r + 1/r) / gammadot = 15.2 ms), the mean
+membrane rotation rate omega_TT, the cell's extents along the flow, the gradient and the vorticity, |r_A| and the
+cost; and a figure (docs/figures/rbc_shear_3d_ca046.png) of theta and the extents against time.
+
+    python3 bench/run_rbc_shear_3d.py              # the three boxes (about 1 h each on one core)
+    python3 bench/run_rbc_shear_3d.py --report     # the table and figure from the runs in --runs
+
+Options: --runs DIR (out/rbc_shear_3d_ca046) --build DIR (build) --table FILE --figure FILE --report
+--cases box12,box24,tall24 (the runs to make or report). A run whose summary.json says "completed" is not run
+again (one made with other options is refused). Exit code 3 when a run did not complete. Needs
+python3-matplotlib for the figure (scripts/install-deps.sh)."""
+import argparse
+import csv
+import math
+import os
+import re
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_common import (ROOT, check_kept_runs, fmt, provenance, pyplot, run_one, save_figure,  # noqa: E402
+                          summary_of, write_table)
+
+TOOL = "run_rbc_shear_3d.py"
+SCENE = "rbc_shear_3d.yaml"
+RATE = 700.0  # 1/s: Ca = mu gammadot R0 / (G h) = 0.012 * 700 * 3.27e-4 / 6e-3 = 0.46
+ASPECT = 0.328  # the Evans-Fung cell's thickness over its diameter, as a rigid oblate spheroid
+JEFFERY_HALF_TURN = math.pi * (ASPECT + 1 / ASPECT) / RATE
+COMMON = ["-shear_rate", f"{RATE:g}", "-dt", "1e-4", "-fluid_space", "div_conforming", "-fluid_dc_degree", "2"]
+# tag: (the box, its options after the common ones)
+CASES = {
+    "box12": ("12 x 12 x 12 um, 16 x 16 x 16", ["-final_time", "0.045"]),
+    "box24": ("24 x 12 x 12 um, 32 x 16 x 16", ["-final_time", "0.04", "-domain_size", "0.0024,0.0012,0.0012",
+                                                 "-fluid_elements", "32,16,16"]),
+    # (the walls twice as far apart: the cell spans 0.65 of the 12 um gap)
+    "tall24": ("24 x 24 x 12 um, 32 x 32 x 16", ["-final_time", "0.025", "-domain_size", "0.0024,0.0024,0.0012",
+                                                  "-fluid_elements", "32,32,16"]),
+}
+
+
+def metrics(args, tag):
+    try:
+        with open(os.path.join(args.runs, tag, "metrics.csv")) as f:
+            return [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+    except (OSError, ValueError):
+        return []
+
+
+def crossings(rows):
+    """(downward zero crossings of theta, flips through +-90 deg) [s], each by linear interpolation (a flip: theta
+    jumps from below -45 to above +45 deg between two steps, at the step's midpoint)."""
+    down, flips = [], []
+    for a, b in zip(rows, rows[1:]):
+        ta, tb = a["rbc_theta_deg"], b["rbc_theta_deg"]
+        if ta > 0 >= tb and ta - tb < 45:
+            down.append(a["time"] + (b["time"] - a["time"]) * ta / (ta - tb))
+        if ta < -45 and tb > 45:
+            flips.append(0.5 * (a["time"] + b["time"]))
+    return down, flips
+
+
+def seconds_per_step(log):
+    """The wall time per step from the run's log, between its first and last "step N/M ... elapsed E s" lines (a
+    restarted run's summary.json times only its last launch)."""
+    steps = []
+    try:
+        with open(log) as f:
+            for line in f:
+                m = re.match(r"step (\d+)/\d+ .* elapsed ([\d.]+) s", line)
+                if m:
+                    steps.append((int(m.group(1)), float(m.group(2))))
+    except OSError:
+        return float("nan")
+    if len(steps) < 2 or steps[-1][0] == steps[0][0]:
+        return float("nan")
+    return (steps[-1][1] - steps[0][1]) / (steps[-1][0] - steps[0][0])
+
+
+def row_of(args, tag, box, rows):
+    js = summary_of(args, tag) or {}
+    if not rows:
+        return f"| {box} | {js.get('status', 'not run')} | - | - | - | - | - | - | - | - |"
+    down, flips = crossings(rows)
+    half = [b - a for a, b in zip(down, down[1:])]
+    # The last whole cycle (from the last flip but one, or the whole run): its mean rates and extents.
+    t0 = flips[-2] if len(flips) >= 2 else rows[0]["time"]
+    last = [r for r in rows if r["time"] >= t0]
+    omega = sum(r["rbc_omega_tt"] for r in last) / len(last)
+    ext = {k: (min(r[f"rbc_extent_{k}"] for r in last) * 1e4, max(r[f"rbc_extent_{k}"] for r in last) * 1e4)
+           for k in "xyz"}
+    status = js.get("status", "running or stopped")
+    s_step = seconds_per_step(os.path.join(args.runs, tag + ".log"))
+    return (f"| {box} | {status}, to {rows[-1]['time'] * 1e3:.1f} ms | "
+            f"{', '.join(f'{t * 1e3:.2f}' for t in down) or '-'} | "
+            f"{', '.join(f'{t * 1e3:.2f}' for t in flips) or '-'} "
+            f"| {', '.join(f'{h * 1e3:.1f}' for h in half) or '-'} | {omega:.1f} | "
+            f"{ext['x'][0]:.2f}-{ext['x'][1]:.2f}, {ext['y'][0]:.2f}-{ext['y'][1]:.2f}, "
+            f"{ext['z'][0]:.2f}-{ext['z'][1]:.2f} | {fmt(js.get('rbc_max_abs_r_A'), '.1e')} | "
+            f"{fmt(js.get('rbc_elements_1'), '.0f')} x {fmt(js.get('rbc_elements_2'), '.0f')} | "
+            f"{fmt(s_step, '.1f')} |")
+
+
+def figure(args, runs):
+    plt = pyplot(TOOL)
+    if plt is None:
+        return
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
+    for (tag, (box, _)), style in zip(CASES.items(), ["-", "--", ":"]):
+        rows = runs.get(tag)
+        if not rows:
+            continue
+        t = [r["time"] * 1e3 for r in rows]
+        ax[0].plot(t, [r["rbc_theta_deg"] for r in rows], style, label=box)
+        for k, c in zip("xyz", ["C0", "C1", "C2"]):
+            ax[1].plot(t, [r[f"rbc_extent_{k}"] * 1e4 for r in rows], style, color=c,
+                       label=f"{k} ({'flow' if k == 'x' else 'gradient' if k == 'y' else 'vorticity'}), {box}")
+    ax[0].set_xlabel("t (ms)")
+    ax[0].set_ylabel("theta (deg)")
+    ax[0].set_title(f"inclination (Jeffery's half turn {JEFFERY_HALF_TURN * 1e3:.1f} ms)")
+    ax[0].legend(fontsize=8)
+    ax[1].set_xlabel("t (ms)")
+    ax[1].set_ylabel("extent (um)")
+    ax[1].set_title("extents of the mid-surface")
+    ax[1].legend(fontsize=6)
+    for a in ax:
+        a.grid(alpha=0.3)
+    save_figure(fig, args.figure, TOOL)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--runs", default=os.path.join(ROOT, "out", "rbc_shear_3d_ca046"))
+    ap.add_argument("--build", default=os.path.join(ROOT, "build"))
+    ap.add_argument("--table", default=os.path.join(ROOT, "docs", "validation", "rbc_shear_3d_ca046.md"))
+    ap.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "rbc_shear_3d_ca046.png"))
+    ap.add_argument("--cases", default=",".join(CASES))
+    ap.add_argument("--report", action="store_true", help="only the table and figure, from the runs in --runs")
+    args = ap.parse_args()
+    args.jobs = 1  # (provenance's "runs at a time")
+    cases = [c for c in args.cases.split(",") if c]
+    for c in cases:
+        if c not in CASES:
+            sys.exit(f"{TOOL}: --cases '{c}' is invalid: give {', '.join(CASES)}, comma-separated")
+    if not args.report and not os.path.isfile(os.path.join(args.build, "apps", "cellfsi")):
+        sys.exit(f"{TOOL}: --build {args.build} has no apps/cellfsi: build first (scripts/build.sh)")
+    os.makedirs(args.runs, exist_ok=True)
+    if not args.report:
+        check_kept_runs(TOOL, args, [(c, None, COMMON + CASES[c][1]) for c in cases])
+    runs, lines, failed = {}, [], False
+    for c in cases:
+        if not args.report:
+            run_one(args, c, SCENE, COMMON + CASES[c][1])
+        runs[c] = metrics(args, c)
+        js = summary_of(args, c)
+        failed = failed or not js or js.get("status") != "completed"
+        lines.append(row_of(args, c, CASES[c][0], runs[c]))
+    every = ",".join(CASES)
+    command = "python3 bench/run_rbc_shear_3d.py" + (f" --cases {args.cases}" if args.cases != every else "") + (
+        " --report" if args.report else "")
+    out = [provenance(args, command), "",
+           f"`cellfsi scenes/{SCENE} {' '.join(COMMON)}` with each box's options (the membrane from the mesh); Ca "
+           "0.46, viscosity ratio 1, walls 12 um apart (24 in the tall box). Times in ms; theta's downward zero "
+           "crossings and its flips through +-90 deg; half turns between the zero crossings (Jeffery: "
+           f"{JEFFERY_HALF_TURN * 1e3:.1f} ms); omega_TT (the membrane's rotation rate, 1/s) and the extents (um; "
+           "flow x, gradient y, vorticity z) over "
+           "the last whole turn (from the last flip but one; the whole run before two flips).", "",
+           "| box, fluid elements | status | theta = 0 (down) | flips | half turns | omega_TT | extents x, y, z "
+           "| max abs r_A | membrane | s/step |", "|---|---|---|---|---|---|---|---|---|---|"] + lines
+    write_table(args.table, out)
+    figure(args, runs)
+    if failed:
+        sys.exit(3)
+
+
+if __name__ == "__main__":
+    main()
