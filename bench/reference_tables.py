@@ -447,7 +447,9 @@ def t_rbc_shear_3d():
     if os.path.exists(path):
         sources.append(link_from_page(path))
         for r in md_tables(path)[0]:
-            box, mesh = r["box, fluid elements"].split(", ")
+            if not r["status"].startswith("completed"):
+                continue
+            box, mesh = r["box, fluid elements"].split(", ", 1)
             half = [float(h) for h in r["half turns"].split(", ")] if r["half turns"] != "-" else []
             flips = r["flips"]
             what = ", ".join(f"{h:.1f}" for h in half) if half else f"flips at {flips} ms"

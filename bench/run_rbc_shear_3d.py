@@ -2,19 +2,20 @@
 """The 3D red blood cell in shear at Ca 0.46 (issue 47, item 3; docs/validation.md, "A red blood cell in 3D"):
 scenes/rbc_shear_3d.yaml at 700 1/s on the divergence-conforming space with its automatic membrane, in the
 scene's 12 um box, in a box twice as long along the flow (24 um, the same 0.75 um elements), and in one also
-twice as high (walls 24 um apart, to 25 ms), one rank each, one after the other. Writes a table
-(docs/validation/rbc_shear_3d_ca046.md) of the motion each run shows: the times theta (the long axis's
+twice as high (walls 24 um apart, to 25 ms), and in the long box with a cytosol 5 times as viscous as the plasma
+(to 25 ms), one rank each, one after the other. Writes a table (docs/validation/rbc_shear_3d_ca046.md) of the
+motion each run shows: the times theta (the long axis's
 inclination in the shear plane, metrics.csv) crosses zero downward and flips through +-90 deg, the half turns
 between them against Jeffery's rigid oblate spheroid (r = 0.328: pi (r + 1/r) / gammadot = 15.2 ms), the mean
 membrane rotation rate omega_TT, the cell's extents along the flow, the gradient and the vorticity, |r_A| and the
 cost; and a figure (docs/figures/rbc_shear_3d_ca046.png) of theta and the extents against time.
 
-    python3 bench/run_rbc_shear_3d.py              # the three boxes (about 1 h each on one core)
+    python3 bench/run_rbc_shear_3d.py              # the four runs (about 1 h each on one core)
     python3 bench/run_rbc_shear_3d.py --report     # the table and figure from the runs in --runs
 
 Options: --runs DIR (out/rbc_shear_3d_ca046) --build DIR (build) --table FILE --figure FILE --report
---cases box12,box24,tall24 (the runs to make or report). A run whose summary.json says "completed" is not run
-again (one made with other options is refused). Exit code 3 when a run did not complete. Needs
+--cases box12,box24,tall24,box24_ratio5 (the runs to make or report). A run whose summary.json says "completed"
+is not run again (one made with other options is refused). Exit code 3 when a run did not complete. Needs
 python3-matplotlib for the figure (scripts/install-deps.sh)."""
 import argparse
 import csv
@@ -41,6 +42,10 @@ CASES = {
     # (the walls twice as far apart: the cell spans 0.65 of the 12 um gap)
     "tall24": ("24 x 24 x 12 um, 32 x 32 x 16", ["-final_time", "0.025", "-domain_size", "0.0024,0.0024,0.0012",
                                                   "-fluid_elements", "32,32,16"]),
+    # (a cytosol 5 times as viscous as the plasma, the physiological ratio)
+    "box24_ratio5": ("24 x 12 x 12 um, 32 x 16 x 16, viscosity ratio 5",
+                     ["-final_time", "0.025", "-domain_size", "0.0024,0.0012,0.0012", "-fluid_elements", "32,16,16",
+                      "-solid_rbc_inner_viscosity", "0.06"]),
 }
 
 
@@ -66,8 +71,8 @@ def crossings(rows):
 
 
 def seconds_per_step(log):
-    """The wall time per step from the run's log, between its first and last "step N/M ... elapsed E s" lines (a
-    restarted run's summary.json times only its last launch)."""
+    """The wall time per step from a run's log (one launch's: `launch` writes it afresh), between its first and
+    last "step N/M ... elapsed E s" lines; summary.json's wall time would be a restarted run's last launch's."""
     steps = []
     try:
         with open(log) as f:
@@ -87,10 +92,11 @@ def row_of(args, tag, box, rows):
     if not rows:
         return f"| {box} | {js.get('status', 'not run')} | - | - | - | - | - | - | - | - |"
     down, flips = crossings(rows)
-    half = [b - a for a, b in zip(down, down[1:])]
-    # The last whole cycle (from the last flip but one, or the whole run): its mean rates and extents.
-    t0 = flips[-2] if len(flips) >= 2 else rows[0]["time"]
-    last = [r for r in rows if r["time"] >= t0]
+    # A half turn: between two downward zero crossings with a flip between them (a swing about zero is none).
+    half = [b - a for a, b in zip(down, down[1:]) if any(a < f < b for f in flips)]
+    # The last whole turn (between the last two flips, or the whole run): its mean rate and extents.
+    t0, t1 = (flips[-2], flips[-1]) if len(flips) >= 2 else (rows[0]["time"], rows[-1]["time"])
+    last = [r for r in rows if t0 <= r["time"] <= t1]
     omega = sum(r["rbc_omega_tt"] for r in last) / len(last)
     ext = {k: (min(r[f"rbc_extent_{k}"] for r in last) * 1e4, max(r[f"rbc_extent_{k}"] for r in last) * 1e4)
            for k in "xyz"}
@@ -111,7 +117,7 @@ def figure(args, runs):
     if plt is None:
         return
     fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
-    for (tag, (box, _)), style in zip(CASES.items(), ["-", "--", ":"]):
+    for (tag, (box, _)), style in zip(CASES.items(), ["-", "--", ":", "-."]):
         rows = runs.get(tag)
         if not rows:
             continue
@@ -165,11 +171,11 @@ def main():
         " --report" if args.report else "")
     out = [provenance(args, command), "",
            f"`cellfsi scenes/{SCENE} {' '.join(COMMON)}` with each box's options (the membrane from the mesh); Ca "
-           "0.46, viscosity ratio 1, walls 12 um apart (24 in the tall box). Times in ms; theta's downward zero "
-           "crossings and its flips through +-90 deg; half turns between the zero crossings (Jeffery: "
-           f"{JEFFERY_HALF_TURN * 1e3:.1f} ms); omega_TT (the membrane's rotation rate, 1/s) and the extents (um; "
-           "flow x, gradient y, vorticity z) over "
-           "the last whole turn (from the last flip but one; the whole run before two flips).", "",
+           "0.46, viscosity ratio 1 unless said, walls 12 um apart (24 in the tall box). Times in ms; theta's "
+           "downward zero crossings and its flips through +-90 deg; half turns between zero crossings with a flip "
+           f"between them (Jeffery: {JEFFERY_HALF_TURN * 1e3:.1f} ms); omega_TT (the membrane's rotation rate, 1/s) "
+           "and the extents (um; flow x, gradient y, vorticity z) over the last whole turn (between the last two "
+           "flips; the whole run before two flips).", "",
            "| box, fluid elements | status | theta = 0 (down) | flips | half turns | omega_TT | extents x, y, z "
            "| max abs r_A | membrane | s/step |", "|---|---|---|---|---|---|---|---|---|---|"] + lines
     write_table(args.table, out)
