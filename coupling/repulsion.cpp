@@ -220,33 +220,27 @@ RepulsionStats Repulsion::forces(const std::vector<RepulsionBody>& bodies,
     }
   // A membrane that spans a period less r_c meets its own periodic image (a cell stretched along a short
   // periodic box): its points take part against their images, not against their neighbours in one image.
-  const std::vector<char> with_others = active;
-  std::vector<char> self(nb, 0);
-  for (int a = 0; a < nb; ++a) {
-    if (!n_points(a)) continue;
+  // Whether another image of the box [xlo, xhi] meets body a's box grown by r_c: for a's own box, whether a
+  // meets its own image; for one of its points, whether that point can (only the points at the box's ends;
+  // the others skip their own body's points).
+  const auto meets_own_image = [&](int a, const Vec3& xlo, const Vec3& xhi) {
     for (const Vec3& s : images) {
       if (s.isZero()) continue;
       bool m = true;
       for (int d = 0; d < dim_; ++d)
-        m = m && lo[a][d] - cutoff_ <= hi[a][d] + s[d] && lo[a][d] + s[d] <= hi[a][d] + cutoff_;
-      self[a] = self[a] || m;
-    }
-    active[a] = active[a] || self[a];
-  }
-  for (int b = 0; b < nb; ++b) n_active += active[b];
-  if (n_active == 0) return st;
-  // Whether a point of such a body can meet its own image: some image of it lies in the body's box grown by
-  // r_c (only the points at the box's ends; the others skip their own body's points).
-  const auto near_own_image = [&](int a, const Vec3& x) {
-    for (const Vec3& s : images) {
-      if (s.isZero()) continue;
-      bool m = true;
-      for (int d = 0; d < dim_; ++d)
-        m = m && lo[a][d] - cutoff_ <= x[d] + s[d] && x[d] + s[d] <= hi[a][d] + cutoff_;
+        m = m && lo[a][d] - cutoff_ <= xhi[d] + s[d] && xlo[d] + s[d] <= hi[a][d] + cutoff_;
       if (m) return true;
     }
     return false;
   };
+  const std::vector<char> with_others = active;
+  std::vector<char> self(nb, 0);
+  for (int a = 0; a < nb; ++a) {
+    self[a] = n_points(a) && meets_own_image(a, lo[a], hi[a]);
+    active[a] = active[a] || self[a];
+  }
+  for (int b = 0; b < nb; ++b) n_active += active[b];
+  if (n_active == 0) return st;
 
   // The active bodies' points sorted into the fluid elements that hold them (counting sort).
   const int n_el = n_[0] * n_[1] * n_[2];
@@ -298,7 +292,7 @@ RepulsionStats Repulsion::forces(const std::vector<RepulsionBody>& bodies,
     if (!active[a]) continue;
     for (int i = 0; i < n_points(a); ++i) {
       const Vec3& x = (*bodies[a].x)[i];
-      const bool own = self[a] && near_own_image(a, x);
+      const bool own = self[a] && meets_own_image(a, x, x);
       if (!with_others[a] && !own) continue;
       const geometry::Index3 e = element_of(a, i);
       touched.clear();
