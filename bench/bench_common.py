@@ -96,11 +96,18 @@ def same_value(a, b):
         return a == b
 
 
+def output_only(name):
+    """Whether a cellfsi or PETSc option changes only what a run writes or shows, not its results."""
+    return (name in ("output_every", "output_dir", "output_dir_adopt", "checkpoint_every", "restart", "log_view")
+            or name.endswith(("_monitor", "_view")))
+
+
 def check_kept_runs(tool, args, runs):
     """Exits (code 1) when a completed run that run_one would keep was made with other values of the options
-    it would be run with now (a folder of another sweep or s_I), naming the folder and the options."""
+    it would be run with now (a folder of another sweep or s_I), or with an option it would not be run with
+    now (another box or law), naming the folder and the options. `runs`: (tag, scene file or None, options)."""
     bad = []
-    for tag, _, options in runs:
+    for tag, scene, options in runs:
         summary = os.path.join(args.runs, tag, "summary.json")
         if not os.path.isfile(summary):
             continue
@@ -109,8 +116,16 @@ def check_kept_runs(tool, args, runs):
         if js.get("status") != "completed":
             continue
         ran = option_values(shlex.split(js.get("command_line") or ""))
+        asked = option_values(options)
         differ = [f"-{k} {v} (the run: {ran[k] if k in ran else 'not set'})"
-                  for k, v in option_values(options).items() if not same_value(ran.get(k), v)]
+                  for k, v in asked.items() if not same_value(ran.get(k), v)]
+        # Options the run had and run_one would not pass, but for those that change only what is written or
+        # shown (the output, checkpoints, -restart, monitors and -log_view); paper_space adds the space and, for a
+        # scene it names (unknown without `scene`), the membrane.
+        passed = option_values(paper_space(options, scene))
+        differ += [f"-{k}{'' if ran[k] is None else ' ' + ran[k]} (the run's; not asked now)"
+                   for k in ran if k not in passed and not output_only(k)
+                   and not (scene is None and k == "solid_membrane_elements")]
         if differ:
             bad.append(f"{os.path.join(args.runs, tag)}: {', '.join(differ)}")
     if bad:

@@ -79,7 +79,7 @@ def main():
                    "-output_every", "0"] + extra
         runs.append((f"{nx}x{ny}", nx, options))
     os.makedirs(args.runs, exist_ok=True)
-    check_kept_runs(TOOL, args, [(tag, None, o) for tag, _, o in runs])
+    check_kept_runs(TOOL, args, [(tag, SCENE, o) for tag, _, o in runs])
     if not args.report:
         with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
             for tag, status in pool.map(lambda r: run_one(args, r[0], SCENE, r[2]), runs):

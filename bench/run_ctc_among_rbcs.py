@@ -340,7 +340,7 @@ def main():
             runs.append((f"{args.mesh}_h{h:g}_s{seed}", h, seed,
                          common + ["-solid_rbc_count", str(count), "-solid_rbc_seed", str(seed)]))
     if not args.report:
-        check_kept_runs(TOOL, args, [(tag, None, opts) for tag, _, _, opts in runs])
+        check_kept_runs(TOOL, args, [(tag, SCENE if h > 0 else ALONE, opts) for tag, h, _, opts in runs])
         with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
             for tag, what in pool.map(lambda r: run_one(args, r[0], SCENE if r[1] > 0 else ALONE, r[3]), runs):
                 print(f"{TOOL}: {tag}: {what}", flush=True)

@@ -170,7 +170,7 @@ def main():
                 f"_{cell}" if cell in ("rbc", "ctc") else "")
             runs.append((tag, re_p, nx, dt, y0, ca, cell, options + extra))
     os.makedirs(args.runs, exist_ok=True)
-    check_kept_runs(TOOL, args, [(tag, None, o) for tag, *_, o in runs])
+    check_kept_runs(TOOL, args, [(tag, SCENE, o) for tag, *_, o in runs])
     if not args.report:
         with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
             for tag, status in pool.map(lambda r: run_one(args, r[0], SCENE, r[7]), runs):
