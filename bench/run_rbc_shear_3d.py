@@ -19,6 +19,7 @@ is not run again (one made with other options is refused). Exit code 3 when a ru
 python3-matplotlib for the figure (scripts/install-deps.sh)."""
 import argparse
 import csv
+import itertools
 import math
 import os
 import re
@@ -45,6 +46,13 @@ CASES = {
     # (a cytosol 5 times as viscous as the plasma, the physiological ratio; in the 24 um box a step took 25 s)
     "box12_ratio5": ("12 x 12 x 12 um, 16 x 16 x 16, viscosity ratio 5",
                      ["-final_time", "0.02", "-solid_rbc_inner_viscosity", "0.06"]),
+    # (Skalak's law with its area term, C = 10: the area-dilation modulus 21 G h; the same G h)
+    "box12_skalak": ("12 x 12 x 12 um, 16 x 16 x 16, Skalak's law (C = 10)",
+                     ["-final_time", "0.025", "-solid_rbc_material", "skalak"]),
+    # (the axis of symmetry 45 deg out of the shear plane at the start, where the others have it in the plane:
+    # does the cell drift to rolling, its axis along the vorticity, or back to tumbling?)
+    "box12_tilt45": ("12 x 12 x 12 um, 16 x 16 x 16, axis 45 deg out of the shear plane",
+                     ["-final_time", "0.06", "-solid_rbc_angle", "45"]),
 }
 
 
@@ -89,7 +97,7 @@ def seconds_per_step(log):
 def row_of(args, tag, box, rows):
     js = summary_of(args, tag) or {}
     if not rows:
-        return f"| {box} | {js.get('status', 'not run')} | - | - | - | - | - | - | - | - |"
+        return f"| {box} | {js.get('status', 'not run')} | - | - | - | - | - | - | - | - | - |"
     down, flips = crossings(rows)
     # A half turn: between two downward zero crossings with a flip between them (a swing about zero is none).
     half = [b - a for a, b in zip(down, down[1:]) if any(a < f < b for f in flips)]
@@ -101,12 +109,17 @@ def row_of(args, tag, box, rows):
            for k in "xyz"}
     status = js.get("status", "running or stopped")
     s_step = seconds_per_step(os.path.join(args.runs, tag + ".log"))
+    # The short axis's angle to the vorticity at the start and the end (runs made before the metric: none).
+    tilt = "-"
+    if "rbc_short_axis_to_vorticity_deg" in rows[0]:
+        tilt = (f"{rows[0]['rbc_short_axis_to_vorticity_deg']:.1f} / "
+                f"{rows[-1]['rbc_short_axis_to_vorticity_deg']:.1f}")
     return (f"| {box} | {status}, to {rows[-1]['time'] * 1e3:.1f} ms | "
             f"{', '.join(f'{t * 1e3:.2f}' for t in down) or '-'} | "
             f"{', '.join(f'{t * 1e3:.2f}' for t in flips) or '-'} "
             f"| {', '.join(f'{h * 1e3:.1f}' for h in half) or '-'} | {omega:.1f} | "
             f"{ext['x'][0]:.2f}-{ext['x'][1]:.2f}, {ext['y'][0]:.2f}-{ext['y'][1]:.2f}, "
-            f"{ext['z'][0]:.2f}-{ext['z'][1]:.2f} | {fmt(js.get('rbc_max_abs_r_A'), '.1e')} | "
+            f"{ext['z'][0]:.2f}-{ext['z'][1]:.2f} | {tilt} | {fmt(js.get('rbc_max_abs_r_A'), '.1e')} | "
             f"{fmt(js.get('rbc_elements_1'), '.0f')} x {fmt(js.get('rbc_elements_2'), '.0f')} | "
             f"{fmt(s_step, '.1f')} |")
 
@@ -115,25 +128,26 @@ def figure(args, runs):
     plt = pyplot(TOOL)
     if plt is None:
         return
-    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
-    for (tag, (box, _)), style in zip(CASES.items(), ["-", "--", ":", "-."]):
+    fig, ax = plt.subplots(1, 3, figsize=(15, 4.2))
+    for k, ((tag, (box, _)), style) in enumerate(zip(CASES.items(), itertools.cycle(["-", "--", ":", "-."]))):
         rows = runs.get(tag)
         if not rows:
             continue
         t = [r["time"] * 1e3 for r in rows]
-        ax[0].plot(t, [r["rbc_theta_deg"] for r in rows], style, label=box)
-        for k, c in zip("xyz", ["C0", "C1", "C2"]):
-            ax[1].plot(t, [r[f"rbc_extent_{k}"] * 1e4 for r in rows], style, color=c,
-                       label=f"{k} ({'flow' if k == 'x' else 'gradient' if k == 'y' else 'vorticity'}), {box}")
-    ax[0].set_xlabel("t (ms)")
+        ax[0].plot(t, [r["rbc_theta_deg"] for r in rows], style, color=f"C{k}", label=box)
+        ax[1].plot(t, [r["rbc_extent_x"] * 1e4 for r in rows], style, color=f"C{k}")
+        ax[1].plot(t, [r["rbc_extent_z"] * 1e4 for r in rows], style, color=f"C{k}", lw=0.6)
+        if "rbc_short_axis_to_vorticity_deg" in rows[0]:
+            ax[2].plot(t, [r["rbc_short_axis_to_vorticity_deg"] for r in rows], style, color=f"C{k}")
     ax[0].set_ylabel("theta (deg)")
     ax[0].set_title(f"inclination (Jeffery's half turn {JEFFERY_HALF_TURN * 1e3:.1f} ms)")
-    ax[0].legend(fontsize=8)
-    ax[1].set_xlabel("t (ms)")
+    ax[0].legend(fontsize=7)
     ax[1].set_ylabel("extent (um)")
-    ax[1].set_title("extents of the mid-surface")
-    ax[1].legend(fontsize=6)
+    ax[1].set_title("mid-surface's extent along the flow (thick) and the vorticity (thin)")
+    ax[2].set_ylabel("angle (deg)")
+    ax[2].set_title("short axis to the vorticity (90: in the shear plane, 0: rolling)")
     for a in ax:
+        a.set_xlabel("t (ms)")
         a.grid(alpha=0.3)
     save_figure(fig, args.figure, TOOL)
 
@@ -156,7 +170,7 @@ def main():
         sys.exit(f"{TOOL}: --build {args.build} has no apps/cellfsi: build first (scripts/build.sh)")
     os.makedirs(args.runs, exist_ok=True)
     if not args.report:
-        check_kept_runs(TOOL, args, [(c, None, COMMON + CASES[c][1]) for c in cases])
+        check_kept_runs(TOOL, args, [(c, SCENE, COMMON + CASES[c][1]) for c in cases])
     runs, lines, failed = {}, [], False
     for c in cases:
         if not args.report:
@@ -174,9 +188,11 @@ def main():
            "downward zero crossings and its flips through +-90 deg; half turns between zero crossings with a flip "
            f"between them (Jeffery: {JEFFERY_HALF_TURN * 1e3:.1f} ms); omega_TT (the membrane's rotation rate, 1/s) "
            "and the extents (um; flow x, gradient y, vorticity z) over the last whole turn (between the last two "
-           "flips; the whole run before two flips).", "",
+           "flips; the whole run before two flips); the short axis's angle to the vorticity (deg; 90: in the shear "
+           "plane, 0: rolling) at the start and the end.", "",
            "| box, fluid elements | status | theta = 0 (down) | flips | half turns | omega_TT | extents x, y, z "
-           "| max abs r_A | membrane | s/step |", "|---|---|---|---|---|---|---|---|---|---|"] + lines
+           "| short axis to vorticity | max abs r_A | membrane | s/step |",
+           "|---|---|---|---|---|---|---|---|---|---|---|"] + lines
     write_table(args.table, out)
     figure(args, runs)
     if failed:

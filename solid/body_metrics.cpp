@@ -292,6 +292,10 @@ void BodyTracker::record(double time, const Patch& current, const MetricShare& s
     for (int r = 0; r < 2; ++r)
       for (int c = 0; c < 2; ++c) in_plane.second_moment(r, c) = region.second_moment(ix[r], ix[c]);
     axis = geometry::long_axis_angle(in_plane);
+    // The short axis (an RBC's axis of symmetry) against the vorticity direction, the axis normal to the
+    // shear plane: 0 when the body rolls about it, 90 deg when the short axis lies in the shear plane.
+    const int vorticity = 3 - plane_dir_;
+    short_axis_to_vorticity_ = std::acos(std::min(1.0, std::abs(ax.axes(vorticity, 2)))) * 180 / kPi;
   }
   s.anisotropy = ax.values[dim_ - 1] > 0 ? ax.values[0] / ax.values[dim_ - 1] - 1 : 0.0;
   if (membrane_) s.stretch = largest_stretch(current, share);
@@ -327,6 +331,7 @@ std::vector<Metric> BodyTracker::metrics() const {
   m.emplace_back("theta_deg", elongated_ || s.anisotropy > kRoundShape
                                   ? wrap(s.axis, kPi) * 180 / kPi
                                   : std::numeric_limits<double>::quiet_NaN());
+  if (dim_ == 3) m.emplace_back("short_axis_to_vorticity_deg", short_axis_to_vorticity_);
   if (membrane_) {
     m.emplace_back("omega_tt", w_mat);
     if (elongated_) m.emplace_back("omega_tu", w_axis);

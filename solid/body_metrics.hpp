@@ -28,6 +28,7 @@
 // Angles are taken in the shear plane spanned by x and `plane_dir` (the wall-normal direction).
 #include <Eigen/Dense>
 #include <functional>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -60,7 +61,8 @@ class BodyTracker {
   /// the ranks that hold it: each calls it with the same patch and its own part.
   void record(double time, const geometry::Patch& current, const MetricShare& share = {});
 
-  /// Values at the last record (omega: over the last interval; 0 before the second record).
+  /// Values at the last record (omega: over the last interval; 0 before the second record; 3D: the short
+  /// axis's angle to the vorticity direction, short_axis_to_vorticity_deg).
   std::vector<Metric> metrics() const;
   /// The run's results: final r_A and r_P, the largest |r_A| and |r_P|, the largest anisotropy of the shape
   /// (largest / smallest second moment - 1) with its time and centroid x, and over the records with time >=
@@ -102,6 +104,9 @@ class BodyTracker {
   bool face_bounds_ = false;  // a bulky body whose outer face bounds it (its inner face has no measure)
   int dim_, plane_dir_;
   bool elongated_ = false;
+  // 3D: the angle [deg] between the current shape's short principal axis and the vorticity direction (not
+  // part of state(): recomputed by each record; NaN after a restore until the next).
+  double short_axis_to_vorticity_ = std::numeric_limits<double>::quiet_NaN();
   double area0_ = 0, boundary0_ = 0;
   std::vector<geometry::Param> material_xi_;
   std::vector<double> last_angles_;  // unwrapped, per material point

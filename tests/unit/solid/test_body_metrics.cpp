@@ -82,6 +82,33 @@ TEST(BodyTracker, TumblingRbcDiscHasItsInclinationInTheShearPlane) {
   EXPECT_EQ(t.regime(0.0), "tumbling");
 }
 
+TEST(BodyTracker, ShortAxisToVorticityTellsRollingFromTumbling) {
+  // The 3D RBC's axis of symmetry (its short axis, along z as built) turned about y by a: its angle to the
+  // vorticity direction (z, normal to the x-y shear plane) is a, whatever the turn about z that follows (a
+  // flip keeps it); with the gradient along z (plane_dir 2) the vorticity is y, and the same body gives 90
+  // deg.
+  const Vec3 c(6e-4, 6e-4, 6e-4);
+  const Patch rbc = geometry::biconcave_rbc_3d(3e-5, 8, 16, 2, c);
+  for (const double a : {0.0, 30.0, 45.0, 60.0, 90.0}) {
+    const Mat3 tilt = Eigen::AngleAxisd(a * kPi / 180, Vec3::UnitY()).toRotationMatrix();
+    const Patch tilted = geometry::transformed(rbc, tilt, c - tilt * c);
+    solid::BodyTracker t(tilted, true);
+    for (int k = 0; k <= 4; ++k) {
+      const Mat3 A = Eigen::AngleAxisd(-0.4 * k, Vec3::UnitZ()).toRotationMatrix();
+      t.record(1e-3 * k, geometry::transformed(tilted, A, c - A * c));
+      EXPECT_NEAR(as_map(t.metrics()).at("short_axis_to_vorticity_deg"), a, 1e-6) << a << " deg, step " << k;
+    }
+    solid::BodyTracker across(tilted, true, 2);
+    across.record(0.0, tilted);
+    EXPECT_NEAR(as_map(across.metrics()).at("short_axis_to_vorticity_deg"), 90.0, 1e-6) << a << " deg";
+  }
+  // 2D bodies have no such metric.
+  const Patch capsule = geometry::hollow_ellipse(2e-4, 1e-4, 5e-7, 32, 2, kCentre, 0.0);
+  solid::BodyTracker flat(capsule, true);
+  flat.record(0.0, capsule);
+  EXPECT_EQ(as_map(flat.metrics()).count("short_axis_to_vorticity_deg"), 0u);
+}
+
 TEST(BodyTracker, RestoredStateContinuesTheRecordsExactly) {
   // A checkpoint: a tracker restored from another's state after 60 records gives, after 60 more, the same
   // metrics and summary bit for bit as the tracker that never stopped (the unwrapped angles carry over).
