@@ -455,10 +455,11 @@ def t_rbc_shear_3d():
             jeffery = f"{1e3 * JEFFERY_RBC:.1f} (Jeffery's rigid oblate spheroid, r = 0.328)"
             what = ", ".join(f"{h:.1f}" for h in half) if half else f"flips at {flips} ms"
             if flips == "-":
-                # No flip (a start out of the shear plane): the inclination's range and the short axis's angle to
-                # the vorticity at the start and the end instead.
-                what = (f"no flip {r['status'].split(', ', 1)[1]}; short axis to vorticity "
-                        f"{r['short axis to vorticity']} deg")
+                # No flip (a start out of the shear plane): the short axis's angle to the vorticity at the start
+                # and its range over the run's last third instead.
+                start, late = r["short axis to vorticity"].split("; ")
+                what = (f"no flip {r['status'].split(', ', 1)[1]}; short axis to vorticity {start} deg at the "
+                        f"start, {late} over the last third")
                 jeffery = "tumbling from the start in the shear plane (the rows above)"
             diff = ", ".join(f"{100 * (h / (1e3 * JEFFERY_RBC) - 1):+.0f} %" for h in half) if half else "-"
             rows.append([f"{mesh.replace(' x ', 'x')} ({box} box), membrane 1 x {r['membrane']}", 2, "1e-4",
