@@ -84,8 +84,9 @@ std::vector<std::string> conflicting_options(const std::string& saved, const std
     else if (it->second != v)
       out.push_back("-" + k + ": checkpoint " + v + ", this run " + it->second);
   }
+  // (A checkpoint written before the scene's name was recorded has none: its name is not compared.)
   for (const auto& [k, v] : b)
-    if (!may_change(k) && a.find(k) == a.end())
+    if (!may_change(k) && k != "scene" && a.find(k) == a.end())
       out.push_back("-" + k + ": checkpoint (not given), this run " + v);
   return out;
 }

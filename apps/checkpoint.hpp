@@ -44,7 +44,8 @@ Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, const std::str
                            fluid::ImmersedFluid& fluid);
 /// The options (as "-name: checkpoint SAVED, this run CURRENT") whose values differ between two options.yaml
 /// texts, leaving out those a restart may change: final_time, restart, output_every, checkpoint_every,
-/// output_dir, metrics_average_from, and monitors, viewers and -help.
+/// output_dir, metrics_average_from, and monitors, viewers and -help; and -scene when SAVED has none (a
+/// checkpoint written before the scene's name was recorded).
 std::vector<std::string> conflicting_options(const std::string& saved, const std::string& current);
 
 }  // namespace cellfsi::app

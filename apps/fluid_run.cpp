@@ -149,7 +149,7 @@ void FluidRun::take_folder() {
 void FluidRun::restore_checkpoint() {
   // The checkpoint must come from a run with the same options (but the final time and the output
   // intervals: checked before the state is read); the fluid takes its state there, the scene then its own.
-  resume_ = read_checkpoint(PETSC_COMM_WORLD, settings_.output_dir, effective_options_yaml(), scene_->fluid());
+  resume_ = read_checkpoint(PETSC_COMM_WORLD, settings_.output_dir, checkpoint_options(), scene_->fluid());
   std::vector<std::string> names;
   for (const solid::SolidSolver* b : scene_->bodies()) names.push_back(b->name());
   if (names != resume_.body_names)
@@ -355,13 +355,21 @@ void FluidRun::write_series() {
   CELLFSI_PETSC(PetscLogEventEnd(output_event, 0, 0, 0, 0));
 }
 
+std::string FluidRun::checkpoint_options() const {
+  std::string options = effective_options_yaml();
+  PetscBool named = PETSC_FALSE;
+  CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-scene", &named));
+  if (!named) options += "scene: " + settings_.name + "\n";
+  return options;
+}
+
 void FluidRun::write_checkpoint_after(int k) {
   Checkpoint c;
   c.step = k;
   c.time = scene_->fluid().time();
   c.newton = newton_, c.linear = linear_, c.factorizations = factorizations_;
   c.bulk_factorizations = bulk_factorizations_;
-  c.options = effective_options_yaml();
+  c.options = checkpoint_options();
   for (const solid::SolidSolver* b : scene_->bodies()) c.body_names.push_back(b->name());
   c.bodies = scene_->body_states();
   c.trackers = scene_->tracker_states();

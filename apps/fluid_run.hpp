@@ -70,6 +70,10 @@ class FluidRun {
 
   void write_series();
   void write_checkpoint_after(int k);
+  /// The options a checkpoint records and a restart compares: the options database, with the scene's name
+  /// when the database lacks it (the scene file's stem), so that a restart from the run's options.yaml,
+  /// which names the scene, continues the same run.
+  std::string checkpoint_options() const;
   /// summary.json for a failed run; if it cannot be written either, a note for the message (the previous
   /// summary.json stays).
   std::string summary_of_failure(const std::string& status);

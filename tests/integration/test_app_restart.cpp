@@ -149,6 +149,23 @@ TEST_F(CellfsiApp, RestartWithOtherOptionsOrWithoutACheckpointIsRefused) {
   EXPECT_FALSE(std::filesystem::exists(out_ / "metrics.csv"));
 }
 
+TEST_F(CellfsiApp, RestartFromTheRunsOwnOptionsFileContinuesIt) {
+  // options.yaml says "run it again with: cellfsi options.yaml"; it names the scene, which the scene file
+  // left to its stem. A restart from it is the same run; one under another scene name is not.
+  ASSERT_EQ(cellfsi(with({scene("shear.yaml")}, kTiny)).exit_code, 0) << last_output_;
+  const fs::path given = out_.parent_path() / "given_options.yaml";
+  fs::copy_file(out_ / "options.yaml", given, fs::copy_options::overwrite_existing);
+  expect_one_clear_error(cellfsi({given.string(), "-final_time", "2e-3", "-scene", "other", "-restart"}));
+  EXPECT_NE(last_output_.find("(-scene: checkpoint shear, this run other)"), std::string::npos)
+      << last_output_;
+  const RunResult r = cellfsi({given.string(), "-final_time", "2e-3", "-restart"});
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("restarting from the checkpoint at t = 0.001 s (step 2)"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(csv_steps(out_ / "metrics.csv"), one_to(4));
+  fs::remove(given);
+}
+
 TEST_F(CellfsiApp, SplitJobRestartsItsRemoteBodies) {
   // The bodies on a solid rank (-solid_ranks 1): their state goes into the checkpoint and back through the
   // exchange. Against the one-process run of the same 4 steps.
