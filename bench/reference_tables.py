@@ -448,7 +448,8 @@ def t_rbc_shear_3d():
     if os.path.exists(path):
         sources.append(link_from_page(path))
         for r in md_tables(path)[0]:
-            if not r["status"].startswith("completed"):
+            # (A run that failed is reported up to where it stopped, and says so.)
+            if not r["status"].startswith(("completed", "failed")):
                 continue
             box, mesh = r["box, fluid elements"].split(", ", 1)
             half = [float(h) for h in r["half turns"].split(", ")] if r["half turns"] != "-" else []
@@ -463,6 +464,9 @@ def t_rbc_shear_3d():
                     start, late = r["short axis to vorticity"].split("; ")
                     what += f"; short axis to vorticity {start} deg at the start, {late} over the last third"
                 jeffery = "tumbling from the start in the shear plane (the rows above)"
+            failed = re.search(r" in step (\d+) at", r["status"]) if r["status"].startswith("failed") else None
+            if failed:
+                what += f" (then failed in step {failed.group(1)}: {r['status'].split(':')[1].strip()})"
             diff = ", ".join(f"{100 * (h / (1e3 * JEFFERY_RBC) - 1):+.0f} %" for h in half) if half else "-"
             rows.append([f"{mesh.replace(' x ', 'x')} ({box} box), membrane 1 x {r['membrane']}", 2, "1e-4",
                          "Ca 0.46, divergence-conforming space: half turns ms", what, jeffery, diff,
