@@ -102,6 +102,41 @@ def output_only(name):
             or name.endswith(("_monitor", "_view")))
 
 
+def yaml_options(path):
+    """The options a YAML file sets, named and written as cellfsi reads them (apps/scene_file.cpp): nested keys
+    joined by '_', a list's items by commas, every value as its text (python3-yaml)."""
+    import yaml  # (here: only a run continued from its options.yaml needs it)
+    with open(path) as f:
+        root = yaml.load(f, Loader=yaml.BaseLoader) or {}
+    out = {}
+
+    def walk(node, prefix):
+        for key, value in node.items():
+            if isinstance(value, dict):
+                walk(value, prefix + key + "_")
+            else:
+                out[prefix + key] = ",".join(value) if isinstance(value, list) else value
+    walk(root, "")
+    return out
+
+
+def options_of_run(run_dir, scene, command_line):
+    """(the options a run was made with, those of them its scene file sets with the same value). A run continued
+    from its own options.yaml (`cellfsi DIR/options.yaml -restart ...`, docs/running.md) has only that launch's
+    options on its command line: its options are then those of its options.yaml, which cellfsi rewrites at each
+    launch with every option the run has (the scene file's and both command lines'), less the scene file's own."""
+    words = shlex.split(command_line or "")
+    ran = option_values(words)
+    first = words[1] if len(words) > 1 and not re.fullmatch(r"-[A-Za-z_]\w*", words[1]) else ""
+    kept = os.path.join(run_dir, "options.yaml")
+    if os.path.basename(first) != "options.yaml" or not scene or not os.path.isfile(kept):
+        return ran, {}
+    ran = {**yaml_options(kept), **ran}
+    in_scene = yaml_options(os.path.join(ROOT, "scenes", scene))
+    in_scene["scene"] = ran.get("scene")  # (options.yaml names the scene; the driver's file is that scene)
+    return ran, {k: v for k, v in in_scene.items() if same_value(ran.get(k), v)}
+
+
 def check_kept_runs(tool, args, runs):
     """Exits (code 1) when a completed run that run_one would keep was made with other values of the options
     it would be run with now (a folder of another sweep or s_I), or with an option it would not be run with
@@ -115,16 +150,17 @@ def check_kept_runs(tool, args, runs):
             js = json.load(f)
         if js.get("status") != "completed":
             continue
-        ran = option_values(shlex.split(js.get("command_line") or ""))
+        ran, from_scene = options_of_run(os.path.join(args.runs, tag), scene, js.get("command_line"))
         asked = option_values(options)
         differ = [f"-{k} {v} (the run: {ran[k] if k in ran else 'not set'})"
                   for k, v in asked.items() if not same_value(ran.get(k), v)]
         # Options the run had and run_one would not pass, but for those that change only what is written or
-        # shown (the output, checkpoints, -restart, monitors and -log_view); paper_space adds the space and, for a
-        # scene it names (unknown without `scene`), the membrane.
+        # shown (the output, checkpoints, -restart, monitors and -log_view) and, for a run continued from its
+        # options.yaml, those its scene file sets; paper_space adds the space and, for a scene it names (unknown
+        # without `scene`), the membrane.
         passed = option_values(paper_space(options, scene))
         differ += [f"-{k}{'' if ran[k] is None else ' ' + ran[k]} (the run's; not asked now)"
-                   for k in ran if k not in passed and not output_only(k)
+                   for k in ran if k not in passed and not output_only(k) and k not in from_scene
                    and not (scene is None and k == "solid_membrane_elements")]
         if differ:
             bad.append(f"{os.path.join(args.runs, tag)}: {', '.join(differ)}")

@@ -35,6 +35,7 @@ if [ "${1:-all}" = all ]; then
     libbenchmark-dev
     time python3               # bench/ scripts: /usr/bin/time -v for peak memory, python3 to read -log_view
     python3-matplotlib         # bench/ scripts: the figures in docs/figures/
+    python3-yaml               # bench/ scripts: a run continued from its options.yaml, against its scene file
     python3-vtk9               # bench/plot_velocity_snapshot.py reads the VTK output
   )
 fi
