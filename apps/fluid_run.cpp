@@ -353,6 +353,26 @@ void FluidRun::write_series() {
   if (solid_series_)
     on_every_rank(PETSC_COMM_WORLD, [&] { solid_series_->write(scene_->fluid().time(), scene_->bodies()); });
   CELLFSI_PETSC(PetscLogEventEnd(output_event, 0, 0, 0, 0));
+  if (solid_series_) notice_folds(solid_series_->smallest());
+}
+
+void FluidRun::notice_folds(const std::vector<solid::SmallestJ>& smallest) {
+  // (The writing rank's samples; once per body and launch.)
+  fold_noticed_.resize(scene_->bodies().size(), false);
+  for (std::size_t b = 0; b < smallest.size() && b < fold_noticed_.size(); ++b) {
+    if (fold_noticed_[b] || smallest[b].J > 0) continue;
+    fold_noticed_[b] = true;
+    const solid::SmallestJ& s = smallest[b];
+    std::printf(
+        "cellfsi: notice: body '%s' has folded between the solver's quadrature points: det F = %.3g at x = "
+        "(%.4g, "
+        "%.4g, %.4g) cm in the output's samples at t = %.6g s (step %d; the solver's check, at its "
+        "quadrature "
+        "points, has not failed); from here on its shape there is not a membrane's (J in the .vts files)\n",
+        scene_->bodies()[b]->name().c_str(), s.J, s.x[0], s.x[1], s.x[2], scene_->fluid().time(),
+        current_step_);
+    std::fflush(stdout);
+  }
 }
 
 std::string FluidRun::checkpoint_options() const {

@@ -69,6 +69,8 @@ class FluidRun {
   void finish();
 
   void write_series();
+  /// Says once per body when the output's samples find it folded (J <= 0) where the solver does not look.
+  void notice_folds(const std::vector<solid::SmallestJ>& smallest);
   void write_checkpoint_after(int k);
   /// The options a checkpoint records and a restart compares: the options database, with the scene's name
   /// when the database lacks it (the scene file's stem), so that a restart from the run's options.yaml,
@@ -105,6 +107,7 @@ class FluidRun {
   std::unique_ptr<RunOutput> out_;
   std::unique_ptr<fluid::FluidSeriesWriter> series_;
   std::unique_ptr<solid::SolidSeriesWriter> solid_series_;
+  std::vector<bool> fold_noticed_;
 
   // The counters of the steps (a restart's start from the checkpoint's).
   long newton_ = 0, linear_ = 0, factorizations_ = 0, bulk_factorizations_ = 0;

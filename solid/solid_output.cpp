@@ -2,25 +2,52 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <limits>
 
 namespace cellfsi::solid {
+
+namespace {
+
+/// The output's samples of `ref`, just off every open end of the parameter domain: degenerate faces (a bulky
+/// body's centre; in 3D the poles, the ends of the polar direction) have F undefined there.
+std::vector<geometry::Param> output_samples(const geometry::Patch& ref, int samples) {
+  std::vector<geometry::Param> xi = geometry::sample_grid(ref, samples);
+  for (int d = 0; d < ref.param_dim(); ++d) {
+    const geometry::KnotVector& k = ref.knots(d);
+    if (k.periodic() || ref.closed(d)) continue;
+    const double eps = 1e-9 * (k.b() - k.a());
+    for (geometry::Param& p : xi) p[d] = std::clamp(p[d], k.a() + eps, k.b() - eps);
+  }
+  return xi;
+}
+
+double jacobian_ratio(const geometry::MapValues& X, const geometry::MapValues& x, int D) {
+  return x.dx.topLeftCorner(D, D).determinant() / X.dx.topLeftCorner(D, D).determinant();
+}
+
+}  // namespace
+
+SmallestJ smallest_J(const geometry::Patch& reference, const geometry::Patch& current,
+                     int samples_per_element) {
+  SmallestJ out;
+  out.J = std::numeric_limits<double>::infinity();
+  for (const geometry::Param& p : output_samples(reference, samples_per_element)) {
+    const geometry::MapValues X = reference.evaluate(p, 1), x = current.evaluate(p, 1);
+    if (const double J = jacobian_ratio(X, x, reference.physical_dim()); J < out.J) out = {J, x.x};
+  }
+  return out;
+}
 
 SolidSeriesWriter::SolidSeriesWriter(std::string dir, bool writes, int samples_per_element)
     : dir_(std::move(dir)), writes_(writes), samples_(samples_per_element) {}
 
 void SolidSeriesWriter::write(double time, const std::vector<SolidSolver*>& bodies) {
+  if (writes_)
+    smallest_.assign(bodies.size(), {std::numeric_limits<double>::infinity(), geometry::Vec3::Zero()});
   for (size_t b = 0; b < bodies.size(); ++b) {
     const geometry::Patch ref = bodies[b]->reference_patch();
     const geometry::Patch cur = bodies[b]->current_patch();
-    std::vector<geometry::Param> xi = geometry::sample_grid(ref, samples_);
-    // Degenerate faces (a bulky body's centre; in 3D the poles, the ends of the polar direction) have F
-    // undefined: the fields are sampled just off every open end of the parameter domain.
-    for (int d = 0; d < ref.param_dim(); ++d) {
-      const geometry::KnotVector& k = ref.knots(d);
-      if (k.periodic() || ref.closed(d)) continue;
-      const double eps = 1e-9 * (k.b() - k.a());
-      for (geometry::Param& p : xi) p[d] = std::clamp(p[d], k.a() + eps, k.b() - eps);
-    }
+    const std::vector<geometry::Param> xi = output_samples(ref, samples_);
     const std::vector<Mat3> sigma = bodies[b]->cauchy_stress(xi);
     if (!writes_) continue;
     const int D = ref.physical_dim();
@@ -29,7 +56,8 @@ void SolidSeriesWriter::write(double time, const std::vector<SolidSolver*>& bodi
       const geometry::MapValues X = ref.evaluate(xi[i], 1), x = cur.evaluate(xi[i], 1);
       const geometry::Vec3 u = x.x - X.x;
       disp.values.insert(disp.values.end(), u.data(), u.data() + 3);
-      jac.values.push_back(x.dx.topLeftCorner(D, D).determinant() / X.dx.topLeftCorner(D, D).determinant());
+      jac.values.push_back(jacobian_ratio(X, x, D));
+      if (jac.values.back() < smallest_[b].J) smallest_[b] = {jac.values.back(), x.x};
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) stress.values.push_back(sigma[i](r, c));
     }

@@ -11,6 +11,17 @@
 
 namespace cellfsi::solid {
 
+/// The smallest J = det F of a body over the output's samples (`samples_per_element` per element and
+/// direction, element edges included, just off degenerate ends: what the .vts files' J shows) and where, in
+/// the current configuration. The solver checks J only at its quadrature points; a shell whose face has
+/// folded between them shows J <= 0 here first.
+struct SmallestJ {
+  double J = 1.0;
+  geometry::Vec3 x = geometry::Vec3::Zero();
+};
+SmallestJ smallest_J(const geometry::Patch& reference, const geometry::Patch& current,
+                     int samples_per_element);
+
 class SolidSeriesWriter {
  public:
   /// writes == false: the bodies are queried (a remote body must be queried on every rank of its group) but
@@ -20,6 +31,8 @@ class SolidSeriesWriter {
   /// The entries and the number of writes so far, and a restart's: continue the series after these.
   const std::vector<geometry::PvdEntry>& entries() const { return entries_; }
   int count() const { return count_; }
+  /// Per body, the smallest J of the last write (smallest_J; the writing rank only, else empty).
+  const std::vector<SmallestJ>& smallest() const { return smallest_; }
   void resume(std::vector<geometry::PvdEntry> entries, int count) {
     entries_ = std::move(entries);
     count_ = count;
@@ -31,6 +44,7 @@ class SolidSeriesWriter {
   int samples_;
   int count_ = 0;
   std::vector<geometry::PvdEntry> entries_;
+  std::vector<SmallestJ> smallest_;
 };
 
 }  // namespace cellfsi::solid

@@ -13,8 +13,10 @@
 
 #include "geometry/builders.hpp"
 #include "geometry/measures.hpp"
+#include "geometry/quadrature.hpp"
 #include "solid/material.hpp"
 #include "solid/nurbs_solid.hpp"
+#include "solid/solid_output.hpp"
 
 using namespace cellfsi;
 using solid::Mat3;
@@ -675,4 +677,35 @@ TEST(NurbsSolid, AMembraneSurfaceLawSeesEachPointInItsMembranesFrame) {
                std::invalid_argument);
   EXPECT_THROW(solid::NurbsSolid("m", geometry::hollow_ellipse(a, a, 3e-6, 16, 2, c), skalak, 1.1),
                std::invalid_argument);
+}
+
+// The output's smallest J (solid_output.hpp): 1 on the reference, the determinant of a uniform stretch, and a
+// fold of the inner face between the solver's quadrature points (J > 0 at every one of them) found, with
+// where.
+TEST(SolidOutput, SmallestJFindsAFoldBetweenTheQuadraturePoints) {
+  const double r = 2e-4, h = 2e-5;
+  const geometry::Patch ref = geometry::hollow_ellipse(r, r, h, 8, 2);
+  EXPECT_NEAR(solid::smallest_J(ref, ref, 4).J, 1.0, 1e-12);
+  geometry::Patch stretched = ref;
+  for (Vec3& p : stretched.control_points()) p *= 1.1;
+  EXPECT_NEAR(solid::smallest_J(ref, stretched, 4).J, 1.21, 1e-12);
+  // The inner control point of angular index 4 pushed out past the mid-surface's: the inner face folds near
+  // it.
+  geometry::Patch folded = ref;
+  const int inner = ref.control_index(0, 4), mid = ref.control_index(1, 4);
+  folded.control_points()[inner] += 1.6 * (ref.control_points()[mid] - ref.control_points()[inner]);
+  const solid::SmallestJ s = solid::smallest_J(ref, folded, 4);
+  EXPECT_LT(s.J, 0.0);
+  EXPECT_LT((s.x - folded.control_points()[inner]).norm(), 0.5 * r);
+  double at_quadrature = 1e300;
+  std::vector<geometry::QuadraturePoint> qp;
+  for (int e = 0; e < ref.n_elements(); ++e) {
+    geometry::element_quadrature(ref, ref.element_multi_index(e), geometry::default_gauss(ref), qp);
+    for (const geometry::QuadraturePoint& q : qp) {
+      const geometry::MapValues X = ref.evaluate(q.xi, 1), x = folded.evaluate(q.xi, 1);
+      at_quadrature = std::min(
+          at_quadrature, x.dx.topLeftCorner(2, 2).determinant() / X.dx.topLeftCorner(2, 2).determinant());
+    }
+  }
+  EXPECT_GT(at_quadrature, 0.0) << "the fold should lie between the quadrature points";
 }
