@@ -23,6 +23,7 @@ Python 3 and its standard library only.
 import argparse
 import glob
 import json
+import math
 import os
 import re
 import sys
@@ -30,7 +31,7 @@ import sys
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 from bench_common import PAPER_MEMBRANE  # noqa: E402  (the scenes' paper membranes, as the drivers run them)
-from run_rbc_shear_3d import JEFFERY_HALF_TURN as JEFFERY_RBC  # noqa: E402  (s, at Ca 0.46's 700 1/s)
+from run_rbc_shear_3d import ASPECT as ASPECT_RBC, RATE as RATE_RBC  # noqa: E402  (Ca 0.46's 700 1/s)
 
 VAL = os.path.join(ROOT, "docs", "validation")
 PERF = os.path.join(ROOT, "docs", "performance")
@@ -454,7 +455,10 @@ def t_rbc_shear_3d():
             box, mesh = r["box, fluid elements"].split(", ", 1)
             half = [float(h) for h in r["half turns"].split(", ")] if r["half turns"] != "-" else []
             flips = r["flips"]
-            jeffery = f"{1e3 * JEFFERY_RBC:.1f} (Jeffery's rigid oblate spheroid, r = 0.328)"
+            # (The oblate spheroid's row against Jeffery's spheroid of its own aspect, 0.5.)
+            aspect = 0.5 if "oblate spheroid (aspect 0.5)" in mesh else ASPECT_RBC
+            half_turn = math.pi * (aspect + 1 / aspect) / RATE_RBC
+            jeffery = f"{1e3 * half_turn:.1f} (Jeffery's rigid oblate spheroid, r = {aspect:g})"
             what = ", ".join(f"{h:.1f}" for h in half) if half else f"flips at {flips} ms"
             if flips == "-":
                 # No flip (a start out of the shear plane): the short axis's angle to the vorticity at the start
@@ -463,11 +467,13 @@ def t_rbc_shear_3d():
                 if "; " in r["short axis to vorticity"]:  # (runs made before the metric have none)
                     start, late = r["short axis to vorticity"].split("; ")
                     what += f"; short axis to vorticity {start} deg at the start, {late} over the last third"
-                jeffery = "tumbling from the start in the shear plane (the rows above)"
+                jeffery = ("in the shear plane from any start (Dupont et al. 2016: an oblate capsule of aspect 0.5 at "
+                           "ratio 1, Ca below about 1)" if aspect == 0.5
+                           else "tumbling from the start in the shear plane (the rows above)")
             failed = re.search(r" in step (\d+) at", r["status"]) if r["status"].startswith("failed") else None
             if failed:
                 what += f" (then failed in step {failed.group(1)}: {r['status'].split(':')[1].strip()})"
-            diff = ", ".join(f"{100 * (h / (1e3 * JEFFERY_RBC) - 1):+.0f} %" for h in half) if half else "-"
+            diff = ", ".join(f"{100 * (h / (1e3 * half_turn) - 1):+.0f} %" for h in half) if half else "-"
             rows.append([f"{mesh.replace(' x ', 'x')} ({box} box), membrane 1 x {r['membrane']}", 2, "1e-4",
                          "Ca 0.46, divergence-conforming space: half turns ms", what, jeffery, diff,
                          r["s/step"], "-", commit_of(path), code("python3 bench/run_rbc_shear_3d.py")])
