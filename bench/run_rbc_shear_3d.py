@@ -4,8 +4,9 @@ scenes/rbc_shear_3d.yaml at 700 1/s on the divergence-conforming space with its 
 scene's 12 um box, in a box twice as long along the flow (24 um, the same 0.75 um elements), and in one also
 twice as high (walls 24 um apart, to 25 ms); in the 12 um box with a cytosol 5 times as viscous as the plasma
 (to 20 ms), with Skalak's law (to 25 ms), and started with its axis of symmetry 45 deg out of the shear plane
-(asked to 150 ms), the latter also with the walls 24 um apart (to 40 ms), and started 10 deg out of the plane
-(to 40 ms); one rank each, one after the other. Writes a table (docs/validation/rbc_shear_3d_ca046.md) of the
+(asked to 150 ms), the latter also with the walls 24 um apart (to 40 ms), started 10 deg out of the plane (asked
+to 100 ms), both tilted starts with Skalak's law (to 100 and 60 ms), and an oblate spheroid of the cell's volume
+(aspect 0.5) started 45 deg out of the plane (to 80 ms); one rank each, one after the other. Writes a table (docs/validation/rbc_shear_3d_ca046.md) of the
 motion each run shows: the times theta (the long axis's inclination in the shear plane, metrics.csv) crosses
 zero downward and flips through +-90 deg, the half turns between them against Jeffery's rigid oblate spheroid
 (r = 0.328: pi (r + 1/r) / gammadot = 15.2 ms), the mean membrane rotation rate omega_TT, the cell's extents
@@ -13,12 +14,12 @@ along the flow, the gradient and the vorticity, the short axis's angle to the vo
 range over the last third), |r_A| and the cost; and a figure (docs/figures/rbc_shear_3d_ca046.png) of theta,
 the extents along the flow and the vorticity, and that angle against time.
 
-    python3 bench/run_rbc_shear_3d.py              # the eight runs (35 min to 3 h each on one core)
+    python3 bench/run_rbc_shear_3d.py              # the eleven runs (35 min to 3 h each on one core)
     python3 bench/run_rbc_shear_3d.py --report     # the table and figure from the runs in --runs
 
 Options: --runs DIR (out/rbc_shear_3d_ca046) --build DIR (build) --table FILE --figure FILE --report
---cases box12,box24,tall24,box12_ratio5,box12_skalak,box12_tilt45,tall24_tilt45,box12_tilt10 (the runs to
-make or report). A run whose summary.json says "completed" is not run again (one made with other options is
+--cases box12,box24,tall24,box12_ratio5,box12_skalak,box12_tilt45,tall24_tilt45,box12_tilt10,box12_skalak_tilt45,
+box12_skalak_tilt10,box12_oblate_tilt45 (the runs to make or report). A run whose summary.json says "completed" is not run again (one made with other options is
 refused). Exit code 3 when a run did not complete. Needs python3-matplotlib for the figure
 (scripts/install-deps.sh)."""
 import argparse
@@ -240,7 +241,8 @@ def main():
     out = [provenance(args, command), "",
            f"`cellfsi scenes/{SCENE} {' '.join(COMMON)}` with each box's options (the membrane from the mesh); Ca "
            "0.46, viscosity ratio 1 unless said, walls 12 um apart (24 in the tall box). Times in ms; theta's "
-           "downward zero crossings and its flips through +-90 deg; half turns between zero crossings with a flip "
+           "downward zero crossings and its flips (a fast rise through zero: a jump through +-90 deg in the shear plane); "
+           "half turns between zero crossings with a flip "
            f"between them (Jeffery: {JEFFERY_HALF_TURN * 1e3:.1f} ms); omega_TT (the membrane's rotation rate, 1/s) "
            "and the extents (um; flow x, gradient y, vorticity z) over the last whole turn (between the last two "
            "flips; the whole run before two flips); the short axis's angle to the vorticity (deg; 90: in the shear "
