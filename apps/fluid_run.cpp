@@ -364,11 +364,10 @@ void FluidRun::notice_folds(const std::vector<solid::SmallestJ>& smallest) {
     fold_noticed_[b] = true;
     const solid::SmallestJ& s = smallest[b];
     std::printf(
-        "cellfsi: notice: body '%s' has folded between the solver's quadrature points: det F = %.3g at x = "
-        "(%.4g, "
-        "%.4g, %.4g) cm in the output's samples at t = %.6g s (step %d; the solver's check, at its "
-        "quadrature "
-        "points, has not failed); from here on its shape there is not a membrane's (J in the .vts files)\n",
+        "cellfsi: notice: body '%s' has folded between the solver's quadrature points: det F = %.3g at "
+        "x = (%.4g, %.4g, %.4g) cm in the output's samples at t = %.6g s (step %d; the solver's check, at "
+        "its quadrature points, has not failed); from here on its shape there is not a membrane's (J in "
+        "the .vts files)\n",
         scene_->bodies()[b]->name().c_str(), s.J, s.x[0], s.x[1], s.x[2], scene_->fluid().time(),
         current_step_);
     std::fflush(stdout);

@@ -133,7 +133,8 @@ def options_of_run(run_dir, scene, command_line):
         return ran, {}
     ran = {**yaml_options(kept), **ran}
     in_scene = yaml_options(os.path.join(ROOT, "scenes", scene))
-    in_scene["scene"] = ran.get("scene")  # (options.yaml names the scene; the driver's file is that scene)
+    # (options.yaml names the run's scene: the file's stem unless the file names another)
+    in_scene.setdefault("scene", os.path.splitext(os.path.basename(scene))[0])
     return ran, {k: v for k, v in in_scene.items() if same_value(ran.get(k), v)}
 
 

@@ -27,17 +27,6 @@ double jacobian_ratio(const geometry::MapValues& X, const geometry::MapValues& x
 
 }  // namespace
 
-SmallestJ smallest_J(const geometry::Patch& reference, const geometry::Patch& current,
-                     int samples_per_element) {
-  SmallestJ out;
-  out.J = std::numeric_limits<double>::infinity();
-  for (const geometry::Param& p : output_samples(reference, samples_per_element)) {
-    const geometry::MapValues X = reference.evaluate(p, 1), x = current.evaluate(p, 1);
-    if (const double J = jacobian_ratio(X, x, reference.physical_dim()); J < out.J) out = {J, x.x};
-  }
-  return out;
-}
-
 SolidSeriesWriter::SolidSeriesWriter(std::string dir, bool writes, int samples_per_element)
     : dir_(std::move(dir)), writes_(writes), samples_(samples_per_element) {}
 

@@ -12,15 +12,13 @@
 namespace cellfsi::solid {
 
 /// The smallest J = det F of a body over the output's samples (`samples_per_element` per element and
-/// direction, element edges included, just off degenerate ends: what the .vts files' J shows) and where, in
-/// the current configuration. The solver checks J only at its quadrature points; a shell whose face has
-/// folded between them shows J <= 0 here first.
+/// direction, element edges and a shell's faces included, just off degenerate ends: what the .vts files' J
+/// shows) and where, in the current configuration. The solver checks J only at its quadrature points; a shell
+/// whose face has folded between them shows J <= 0 here first.
 struct SmallestJ {
   double J = 1.0;
   geometry::Vec3 x = geometry::Vec3::Zero();
 };
-SmallestJ smallest_J(const geometry::Patch& reference, const geometry::Patch& current,
-                     int samples_per_element);
 
 class SolidSeriesWriter {
  public:

@@ -7,6 +7,7 @@
 #include <barrier>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <numbers>
 #include <random>
 #include <thread>
@@ -679,22 +680,64 @@ TEST(NurbsSolid, AMembraneSurfaceLawSeesEachPointInItsMembranesFrame) {
                std::invalid_argument);
 }
 
-// The output's smallest J (solid_output.hpp): 1 on the reference, the determinant of a uniform stretch, and a
-// fold of the inner face between the solver's quadrature points (J > 0 at every one of them) found, with
-// where.
+namespace {
+
+/// A body of a fixed shape (reference and current patches given), for the output writer alone.
+class FixedShapeBody final : public solid::SolidSolver {
+ public:
+  FixedShapeBody(geometry::Patch reference, geometry::Patch current)
+      : reference_(std::move(reference)), current_(std::move(current)) {}
+  std::string name() const override { return "fixed"; }
+  int dim() const override { return reference_.physical_dim(); }
+  void begin_step(const solid::TimeParameters&) override {}
+  std::vector<Vec3> collocation_points() const override { return {}; }
+  double kinematic_update(const std::vector<solid::VelocitySample>&) override { return 0; }
+  std::vector<solid::QuadratureData> quadrature_data(double, bool) const override { return {}; }
+  std::vector<Vec3> interface_points() const override { return {}; }
+  void end_step() override {}
+  void set_rate(const std::vector<Vec3>&) override {}
+  std::vector<double> state() const override { return {}; }
+  void set_state(const std::vector<double>&) override {}
+  bool is_membrane() const override { return true; }
+  geometry::Patch reference_patch() const override { return reference_; }
+  geometry::Patch current_patch() const override { return current_; }
+  std::vector<Mat3> cauchy_stress(const std::vector<geometry::Param>& xi) const override {
+    return std::vector<Mat3>(xi.size(), Mat3::Zero());
+  }
+
+ private:
+  geometry::Patch reference_, current_;
+};
+
+/// The output writer's smallest J of one body (solid_output.hpp), written into a fresh folder.
+solid::SmallestJ smallest_written(const geometry::Patch& reference, const geometry::Patch& current) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "cellfsi_test_solid_fold";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  FixedShapeBody body(reference, current);
+  solid::SolidSeriesWriter writer(dir.string(), true);
+  writer.write(0.0, {&body});
+  std::filesystem::remove_all(dir);
+  return writer.smallest().at(0);
+}
+
+}  // namespace
+
+// The output's smallest J: 1 on the reference, the determinant of a uniform stretch, and a fold of the inner
+// face between the solver's quadrature points (J > 0 at every one of them) found, with where.
 TEST(SolidOutput, SmallestJFindsAFoldBetweenTheQuadraturePoints) {
   const double r = 2e-4, h = 2e-5;
   const geometry::Patch ref = geometry::hollow_ellipse(r, r, h, 8, 2);
-  EXPECT_NEAR(solid::smallest_J(ref, ref, 4).J, 1.0, 1e-12);
+  EXPECT_NEAR(smallest_written(ref, ref).J, 1.0, 1e-12);
   geometry::Patch stretched = ref;
   for (Vec3& p : stretched.control_points()) p *= 1.1;
-  EXPECT_NEAR(solid::smallest_J(ref, stretched, 4).J, 1.21, 1e-12);
+  EXPECT_NEAR(smallest_written(ref, stretched).J, 1.21, 1e-12);
   // The inner control point of angular index 4 pushed out past the mid-surface's: the inner face folds near
   // it.
   geometry::Patch folded = ref;
   const int inner = ref.control_index(0, 4), mid = ref.control_index(1, 4);
   folded.control_points()[inner] += 1.6 * (ref.control_points()[mid] - ref.control_points()[inner]);
-  const solid::SmallestJ s = solid::smallest_J(ref, folded, 4);
+  const solid::SmallestJ s = smallest_written(ref, folded);
   EXPECT_LT(s.J, 0.0);
   EXPECT_LT((s.x - folded.control_points()[inner]).norm(), 0.5 * r);
   double at_quadrature = 1e300;
