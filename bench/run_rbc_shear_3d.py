@@ -183,7 +183,10 @@ def figure(args, runs):
     plt = pyplot(TOOL)
     if plt is None:
         return
-    fig, ax = plt.subplots(1, 3, figsize=(15, 4.2))
+    # (The legend in a row of its own below the panels: eleven cases' names are wider than a panel.)
+    fig = plt.figure(figsize=(15, 6))
+    grid = fig.add_gridspec(2, 3, height_ratios=[4, 1.3])
+    ax = [fig.add_subplot(grid[0, i]) for i in range(3)]
     for k, ((tag, (box, _)), style) in enumerate(zip(CASES.items(), itertools.cycle(["-", "--", ":", "-."]))):
         rows = runs.get(tag)
         if not rows:
@@ -196,15 +199,16 @@ def figure(args, runs):
             ax[2].plot(t, [r["rbc_short_axis_to_vorticity_deg"] for r in rows], style, color=f"C{k}")
     ax[0].set_ylabel("theta (deg)")
     ax[0].set_title(f"inclination (Jeffery's half turn {JEFFERY_HALF_TURN * 1e3:.1f} ms)", fontsize=9)
-    ax[0].legend(fontsize=7)
     ax[1].set_ylabel("extent (um)")
     ax[1].set_title("extent along the flow (thick) and the vorticity (thin)", fontsize=9)
     ax[2].set_ylabel("angle (deg)")
-    ax[2].set_title("short axis to the vorticity (90: in the shear plane; 0: rolling)", fontsize=9)
+    ax[2].set_title("short axis to the vorticity (90: in the plane; 0: rolling)", fontsize=9)
     for a in ax:
         a.set_xlabel("t (ms)")
         a.grid(alpha=0.3)
-    fig.tight_layout()
+    legend = fig.add_subplot(grid[1, :])
+    legend.axis("off")
+    legend.legend(*ax[0].get_legend_handles_labels(), loc="center", ncol=2, fontsize=7, frameon=False)
     save_figure(fig, args.figure, TOOL)
 
 
