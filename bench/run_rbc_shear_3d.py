@@ -6,7 +6,8 @@ twice as high (walls 24 um apart, to 25 ms); in the 12 um box with a cytosol 5 t
 (to 20 ms), with Skalak's law (to 25 ms), and started with its axis of symmetry 45 deg out of the shear plane
 (asked to 150 ms), the latter also with the walls 24 um apart (to 40 ms), started 10 deg out of the plane (asked
 to 100 ms), both tilted starts with Skalak's law (to 100 and 60 ms), and an oblate spheroid of the cell's volume
-(aspect 0.5) started 45 deg out of the plane (to 80 ms); one rank each, one after the other. Writes a table (docs/validation/rbc_shear_3d_ca046.md) of the
+(aspect 0.5) started 45 deg out of the plane (to 80 ms); one rank each, one after the other. Writes a table
+(docs/validation/rbc_shear_3d_ca046.md) of the
 motion each run shows: the times theta (the long axis's inclination in the shear plane, metrics.csv) crosses
 zero downward and flips through +-90 deg, the half turns between them against Jeffery's rigid oblate spheroid
 (r = 0.328: pi (r + 1/r) / gammadot = 15.2 ms), the mean membrane rotation rate omega_TT, the cell's extents
@@ -19,7 +20,8 @@ the extents along the flow and the vorticity, and that angle against time.
 
 Options: --runs DIR (out/rbc_shear_3d_ca046) --build DIR (build) --table FILE --figure FILE --report
 --cases box12,box24,tall24,box12_ratio5,box12_skalak,box12_tilt45,tall24_tilt45,box12_tilt10,box12_skalak_tilt45,
-box12_skalak_tilt10,box12_oblate_tilt45 (the runs to make or report). A run whose summary.json says "completed" is not run again (one made with other options is
+box12_skalak_tilt10,box12_oblate_tilt45 (the runs to make or report). A run whose summary.json says "completed"
+is not run again (one made with other options is
 refused). Exit code 3 when a run did not complete. Needs python3-matplotlib for the figure
 (scripts/install-deps.sh)."""
 import argparse
@@ -68,17 +70,19 @@ CASES = {
     "box12_tilt10": ("12 x 12 x 12 um, 16 x 16 x 16, axis 10 deg out of the shear plane",
                      ["-final_time", "0.1", "-solid_rbc_angle", "80"]),
     # (the 45 deg start with Skalak's law, whose area term keeps each piece of the membrane's area: the neo-Hookean
-    # shell's local area ranged 0.58-1.87 of its reference at 86 ms, 1.04-1.87 in the ring around a pole where an
-    # element folded; does the cell still head for rolling, and does it pass 86.6 ms?)
+    # shell's local area ranged 0.58-1.87 of its reference at 86 ms, the largest next to the poles, where an
+    # element folded; does the cell still head for rolling, and does it pass 86.6 ms? It does both.)
     "box12_skalak_tilt45": ("12 x 12 x 12 um, 16 x 16 x 16, Skalak's law (C = 10), axis 45 deg out of the shear "
-                            "plane", ["-final_time", "0.1", "-solid_rbc_material", "skalak", "-solid_rbc_angle", "45"]),
+                            "plane",
+                            ["-final_time", "0.1", "-solid_rbc_material", "skalak", "-solid_rbc_angle", "45"]),
     # (the 10 deg start with Skalak's law: the neo-Hookean shell's run folds an element near a pole at 47 ms)
     "box12_skalak_tilt10": ("12 x 12 x 12 um, 16 x 16 x 16, Skalak's law (C = 10), axis 10 deg out of the shear "
-                            "plane", ["-final_time", "0.06", "-solid_rbc_material", "skalak", "-solid_rbc_angle", "80"]),
-    # (not a red cell: an oblate spheroid of the cell's volume, 94.09 um^3, aspect 0.5, semi-axes 3.556 and
-    # 1.778 um, with the same shell, started 45 deg out of the plane. Dupont et al. (JFM 791, 2016) find such a
-    # capsule at viscosity ratio 1 and Ca <~ 1 in the shear plane from any start: is the red cell's drift
-    # towards rolling its shape's, or the method's?)
+                            "plane",
+                            ["-final_time", "0.06", "-solid_rbc_material", "skalak", "-solid_rbc_angle", "80"]),
+    # (not a red cell: an oblate spheroid of the cell's volume, 94.2 um^3 against 94.09, aspect 0.5, semi-axes
+    # 3.556 and 1.778 um, with the same shell, started 45 deg out of the plane. Dupont et al. (JFM 791, 2016)
+    # find such a capsule at viscosity ratio 1 and Ca <~ 1 in the shear plane from any start: is the red cell's
+    # drift towards rolling its shape's, or the method's? Its shape's: the spheroid turns to the plane.)
     "box12_oblate_tilt45": ("12 x 12 x 12 um, 16 x 16 x 16, oblate spheroid (aspect 0.5), axis 45 deg out of the "
                             "shear plane",
                             ["-final_time", "0.08", "-solid_rbc_shape", "hollow_ellipsoid", "-solid_rbc_semi_axes",
@@ -245,8 +249,8 @@ def main():
     out = [provenance(args, command), "",
            f"`cellfsi scenes/{SCENE} {' '.join(COMMON)}` with each box's options (the membrane from the mesh); Ca "
            "0.46, viscosity ratio 1 unless said, walls 12 um apart (24 in the tall box). Times in ms; theta's "
-           "downward zero crossings and its flips (a fast rise through zero: a jump through +-90 deg in the shear plane); "
-           "half turns between zero crossings with a flip "
+           "downward zero crossings and its flips (a fast rise through zero: a jump through +-90 deg in the shear "
+           "plane); half turns between zero crossings with a flip "
            f"between them (Jeffery: {JEFFERY_HALF_TURN * 1e3:.1f} ms); omega_TT (the membrane's rotation rate, 1/s) "
            "and the extents (um; flow x, gradient y, vorticity z) over the last whole turn (between the last two "
            "flips; the whole run before two flips); the short axis's angle to the vorticity (deg; 90: in the shear "
