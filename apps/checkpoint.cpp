@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -34,6 +35,39 @@ std::vector<geometry::PvdEntry> series_from(const nlohmann::json& a) {
   for (const auto& e : a)
     out.push_back({e.at("file").get<std::string>(), e.at("time").get<double>(), e.at("part").get<int>(),
                    e.at("name").get<std::string>()});
+  return out;
+}
+
+nlohmann::json smallest_json(const solid::SmallestJ& s) {
+  return {{"J", s.J}, {"x", {s.x[0], s.x[1], s.x[2]}}, {"time", s.time}};
+}
+
+solid::SmallestJ smallest_from(const nlohmann::json& o) {
+  solid::SmallestJ s;
+  // (JSON has no infinity: a J never sampled is written as null)
+  s.J = o.at("J").is_null() ? std::numeric_limits<double>::infinity() : o.at("J").get<double>();
+  for (int d = 0; d < 3; ++d) s.x[d] = o.at("x").at(d).get<double>();
+  s.time = o.at("time").get<double>();
+  return s;
+}
+
+nlohmann::json j_history_json(const std::vector<solid::JHistory>& history) {
+  nlohmann::json a = nlohmann::json::array();
+  for (const solid::JHistory& h : history)
+    a.push_back({{"least", smallest_json(h.least)},
+                 {"first_fold", h.folded ? smallest_json(h.first_fold) : nlohmann::json()}});
+  return a;
+}
+
+std::vector<solid::JHistory> j_history_from(const nlohmann::json& a) {
+  std::vector<solid::JHistory> out;
+  for (const auto& e : a) {
+    solid::JHistory h;
+    h.least = smallest_from(e.at("least"));
+    h.folded = !e.at("first_fold").is_null();
+    if (h.folded) h.first_fold = smallest_from(e.at("first_fold"));
+    out.push_back(h);
+  }
   return out;
 }
 
@@ -133,6 +167,7 @@ void write_checkpoint(MPI_Comm comm, const std::string& dir, const Checkpoint& c
     js["fluid_series"] = series_json(c.fluid_series);
     js["solid_series"] = series_json(c.solid_series);
     js["solid_writes"] = c.solid_writes;
+    js["solid_J"] = j_history_json(c.solid_J);
     try {
       write_file_atomically((next / "state.json").string(), js.dump() + "\n");
     } catch (const WriteError&) {
@@ -203,6 +238,8 @@ Checkpoint read_checkpoint(MPI_Comm comm, const std::string& dir, const std::str
     c.fluid_series = series_from(js.at("fluid_series"));
     c.solid_series = series_from(js.at("solid_series"));
     c.solid_writes = js.at("solid_writes").get<int>();
+    // (absent from checkpoints written before it was recorded)
+    if (js.contains("solid_J")) c.solid_J = j_history_from(js.at("solid_J"));
   } catch (const std::exception& e) {
     throw std::invalid_argument("checkpoint '" + (at / "state.json").string() +
                                 "' cannot be read: " + e.what());

@@ -3,8 +3,8 @@
 // rate after the checkpoint's step, as fluid::ImmersedFluid::state_bytes gives them; the VMS fluid's in the
 // DMDA's natural ordering, so any number of ranks can read it) and
 // state.json (the step, the run's counters, the options of the run that wrote it, each body's state and
-// metric records, the output series so far). It is replaced whole: written as DIR/checkpoint.new, then
-// renamed.
+// metric records, the output series so far and what their samples found of J). It is replaced whole: written
+// as DIR/checkpoint.new, then renamed.
 #include <petscvec.h>
 
 #include <nlohmann/json.hpp>
@@ -13,6 +13,7 @@
 
 #include "fluid/immersed_fluid.hpp"
 #include "geometry/patch_vtk.hpp"
+#include "solid/solid_output.hpp"
 
 namespace cellfsi::app {
 
@@ -26,6 +27,8 @@ struct Checkpoint {
   nlohmann::json scene_metrics;                       // Scene::metric_state
   std::vector<geometry::PvdEntry> fluid_series, solid_series;
   int solid_writes = 0;
+  std::vector<solid::JHistory>
+      solid_J;  // SolidSeriesWriter::history (absent from earlier checkpoints: empty)
 };
 
 /// Writes DIR/checkpoint: collective over comm (the fluid's state, ImmersedFluid::state_bytes); rank 0 writes

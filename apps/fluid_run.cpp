@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iomanip>
+#include <limits>
 #include <sstream>
 
 #include "apps/interrupt.hpp"
@@ -190,7 +191,7 @@ void FluidRun::open_output() {
       solid_series_ = std::make_unique<solid::SolidSeriesWriter>(settings_.output_dir, rank_ == 0);
     if (settings_.restart) {
       series_->resume(resume_.fluid_series);
-      if (solid_series_) solid_series_->resume(resume_.solid_series, resume_.solid_writes);
+      if (solid_series_) solid_series_->resume(resume_.solid_series, resume_.solid_writes, resume_.solid_J);
     } else {
       write_series();
     }
@@ -397,12 +398,15 @@ void FluidRun::write_checkpoint_after(int k) {
   c.fluid_series = series_ ? series_->entries() : resume_.fluid_series;
   c.solid_series = solid_series_ ? solid_series_->entries() : resume_.solid_series;
   c.solid_writes = solid_series_ ? solid_series_->count() : resume_.solid_writes;
+  c.solid_J = solid_series_ ? solid_series_->history() : resume_.solid_J;
   write_checkpoint(PETSC_COMM_WORLD, settings_.output_dir, c, scene_->fluid());
 }
 
 std::string FluidRun::summary_of_failure(const std::string& status) {
   try {
-    out_->summary(status, done_, newton_, linear_, last_);
+    Metrics m = last_;
+    for (auto& kv : fold_metrics()) m.push_back(std::move(kv));
+    out_->summary(status, done_, newton_, linear_, m);
     return {};
   } catch (const std::exception& e) {
     return std::string("; summary.json not updated: ") + e.what();
@@ -416,8 +420,26 @@ void FluidRun::fail(const std::exception& e, const std::string& where) {
   throw std::runtime_error(message);
 }
 
+FluidRun::Metrics FluidRun::fold_metrics() const {
+  // (Rank 0's, the rank that writes the series and the summary; none without series in this run or the
+  // checkpoint's.)
+  Metrics m;
+  const std::vector<solid::JHistory>& history = solid_series_ ? solid_series_->history() : resume_.solid_J;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (std::size_t b = 0; b < history.size() && b < scene_->bodies().size(); ++b) {
+    const std::string name = scene_->bodies()[b]->name();
+    const solid::JHistory& h = history[b];
+    m.emplace_back(name + "_output_min_J", h.least.J);
+    m.emplace_back(name + "_output_min_J_time", h.least.time);
+    m.emplace_back(name + "_fold_time", h.folded ? h.first_fold.time : nan);
+    m.emplace_back(name + "_fold_J", h.folded ? h.first_fold.J : nan);
+  }
+  return m;
+}
+
 FluidRun::Metrics FluidRun::final_metrics(bool with_solver_size) const {
   Metrics m = scene_->summary_metrics();
+  for (auto& kv : fold_metrics()) m.push_back(std::move(kv));
   if (const coupling::FsiCoupler* coupler = scene_->coupler()) {
     // What the linear algebra cost: the LU factorisations made in steps (coupling::SolveCounts), the bulk
     // operator's (once per run and restart: cellfsi_fourier, cellfsi_bulk), and the unknowns of the band or

@@ -82,6 +82,10 @@ class FluidRun {
   /// Rethrows `e` with where it happened and the note of summary_of_failure.
   [[noreturn]] void fail(const std::exception& e, const std::string& where);
   Metrics final_metrics(bool with_solver_size) const;
+  /// Per body, what the output's samples found of J over the run (JHistory): <body>_output_min_J and its
+  /// _time, <body>_fold_time and _fold_J of the first write that found J <= 0 (NaN, null in summary.json:
+  /// none).
+  Metrics fold_metrics() const;
   std::vector<std::pair<std::string, std::string>> final_words() const;
 
   MPI_Comm inter_;

@@ -157,6 +157,10 @@ def row_of(args, tag, box, rows):
     ext = {k: (min(r[f"rbc_extent_{k}"] for r in last) * 1e4, max(r[f"rbc_extent_{k}"] for r in last) * 1e4)
            for k in "xyz"}
     status = short_status(js.get("status", "running or stopped"))
+    # The first output whose samples found J <= 0 (the shell folded between the solver's quadrature points;
+    # summary.json's rbc_fold_time, null: none; runs made before it was recorded: not known).
+    if js.get("rbc_fold_time") is not None:
+        status += f" (folded between quadrature points from {js['rbc_fold_time'] * 1e3:.1f} ms)"
     # (A failed run's summary has not the membrane's elements; its error names them when a shell element failed.)
     shell = re.search(r" of 1 x (\d+) x (\d+)", js.get("status", ""))
     elements = [js.get("rbc_elements_1", shell and float(shell.group(1))),

@@ -31,8 +31,10 @@ SolidSeriesWriter::SolidSeriesWriter(std::string dir, bool writes, int samples_p
     : dir_(std::move(dir)), writes_(writes), samples_(samples_per_element) {}
 
 void SolidSeriesWriter::write(double time, const std::vector<SolidSolver*>& bodies) {
-  if (writes_)
-    smallest_.assign(bodies.size(), {std::numeric_limits<double>::infinity(), geometry::Vec3::Zero()});
+  if (writes_) {
+    smallest_.assign(bodies.size(), {std::numeric_limits<double>::infinity(), geometry::Vec3::Zero(), time});
+    history_.resize(bodies.size());
+  }
   for (size_t b = 0; b < bodies.size(); ++b) {
     const geometry::Patch ref = bodies[b]->reference_patch();
     const geometry::Patch cur = bodies[b]->current_patch();
@@ -46,10 +48,13 @@ void SolidSeriesWriter::write(double time, const std::vector<SolidSolver*>& bodi
       const geometry::Vec3 u = x.x - X.x;
       disp.values.insert(disp.values.end(), u.data(), u.data() + 3);
       jac.values.push_back(jacobian_ratio(X, x, D));
-      if (jac.values.back() < smallest_[b].J) smallest_[b] = {jac.values.back(), x.x};
+      if (jac.values.back() < smallest_[b].J) smallest_[b] = {jac.values.back(), x.x, time};
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) stress.values.push_back(sigma[i](r, c));
     }
+    JHistory& h = history_[b];
+    if (smallest_[b].J < h.least.J) h.least = smallest_[b];
+    if (!h.folded && smallest_[b].J <= 0) h.folded = true, h.first_fold = smallest_[b];
     char name[512];
     std::snprintf(name, sizeof name, "solid_%s_%06d.vts", bodies[b]->name().c_str(), count_);
     geometry::write_patch_vts(cur, dir_ + "/" + name, samples_, {disp, jac, stress});

@@ -3,6 +3,7 @@
 // the bodies as parts) with the displacement [cm], J = det F and the Cauchy stress [dyn/cm^2] sampled on each
 // body's current configuration. Works through the SolidSolver interface, so it serves every solid
 // implementation and both launch modes.
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,15 @@ namespace cellfsi::solid {
 struct SmallestJ {
   double J = 1.0;
   geometry::Vec3 x = geometry::Vec3::Zero();
+  double time = 0.0;  // of the write that found it [s]
+};
+
+/// What the output's samples found of a body over a run's writes (a restart's included): the smallest J,
+/// and the first write at which J <= 0 somewhere (`folded` false: none so far).
+struct JHistory {
+  SmallestJ least{std::numeric_limits<double>::infinity()};
+  bool folded = false;
+  SmallestJ first_fold;
 };
 
 class SolidSeriesWriter {
@@ -29,11 +39,16 @@ class SolidSeriesWriter {
   /// The entries and the number of writes so far, and a restart's: continue the series after these.
   const std::vector<geometry::PvdEntry>& entries() const { return entries_; }
   int count() const { return count_; }
-  /// Per body, the smallest J of the last write (smallest_J; the writing rank only, else empty).
+  /// Per body, the smallest J of the last write (the writing rank only, else empty).
   const std::vector<SmallestJ>& smallest() const { return smallest_; }
-  void resume(std::vector<geometry::PvdEntry> entries, int count) {
+  /// Per body, the smallest J and the first fold over the writes so far, a restart's history included (the
+  /// writing rank only, else empty).
+  const std::vector<JHistory>& history() const { return history_; }
+  /// A restart: continue the series, and the history, after these (an empty history: start it afresh).
+  void resume(std::vector<geometry::PvdEntry> entries, int count, std::vector<JHistory> history = {}) {
     entries_ = std::move(entries);
     count_ = count;
+    history_ = std::move(history);
   }
 
  private:
@@ -43,6 +58,7 @@ class SolidSeriesWriter {
   int count_ = 0;
   std::vector<geometry::PvdEntry> entries_;
   std::vector<SmallestJ> smallest_;
+  std::vector<JHistory> history_;
 };
 
 }  // namespace cellfsi::solid

@@ -127,6 +127,42 @@ TEST_F(CellfsiApp, KilledRunRestartsFromItsLastCheckpoint) {
   EXPECT_LT(json_number(summary(), "shear_profile_rel_error").value_or(1), 1e-10) << summary();
 }
 
+TEST_F(CellfsiApp, SummaryKeepsTheFirstFoldAcrossARestart) {
+  // summary.json reports what the output's samples found of J (the writer's history, tested alone in
+  // SolidOutput.HistoryKeepsTheSmallestJAndTheFirstFoldAcrossARestart), and the checkpoint carries it: a fold
+  // recorded in the checkpoint at t = 2e-3 s is still the first one in the continued run's summary. A
+  // checkpoint written before the history was recorded restarts with the history of the new writes alone.
+  const std::vector<std::string> args = with(kDefaultCapsule, {"-output_every", "1"});
+  ASSERT_EQ(cellfsi(with(args, {"-final_time", "4e-3"})).exit_code, 0) << last_output_;
+  const std::string straight = summary();
+  const double least = json_number(straight, "membrane_output_min_J").value_or(-1);
+  EXPECT_GT(least, 0.5) << straight;
+  EXPECT_LT(least, 1.0 + 1e-9) << straight;
+  EXPECT_NE(straight.find("\"membrane_fold_time\": null"), std::string::npos) << straight;
+  const fs::path state = out_ / "checkpoint" / "state.json";
+  nlohmann::json js = nlohmann::json::parse(read_text(state));
+  ASSERT_EQ(js.at("solid_J").size(), 1u) << js.at("solid_J");
+  const nlohmann::json fold = {{"J", -0.5}, {"x", {1e-3, 2e-3, 0.0}}, {"time", 2e-3}};
+  js["solid_J"][0] = {{"least", fold}, {"first_fold", fold}};
+  std::ofstream(state) << js.dump() << "\n";
+  RunResult r = cellfsi(with(args, {"-final_time", "6e-3", "-restart"}));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::string after = summary();
+  EXPECT_EQ(json_number(after, "membrane_fold_time"), 2e-3) << after;
+  EXPECT_EQ(json_number(after, "membrane_fold_J"), -0.5) << after;
+  EXPECT_EQ(json_number(after, "membrane_output_min_J"), -0.5) << after;
+  EXPECT_EQ(json_number(after, "membrane_output_min_J_time"), 2e-3) << after;
+  // The checkpoint of an earlier version, without the history.
+  js = nlohmann::json::parse(read_text(state));
+  js.erase("solid_J");
+  std::ofstream(state) << js.dump() << "\n";
+  r = cellfsi(with(args, {"-final_time", "8e-3", "-restart"}));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  after = summary();
+  EXPECT_NE(after.find("\"membrane_fold_time\": null"), std::string::npos) << after;
+  EXPECT_EQ(json_number(after, "membrane_output_min_J_time"), 8e-3) << after;
+}
+
 TEST_F(CellfsiApp, RestartWithOtherOptionsOrWithoutACheckpointIsRefused) {
   const std::vector<std::string> args = with({scene("shear.yaml")}, kTiny);
   expect_one_clear_error(cellfsi(with(args, {"-restart"})));

@@ -752,3 +752,48 @@ TEST(SolidOutput, SmallestJFindsAFoldBetweenTheQuadraturePoints) {
   }
   EXPECT_GT(at_quadrature, 0.0) << "the fold should lie between the quadrature points";
 }
+
+// The writer's history over a run's writes: the smallest J and when, and the first write that found a fold,
+// kept when a later write folds further and when a restart resumes the history.
+TEST(SolidOutput, HistoryKeepsTheSmallestJAndTheFirstFoldAcrossARestart) {
+  const double r = 2e-4, h = 2e-5;
+  const geometry::Patch ref = geometry::hollow_ellipse(r, r, h, 8, 2);
+  const int inner = ref.control_index(0, 4), mid = ref.control_index(1, 4);
+  auto pushed = [&](double by) {
+    geometry::Patch p = ref;
+    p.control_points()[inner] += by * (ref.control_points()[mid] - ref.control_points()[inner]);
+    return p;
+  };
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "cellfsi_test_solid_history";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  FixedShapeBody rest(ref, ref), folded(ref, pushed(1.6)), further(ref, pushed(2.4));
+  solid::SolidSeriesWriter writer(dir.string(), true);
+  writer.write(0.0, {&rest});
+  ASSERT_EQ(writer.history().size(), 1u);
+  EXPECT_NEAR(writer.history()[0].least.J, 1.0, 1e-12);
+  EXPECT_FALSE(writer.history()[0].folded);
+  writer.write(0.5, {&folded});
+  writer.write(1.0, {&further});
+  const solid::JHistory run = writer.history()[0];
+  ASSERT_TRUE(run.folded);
+  EXPECT_EQ(run.first_fold.time, 0.5);
+  EXPECT_NEAR(run.first_fold.J, smallest_written(ref, pushed(1.6)).J, 1e-12);
+  EXPECT_EQ(run.least.time, 1.0) << "the further push should fold further: J " << run.least.J << " against "
+                                 << run.first_fold.J;
+  EXPECT_LT(run.least.J, run.first_fold.J);
+  // A restart: the history goes on from the checkpoint's, a later write at rest changes neither.
+  solid::SolidSeriesWriter resumed(dir.string(), true);
+  resumed.resume(writer.entries(), writer.count(), writer.history());
+  resumed.write(2.0, {&rest});
+  const solid::JHistory after = resumed.history()[0];
+  EXPECT_EQ(after.least.time, 1.0);
+  EXPECT_EQ(after.least.J, run.least.J);
+  EXPECT_TRUE(after.folded);
+  EXPECT_EQ(after.first_fold.time, 0.5);
+  // A writer that does not write (another rank) keeps no history.
+  solid::SolidSeriesWriter quiet(dir.string(), false);
+  quiet.write(0.0, {&folded});
+  EXPECT_TRUE(quiet.history().empty());
+  std::filesystem::remove_all(dir);
+}
