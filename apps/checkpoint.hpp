@@ -27,8 +27,8 @@ struct Checkpoint {
   nlohmann::json scene_metrics;                       // Scene::metric_state
   std::vector<geometry::PvdEntry> fluid_series, solid_series;
   int solid_writes = 0;
-  std::vector<solid::JHistory>
-      solid_J;  // SolidSeriesWriter::history (absent from earlier checkpoints: empty)
+  // SolidSeriesWriter::history (absent from checkpoints written before it was recorded: empty)
+  std::vector<solid::JHistory> solid_J;
 };
 
 /// Writes DIR/checkpoint: collective over comm (the fluid's state, ImmersedFluid::state_bytes); rank 0 writes

@@ -54,7 +54,10 @@ void SolidSeriesWriter::write(double time, const std::vector<SolidSolver*>& bodi
     }
     JHistory& h = history_[b];
     if (smallest_[b].J < h.least.J) h.least = smallest_[b];
-    if (!h.folded && smallest_[b].J <= 0) h.folded = true, h.first_fold = smallest_[b];
+    if (!h.folded && smallest_[b].J <= 0) {
+      h.folded = true;
+      h.first_fold = smallest_[b];
+    }
     char name[512];
     std::snprintf(name, sizeof name, "solid_%s_%06d.vts", bodies[b]->name().c_str(), count_);
     geometry::write_patch_vts(cur, dir_ + "/" + name, samples_, {disp, jac, stress});
