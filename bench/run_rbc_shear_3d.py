@@ -161,7 +161,7 @@ def short_status(status):
 def row_of(args, tag, box, rows):
     js = summary_of(args, tag) or {}
     if not rows:
-        return f"| {box} | {js.get('status', 'not run')} | - | - | - | - | - | - | - | - | - |"
+        return f"| {box} | {js.get('status', 'not run')} | - | - | - | - | - | - | - | - | - | - |"
     down, flips = crossings(rows)
     # A half turn: between two downward zero crossings with a flip between them (a swing about zero is none).
     half = [b - a for a, b in zip(down, down[1:]) if any(a < f < b for f in flips)]
@@ -171,6 +171,9 @@ def row_of(args, tag, box, rows):
     omega = sum(r["rbc_omega_tt"] for r in last) / len(last)
     ext = {k: (min(r[f"rbc_extent_{k}"] for r in last) * 1e4, max(r[f"rbc_extent_{k}"] for r in last) * 1e4)
            for k in "xyz"}
+    # Taylor's deformation index in the shear plane over the same turn (runs made before the metric: none).
+    di = (f"{min(r['rbc_deformation_index'] for r in last):.3f}-{max(r['rbc_deformation_index'] for r in last):.3f}"
+          if "rbc_deformation_index" in last[0] else "-")
     status = short_status(js.get("status", "running or stopped"))
     # The first output whose samples found J <= 0 (the shell folded between the solver's quadrature points;
     # summary.json's rbc_fold_time, null: none; runs made before it was recorded: not known).
@@ -197,7 +200,7 @@ def row_of(args, tag, box, rows):
             f"{', '.join(f'{t * 1e3:.2f}' for t in flips) or '-'} "
             f"| {', '.join(f'{h * 1e3:.1f}' for h in half) or '-'} | {omega:.1f} | "
             f"{ext['x'][0]:.2f}-{ext['x'][1]:.2f}, {ext['y'][0]:.2f}-{ext['y'][1]:.2f}, "
-            f"{ext['z'][0]:.2f}-{ext['z'][1]:.2f} | {tilt} | {fmt(r_a, '.1e')} | "
+            f"{ext['z'][0]:.2f}-{ext['z'][1]:.2f} | {di} | {tilt} | {fmt(r_a, '.1e')} | "
             f"{fmt(elements[0], '.0f')} x {fmt(elements[1], '.0f')} | "
             f"{fmt(s_step, '.1f')} |")
 
@@ -271,12 +274,13 @@ def main():
            "downward zero crossings and its flips (a fast rise through zero: a jump through +-90 deg in the shear "
            "plane); half turns between zero crossings with a flip "
            f"between them (Jeffery: {JEFFERY_HALF_TURN * 1e3:.1f} ms); omega_TT (the membrane's rotation rate, 1/s) "
-           "and the extents (um; flow x, gradient y, vorticity z) over the last whole turn (between the last two "
-           "flips; the whole run before two flips); the short axis's angle to the vorticity (deg; 90: in the shear "
+           "and the extents (um; flow x, gradient y, vorticity z) and Taylor's deformation index (L - B) / (L + B) "
+           "in the shear plane (of the enclosed region's second moments; runs made before the metric: -) over the "
+           "last whole turn (between the last two flips; the whole run before two flips); the short axis's angle to the vorticity (deg; 90: in the shear "
            "plane, 0: rolling) at the start and its range over the run's last third.", "",
            "| box, fluid elements | status | theta = 0 (down) | flips | half turns | omega_TT | extents x, y, z "
-           "| short axis to vorticity | max abs r_A | membrane | s/step |",
-           "|---|---|---|---|---|---|---|---|---|---|---|"] + lines
+           "| DI | short axis to vorticity | max abs r_A | membrane | s/step |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|"] + lines
     write_table(args.table, out)
     figure(args, runs)
     if failed:

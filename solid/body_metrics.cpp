@@ -284,6 +284,13 @@ void BodyTracker::record(double time, const Patch& current, const MetricShare& s
   s.centroid = region.centroid;
   const geometry::PrincipalAxes ax = geometry::principal_axes(region, dim_);
   double axis = std::atan2(ax.axes(plane_dir_, 0), ax.axes(0, 0));
+  // The second moments in the shear plane: the whole in 2D, the (x, plane_dir) block in 3D.
+  Eigen::Matrix2d plane;
+  plane << region.second_moment(0, 0), region.second_moment(0, plane_dir_),
+      region.second_moment(plane_dir_, 0), region.second_moment(plane_dir_, plane_dir_);
+  const Eigen::Vector2d l = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(plane).eigenvalues();  // ascending
+  const double long_side = std::sqrt(std::max(l[1], 0.0)), short_side = std::sqrt(std::max(l[0], 0.0));
+  deformation_index_ = long_side > 0 ? (long_side - short_side) / (long_side + short_side) : 0.0;
   if (dim_ == 3) {
     // The long axis in the shear plane, of the second moment's (x, plane_dir) block: an oblate body (an RBC)
     // has two equal largest moments, and its 3D long axis may be any direction in its disc, out of the plane.
@@ -331,6 +338,7 @@ std::vector<Metric> BodyTracker::metrics() const {
   m.emplace_back("theta_deg", elongated_ || s.anisotropy > kRoundShape
                                   ? wrap(s.axis, kPi) * 180 / kPi
                                   : std::numeric_limits<double>::quiet_NaN());
+  m.emplace_back("deformation_index", deformation_index_);
   if (dim_ == 3) m.emplace_back("short_axis_to_vorticity_deg", short_axis_to_vorticity_);
   if (membrane_) {
     m.emplace_back("omega_tt", w_mat);

@@ -12,6 +12,11 @@
 //              region a membrane encloses (of the body itself when bulky), counter-clockwise positive,
 //              unwrapped in time and reported in (-90, 90]; in 3D the long axis of the second moments'
 //              block in the shear plane (an oblate RBC's 3D long axis may lie anywhere in its disc)
+//   deformation_index  Taylor's (L - B) / (L + B) in the shear plane: L and B the axes of the ellipse with
+//   the
+//              region's second moments in that plane (theta's block in 3D), so (sqrt(l1) - sqrt(l2)) /
+//              (sqrt(l1) + sqrt(l2)) of its eigenvalues l1 >= l2: (a - b) / (a + b) for an ellipse or an
+//              ellipsoid with semi-axes a, b in the plane
 //   omega_tt   tank-treading frequency of a membrane: mean angular velocity of its material points about the
 //              centroid, in turns per second, positive clockwise (the sense of a shear flow with
 //              gammadot > 0)
@@ -107,6 +112,9 @@ class BodyTracker {
   // 3D: the angle [deg] between the current shape's short principal axis and the vorticity direction (not
   // part of state(): recomputed by each record; NaN after a restore until the next).
   double short_axis_to_vorticity_ = std::numeric_limits<double>::quiet_NaN();
+  // The deformation index of the last record (not part of state() either: NaN after a restore until the
+  // next).
+  double deformation_index_ = std::numeric_limits<double>::quiet_NaN();
   double area0_ = 0, boundary0_ = 0;
   std::vector<geometry::Param> material_xi_;
   std::vector<double> last_angles_;  // unwrapped, per material point

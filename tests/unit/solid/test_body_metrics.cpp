@@ -478,3 +478,31 @@ TEST(BodyTracker, RecordsSharedAmongRanksAreTheWholeBodysRecords) {
     }
   }
 }
+
+namespace {
+
+TEST(BodyTracker, DeformationIndexIsTaylorsOfTheEllipseInTheShearPlane) {
+  // (L - B) / (L + B) of the ellipse with the enclosed region's second moments in the shear plane: (a - b) /
+  // (a + b) for an ellipse (exact conics) whatever its inclination, and for an ellipsoid the in-plane pair of
+  // its semi-axes (x-y plane: a, b; with the gradient along z, the x-z plane: a, c). A circle: 0.
+  const double a = 2e-4, b = 1e-4, c = 0.6e-4;
+  for (const double angle : {0.0, 0.3, 1.2}) {
+    const Patch capsule = geometry::hollow_ellipse(a, b, 5e-7, 32, 2, kCentre, angle);
+    solid::BodyTracker t(capsule, true);
+    t.record(0.0, capsule);
+    EXPECT_NEAR(as_map(t.metrics()).at("deformation_index"), (a - b) / (a + b), 1e-9) << angle;
+  }
+  const Patch circle = geometry::hollow_ellipse(a, a, 5e-7, 32, 2, kCentre);
+  solid::BodyTracker round(circle, true);
+  round.record(0.0, circle);
+  EXPECT_NEAR(as_map(round.metrics()).at("deformation_index"), 0.0, 1e-9);
+  const Patch ellipsoid = geometry::hollow_ellipsoid(a, b, c, 5e-7, 8, 16, 2, Vec3(6e-4, 6e-4, 6e-4));
+  solid::BodyTracker xy(ellipsoid, true);
+  xy.record(0.0, ellipsoid);
+  EXPECT_NEAR(as_map(xy.metrics()).at("deformation_index"), (a - b) / (a + b), 1e-6);
+  solid::BodyTracker xz(ellipsoid, true, 2);
+  xz.record(0.0, ellipsoid);
+  EXPECT_NEAR(as_map(xz.metrics()).at("deformation_index"), (a - c) / (a + c), 1e-6);
+}
+
+}  // namespace
