@@ -276,8 +276,9 @@ def main():
            f"between them (Jeffery: {JEFFERY_HALF_TURN * 1e3:.1f} ms); omega_TT (the membrane's rotation rate, 1/s) "
            "and the extents (um; flow x, gradient y, vorticity z) and Taylor's deformation index (L - B) / (L + B) "
            "in the shear plane (of the enclosed region's second moments; runs made before the metric: -) over the "
-           "last whole turn (between the last two flips; the whole run before two flips); the short axis's angle to the vorticity (deg; 90: in the shear "
-           "plane, 0: rolling) at the start and its range over the run's last third.", "",
+           "last whole turn (between the last two flips; the whole run before two flips); the short axis's angle to "
+           "the vorticity (deg; 90: in the shear plane, 0: rolling) at the start and its range over the run's last "
+           "third.", "",
            "| box, fluid elements | status | theta = 0 (down) | flips | half turns | omega_TT | extents x, y, z "
            "| DI | short axis to vorticity | max abs r_A | membrane | s/step |",
            "|---|---|---|---|---|---|---|---|---|---|---|---|"] + lines

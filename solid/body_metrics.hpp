@@ -12,8 +12,8 @@
 //              region a membrane encloses (of the body itself when bulky), counter-clockwise positive,
 //              unwrapped in time and reported in (-90, 90]; in 3D the long axis of the second moments'
 //              block in the shear plane (an oblate RBC's 3D long axis may lie anywhere in its disc)
-//   deformation_index  Taylor's (L - B) / (L + B) in the shear plane: L and B the axes of the ellipse with
-//   the
+//   deformation_index
+//              Taylor's (L - B) / (L + B) in the shear plane: L and B the axes of the ellipse with the
 //              region's second moments in that plane (theta's block in 3D), so (sqrt(l1) - sqrt(l2)) /
 //              (sqrt(l1) + sqrt(l2)) of its eigenvalues l1 >= l2: (a - b) / (a + b) for an ellipse or an
 //              ellipsoid with semi-axes a, b in the plane
