@@ -215,10 +215,11 @@ def provenance(args, command):
 
 
 def write_table(path, lines):
-    """Writes the table's lines to path (folders made) and prints them."""
-    os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
-    with open(path, "w") as f:
-        f.write("\n".join(lines) + "\n")
+    """Writes the table's lines to path (folders made; None: nowhere) and prints them."""
+    if path:
+        os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
+        with open(path, "w") as f:
+            f.write("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 

@@ -125,10 +125,7 @@ def main():
                          f"{polar.min():.2f}-{polar.max():.2f} | {azim.max():.2f} | "
                          f"{t:.3f} | {J.min():.3f} | {param:.3f} | {np.mean(J < 0.95):.4f} | "
                          f"{'-' if ra is None else f'{ra:.2e}'} |")
-    if args.table:
-        write_table(args.table, lines)
-    else:
-        print("\n".join(lines))
+    write_table(args.table, lines)
 
 
 if __name__ == "__main__":

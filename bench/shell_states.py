@@ -1,0 +1,117 @@
+#!/usr/bin/env python3
+"""What a 3D membrane's saved states show between the solver's quadrature points: per output of one body
+(solid_<body>_*.vts, in solid.pvd's order) the least J = det F on each sample layer through the thickness (the
+first and last layers are the shell's faces, where a fold shows first), the mid-surface's local area against the
+first output's (its least and largest ratio over the sample grid's cells) and the whole, and Taylor's deformation
+index (L - B) / (L + B) in the shear plane of the region the mid-surface encloses, as cellfsi's metric
+BODY_deformation_index defines it (solid/body_metrics.hpp), here from the sample grid as a closed polyhedron. For
+runs made before that metric, and to see where a shell folded. Writes a markdown table (--table) or prints it.
+
+  /usr/bin/python3 bench/shell_states.py RUN [--body rbc] [--every N] [--from T] [--plane-dir 1] [--table FILE]
+
+Needs Debian's python3-vtk9 (scripts/install-deps.sh).
+"""
+import argparse
+import datetime
+import os
+import sys
+import xml.etree.ElementTree as ET
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_common import commit_of_head, write_table  # noqa: E402
+from membrane_volume_ratio import read_body  # noqa: E402
+
+TOOL = "shell_states.py"
+
+
+def cell_areas(mid):
+    """The areas of the mid-surface's sample grid cells (two triangles each), shaped (direction 2, direction 1)."""
+    import numpy as np
+    a, b, c, d = mid[:-1, :-1], mid[1:, :-1], mid[1:, 1:], mid[:-1, 1:]
+    return 0.5 * (np.linalg.norm(np.cross(b - a, c - a), axis=-1) + np.linalg.norm(np.cross(c - a, d - a), axis=-1))
+
+
+def enclosed_moments(mid):
+    """(volume, second moment about the centroid) of the region a closed sample grid encloses: tetrahedra from
+    the grid's mean point to each of its triangles (a pole's row of equal points gives triangles of no volume)."""
+    import numpy as np
+    o = mid.reshape(-1, 3).mean(axis=0)
+    m = mid - o
+    corners = (m[:-1, :-1], m[1:, :-1], m[1:, 1:], m[:-1, 1:])
+    volume, first, second = 0.0, np.zeros(3), np.zeros((3, 3))
+    for a, b, c in ((corners[0], corners[1], corners[2]), (corners[0], corners[2], corners[3])):
+        a, b, c = a.reshape(-1, 3), b.reshape(-1, 3), c.reshape(-1, 3)
+        v = np.einsum("ij,ij->i", a, np.cross(b, c)) / 6
+        s = a + b + c
+        volume += v.sum()
+        first += (v[:, None] * s).sum(axis=0) / 4
+        # (a tetrahedron with one vertex at the origin: int x x^T = V / 20 (sum of v v^T + s s^T))
+        for x in (a, b, c, s):
+            second += np.einsum("i,ij,ik->jk", v / 20, x, x)
+    sign = 1.0 if volume > 0 else -1.0  # (the grid's orientation)
+    volume, first, second = sign * volume, sign * first, sign * second
+    centroid = first / volume
+    return volume, second - volume * np.outer(centroid, centroid)
+
+
+def deformation_index(second, plane_dir):
+    """Taylor's (L - B) / (L + B) of the ellipse with the second moments' (x, plane_dir) block."""
+    import numpy as np
+    block = second[np.ix_([0, plane_dir], [0, plane_dir])]
+    small, large = np.sqrt(np.maximum(np.linalg.eigvalsh(block), 0.0))
+    return (large - small) / (large + small) if large > 0 else 0.0
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("run", help="a run folder (with solid.pvd)")
+    ap.add_argument("--body", default="rbc")
+    ap.add_argument("--every", type=int, default=1, help="every N-th output (the first and last always)")
+    ap.add_argument("--from", dest="start", type=float, default=0.0, help="outputs from this time [s] on")
+    ap.add_argument("--plane-dir", type=int, default=1, choices=[1, 2],
+                    help="the shear plane's second direction, as cellfsi's (1: y, the default)")
+    ap.add_argument("--table", help="markdown file to write (default: print)")
+    args = ap.parse_args()
+    if args.every < 1:
+        sys.exit(f"{TOOL}: --every {args.every} is invalid: give a whole number of 1 or more")
+    import numpy as np
+    pvd = os.path.join(args.run, "solid.pvd")
+    if not os.path.isfile(pvd):
+        sys.exit(f"{TOOL}: {args.run} has no solid.pvd")
+    outputs = sorted((float(d.get("timestep")), d.get("file")) for d in ET.parse(pvd).getroot().iter("DataSet")
+                     if os.path.basename(d.get("file")).startswith(f"solid_{args.body}_"))
+    if not outputs:
+        sys.exit(f"{TOOL}: no output of body '{args.body}' in {args.run}")
+    reference = read_body(os.path.join(args.run, outputs[0][1]))[0]
+    layers = reference.shape[2]
+    area0 = cell_areas(reference[:, :, layers // 2, :])
+    keep = area0 > 1e-12 * area0.max()  # (the poles' rows of cells have no area)
+    chosen = [o for o in outputs if o[0] >= args.start - 1e-12]
+    chosen = [o for i, o in enumerate(chosen) if i % args.every == 0 or i == len(chosen) - 1]
+    faces = " | ".join(f"layer {k}" for k in range(layers))
+    lines = [f"# The saved states of body '{args.body}' in {os.path.basename(os.path.normpath(args.run))}", "",
+             f"Generated by `/usr/bin/python3 bench/{TOOL} {' '.join(sys.argv[1:])}` on "
+             f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, git {commit_of_head()}, from the "
+             "run's own outputs (its options.yaml says its command).", "",
+             f"Per output: the least J on each of the {layers} sample layers through the thickness (layer 0 and "
+             f"layer {layers - 1}: the shell's faces), the mid-surface's local area against the first output's "
+             "(least and largest over the sample grid's cells) and the whole, the volume the mid-surface encloses, "
+             "and the deformation index in the shear plane (x and direction "
+             f"{'xyz'[args.plane_dir]}) of that region.", "",
+             f"| t (ms) | {faces} | local area | whole area | volume (um^3) | deformation index |",
+             "|" + "---|" * (layers + 5)]
+    for t, f in chosen:
+        pts, arrays = read_body(os.path.join(args.run, f))
+        J = arrays["J"]
+        mid = pts[:, :, layers // 2, :]
+        ratio = cell_areas(mid)[keep] / area0[keep]
+        volume, second = enclosed_moments(mid)
+        least = " | ".join(f"{J[:, :, k].min():.3f}" for k in range(layers))
+        lines.append(f"| {t * 1e3:.1f} | {least} | {ratio.min():.3f}-{ratio.max():.3f} | "
+                     f"{cell_areas(mid)[keep].sum() / area0[keep].sum():.4f} | {volume * 1e12:.2f} | "
+                     f"{deformation_index(second, args.plane_dir):.4f} |")
+    write_table(args.table, lines)
+
+
+if __name__ == "__main__":
+    main()

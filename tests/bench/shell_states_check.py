@@ -1,0 +1,99 @@
+#!/usr/bin/env python3
+"""bench/shell_states.py on a stand-in run: an ellipsoidal shell (mid-surface semi-axes 4, 2 and 1.5 um, 5 sample
+layers, 60 x 120 grid cells with a pole's row of equal points at each end, as cellfsi's output has), then the
+same shell scaled by 1.1 about its centre, with J given per layer. The table must give the layers' least J as
+written, the local and whole area ratios 1 and 1.21, the enclosed volume (4/3 pi a b c, 50.27 um^3, within the
+grid's 0.2 %) times 1 and 1.331, and the deformation index (a - b) / (a + b) = 1/3 in the x-y plane and
+(a - c) / (a + c) = 0.4545 in the x-z plane (--plane-dir 2), within 0.2 %; --every 0 is refused.
+
+  /usr/bin/python3 tests/bench/shell_states_check.py SOURCE_DIR WORK_DIR
+"""
+import math
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import vtk
+from vtk.util.numpy_support import numpy_to_vtk
+
+SRC, WORK = sys.argv[1], sys.argv[2]
+A, B, C, H = 4e-4, 2e-4, 1.5e-4, 3e-5
+CENTRE = np.array([6e-4, 6e-4, 6e-4])
+
+
+def write_shell(path, scale, j_per_layer):
+    layers, polar, azim = 5, 61, 121
+    phi = np.linspace(0, math.pi, polar)[None, :, None]
+    theta = np.linspace(0, 2 * math.pi, azim)[:, None, None]
+    off = (np.linspace(-0.5, 0.5, layers) * H)[None, None, :]
+    pts = np.stack(np.broadcast_arrays((A + off) * np.sin(phi) * np.cos(theta), (B + off) * np.sin(phi) *
+                                       np.sin(theta), (C + off) * np.cos(phi)), axis=-1)
+    pts = CENTRE + scale * pts  # shaped (azimuth, polar, layer, 3): VTK's (k, j, i)
+    grid = vtk.vtkStructuredGrid()
+    grid.SetDimensions(layers, polar, azim)
+    points = vtk.vtkPoints()
+    points.SetData(numpy_to_vtk(np.ascontiguousarray(pts.reshape(-1, 3)), deep=True))
+    grid.SetPoints(points)
+    J = np.broadcast_to(np.array(j_per_layer)[None, None, :], (azim, polar, layers)).reshape(-1).copy()
+    arr = numpy_to_vtk(J, deep=True)
+    arr.SetName("J")
+    grid.GetPointData().AddArray(arr)
+    writer = vtk.vtkXMLStructuredGridWriter()
+    writer.SetFileName(path)
+    writer.SetInputData(grid)
+    writer.Write()
+
+
+def table(*extra):
+    out = subprocess.run(["/usr/bin/python3", os.path.join(SRC, "bench", "shell_states.py"), WORK, *extra],
+                         capture_output=True, text=True)
+    return out.returncode, out.stdout, out.stderr
+
+
+def rows(text):
+    return [[c.strip() for c in line.strip("|").split("|")] for line in text.splitlines()
+            if line.startswith("| ") and line[2].isdigit()]
+
+
+shutil.rmtree(WORK, ignore_errors=True)
+os.makedirs(WORK)
+write_shell(os.path.join(WORK, "solid_rbc_000000.vts"), 1.0, [0.9, 1.0, 1.0, 1.0, 0.8])
+write_shell(os.path.join(WORK, "solid_rbc_000001.vts"), 1.1, [-0.2, 0.7, 1.0, 0.6, 0.5])
+with open(os.path.join(WORK, "solid.pvd"), "w") as f:
+    f.write('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1"><Collection>\n'
+            '<DataSet timestep="0" part="0" name="rbc" file="solid_rbc_000000.vts"/>\n'
+            '<DataSet timestep="0.002" part="0" name="rbc" file="solid_rbc_000001.vts"/>\n'
+            '</Collection></VTKFile>\n')
+
+failures = []
+
+
+def check(what, ok):
+    if not ok:
+        failures.append(what)
+
+
+volume = 4 / 3 * math.pi * A * B * C * 1e12
+for plane, di in ((1, (A - B) / (A + B)), (2, (A - C) / (A + C))):
+    code, out, err = table("--plane-dir", str(plane))
+    check(f"exit code {code}: {err}", code == 0)
+    r = rows(out)
+    check(f"two rows in\n{out}", len(r) == 2)
+    if len(r) != 2:
+        continue
+    check(f"layers at 0 ms: {r[0][1:6]}", r[0][1:6] == ["0.900", "1.000", "1.000", "1.000", "0.800"])
+    check(f"layers at 2 ms: {r[1][1:6]}", r[1][1:6] == ["-0.200", "0.700", "1.000", "0.600", "0.500"])
+    check(f"local area at 0 ms: {r[0][6]}", r[0][6] == "1.000-1.000")
+    check(f"local area at 2 ms: {r[1][6]}", r[1][6] == "1.210-1.210")
+    check(f"whole area: {r[0][7]}, {r[1][7]}", (r[0][7], r[1][7]) == ("1.0000", "1.2100"))
+    check(f"volume {r[0][8]} against {volume:.2f}", abs(float(r[0][8]) / volume - 1) < 2e-3)
+    check(f"volume ratio {r[1][8]} / {r[0][8]}", abs(float(r[1][8]) / float(r[0][8]) - 1.331) < 1e-3)
+    for row in r:
+        check(f"plane {plane}: deformation index {row[9]} against {di:.4f}", abs(float(row[9]) / di - 1) < 2e-3)
+code, out, err = table("--every", "0")
+check(f"--every 0: exit code {code}, {err}", code == 1 and "--every 0 is invalid" in err)
+if failures:
+    sys.exit("shell_states_check: " + "\n".join(failures))
+print("shell_states_check: passed")
