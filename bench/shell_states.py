@@ -104,11 +104,12 @@ def main():
         pts, arrays = read_body(os.path.join(args.run, f))
         J = arrays["J"]
         mid = pts[:, :, layers // 2, :]
-        ratio = cell_areas(mid)[keep] / area0[keep]
+        areas = cell_areas(mid)[keep]
+        ratio = areas / area0[keep]
         volume, second = enclosed_moments(mid)
         least = " | ".join(f"{J[:, :, k].min():.3f}" for k in range(layers))
         lines.append(f"| {t * 1e3:.1f} | {least} | {ratio.min():.3f}-{ratio.max():.3f} | "
-                     f"{cell_areas(mid)[keep].sum() / area0[keep].sum():.4f} | {volume * 1e12:.2f} | "
+                     f"{areas.sum() / area0[keep].sum():.4f} | {volume * 1e12:.2f} | "
                      f"{deformation_index(second, args.plane_dir):.4f} |")
     write_table(args.table, lines)
 

@@ -284,20 +284,18 @@ void BodyTracker::record(double time, const Patch& current, const MetricShare& s
   s.centroid = region.centroid;
   const geometry::PrincipalAxes ax = geometry::principal_axes(region, dim_);
   double axis = std::atan2(ax.axes(plane_dir_, 0), ax.axes(0, 0));
-  // The second moments in the shear plane: the whole in 2D, the (x, plane_dir) block in 3D.
-  Eigen::Matrix2d plane;
-  plane << region.second_moment(0, 0), region.second_moment(0, plane_dir_),
-      region.second_moment(plane_dir_, 0), region.second_moment(plane_dir_, plane_dir_);
-  const Eigen::Vector2d l = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(plane).eigenvalues();  // ascending
-  const double long_side = std::sqrt(std::max(l[1], 0.0)), short_side = std::sqrt(std::max(l[0], 0.0));
+  // The second moments in the shear plane: the whole in 2D, the (x, plane_dir) block in 3D. Their principal
+  // values give the deformation index (descending: l0 >= l1).
+  geometry::RegionMoments in_plane;
+  const int ix[2] = {0, plane_dir_};
+  for (int r = 0; r < 2; ++r)
+    for (int c = 0; c < 2; ++c) in_plane.second_moment(r, c) = region.second_moment(ix[r], ix[c]);
+  const Vec3 l = geometry::principal_axes(in_plane, 2).values;
+  const double long_side = std::sqrt(std::max(l[0], 0.0)), short_side = std::sqrt(std::max(l[1], 0.0));
   deformation_index_ = long_side > 0 ? (long_side - short_side) / (long_side + short_side) : 0.0;
   if (dim_ == 3) {
-    // The long axis in the shear plane, of the second moment's (x, plane_dir) block: an oblate body (an RBC)
-    // has two equal largest moments, and its 3D long axis may be any direction in its disc, out of the plane.
-    geometry::RegionMoments in_plane;
-    const int ix[2] = {0, plane_dir_};
-    for (int r = 0; r < 2; ++r)
-      for (int c = 0; c < 2; ++c) in_plane.second_moment(r, c) = region.second_moment(ix[r], ix[c]);
+    // The long axis in the shear plane, of that block: an oblate body (an RBC) has two equal largest moments,
+    // and its 3D long axis may be any direction in its disc, out of the plane.
     axis = geometry::long_axis_angle(in_plane);
     // The short axis (an RBC's axis of symmetry) against the vorticity direction, the axis normal to the
     // shear plane: 0 when the body rolls about it, 90 deg when the short axis lies in the shear plane.
