@@ -162,6 +162,56 @@ TEST(NurbsSolid, LinearVelocityFieldsAreFollowedExactly) {
   EXPECT_LT(s.kinematic_update(vs), 1e-12 * r0);
 }
 
+TEST(NurbsSolid, AStepCompressingFasterThanOneAndAHalfPerDtTurnsTheBodyOver) {
+  // The kinematic update (generalized-alpha, rho_inf 0.5) in v = -k (y - c_y) e_y, a uniaxial compression
+  // followed exactly: every length along y, a membrane's thickness as much as the gap between two membranes,
+  // scales by one s_n. It stays positive and falls like exp(-k t) while k dt < 3/2; above it the update
+  // overshoots through zero within a few steps (docs/validation-future-work.md, "Cells that come close").
+  // (Centred at the origin, so that x - c loses no digits however small s_n gets.)
+  const Vec3 c = Vec3::Zero();
+  const geometry::Patch e = geometry::hollow_ellipse(2e-4, 1e-4, 5e-7, 16, 2, c, 0.0);
+  const std::vector<Vec3> X = solid::NurbsSolid("capsule", e, membrane_material(), 1.1).collocation_points();
+  const double dt = 1e-3;
+  auto scales = [&](double k_dt, int steps) {
+    solid::NurbsSolid s("capsule", e, membrane_material(), 1.1);
+    Mat3 L = Mat3::Zero();
+    L(1, 1) = -k_dt / dt;
+    std::vector<Vec3> rate(s.n_points());  // (moving with the field from the start: no start-up error)
+    for (int i = 0; i < s.n_points(); ++i) rate[i] = L * (X[i] - c);
+    s.set_rate(rate);
+    std::vector<double> out;
+    for (int n = 0; n < steps; ++n) {
+      s.begin_step(solid::TimeParameters::from_rho_inf(0.5, dt));
+      std::vector<solid::VelocitySample> vs(s.n_points());
+      for (int it = 0; it < 2; ++it) {
+        const std::vector<Vec3> x = s.collocation_points();
+        for (int i = 0; i < s.n_points(); ++i) vs[i].v = L * (x[i] - c), vs[i].grad_v = L;
+        s.kinematic_update(vs);
+      }
+      s.end_step();
+      // s_n from the point farthest from c along y (the map is x - c = diag(1, s_n) (X - c)).
+      const std::vector<Vec3> x = s.collocation_points();
+      int far = 0;
+      for (int i = 0; i < s.n_points(); ++i)
+        if (std::abs(X[i][1] - c[1]) > std::abs(X[far][1] - c[1])) far = i;
+      out.push_back((x[far][1] - c[1]) / (X[far][1] - c[1]));
+      EXPECT_NEAR(x[far][0], X[far][0], 1e-15);
+    }
+    return out;
+  };
+  // Ten steps: at k dt = 1.45 s_n is 5e-12 after them, beyond which it reaches the positions' round-off.
+  for (double k_dt : {0.01, 0.5, 1.0, 1.45}) {
+    const std::vector<double> s = scales(k_dt, 10);
+    EXPECT_GT(*std::min_element(s.begin(), s.end()), 0.0) << "k dt = " << k_dt;
+  }
+  // Second order: after 40 steps of k dt = 0.01, within 1e-5 of exp(-0.4).
+  EXPECT_NEAR(scales(0.01, 40).back(), std::exp(-0.4), 1e-5);
+  for (double k_dt : {1.55, 2.0, 10.0}) {
+    const std::vector<double> s = scales(k_dt, 6);
+    EXPECT_LT(*std::min_element(s.begin(), s.end()), -1e-3) << "k dt = " << k_dt;
+  }
+}
+
 TEST(NurbsSolid, ControlIncrementIsTheKinematicUpdatesDerivative) {
   // Steps 2-3 are linear in the sampled velocity for a fixed grad v (the tangent's): two bodies updated from
   // v and v + h dv differ in their control variables by exactly h dc / alpha_f, dc = control_increment(dv).
