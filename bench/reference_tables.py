@@ -661,24 +661,28 @@ def ctc_among_rbcs_files(prefix):
 
 
 def early_row_order(r):
-    """Mesh, then the automatic s_I before given ones (largest first), then red cells and seed (numbers where the
-    cells are numbers)."""
+    """Mesh, then the fluid space (the paper's first), then the automatic s_I before given ones (largest first),
+    then red cells and seed (numbers where the cells are numbers)."""
     def value(text):
         m = re.match(r"[0-9.eE+-]+", text)
         try:
             return float(m.group()) if m else 0.0
         except ValueError:
             return 0.0
-    return (value(r[0]), r[1] != "auto", -value(r[1]) if r[1] != "auto" else 0.0, value(r[2]), value(r[4]))
+    return (value(r[0]), r[1] != "equal-order", r[2] != "auto", -value(r[2]) if r[2] != "auto" else 0.0,
+            value(r[3]), value(r[5]))
 
 
 def t_ctc_among_rbcs_early():
     """How much the red cells hold the flow back early in the run (before the CTC reaches the narrowing), against
-    the CTC alone on the same mesh, per mesh and s_I: a mesh study a short run can make."""
+    the CTC alone on the same mesh, per mesh, fluid space and s_I (the divergence-conforming space has none): a
+    mesh study a short run can make."""
     rows, sources, seen = [], [], set()
     for path, runs, mesh, cmd in ctc_among_rbcs_files("ctc_among_rbcs"):
         used = False
+        space = "div.-conf." if "div_conforming" in cmd else "equal-order"
         si = re.search(r"-s_interface (\S+?)'?(\s|$)", cmd)
+        s_i = "-" if space != "equal-order" else si.group(1) if si else "auto"
         for r in runs:
             early = next((v for k, v in r.items() if k.startswith("at ")), "-")
             # Any run that got past the early time (a passage run stopped by hand too).
@@ -688,19 +692,19 @@ def t_ctc_among_rbcs_early():
             t_early = re.match(r"at (\S+) s", key).group(1)
             # One row per run: a run kept in an early table and continued into a passage table is the same run
             # (the early table, first by name, gives it).
-            run = (mesh, si.group(1) if si else "auto", r["red cells"], r["seed"], t_early)
+            run = (mesh, space, s_i, r["red cells"], r["seed"], t_early)
             if run in seen:
                 continue
             seen.add(run)
             flow, travel = early.split("(")[0].rstrip().split(", ")
             ratio_q, ratio_x = early.split("(")[1].rstrip(")").split(", ")
-            rows.append([mesh, si.group(1) if si else "auto", r["red cells"], r["haematocrit (%)"], r["seed"],
-                         t_early, flow, ratio_q, travel, ratio_x, r["s/step"], commit_of(path), code(cmd)])
+            rows.append([mesh, space, s_i, r["red cells"], r["haematocrit (%)"], r["seed"], t_early, flow, ratio_q,
+                         travel, ratio_x, r["s/step"], commit_of(path), code(cmd)])
             used = True
         if used:
             sources.append(link_from_page(path))
     rows.sort(key=early_row_order)
-    return table(rows, sources, ["mesh", "s_I", "red cells", "haematocrit (%)", "seed", "at t (s)",
+    return table(rows, sources, ["mesh", "fluid", "s_I", "red cells", "haematocrit (%)", "seed", "at t (s)",
                                  "flow rate (1e-6 cm^2/s)", "against the CTC alone", "CTC travel (um)",
                                  "against the CTC alone", "s/step", "commit", "command"])
 
