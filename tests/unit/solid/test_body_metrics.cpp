@@ -479,8 +479,6 @@ TEST(BodyTracker, RecordsSharedAmongRanksAreTheWholeBodysRecords) {
   }
 }
 
-namespace {
-
 TEST(BodyTracker, DeformationIndexIsTaylorsOfTheEllipseInTheShearPlane) {
   // (L - B) / (L + B) of the ellipse with the enclosed region's second moments in the shear plane: (a - b) /
   // (a + b) for an ellipse (exact conics) whatever its inclination, and for an ellipsoid the in-plane pair of
@@ -504,5 +502,3 @@ TEST(BodyTracker, DeformationIndexIsTaylorsOfTheEllipseInTheShearPlane) {
   xz.record(0.0, ellipsoid);
   EXPECT_NEAR(as_map(xz.metrics()).at("deformation_index"), (a - c) / (a + c), 1e-6);
 }
-
-}  // namespace
