@@ -707,6 +707,14 @@ SceneSettings SceneSettings::from_options(const std::string& default_name, bool 
     if (s.periodic[d] && s.elements[d] < s.degree)
       t.bad("fluid_elements", std::to_string(s.elements[d]), ">= degree in a periodic direction");
   if (s.flow == "shear" && s.domain == "narrowing") t.bad("flow", "shear", "shear needs a rectangle or box");
+  // The divergence-conforming space on the curved channel takes the map's second derivatives (the Piola map,
+  // fluid/div_conforming/dc_piola.hpp). At p = 2 they jump between elements, and so do a cell's terms and
+  // velocity gradient at a point on an element boundary: in a coupled step such a point can move from one
+  // element to the other and back at every iteration, and the iteration stalls (docs/fluid.md).
+  if (s.fluid_space == "div_conforming" && s.domain == "narrowing" && s.degree < 3)
+    t.bad("fluid_degree", std::to_string(s.degree),
+          "3 <= p <= 8 with -fluid_space div_conforming on the narrowing: the Piola map needs the channel's "
+          "second derivatives continuous, and at p = 2 they jump between elements");
   if (s.flow_start == "developed") {
     if (s.flow != "poiseuille") t.bad("flow_start", "developed", "only with -flow poiseuille");
     if (s.domain == "narrowing")

@@ -1,9 +1,12 @@
 #include "fluid/div_conforming/dc_space.hpp"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "geometry/basis.hpp"
 #include "geometry/quadrature.hpp"
@@ -107,6 +110,64 @@ ParametricGrid parametric_grid(const geometry::Patch& patch) {
   return g;
 }
 
+/// The largest jump of the map's second derivatives across an interior element boundary, relative to their
+/// largest value (or the first derivatives over the parameter's range, if larger; 0 for an affine map), and
+/// where: sampled on both sides of every boundary
+/// along each direction, at the midpoints of up to 8 elements spread across each other direction and at
+/// the ends there.
+struct SecondDerivativeJump {
+  double relative = 0;
+  int direction = 0;
+  double at = 0;
+};
+SecondDerivativeJump second_derivative_jump(const geometry::Patch& patch) {
+  const int dim = patch.param_dim();
+  // Transverse samples per direction: the two ends and the midpoints of up to 8 elements.
+  std::array<std::vector<double>, 3> across;
+  for (int d = 0; d < dim; ++d) {
+    const KnotVector& kv = patch.knots(d);
+    const int n = kv.n_elements(), m = std::min(n, 8);
+    across[d] = {kv.a(), kv.b()};
+    for (int j = 0; j < m; ++j) {
+      const int e = (2 * j + 1) * n / (2 * m);
+      across[d].push_back(0.5 * (kv.element_begin(e) + kv.element_end(e)));
+    }
+  }
+  double largest = 0;
+  SecondDerivativeJump worst;
+  for (int d = 0; d < dim; ++d) {
+    const KnotVector& kv = patch.knots(d);
+    const double eps = 1e-9 * (kv.b() - kv.a());
+    const int o1 = (d + 1) % dim, o2 = (d + 2) % dim;
+    const std::vector<double> none{0.0};
+    const std::vector<double>& s2 = dim == 3 ? across[o2] : none;
+    for (int e = 1; e < kv.n_elements(); ++e) {
+      const double u = kv.element_begin(e);
+      for (double t1 : across[o1])
+        for (double t2 : s2) {
+          geometry::Param lo{0, 0, 0}, hi{0, 0, 0};
+          lo[d] = u - eps, hi[d] = u + eps;
+          lo[o1] = hi[o1] = t1;
+          if (dim == 3) lo[o2] = hi[o2] = t2;
+          const geometry::MapValues a = patch.evaluate(lo, 2), b = patch.evaluate(hi, 2);
+          double jump = 0;
+          // (the first derivatives over the parameter's range bound the scale from below: an affine map's
+          // second derivatives are round-off)
+          for (int c = 0; c < dim; ++c)
+            largest = std::max(largest,
+                               a.dx.col(c).cwiseAbs().maxCoeff() / (patch.knots(c).b() - patch.knots(c).a()));
+          for (int i = 0; i < dim; ++i) {
+            largest = std::max({largest, a.d2x[i].cwiseAbs().maxCoeff(), b.d2x[i].cwiseAbs().maxCoeff()});
+            jump = std::max(jump, (a.d2x[i] - b.d2x[i]).cwiseAbs().maxCoeff());
+          }
+          if (jump > worst.relative) worst = {jump, d, u};
+        }
+    }
+  }
+  if (largest > 0) worst.relative /= largest;
+  return worst;
+}
+
 }  // namespace
 
 DivConformingSpace DivConformingSpace::from_patch(const geometry::Patch& patch, int k) {
@@ -126,6 +187,18 @@ DivConformingSpace DivConformingSpace::from_patch(const geometry::Patch& patch, 
 DivConformingSpace DivConformingSpace::mapped(std::shared_ptr<const geometry::Patch> patch, int k) {
   require(patch != nullptr, "mapped: no patch");
   const ParametricGrid g = parametric_grid(*patch);
+  // The mapped gradient takes the map's second derivatives (dc_piola.hpp): where they jump between elements,
+  // so do the immersed terms and the velocity gradient at a point on that boundary, and a coupled step can
+  // stall with the point changing element at every iteration (measured on the narrowing at degree 2; tests/
+  // unit/fluid/test_div_conforming.cpp, DcPiola.AMapWhoseSecondDerivativesJumpBetweenElementsIsRefused).
+  // Affine maps (0) and maps of continuity 2 or more (of the order of the sampling's offset, 1e-9) pass.
+  const SecondDerivativeJump jump = second_derivative_jump(*patch);
+  require(jump.relative <= 1e-6,
+          "the map's second derivatives jump by " + std::to_string(jump.relative) +
+              " of their largest value across the element boundary at xi_" + std::to_string(jump.direction) +
+              " = " + std::to_string(jump.at) +
+              ": the Piola map needs them continuous (a map of degree 3 or more without repeated interior "
+              "knots, or an affine one)");
   // The space's coordinates s_d = c_d xi_d, c_d the patch's length along d per unit parameter (the distance
   // between its mid-line's ends, or the period shift's length): then F = dx/ds and J are of order 1 and the
   // velocity coefficients (J F^{-1} v) have the physical velocity's size. In the patch's own parameters

@@ -34,6 +34,19 @@ TEST_F(CellfsiApp, DegreeOneIsRejected) {
   EXPECT_TRUE(nothing_written());
 }
 
+TEST_F(CellfsiApp, QuadraticNarrowingOnTheDivergenceConformingSpaceIsRejected) {
+  // Its Piola map takes the channel's second derivatives, which jump between elements at p = 2: a step of the
+  // CTC among red cells stalled there (DcPiola.AMapWhoseSecondDerivativesJumpBetweenElementsIsRefused).
+  const RunResult r =
+      cellfsi({scene("ctc_narrowing.yaml"), "-fluid_elements", "48,16", "-fluid_degree", "2", "-fluid_space",
+               "div_conforming", "-final_time", "2.5e-4", "-output_every", "0"});
+  expect_one_clear_error(r);
+  EXPECT_NE(r.output.find("option -fluid_degree = 2 is invalid"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("3 <= p <= 8 with -fluid_space div_conforming on the narrowing"), std::string::npos)
+      << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
 TEST_F(CellfsiApp, ZeroElementsAreRejected) {
   const RunResult r = cellfsi(with(with({scene("shear.yaml")}, kTiny), {"-fluid_elements", "0,4"}));
   expect_one_clear_error(r);
