@@ -660,6 +660,16 @@ def ctc_among_rbcs_files(prefix):
     return out
 
 
+def ctc_among_rbcs_fluid(cmd):
+    """The fluid space and the membranes of a run_ctc_among_rbcs.py command: ("div.-conf." or "equal-order", "auto"
+    or the elements around the CTC's membrane and a red cell's as --extra gives them)."""
+    space = "div.-conf." if "div_conforming" in cmd else "equal-order"
+    ctc = re.search(r"-solid_membrane_elements \d+,(\d+)", cmd)
+    rbc = re.search(r"-solid_rbc_elements \d+,(\d+)", cmd)
+    membranes = "auto" if not ctc and not rbc else f"{ctc.group(1) if ctc else 'auto'}, {rbc.group(1) if rbc else 'auto'}"
+    return space, membranes
+
+
 def early_row_order(r):
     """Mesh, then the fluid space (the paper's first), then the automatic s_I before given ones (largest first),
     then red cells and seed (numbers where the cells are numbers)."""
@@ -670,7 +680,7 @@ def early_row_order(r):
         except ValueError:
             return 0.0
     return (value(r[0]), r[1] != "equal-order", r[2] != "auto", -value(r[2]) if r[2] != "auto" else 0.0,
-            value(r[3]), value(r[5]))
+            r[3] != "auto", -value(r[3]), value(r[4]), value(r[6]))
 
 
 def t_ctc_among_rbcs_early():
@@ -680,7 +690,7 @@ def t_ctc_among_rbcs_early():
     rows, sources, seen = [], [], set()
     for path, runs, mesh, cmd in ctc_among_rbcs_files("ctc_among_rbcs"):
         used = False
-        space = "div.-conf." if "div_conforming" in cmd else "equal-order"
+        space, membranes = ctc_among_rbcs_fluid(cmd)
         si = re.search(r"-s_interface (\S+?)'?(\s|$)", cmd)
         s_i = "-" if space != "equal-order" else si.group(1) if si else "auto"
         for r in runs:
@@ -692,19 +702,20 @@ def t_ctc_among_rbcs_early():
             t_early = re.match(r"at (\S+) s", key).group(1)
             # One row per run: a run kept in an early table and continued into a passage table is the same run
             # (the early table, first by name, gives it).
-            run = (mesh, space, s_i, r["red cells"], r["seed"], t_early)
+            run = (mesh, space, s_i, membranes, r["red cells"], r["seed"], t_early)
             if run in seen:
                 continue
             seen.add(run)
             flow, travel = early.split("(")[0].rstrip().split(", ")
             ratio_q, ratio_x = early.split("(")[1].rstrip(")").split(", ")
-            rows.append([mesh, space, s_i, r["red cells"], r["haematocrit (%)"], r["seed"], t_early, flow, ratio_q,
-                         travel, ratio_x, r["s/step"], commit_of(path), code(cmd)])
+            rows.append([mesh, space, s_i, membranes, r["red cells"], r["haematocrit (%)"], r["seed"], t_early, flow,
+                         ratio_q, travel, ratio_x, r["s/step"], commit_of(path), code(cmd)])
             used = True
         if used:
             sources.append(link_from_page(path))
     rows.sort(key=early_row_order)
-    return table(rows, sources, ["mesh", "fluid", "s_I", "red cells", "haematocrit (%)", "seed", "at t (s)",
+    return table(rows, sources, ["mesh", "fluid", "s_I", "membranes (elements around: CTC, red cell)", "red cells",
+                                 "haematocrit (%)", "seed", "at t (s)",
                                  "flow rate (1e-6 cm^2/s)", "against the CTC alone", "CTC travel (um)",
                                  "against the CTC alone", "s/step", "commit", "command"])
 
@@ -717,12 +728,14 @@ def t_ctc_among_rbcs():
         for r in runs:
             if not r["status"].startswith(("completed", "interrupted")):
                 continue
-            rows.append([mesh, r["haematocrit (%)"], r["seed"], r["status"], r["throat entry / exit"], r["transit"],
+            rows.append([mesh, *ctc_among_rbcs_fluid(cmd), r["haematocrit (%)"], r["seed"], r["status"],
+                         r["throat entry / exit"], r["transit"],
                          r["membrane anisotropy max"], r["nucleus anisotropy max"],
                          r["lateral at entry / exit, max"], r["cell-free layer in the throat (steps)"], r["s/step"],
                          commit_of(path), code(cmd)])
         sources.append(link_from_page(path))
-    return table(rows, sources, ["mesh", "haematocrit (%)", "seed", "status", "throat entry / exit (s)", "transit (s)",
+    return table(rows, sources, ["mesh", "fluid", "membranes (elements around: CTC, red cell)", "haematocrit (%)",
+                                 "seed", "status", "throat entry / exit (s)", "transit (s)",
                                  "membrane anisotropy max", "nucleus anisotropy max",
                                  "lateral at entry / exit, max (um)", "cell-free layer in the throat, um (steps)",
                                  "s/step", "commit", "command"])

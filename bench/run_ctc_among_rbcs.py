@@ -284,6 +284,22 @@ def snapshots(args, runs, results):
     save_figure(fig, args.snapshots, TOOL)
 
 
+def alone_options(common):
+    """The CTC alone's options from the runs' common ones: without the red cells' (-solid_rbc_*, each with its
+    value), and the CTC's automatic element counts unless given."""
+    out, i = [], 0
+    while i < len(common):
+        if common[i].startswith("-solid_rbc_"):
+            i += 2
+            continue
+        out.append(common[i])
+        i += 1
+    for name, auto in (("-solid_membrane_elements", "1,0"), ("-solid_nucleus_elements", "0,0")):
+        if name not in out:
+            out += [name, auto]
+    return out
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--mesh", default="96x32")
@@ -332,9 +348,10 @@ def main():
                      "(2 to 62 cells)")
         if count == 0:
             # The CTC alone: scenes/ctc_narrowing.yaml, whose bodies are this scene's but for the red cells,
-            # with the element counts chosen the same way.
-            runs.append((f"{args.mesh}_h0", h, None, common + ["-solid_membrane_elements", "1,0",
-                                                                "-solid_nucleus_elements", "0,0"]))
+            # with the element counts chosen the same way (or as --extra gives them; its red-cell options left
+            # out: that scene has none).
+            alone = alone_options(common)
+            runs.append((f"{args.mesh}_h0", h, None, alone))
             continue
         for seed in args.seeds:
             runs.append((f"{args.mesh}_h{h:g}_s{seed}", h, seed,
