@@ -636,8 +636,28 @@ CouplerStats FsiCoupler::step() {
   }
   if (!st.converged) {
     if (anderson_) anderson_->reset();
-    if (st.reason.empty())
-      st.reason = "no convergence in " + std::to_string(opt_.max_iterations) + " iterations";
+    if (st.reason.empty()) {
+      // Where the last residuals stood against their targets: a stall just above them (a point changing
+      // element at every iteration, say) reads differently from residuals that grew.
+      char text[160];
+      std::snprintf(text, sizeof text, "no convergence in %d iterations: |R_MC| %.2e against %.2e",
+                    opt_.max_iterations, st.fluid_residual,
+                    std::max(opt_.tolerance * fluid_peak, opt_.fluid_atol));
+      st.reason = text;
+      std::size_t worst = bodies_.size();
+      double worst_ratio = 1;
+      for (size_t b = 0; b < bodies_.size(); ++b) {
+        const double target = std::max(opt_.tolerance * solid_peak[b], opt_.solid_atol);
+        if (st.solid_residual[b] > worst_ratio * target)
+          worst = b, worst_ratio = st.solid_residual[b] / target;
+      }
+      if (worst < bodies_.size()) {
+        std::snprintf(text, sizeof text, ", |R_K(%s)| %.2e against %.2e", bodies_[worst]->name().c_str(),
+                      st.solid_residual[worst],
+                      std::max(opt_.tolerance * solid_peak[worst], opt_.solid_atol));
+        st.reason += text;
+      }
+    }
     return st;
   }
   {

@@ -322,6 +322,23 @@ TEST_F(CellfsiApp, RunFailingInItsFirstStepSaysWhereAndKeepsTheColumns) {
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1) << csv;
 }
 
+TEST_F(CellfsiApp, CouplingThatDoesNotConvergeSaysWhereItsResidualsStood) {
+  // The message gives the last residuals against their targets (the fluid's, and the body farthest above
+  // its own): a stall just above them reads differently from residuals that grew.
+  const RunResult r =
+      cellfsi(with(with({scene("capsule_shear.yaml")}, kCapsuleSmall), {"-coupling_max_iterations", "2"}));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  const std::string head = "no convergence in 2 iterations: |R_MC| ";
+  const std::size_t at = r.output.find(head);
+  ASSERT_NE(at, std::string::npos) << r.output;
+  double residual = 0, target = 0;
+  ASSERT_EQ(std::sscanf(r.output.c_str() + at + head.size(), "%lf against %lf", &residual, &target), 2)
+      << r.output;
+  EXPECT_GT(residual, target) << r.output;
+  EXPECT_NE(r.output.find(", |R_K(membrane)| "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("in step 1 at t = "), std::string::npos) << r.output;
+}
+
 TEST_F(CellfsiApp, FactorisationOutOfMemorySaysSo) {
   // A 3D mesh whose LU factors exceed the memory said only "DIVERGED_PC_FAILED". Under a 900 MB address-space
   // limit the shear scene's 160 x 80 LU (through ASM's subdomain) cannot be allocated: the run exits with 2
