@@ -666,13 +666,15 @@ def ctc_among_rbcs_fluid(cmd):
     space = "div.-conf." if "div_conforming" in cmd else "equal-order"
     ctc = re.search(r"-solid_membrane_elements \d+,(\d+)", cmd)
     rbc = re.search(r"-solid_rbc_elements \d+,(\d+)", cmd)
-    membranes = "auto" if not ctc and not rbc else f"{ctc.group(1) if ctc else 'auto'}, {rbc.group(1) if rbc else 'auto'}"
-    return space, membranes
+    if not ctc and not rbc:
+        return space, "auto"
+    return space, f"{ctc.group(1) if ctc else 'auto'}, {rbc.group(1) if rbc else 'auto'}"
 
 
 def early_row_order(r):
     """Mesh, then the fluid space (the paper's first), then the automatic s_I before given ones (largest first),
-    then red cells and seed (numbers where the cells are numbers)."""
+    then the automatic membranes before given ones (the finest first), then red cells and seed (numbers where the
+    cells are numbers)."""
     def value(text):
         m = re.match(r"[0-9.eE+-]+", text)
         try:

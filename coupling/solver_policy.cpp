@@ -151,7 +151,8 @@ void add_solver_options(OptionTable& t, LinearSolverOptions& l, PCTypeOptions& p
                "marking stays (it is refreshed whenever the marking moves)",
                at_least(1, "(1: every step)"))
       .integer("coupling_refresh_lag", l.refresh_lag,
-               "cellfsi types: coupling iterations between refreshes inside a step (0: none)",
+               "Coupling iterations between refreshes of the Jacobian inside a step (0: none; cellfsi types "
+               "with their preconditioner; PETSc PCs the Jacobian alone, the PC by -coupling_pc_lag)",
                at_least(0, "(0: none inside a step)"));
 }
 
@@ -198,7 +199,7 @@ std::string option_inapplicable(const std::string& name, const std::string& pc_t
                                   {"coupling_refactor_every", Reader::band},
                                   {"coupling_region_margin", Reader::region_types},
                                   {"coupling_refresh_steps", Reader::cellfsi_types},
-                                  {"coupling_refresh_lag", Reader::cellfsi_types},
+
                                   {"coupling_pc_lag", Reader::petsc_pcs}};
   const bool fourier = pc_type == solvers::kPCFourier, band = pc_type == solvers::kPCBand,
              bulk = pc_type == solvers::kPCBulk;

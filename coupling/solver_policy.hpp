@@ -42,7 +42,7 @@ struct LinearSolverOptions {
   // linear_solver_defaults).
   int region_margin = 4;
   int refresh_steps = 10;  // steps between refreshes while the s^h marking stays (cellfsi types)
-  int refresh_lag = 0;     // coupling iterations between refreshes inside a step (0: none; cellfsi types)
+  int refresh_lag = 0;     // coupling iterations between refreshes inside a step (0: none; every PC type)
   // cellfsi_band: steps between factorisations of the kept part besides those the cells' motion needs.
   int refactor_every = 0;
   // cellfsi_fourier: re-assemble only the region, keeping the rest in a second copy (false: the whole

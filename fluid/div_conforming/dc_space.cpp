@@ -112,9 +112,8 @@ ParametricGrid parametric_grid(const geometry::Patch& patch) {
 
 /// The largest jump of the map's second derivatives across an interior element boundary, relative to their
 /// largest value (or the first derivatives over the parameter's range, if larger; 0 for an affine map), and
-/// where: sampled on both sides of every boundary
-/// along each direction, at the midpoints of up to 8 elements spread across each other direction and at
-/// the ends there.
+/// where: sampled on both sides of every boundary along each direction, at the midpoints of up to 8 elements
+/// spread across each other direction and at the ends there.
 struct SecondDerivativeJump {
   double relative = 0;
   int direction = 0;

@@ -122,8 +122,12 @@ TEST(SolverPolicy, WhichOptionsApplyToWhichPCType) {
     EXPECT_EQ(coupling::option_inapplicable(name, band), "") << name;
     EXPECT_NE(coupling::option_inapplicable(name, fourier), "") << name;
   }
-  // Both cellfsi types' refresh options, and the PETSc PCs' lag.
-  for (const char* name : {"coupling_region_margin", "coupling_refresh_steps", "coupling_refresh_lag"}) {
+  // Both cellfsi types' refresh options, and the PETSc PCs' lag; -coupling_refresh_lag applies to every type
+  // (a PETSc PC's Jacobian inside a step).
+  EXPECT_EQ(coupling::option_inapplicable("coupling_refresh_lag", fourier), "");
+  EXPECT_EQ(coupling::option_inapplicable("coupling_refresh_lag", band), "");
+  EXPECT_EQ(coupling::option_inapplicable("coupling_refresh_lag", asm_pc), "");
+  for (const char* name : {"coupling_region_margin", "coupling_refresh_steps"}) {
     EXPECT_EQ(coupling::option_inapplicable(name, fourier), "") << name;
     EXPECT_EQ(coupling::option_inapplicable(name, band), "") << name;
     EXPECT_EQ(coupling::option_inapplicable(name, asm_pc),

@@ -484,7 +484,7 @@ TEST(DcImmersedFluid, WritesTheNarrowingOnItsMappedGrid) {
   // The .vts of a run on the narrowing (a mapped space): the grid's points are the channel's, x from 0 to its
   // length 0.006 cm along the periodic direction (the last column at x = L, not folded back onto x = 0), y
   // between the curved walls.
-  const geometry::Patch channel = geometry::narrowing_channel(geometry::NarrowingChannel{}, 24, 8, 2);
+  const geometry::Patch channel = geometry::narrowing_channel(geometry::NarrowingChannel{}, 24, 8, 3);
   fluid::FluidOptions o;
   o.space = "div_conforming";
   std::unique_ptr<fluid::ImmersedFluid> f = fluid::create_fluid(PETSC_COMM_WORLD, channel, o);
@@ -515,11 +515,11 @@ TEST(DcImmersedFluid, RefusesADomainWhoseElementsAreNotUniform) {
   // The narrowing channel is taken (through the Piola map, tests/unit/fluid/test_dc_mapped_fluid.cpp); one
   // with a knot inserted across the channel is not: the space's elements are uniform in the parameters.
   const geometry::Patch channel =
-      geometry::insert_knots(geometry::narrowing_channel(geometry::NarrowingChannel{}, 32, 16, 2), 1, {0.51});
+      geometry::insert_knots(geometry::narrowing_channel(geometry::NarrowingChannel{}, 32, 16, 3), 1, {0.51});
   fluid::FluidOptions o;
   o.space = "div_conforming";
   EXPECT_NO_THROW(fluid::create_fluid(
-      PETSC_COMM_WORLD, geometry::narrowing_channel(geometry::NarrowingChannel{}, 32, 16, 2), o));
+      PETSC_COMM_WORLD, geometry::narrowing_channel(geometry::NarrowingChannel{}, 32, 16, 3), o));
   try {
     fluid::create_fluid(PETSC_COMM_WORLD, channel, o);
     FAIL() << "a domain of unequal elements was accepted";
