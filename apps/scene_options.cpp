@@ -710,7 +710,7 @@ SceneSettings SceneSettings::from_options(const std::string& default_name, bool 
   // The divergence-conforming space on the curved channel takes the map's second derivatives (the Piola map,
   // fluid/div_conforming/dc_piola.hpp). At p = 2 they jump between elements, and so do a cell's terms and
   // velocity gradient at a point on an element boundary: in a coupled step such a point can move from one
-  // element to the other and back at every iteration, and the iteration stalls (docs/fluid.md).
+  // element to the other and back between iterations, and the iteration stalls (docs/fluid.md).
   if (s.fluid_space == "div_conforming" && s.domain == "narrowing" && s.degree < 3)
     t.bad("fluid_degree", std::to_string(s.degree),
           "3 <= p <= 8 with -fluid_space div_conforming on the narrowing: the Piola map needs the channel's "

@@ -188,7 +188,7 @@ DivConformingSpace DivConformingSpace::mapped(std::shared_ptr<const geometry::Pa
   const ParametricGrid g = parametric_grid(*patch);
   // The mapped gradient takes the map's second derivatives (dc_piola.hpp): where they jump between elements,
   // so do the immersed terms and the velocity gradient at a point on that boundary, and a coupled step can
-  // stall with the point changing element at every iteration (measured on the narrowing at degree 2; tests/
+  // stall with the point changing element back and forth (measured on the narrowing at degree 2; tests/
   // unit/fluid/test_div_conforming.cpp, DcPiola.AMapWhoseSecondDerivativesJumpBetweenElementsIsRefused).
   // Affine maps (0) and maps of continuity 2 or more (of the order of the sampling's offset, 1e-9) pass.
   const SecondDerivativeJump jump = second_derivative_jump(*patch);

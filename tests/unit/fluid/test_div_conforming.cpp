@@ -464,7 +464,7 @@ TEST(DcPiola, AMapWhoseSecondDerivativesJumpBetweenElementsIsRefused) {
   // The mapped gradient takes the map's second derivatives (dP). On the narrowing at degree 2 (continuity 1)
   // they jump across an element boundary in the transition, so the gradient of a mapped field at a point
   // there depends on the element the point is given to: a coupled step stalled with a membrane point on
-  // such a boundary changing element at every iteration (|R_MC| alternating between 1.2e-8 and 3.3e-8 for
+  // such a boundary changing element back and forth (|R_MC| alternating between 1.2e-8 and 3.3e-8 for
   // 30 iterations, in step 44 of the CTC among red cells at 96 x 32). At degree 3 (continuity 2) they agree
   // to the sampling's offset. mapped() refuses the first and takes the second.
   for (int degree : {2, 3}) {
