@@ -26,7 +26,7 @@ void BulkSolve::start(const SolverSituation& s, bool) {
 }
 
 bool BulkSolve::may_assemble(bool first_iteration) const {
-  return first_iteration || (c_.options.refresh_lag > 0 && solves_since_refresh_ + 1 >= c_.options.refresh_lag);
+  return refresh_due(first_iteration, solves_since_refresh_);
 }
 
 bool BulkSolve::rebuild() {

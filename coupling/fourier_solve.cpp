@@ -71,9 +71,7 @@ void FourierSolve::start(const SolverSituation& s, bool) {
 }
 
 bool FourierSolve::may_assemble(bool first_iteration) const {
-  // (solve() counts this solve before it compares with the lag.)
-  return first_iteration ||
-         (c_.options.refresh_lag > 0 && solves_since_refresh_ + 1 >= c_.options.refresh_lag);
+  return refresh_due(first_iteration, solves_since_refresh_);
 }
 
 std::optional<FallBack> FourierSolve::prepare(Vec X, bool, SolveCounts& counts) {

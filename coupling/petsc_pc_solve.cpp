@@ -26,18 +26,17 @@ void PetscPCSolve::start(const SolverSituation&, bool) {
 }
 
 bool PetscPCSolve::may_assemble(bool first_iteration) const {
-  // (solve() counts this solve before it compares with the lag.)
-  return first_iteration ||
-         (c_.options.refresh_lag > 0 && solves_since_jacobian_ + 1 >= c_.options.refresh_lag);
+  return refresh_due(first_iteration, solves_since_jacobian_);
 }
 
 int PetscPCSolve::solve(Vec X, Vec F, Vec dX, bool first_iteration, SolveCounts& counts) {
   Mat J = c_.fluid.jacobian_matrix();
-  ++solves_since_jacobian_;
-  if (first_iteration || (c_.options.refresh_lag > 0 && solves_since_jacobian_ >= c_.options.refresh_lag)) {
+  if (may_assemble(first_iteration)) {
     EventScope ev(coupling_events().jacobian);
     c_.fluid.jacobian(X, J);
     solves_since_jacobian_ = 0;
+  } else {
+    ++solves_since_jacobian_;
   }
   EventScope ev(coupling_events().solve);
   CELLFSI_PETSC(KSPSetOperators(c_.ksp, J, J));

@@ -71,6 +71,11 @@ class SolvePath {
 
  protected:
   PC pc() const;
+  /// The may_assemble of the paths that keep the Jacobian through a step: at its first iteration, and when
+  /// this solve is the refresh_lag-th since the last refresh (solves_before: those before it).
+  bool refresh_due(bool first_iteration, int solves_before) const {
+    return first_iteration || (c_.options.refresh_lag > 0 && solves_before + 1 >= c_.options.refresh_lag);
+  }
   SolveContext& c_;
 };
 
