@@ -81,8 +81,10 @@ std::array<int, 3> body_element_counts(const SceneSettings& s, const BodySetting
   // docs/validation.md, "The divergence-conforming space"). Bulk bodies and 3D keep 0.225, not measured finer
   // (in 3D a membrane's elements grow as the square: 0.1125 gave the 3D compound capsule 22 k of them at
   // 16^3).
+  // -solid_NAME_element_ratio replaces the rule (a scene whose cells need less than the rule's margin).
   const double factor = s.fluid_space != "div_conforming" ? 0.9 : b.membrane() && s.dim == 2 ? 0.1125 : 0.225;
-  const double target = factor * std::min(1.0, s.max_mesh_ratio) * fluid_element_size(s);
+  const double ratio = b.element_ratio > 0 ? b.element_ratio : factor * std::min(1.0, s.max_mesh_ratio);
+  const double target = ratio * fluid_element_size(s);
   std::array<int, 3> n = b.elements;
   const int D = s.dim;
   const int mult = 4;  // elements around: every builder needs a multiple of 4

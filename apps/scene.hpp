@@ -35,6 +35,7 @@ struct BodySettings {
   double area = 0;                       // rbc: enclosed area of the mid-line [cm^2] (0: the default RBC)
   double thickness = 5e-7;               // membranes [cm]
   std::array<int, 3> elements{0, 0, 0};  // Lagrangian elements per direction; 0: from the fluid mesh
+  double element_ratio = 0;  // automatic counts: element size / smallest fluid element (0: the space's rule)
   int degree = 2;
   double shear_modulus = 7500;           // G [dyn/cm^2], the small-strain shear modulus of every material law
   std::string material = "neo_hookean";  // neo_hookean | mooney_rivlin | strain_hardening | skalak |

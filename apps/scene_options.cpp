@@ -280,6 +280,12 @@ void declare_body_options(OptionTable& t, BodySettings& b, BodyOptionValues& v, 
                 "Lagrangian elements per direction (through/around; radial,around; 0: slightly smaller than "
                 "the fluid's)",
                 dim, at_least(0, "(0: automatic)"))
+      .real(
+          "element_ratio", b.element_ratio,
+          "Automatic counts (0 in -elements): the body's element size over the smallest fluid element's (0: "
+          "the fluid space's rule: 0.9 on the paper's space; on the divergence-conforming one 0.1125 for 2D "
+          "membranes, 0.225 for the rest; docs/fluid.md)",
+          between(0, 1, "", "(0: the space's rule)"))
       .integer("degree", b.degree, "Lagrangian degree, 2..4",
                {[](const long long& v) { return v >= 2 && v <= 4; }, "2, 3 or 4"})
       .real("shear_modulus", b.shear_modulus, "G [dyn/cm^2]",
@@ -517,6 +523,11 @@ void read_body(SceneSettings& s, const std::string& name) {
   check_membrane(t, b);
   check_stretching(t, b, v, D, pre);
   check_law_and_elements(t, b, v, D, pre);
+  // A ratio above Remark 3's bound would be refused later without naming it. (With no automatic count it
+  // sizes nothing: not refused, so that a scene's ratio does not stand in the way of counts given.)
+  if (b.element_ratio > s.max_mesh_ratio)
+    t.bad("element_ratio", option_value_text(b.element_ratio),
+          "at most -coupling_max_mesh_ratio = " + option_value_text(s.max_mesh_ratio) + " (paper Remark 3)");
   check_body_memory(s, b, v.count, pre);
   add_body_or_copies(s, b, v, t, pre);
 }

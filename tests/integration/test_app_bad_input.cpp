@@ -137,6 +137,11 @@ TEST_F(CellfsiApp, ValuesThatAreNumbersButNotInputAreRejected) {
        "option -solid_membrane_shear_modulus = 1e+300 is invalid"},
       {with(capsule, {"-solid_membrane_density", "1e300"}),
        "option -solid_membrane_density = 1e+300 is invalid"},
+      {with(capsule, {"-solid_membrane_element_ratio", "1.5"}),
+       "option -solid_membrane_element_ratio = 1.5 is invalid; valid: 0 ... 1 (0: the space's rule)"},
+      {with(capsule, {"-solid_membrane_element_ratio", "0.8", "-coupling_max_mesh_ratio", "0.5"}),
+       "option -solid_membrane_element_ratio = 0.8 is invalid; valid: at most -coupling_max_mesh_ratio = 0.5 "
+       "(paper Remark 3)"},
       {with(tiny, {"-fluid_viscosity", "1e-310"}),
        "option -fluid_viscosity = 1e-310 is invalid; valid: 1e-08 ... 1e+06 [g/(cm s)]"},
       {with(tiny, {"-fluid_density", "1e-310"}), "option -fluid_density = 1e-310 is invalid"},
