@@ -660,9 +660,15 @@ def ctc_among_rbcs_files(prefix):
     return out
 
 
-def ctc_among_rbcs_fluid(cmd):
-    """The fluid space and the membranes of a run_ctc_among_rbcs.py command: ("div.-conf." or "equal-order", "auto"
-    or the elements around the CTC's membrane and a red cell's as --extra gives them)."""
+def ctc_among_rbcs_fluid(cmd, path):
+    """The fluid space and the membranes of a run_ctc_among_rbcs.py table: ("div.-conf." or "equal-order", "auto"
+    or the elements around the CTC's membrane and a red cell's), as its heading says them (the driver writes them
+    there since the scene runs on either space) or else as its command's --extra gives them."""
+    said = re.search(r"^Mesh \S+ of degree \d+ on the (divergence-conforming|equal-order) space"
+                     r"(?: \(elements around: CTC membrane (\d+)(?:, red cell (\d+))?\))?", read(path), re.M)
+    if said:
+        space = "div.-conf." if said.group(1) == "divergence-conforming" else "equal-order"
+        return space, f"{said.group(2)}, {said.group(3) or '-'}" if said.group(2) else "auto"
     space = "div.-conf." if "div_conforming" in cmd else "equal-order"
     ctc = re.search(r"-solid_membrane_elements \d+,(\d+)", cmd)
     rbc = re.search(r"-solid_rbc_elements \d+,(\d+)", cmd)
@@ -692,7 +698,7 @@ def t_ctc_among_rbcs_early():
     rows, sources, seen = [], [], set()
     for path, runs, mesh, cmd in ctc_among_rbcs_files("ctc_among_rbcs"):
         used = False
-        space, membranes = ctc_among_rbcs_fluid(cmd)
+        space, membranes = ctc_among_rbcs_fluid(cmd, path)
         si = re.search(r"-s_interface (\S+?)'?(\s|$)", cmd)
         s_i = "-" if space != "equal-order" else si.group(1) if si else "auto"
         for r in runs:
@@ -730,7 +736,7 @@ def t_ctc_among_rbcs():
         for r in runs:
             if not r["status"].startswith(("completed", "interrupted")):
                 continue
-            rows.append([mesh, *ctc_among_rbcs_fluid(cmd), r["haematocrit (%)"], r["seed"], r["status"],
+            rows.append([mesh, *ctc_among_rbcs_fluid(cmd, path), r["haematocrit (%)"], r["seed"], r["status"],
                          r["throat entry / exit"], r["transit"],
                          r["membrane anisotropy max"], r["nucleus anisotropy max"],
                          r["lateral at entry / exit, max"], r["cell-free layer in the throat (steps)"], r["s/step"],

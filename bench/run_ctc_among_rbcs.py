@@ -4,7 +4,9 @@ compound-capsule CTC of scenes/ctc_rbc_narrowing.yaml alone and with red cells s
 haematocrit and seed (scenes/ctc_narrowing.yaml for the CTC alone), run to the end, then per run and per haematocrit (mean and range over the seeds) the CTC's
 throat entry, exit and transit time, its membrane's and nucleus's largest anisotropy, its lateral path, the red
 cells' cell-free layer in the throat, and the cost; a figure of those against haematocrit and one of snapshots
-(the flow's speed and the cells) as the CTC enters, crosses and leaves the throat, one row per haematocrit.
+(the flow's speed and the cells) as the CTC enters, crosses and leaves the throat, one row per haematocrit. The
+runs take the scene's fluid space (the divergence-conforming one) and its bodies' element sizes unless --extra
+names others; the table's heading says the space and the elements around the CTC's membrane and a red cell's.
 
     python3 bench/run_ctc_among_rbcs.py --mesh 96x32 --hematocrits 0,15,30 --seeds 3,4,5 --jobs 2
 
@@ -36,8 +38,8 @@ import shlex
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_common import (ROOT, check_kept_runs, fmt, mesh_of, provenance, pyplot, run_one,  # noqa: E402
-                          save_figure, summary_of, write_table)
+from bench_common import (ROOT, check_kept_runs, fmt, mesh_of, option_values, provenance, pyplot,  # noqa: E402
+                          run_one, same_value, save_figure, summary_of, write_table, yaml_options)
 
 TOOL = "run_ctc_among_rbcs"
 SCENE = "ctc_rbc_narrowing.yaml"
@@ -149,10 +151,29 @@ def spread(vals, f, scale=1.0):
     return f"{format(mean, f)} ({format(min(vals), f)}-{format(max(vals), f)})"
 
 
+def fluid_and_membranes(args, runs):
+    """The runs' fluid space (from a run's options.yaml) and the elements around the CTC's membrane and a red
+    cell's (from their summary.json), as the table's heading says them ("" where no run has them yet)."""
+    space, ctc, rbc = None, None, None
+    for tag, h, _, _ in runs:
+        kept = os.path.join(args.runs, tag, "options.yaml")
+        if space is None and os.path.isfile(kept):
+            space = yaml_options(kept).get("fluid_space", "equal_order")
+        s = summary_of(args, tag) or {}
+        ctc = ctc or s.get("membrane_elements_1")
+        rbc = rbc or (s.get("rbc_1_elements_1") if h > 0 else None)
+    if space is None:
+        return ""
+    words = {"div_conforming": "the divergence-conforming space", "equal_order": "the equal-order space"}
+    counts = ", ".join(f"{what} {n:.0f}" for what, n in (("CTC membrane", ctc), ("red cell", rbc)) if n)
+    return f" on {words.get(space, space)}" + (f" (elements around: {counts})" if counts else "")
+
+
 def table(args, runs, results, channel, command):
     um = 1e4
     lines = [provenance(args, command), "",
-             f"Mesh {args.mesh} of degree {args.degree}, dt {args.dt:g} s, to {args.final_time:g} s; channel area "
+             f"Mesh {args.mesh} of degree {args.degree}{fluid_and_membranes(args, runs)}, dt {args.dt:g} s, to "
+             f"{args.final_time:g} s; channel area "
              f"{channel['area']:.3g} cm^2, throat {channel['channel_throat_height'] * um:g} um high. Times in s, "
              "lengths in um (lateral: the CTC membrane's centroid from the centre line).", "",
              "| haematocrit asked (%) | seed | red cells | haematocrit (%) | status | throat entry / exit | transit "
@@ -286,7 +307,8 @@ def snapshots(args, runs, results):
 
 def alone_options(common):
     """The CTC alone's options from the runs' common ones: without the red cells' (-solid_rbc_*, each with its
-    value), and the CTC's automatic element counts unless given."""
+    value), and every other option the red cells' scene file sets otherwise than the CTC's alone (its fluid space,
+    its bodies' element counts and sizes), unless given: the CTC alone is that scene without its red cells."""
     out, i = [], 0
     while i < len(common):
         if common[i].startswith("-solid_rbc_"):
@@ -294,9 +316,14 @@ def alone_options(common):
             continue
         out.append(common[i])
         i += 1
-    for name, auto in (("-solid_membrane_elements", "1,0"), ("-solid_nucleus_elements", "0,0")):
-        if name not in out:
-            out += [name, auto]
+    given = option_values(out)
+    scene = yaml_options(os.path.join(ROOT, "scenes", SCENE))
+    alone = yaml_options(os.path.join(ROOT, "scenes", ALONE))
+    for key, value in scene.items():
+        if key.startswith("solid_rbc_") or key == "solid_bodies" or key in given:
+            continue
+        if key not in alone or not same_value(alone[key], value):
+            out += ["-" + key, value]
     return out
 
 
@@ -338,6 +365,9 @@ def main():
     os.makedirs(args.runs, exist_ok=True)
     common = ["-fluid_elements", f"{nx},{ny}", "-fluid_degree", str(args.degree), "-dt", f"{args.dt:g}",
               "-final_time", f"{args.final_time:g}", "-output_every", str(args.output_every)] + shlex.split(args.extra)
+    # The scene's own space unless --extra names one (run_one would run the paper's: bench_common.paper_space).
+    if "-fluid_space" not in common:
+        common += ["-fluid_space", yaml_options(os.path.join(ROOT, "scenes", SCENE)).get("fluid_space", "equal_order")]
     runs = []
     for h in args.hematocrits:
         count = round(h / 100 * channel["area"] / RBC_AREA)

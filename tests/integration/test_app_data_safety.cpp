@@ -251,8 +251,7 @@ const std::vector<SceneCase> kEveryScene = {
     {"inertial_migration.yaml",
      {"-fluid_elements", "16,16", "-fluid_degree", "2", "-final_time", "1e-5", "-output_every", "0"}},
     {"ctc_rbc_narrowing.yaml",
-     {"-fluid_elements", "96,32", "-fluid_degree", "2", "-dt", "5e-4", "-final_time", "5e-4", "-output_every",
-      "0"}},
+     {"-fluid_elements", "48,16", "-dt", "5e-4", "-final_time", "5e-4", "-output_every", "0"}},
 };
 
 // One test per scene file (each its own ctest entry, with its own time limit).
