@@ -815,9 +815,8 @@ std::vector<std::string> compound_capsule_12(const std::string& scene_file) {
 // several assertions need are made once (each run costs seconds; tests/README.md, "Time"). At 16^3, where the
 // values quoted "over 10 steps" were measured, every pair below agreed about as closely (the largest
 // differences, 16^3 / 12^3: B-A 1.9e-8 / 9.2e-8, B on 2 ranks 2e-12 / 3e-12, E-A 3.9e-9 / 2.7e-9):
-//   A  the 3D defaults, one rank: the Fourier solver, the region's LU in single precision, the bulk stencil,
-//   the
-//      coupled FGMRES to rtol 1e-2;
+//   A  the 3D defaults, one rank: the Fourier solver, the region's LU in single precision, the bulk
+//      stencil, the coupled FGMRES to rtol 1e-2;
 //   B  A with the FGMRES to rtol 1e-5, on 1 and 2 fluid ranks;
 //   E  A with the region's LU in double precision (-coupling_fourier_region_pc_type lu);
 //   F  B with the whole Jacobian (-coupling_bulk_stencil false), against B on one rank (so on two as well).
