@@ -47,14 +47,14 @@ ALONE = "ctc_narrowing.yaml"  # the CTC without red cells (haematocrit 0)
 DEVELOPED = 1.7e-3  # s: 5 viscous times H^2 / nu of the scene's channel (bench/plot_ctc_passage.py)
 
 
+def scene_options(name=SCENE):
+    """The options a scene file sets, as cellfsi reads them (bench_common.yaml_options)."""
+    return yaml_options(os.path.join(ROOT, "scenes", name))
+
+
 def scene_channel():
     """The scene's channel numbers (cm) and its red cell's area (cm^2), read from the scene file."""
-    values = {}
-    with open(os.path.join(ROOT, "scenes", SCENE)) as f:
-        for line in f:
-            if ":" in line and not line.lstrip().startswith("#") and not line.startswith(" "):
-                k, v = line.split(":", 1)
-                values[k.strip()] = v.strip()
+    values = scene_options()
     c = {k: float(values[k]) for k in ("channel_length", "channel_height", "channel_throat_height",
                                         "channel_throat_length", "channel_transition_length")}
     # The walls' offset is (H - h) / 2 over the throat and a step symmetric about its mid-value over each
@@ -317,8 +317,7 @@ def alone_options(common):
         out.append(common[i])
         i += 1
     given = option_values(out)
-    scene = yaml_options(os.path.join(ROOT, "scenes", SCENE))
-    alone = yaml_options(os.path.join(ROOT, "scenes", ALONE))
+    scene, alone = scene_options(), scene_options(ALONE)
     for key, value in scene.items():
         if key.startswith("solid_rbc_") or key == "solid_bodies" or key in given:
             continue
@@ -367,7 +366,7 @@ def main():
               "-final_time", f"{args.final_time:g}", "-output_every", str(args.output_every)] + shlex.split(args.extra)
     # The scene's own space unless --extra names one (run_one would run the paper's: bench_common.paper_space).
     if "-fluid_space" not in common:
-        common += ["-fluid_space", yaml_options(os.path.join(ROOT, "scenes", SCENE)).get("fluid_space", "equal_order")]
+        common += ["-fluid_space", scene_options().get("fluid_space", "equal_order")]
     runs = []
     for h in args.hematocrits:
         count = round(h / 100 * channel["area"] / RBC_AREA)
