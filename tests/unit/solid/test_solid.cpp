@@ -10,7 +10,10 @@
 #include <filesystem>
 #include <numbers>
 #include <random>
+#include <string>
 #include <thread>
+
+#include <unistd.h>
 
 #include "geometry/builders.hpp"
 #include "geometry/measures.hpp"
@@ -759,9 +762,15 @@ class FixedShapeBody final : public solid::SolidSolver {
   geometry::Patch reference_, current_;
 };
 
+/// A scratch folder of this process: ctest runs the tests of this file as separate processes side by side,
+/// and two of them writing into one fixed folder removed each other's files.
+std::filesystem::path scratch_dir(const std::string& name) {
+  return std::filesystem::temp_directory_path() / (name + "_" + std::to_string(getpid()));
+}
+
 /// The output writer's smallest J of one body (solid_output.hpp), written into a fresh folder.
 solid::SmallestJ smallest_written(const geometry::Patch& reference, const geometry::Patch& current) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "cellfsi_test_solid_fold";
+  const std::filesystem::path dir = scratch_dir("cellfsi_test_solid_fold");
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   FixedShapeBody body(reference, current);
@@ -814,7 +823,7 @@ TEST(SolidOutput, HistoryKeepsTheSmallestJAndTheFirstFoldAcrossARestart) {
     p.control_points()[inner] += by * (ref.control_points()[mid] - ref.control_points()[inner]);
     return p;
   };
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "cellfsi_test_solid_history";
+  const std::filesystem::path dir = scratch_dir("cellfsi_test_solid_history");
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   FixedShapeBody rest(ref, ref), folded(ref, pushed(1.6)), further(ref, pushed(2.4));
