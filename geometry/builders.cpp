@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include <Eigen/Dense>
+
 #include "geometry/basis.hpp"
 #include "geometry/measures.hpp"
 #include "geometry/projection.hpp"
@@ -406,6 +408,84 @@ Patch biconcave_rbc_3d(double h, int n_polar, int n_azimuth, int degree, const V
       },
       center);
   return elevate_and_refine(std::move(p), {{2, n_azimuth}}, degree);
+}
+
+namespace {
+
+// The collocation matrix of kv at its Greville points: B(i, j) = N_j(tau_i).
+Eigen::MatrixXd greville_matrix(const KnotVector& kv) {
+  const int n = kv.n_basis(), p = kv.degree();
+  const std::vector<double> tau = kv.greville();
+  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(n, n);
+  double N[(kMaxDeriv + 1) * (kMaxDegree + 1)];
+  for (int i = 0; i < n; ++i) {
+    const int span = kv.find_span(tau[i]);
+    bspline_basis(kv, span, tau[i], 0, N);
+    for (int j = 0; j <= p; ++j) B(i, kv.fold(span - p + j)) += N[j];
+  }
+  return B;
+}
+
+}  // namespace
+
+std::vector<Patch> biconcave_rbc_3d_faces(double h, int n_face, int degree, const Vec3& center,
+                                          const EvansFung& shape) {
+  const std::string bl = "biconcave_rbc_3d_faces";
+  check_positive(bl, "h", h);
+  if (h >= shape.C0)
+    bad(bl, "h", h, "0 < h < C0 = " + std::to_string(shape.C0) + " cm (the dimple's thickness)");
+  check_count(bl, "n_face", n_face, 1);
+  check_degree(bl, degree, 2);
+  const double quarter = std::numbers::pi / 4;
+  // The Evans-Fung surface as the image of the unit sphere: the point and its outward unit normal. The normal
+  // is J^{-T} s, J = dM/ds (the image of the sphere's tangent plane is that of J, whose cofactor maps the
+  // sphere's normal s to the image's; det J = R0^2 P / 2 > 0 keeps it outward).
+  auto on_surface = [&](const Vec3& s, Vec3& x, Vec3& n) {
+    const double c2 = s[0] * s[0] + s[1] * s[1];
+    const double P = shape.C0 + shape.C2 * c2 + shape.C4 * c2 * c2, dP = shape.C2 + 2 * shape.C4 * c2;
+    x = Vec3(shape.R0 * s[0], shape.R0 * s[1], 0.5 * s[2] * P);
+    Mat3 J = Mat3::Zero();
+    J(0, 0) = J(1, 1) = shape.R0;
+    J(2, 0) = s[2] * s[0] * dP, J(2, 1) = s[2] * s[1] * dP, J(2, 2) = 0.5 * P;
+    n = J.transpose().partialPivLu().solve(s).normalized();
+  };
+  const KnotVector kb = KnotVector::open_uniform(degree, n_face, 0.0, 1.0);
+  const std::vector<double> tau = kb.greville();
+  const int nb = kb.n_basis();
+  const Eigen::PartialPivLU<Eigen::MatrixXd> lu(greville_matrix(kb));
+  std::vector<Patch> faces;
+  for (int k : {0, 1, 2})
+    for (int sign : {1, -1}) {
+      // The face's axes (i, j) with e_i x e_j = sign e_k: directions 1, 2 right-handed with the outward
+      // normal.
+      const int i = sign > 0 ? (k + 1) % 3 : (k + 2) % 3, j = sign > 0 ? (k + 2) % 3 : (k + 1) % 3;
+      std::vector<Vec3> control(2 * nb * nb);
+      for (int layer : {0, 1}) {
+        Eigen::MatrixXd data[3];
+        for (Eigen::MatrixXd& d : data) d.resize(nb, nb);
+        for (int a = 0; a < nb; ++a)
+          for (int b = 0; b < nb; ++b) {
+            Vec3 d = Vec3::Zero();
+            d[k] = sign;
+            d[i] = std::tan(quarter * (2 * tau[a] - 1));
+            d[j] = std::tan(quarter * (2 * tau[b] - 1));
+            Vec3 x, n;
+            on_surface(d.normalized(), x, n);
+            const Vec3 p = x + (layer - 0.5) * h * n;
+            for (int c = 0; c < 3; ++c) data[c](a, b) = p[c];
+          }
+        for (int c = 0; c < 3; ++c) {
+          // C = B^{-1} D B^{-T}: along direction 1, then along direction 2.
+          const Eigen::MatrixXd C = lu.solve(lu.solve(data[c]).transpose()).transpose();
+          for (int a = 0; a < nb; ++a)
+            for (int b = 0; b < nb; ++b) control[layer + 2 * (a + nb * b)][c] = C(a, b) + center[c];
+        }
+      }
+      Patch p({KnotVector::open_uniform(1, 1, 0.0, 1.0), kb, kb}, 3, std::move(control),
+              std::vector<double>(2 * nb * nb, 1.0));
+      faces.push_back(elevate_degree(p, 0, degree - 1));
+    }
+  return faces;
 }
 
 }  // namespace cellfsi::geometry

@@ -11,6 +11,7 @@
 // builder checks its arguments and throws std::invalid_argument naming the argument, its value and the valid
 // range.
 #include <array>
+#include <vector>
 
 #include "geometry/patch.hpp"
 
@@ -86,6 +87,20 @@ Patch hollow_ellipsoid(double a, double b, double c, double h, int n_polar, int 
 /// 94 um^3 (docs/geometry.md).
 Patch biconcave_rbc_3d(double h, int n_polar, int n_azimuth, int degree, const Vec3& center = Vec3::Zero(),
                        const EvansFung& shape = {});
+
+/// The same membrane without poles: six patches, the faces of a cube projected onto the unit sphere
+/// (equiangular: the face coordinates are tan(pi a / 4), a in [-1, 1]) and mapped onto the Evans-Fung
+/// surface, (x, y, z) -> (R0 x, R0 y, z / 2 (C0 + C2 c2 + C4 c2^2)) with c2 = x^2 + y^2, the point of
+/// latitude t on the sphere going to c(t) at the same angle about the axis. Each patch is 1 x n_face x n_face
+/// elements of degree p >= 2: direction 0 through the thickness h (inner face first, as the other membranes),
+/// directions 1 and 2 across the cube's face, right-handed with the outward normal; the two faces on the axis
+/// (z) are centred on the dimples. Each layer interpolates X + (r - 1/2) h n (n the exact unit normal) at the
+/// Greville points, so two patches that share a cube edge share its control points (to round-off: the
+/// interpolant on a patch's boundary depends only on the data there). Order: +x, -x, +y, -y, +z, -z. Three
+/// patches meet at each of the cube's eight corners; no element degenerates (at 8 elements a face their
+/// mid-surface edges are 0.30-0.80 um long, where the polar shell's poles are edges of length 0).
+std::vector<Patch> biconcave_rbc_3d_faces(double h, int n_face, int degree, const Vec3& center = Vec3::Zero(),
+                                          const EvansFung& shape = {});
 
 /// Solid ellipsoid (a sphere when a == b == c): n_radial x n_polar x n_azimuth elements of degree p >= 2.
 Patch solid_ellipsoid(double a, double b, double c, int n_radial, int n_polar, int n_azimuth, int degree,

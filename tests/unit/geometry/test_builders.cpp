@@ -1,11 +1,14 @@
 // Builders: exact conics and quadrics, affine Eulerian domains, periodic wraps, and argument checking.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <string>
 
 #include "geometry/builders.hpp"
+#include "geometry/measures.hpp"
+#include "geometry/quadrature.hpp"
 #include "geometry/refine.hpp"
 
 using namespace cellfsi::geometry;
@@ -193,6 +196,94 @@ TEST(Builders, Rbc3dShellHasItsThicknessAndSmoothPoles) {
     }
 }
 
+TEST(Builders, Rbc3dShellOnSixFacesIsClosedAndHasNoPoles) {
+  const double h = 3.1623e-5;
+  const Vec3 c(6e-4, 6e-4, 6e-4);
+  const EvansFung ef;
+  const std::vector<Patch> faces = biconcave_rbc_3d_faces(h, 8, 2, c);
+  ASSERT_EQ(faces.size(), 6u);
+  // Closed: every point of a face's edge (inner face, mid-surface, outer face; 21 points an edge) is a point
+  // of another face's edge, at the same parameter up to its direction.
+  std::vector<std::vector<Vec3>> edge_points(6);
+  for (int f = 0; f < 6; ++f)
+    for (double r : {0.0, 0.5, 1.0})
+      for (int k = 0; k <= 20; ++k)
+        for (double side : {0.0, 1.0}) {
+          edge_points[f].push_back(faces[f].point({r, side, k / 20.0}));
+          edge_points[f].push_back(faces[f].point({r, k / 20.0, side}));
+        }
+  double worst_gap = 0;
+  for (int f = 0; f < 6; ++f)
+    for (const Vec3& x : edge_points[f]) {
+      double nearest = 1e300;
+      for (int g = 0; g < 6; ++g)
+        if (g != f)
+          for (const Vec3& y : edge_points[g]) nearest = std::min(nearest, (x - y).norm());
+      worst_gap = std::max(worst_gap, nearest);
+    }
+  EXPECT_LT(worst_gap, 1e-12 * ef.R0);
+  // The mid-surface interpolates the exact map at the Greville points; between them it is measured against it
+  // at the same face coordinates (the sphere's point tan-mapped as the builder does); and the faces are
+  // right-handed (det dx/dxi > 0 on both faces of the shell).
+  auto exact = [&](int f, double u, double v) -> Vec3 {
+    const int k = f / 2, sign = f % 2 == 0 ? 1 : -1;
+    const int i = sign > 0 ? (k + 1) % 3 : (k + 2) % 3, j = sign > 0 ? (k + 2) % 3 : (k + 1) % 3;
+    Vec3 d = Vec3::Zero();
+    d[k] = sign, d[i] = std::tan(M_PI / 4 * (2 * u - 1)), d[j] = std::tan(M_PI / 4 * (2 * v - 1));
+    const Vec3 s = d.normalized();
+    const double c2 = s[0] * s[0] + s[1] * s[1];
+    return Vec3(ef.R0 * s[0], ef.R0 * s[1], 0.5 * s[2] * (ef.C0 + ef.C2 * c2 + ef.C4 * c2 * c2)) + c;
+  };
+  double worst = 0, right_handed = 1e300;
+  for (int f = 0; f < 6; ++f)
+    for (int a = 0; a <= 32; ++a)
+      for (int b = 0; b <= 32; ++b) {
+        worst = std::max(worst,
+                         (faces[f].point({0.5, a / 32.0, b / 32.0}) - exact(f, a / 32.0, b / 32.0)).norm());
+        for (double r : {0.0, 1.0})
+          right_handed = std::min(right_handed, faces[f].evaluate({r, a / 32.0, b / 32.0}).dx.determinant());
+      }
+  EXPECT_LT(worst, 2e-3 * ef.R0);
+  EXPECT_GT(right_handed, 0.0);
+  // Area and enclosed volume of the mid-surface, summed over the faces (surface integrals, the volume by the
+  // divergence theorem about the centre), against the Evans-Fung cell's 134.09 um^2 and 94.09 um^3
+  // (docs/geometry.md).
+  double area = 0, volume = 0;
+  for (const Patch& face : faces) {
+    const Patch mid = isoparametric(face, 0, 0.5);
+    std::vector<QuadraturePoint> qp;
+    for (int e = 0; e < mid.n_elements(); ++e) {
+      element_quadrature(mid, mid.element_multi_index(e), default_gauss(mid, 2), qp);
+      for (const QuadraturePoint& q : qp) {
+        const MapValues m = mid.evaluate(q.xi, 1);
+        const Vec3 n = m.dx.col(0).cross(m.dx.col(1));
+        area += q.weight * n.norm(), volume += q.weight * (m.x - c).dot(n) / 3;
+      }
+    }
+  }
+  // No slivers: the shortest element edge of the mid-surface against the longest, over the six faces (the
+  // polar shell's is 0: its poles are element edges of length 0).
+  double shortest = 1e300, longest = 0;
+  for (const Patch& face : faces) {
+    const std::vector<double> u = face.knots(1).breakpoints(), v = face.knots(2).breakpoints();
+    for (std::size_t a = 0; a < u.size(); ++a)
+      for (std::size_t b = 0; b < v.size(); ++b) {
+        const Vec3 x = face.point({0.5, u[a], v[b]});
+        std::vector<double> edges;
+        if (a + 1 < u.size()) edges.push_back((face.point({0.5, u[a + 1], v[b]}) - x).norm());
+        if (b + 1 < v.size()) edges.push_back((face.point({0.5, u[a], v[b + 1]}) - x).norm());
+        for (double e : edges) shortest = std::min(shortest, e), longest = std::max(longest, e);
+      }
+  }
+  std::printf("interpolation %.3e R0; area %.4f um^2, volume %.4f um^3; edges %.4f-%.4f um (ratio %.3f)\n",
+              worst / ef.R0, area * 1e8, volume * 1e12, shortest * 1e4, longest * 1e4, shortest / longest);
+  // Measured at 8 elements a face: 8.3e-4 R0 between the Greville points; 134.082 um^2 and 94.099 um^3; edges
+  // 0.30-0.80 um.
+  EXPECT_NEAR(area * 1e8, 134.09, 1e-3 * 134.09);
+  EXPECT_NEAR(volume * 1e12, 94.09, 1e-3 * 94.09);
+  EXPECT_GT(shortest / longest, 0.3);
+}
+
 TEST(Builders, NucleusMeshOfThePaper) {
   const Patch nucleus = bulky_ellipse(2e-4, 2e-4, 40, 192, 2);  // CTC inclusion, paper Sec. 4.4
   EXPECT_EQ(nucleus.n_elements(0), 40);
@@ -239,4 +330,7 @@ TEST(Builders, InvalidArgumentsAreNamed) {
   expect_invalid([] { biconcave_rbc_3d(1e-4, 16, 32, 2); }, "h = 0.0001");  // thicker than the dimple
   expect_invalid([] { biconcave_rbc_3d(3e-5, 15, 32, 2); }, "n_polar");
   expect_invalid([] { biconcave_rbc_3d(3e-5, 16, 30, 2); }, "n_azimuth");
+  expect_invalid([] { biconcave_rbc_3d_faces(1e-4, 8, 2); }, "h = 0.0001");
+  expect_invalid([] { biconcave_rbc_3d_faces(3e-5, 0, 2); }, "n_face");
+  expect_invalid([] { biconcave_rbc_3d_faces(3e-5, 8, 1); }, "degree");
 }
