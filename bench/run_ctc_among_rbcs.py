@@ -247,8 +247,9 @@ def figure(args, runs, results):
         ax.set_xlabel("haematocrit (% of the area)")
         ax.set_title(label, fontsize=9)
         ax.grid(True, lw=0.3)
-    fig.suptitle(f"A CTC among red cells through the narrowing ({args.mesh}, degree {args.degree}): each seed a "
-                 "dot, the line their mean", fontsize=9)
+    space = fluid_and_membranes(args, runs).split(" (elements")[0]
+    fig.suptitle(f"A CTC among red cells through the narrowing ({args.mesh}, degree {args.degree}{space}): each "
+                 "seed a dot, the line their mean", fontsize=9)
     fig.tight_layout()
     save_figure(fig, args.figure, TOOL)
 
