@@ -25,7 +25,8 @@ suspension can compare in a short run.
 --mesh NXxNY (96x32) --degree P (3) --dt DT (2.5e-4) --final-time T (0.3) --output-every N (20)
 --hematocrits LIST (0,15,30) --seeds LIST (3,4,5) --jobs N (1) --runs DIR (out/ctc_among_rbcs) --build DIR (build)
 --table FILE (docs/validation/ctc_among_rbcs.md) --figure FILE (docs/figures/ctc_among_rbcs.png)
---snapshots FILE (docs/figures/ctc_among_rbcs_snapshots.png) --snapshot-seed S (the first seed) --early T (0.04)
+--snapshots FILE (docs/figures/ctc_among_rbcs_snapshots.png) --snapshot-seed S (the first seed; at a haematocrit where
+S did not cross the throat, the first seed that did) --early T (0.04)
 --extra "OPTIONS" (more cellfsi options for every run) --report (only the tables and figures, from the runs kept in
 --runs: a run stopped and continued by hand with -restart and a later -final_time is reported as it stands). Needs python3-matplotlib and python3-vtk9
 (scripts/install-deps.sh; Debian's /usr/bin/python3)."""
@@ -255,8 +256,9 @@ def figure(args, runs, results):
 
 
 def snapshots(args, runs, results):
-    """One row per haematocrit (the --snapshot-seed run): the flow's speed and the bodies as the CTC enters,
-    crosses and leaves the throat."""
+    """One row per haematocrit (the --snapshot-seed run, or where that seed did not cross the throat at a
+    haematocrit, the first seed that did): the flow's speed and the bodies as the CTC enters, crosses and leaves the
+    throat."""
     try:
         import numpy as np
         import vtk  # noqa: F401
@@ -267,8 +269,13 @@ def snapshots(args, runs, results):
     plt = pyplot(TOOL)
     if plt is None:
         return
-    chosen = [(tag, h, m) for (tag, h, seed, _), m in zip(runs, results)
-              if m is not None and m["transit"] is not None and (h == 0 or seed == args.snapshot_seed)]
+    crossed = [(tag, h, seed, m) for (tag, h, seed, _), m in zip(runs, results)
+               if m is not None and m["transit"] is not None]
+    chosen = []
+    for hct in dict.fromkeys(h for _, h, _, _ in crossed):
+        at = [c for c in crossed if c[1] == hct]
+        tag, h, _, m = next((c for c in at if c[2] == args.snapshot_seed), at[0])
+        chosen.append((tag, h, m))
     if not chosen:
         return
     fig, axes = plt.subplots(len(chosen), 3, figsize=(13, 1.9 * len(chosen) + 0.4), squeeze=False)
