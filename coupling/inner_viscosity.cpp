@@ -23,10 +23,11 @@ std::vector<double> samples_along(const geometry::Patch& p, int d, int per_eleme
   return t;
 }
 
-// Winding number of a closed polygon about x (2D, in the xy plane).
-double winding_2d(const std::vector<Vec3>& poly, const Vec3& x) {
+// Winding number of a closed polygon about x (2D, in the xy plane); of an open one (a part of a closed
+// curve), its share.
+double winding_2d(const std::vector<Vec3>& poly, const Vec3& x, bool closed = true) {
   double angle = 0;
-  for (std::size_t i = 0; i < poly.size(); ++i) {
+  for (std::size_t i = 0; i + (closed ? 0 : 1) < poly.size(); ++i) {
     const Vec3 a = poly[i] - x, b = poly[(i + 1) % poly.size()] - x;
     angle += std::atan2(a[0] * b[1] - a[1] * b[0], a[0] * b[0] + a[1] * b[1]);
   }
@@ -44,42 +45,38 @@ double triangle_winding(const Vec3& a0, const Vec3& b0, const Vec3& c0, const Ve
 
 }  // namespace
 
-std::vector<char> inside_membrane(const geometry::Patch& membrane, const std::vector<Vec3>& points,
-                                  int samples) {
-  const int P = membrane.param_dim();
-  if (P != 2 && P != 3) throw std::invalid_argument("inside_membrane: a 2D or 3D membrane patch");
-  const geometry::KnotVector& k0 = membrane.knots(0);
-  const double mid = 0.5 * (k0.a() + k0.b());
-  if (samples <= 0) samples = P == 2 ? 8 : 4;
-  std::vector<char> inside(points.size(), 0);
-  if (P == 2) {
-    bool periodic = false;
-    const std::vector<double> t = samples_along(membrane, 1, samples, periodic);
-    std::vector<Vec3> poly;
-    for (std::size_t i = 0; i < t.size() - (periodic ? 0 : 1); ++i)
-      poly.push_back(membrane.point({mid, t[i], 0}));
-    Vec3 lo = poly[0], hi = poly[0];
-    for (const Vec3& q : poly) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      const Vec3& x = points[i];
-      if (x[0] < lo[0] || x[1] < lo[1] || x[0] > hi[0] || x[1] > hi[1]) continue;
-      inside[i] = std::abs(winding_2d(poly, x)) > 0.5;
-    }
-    return inside;
+namespace {
+
+/// A membrane's mid-curve or mid-surface sampled for the winding number: a polygon (2D) or a grid of
+/// quadrilaterals (3D), with its box.
+struct SampledMidSurface {
+  int P = 0;
+  std::vector<Vec3> grid;  // 2D: the polygon's vertices; 3D: n1 x n2 points, direction 1 fastest
+  int n1 = 0, n2 = 0;
+  bool closed1 = false, closed2 = false;  // the polygon's, or a direction's, last segment closes on the first
+  Vec3 lo, hi;
+
+  SampledMidSurface(const geometry::Patch& membrane, int samples) : P(membrane.param_dim()) {
+    if (P != 2 && P != 3) throw std::invalid_argument("inside_membrane: a 2D or 3D membrane patch");
+    const geometry::KnotVector& k0 = membrane.knots(0);
+    const double mid = 0.5 * (k0.a() + k0.b());
+    if (samples <= 0) samples = P == 2 ? 8 : 4;
+    const std::vector<double> t1 = samples_along(membrane, 1, samples, closed1);
+    const std::vector<double> t2 =
+        P == 3 ? samples_along(membrane, 2, samples, closed2) : std::vector<double>{0.0};
+    n1 = static_cast<int>(t1.size()), n2 = static_cast<int>(t2.size());
+    // 2D: a periodic curve's samples close on the first; an open one's last sample is dropped where the
+    // curve is closed (its ends meet), kept where it is a part.
+    if (P == 2 && !closed1 && membrane.closed(1)) n1 -= 1, closed1 = true;
+    for (int j = 0; j < n2; ++j)
+      for (int i = 0; i < n1; ++i) grid.push_back(membrane.point({mid, t1[i], t2[j]}));
+    lo = hi = grid[0];
+    for (const Vec3& q : grid) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
   }
-  bool per1 = false, per2 = false;
-  const std::vector<double> t1 = samples_along(membrane, 1, samples, per1),
-                            t2 = samples_along(membrane, 2, samples, per2);
-  const int n1 = static_cast<int>(t1.size()), n2 = static_cast<int>(t2.size());
-  std::vector<Vec3> grid(static_cast<std::size_t>(n1) * n2);
-  for (int j = 0; j < n2; ++j)
-    for (int i = 0; i < n1; ++i) grid[i + n1 * j] = membrane.point({mid, t1[i], t2[j]});
-  Vec3 lo = grid[0], hi = grid[0];
-  for (const Vec3& q : grid) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
-  const int s1 = per1 ? n1 : n1 - 1, s2 = per2 ? n2 : n2 - 1;  // quads per direction
-  for (std::size_t p = 0; p < points.size(); ++p) {
-    const Vec3& x = points[p];
-    if ((x.array() < lo.array()).any() || (x.array() > hi.array()).any()) continue;
+
+  double winding(const Vec3& x) const {
+    if (P == 2) return winding_2d(grid, x, closed1);
+    const int s1 = closed1 ? n1 : n1 - 1, s2 = closed2 ? n2 : n2 - 1;  // quads per direction
     double w = 0;
     for (int j = 0; j < s2; ++j)
       for (int i = 0; i < s1; ++i) {
@@ -89,9 +86,40 @@ std::vector<char> inside_membrane(const geometry::Patch& membrane, const std::ve
         const Vec3& d = grid[i + n1 * ((j + 1) % n2)];
         w += triangle_winding(a, b, c, x) + triangle_winding(a, c, d, x);
       }
+    return w;
+  }
+};
+
+std::vector<char> inside_sampled(const std::vector<SampledMidSurface>& parts,
+                                 const std::vector<Vec3>& points) {
+  Vec3 lo = parts[0].lo, hi = parts[0].hi;
+  for (const SampledMidSurface& s : parts) lo = lo.cwiseMin(s.lo), hi = hi.cwiseMax(s.hi);
+  const int D = parts[0].P;
+  std::vector<char> inside(points.size(), 0);
+  for (std::size_t p = 0; p < points.size(); ++p) {
+    const Vec3& x = points[p];
+    if ((x.head(D).array() < lo.head(D).array()).any() || (x.head(D).array() > hi.head(D).array()).any())
+      continue;
+    double w = 0;
+    for (const SampledMidSurface& s : parts) w += s.winding(x);
     inside[p] = std::abs(w) > 0.5;
   }
   return inside;
+}
+
+}  // namespace
+
+std::vector<char> inside_membrane(const geometry::Patch& membrane, const std::vector<Vec3>& points,
+                                  int samples) {
+  return inside_sampled({SampledMidSurface(membrane, samples)}, points);
+}
+
+std::vector<char> inside_membrane(const std::vector<geometry::Patch>& parts, const std::vector<Vec3>& points,
+                                  int samples) {
+  if (parts.empty()) throw std::invalid_argument("inside_membrane: no parts");
+  std::vector<SampledMidSurface> sampled;
+  for (const geometry::Patch& p : parts) sampled.emplace_back(p, samples);
+  return inside_sampled(sampled, points);
 }
 
 std::vector<double> viscosity_values(const geometry::Patch& fluid, const std::vector<InnerViscosity>& inner,

@@ -26,6 +26,10 @@ namespace cellfsi::coupling {
 /// (within that chord error) may fall on either side.
 std::vector<char> inside_membrane(const geometry::Patch& membrane, const std::vector<geometry::Vec3>& points,
                                   int samples = 0);
+/// The same for a membrane made of parts (patches each open and together closed, oriented alike: a membrane's
+/// faces, geometry::biconcave_rbc_3d_faces): the parts' windings added.
+std::vector<char> inside_membrane(const std::vector<geometry::Patch>& parts,
+                                  const std::vector<geometry::Vec3>& points, int samples = 0);
 
 /// One membrane with an inner viscosity.
 struct InnerViscosity {

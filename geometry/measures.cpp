@@ -211,13 +211,16 @@ RegionMoments enclosed_moments(const Patch& boundary, int extra_gauss) {
   return finish(enclosed_moment_sums(boundary, extra_gauss));
 }
 
-MomentSums enclosed_moment_sums(const Patch& boundary, int extra_gauss, const ElementShare& share) {
+namespace {
+
+/// enclosed_moment_sums about ref, of a closed boundary or of one part of one.
+MomentSums enclosed_sums_about(const Patch& boundary, int extra_gauss, const ElementShare& share,
+                               const Vec3& ref, bool whole) {
   const int P = boundary.param_dim(), D = boundary.physical_dim();
   if (P != D - 1) throw std::invalid_argument("enclosed_moments: needs a curve in 2D or a surface in 3D");
-  for (int d = 0; d < P; ++d)
+  for (int d = 0; d < P && whole; ++d)
     if (D == 2 && !boundary.closed(d))
       throw std::invalid_argument("enclosed_moments: the boundary curve is not closed");
-  const Vec3 ref = reference_point(boundary);
   double M0 = 0;
   Vec3 M1 = Vec3::Zero();
   Mat3 M2 = Mat3::Zero();
@@ -254,6 +257,29 @@ MomentSums enclosed_moment_sums(const Patch& boundary, int extra_gauss, const El
   return {M0, M1, M2, ref};
 }
 
+}  // namespace
+
+MomentSums enclosed_moment_sums(const Patch& boundary, int extra_gauss, const ElementShare& share) {
+  return enclosed_sums_about(boundary, extra_gauss, share, reference_point(boundary), true);
+}
+
+MomentSums enclosed_moment_sums(const std::vector<Patch>& parts, int extra_gauss) {
+  if (parts.empty()) throw std::invalid_argument("enclosed_moments: no parts");
+  Vec3 lo, hi;
+  parts[0].bounding_box(lo, hi);
+  for (const Patch& p : parts) {
+    Vec3 a, b;
+    p.bounding_box(a, b);
+    lo = lo.cwiseMin(a), hi = hi.cwiseMax(b);
+  }
+  MomentSums sums{0, Vec3::Zero(), Mat3::Zero(), 0.5 * (lo + hi)};
+  for (const Patch& p : parts) {
+    const MomentSums s = enclosed_sums_about(p, extra_gauss, {}, sums.ref, false);
+    sums.m0 += s.m0, sums.m1 += s.m1, sums.m2 += s.m2;
+  }
+  return sums;
+}
+
 PrincipalAxes principal_axes(const RegionMoments& moments, int dim) {
   PrincipalAxes pa;
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(moments.second_moment.topLeftCorner(dim, dim));
@@ -282,6 +308,22 @@ double swelling_degree(double enclosed, double boundary, int dim) {
 double effective_radius(double boundary, int dim) {
   if (dim == 2) return boundary / (2.0 * std::numbers::pi);
   return std::sqrt(boundary / (4.0 * std::numbers::pi));
+}
+
+MembraneShape membrane_shape(const std::vector<Patch>& parts, int thickness_dir, int extra_gauss) {
+  std::vector<Patch> mids;
+  MembraneShape s;
+  for (const Patch& part : parts) {
+    const KnotVector& kv = part.knots(thickness_dir);
+    mids.push_back(isoparametric(part, thickness_dir, 0.5 * (kv.a() + kv.b())));
+    s.boundary += patch_measure(mids.back(), extra_gauss);
+  }
+  const int D = parts.at(0).physical_dim();
+  s.moments = finish(enclosed_moment_sums(mids, extra_gauss));
+  s.enclosed = s.moments.measure;
+  s.swelling = swelling_degree(s.enclosed, s.boundary, D);
+  s.effective_radius = effective_radius(s.boundary, D);
+  return s;
 }
 
 MembraneShape membrane_shape(const Patch& membrane, int thickness_dir, int extra_gauss) {

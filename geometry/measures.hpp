@@ -4,6 +4,7 @@
 // Delta and effective radius R_0 (paper Sec. 3.1). Integrals use Gauss rules on the patch's elements;
 // rational maps are not integrated exactly, so accuracy improves with refinement and `extra_gauss`.
 #include <array>
+#include <vector>
 
 #include "geometry/patch.hpp"
 
@@ -61,6 +62,11 @@ MomentSums patch_moment_sums(const Patch& patch, int extra_gauss = 2, const Elem
 /// surface in 3D (divergence theorem). Orientation does not matter. enclosed_moment_sums: a share's raw sums.
 RegionMoments enclosed_moments(const Patch& boundary, int extra_gauss = 2);
 MomentSums enclosed_moment_sums(const Patch& boundary, int extra_gauss = 2, const ElementShare& share = {});
+/// The same for a boundary made of parts, each open and all of them together closed and oriented alike (a
+/// membrane's faces, geometry::biconcave_rbc_3d_faces' mid-surfaces): the parts' sums taken about one
+/// reference point, their common bounding box's centre (Green's and the divergence theorem's integrals add
+/// over the parts only about one point).
+MomentSums enclosed_moment_sums(const std::vector<Patch>& parts, int extra_gauss = 2);
 
 /// Principal axes of a region: eigenvalues of the central second moment in descending order and the matching
 /// unit eigenvectors as columns. The first axis is the long axis (least moment of inertia).
@@ -88,5 +94,8 @@ struct MembraneShape {
   RegionMoments moments;        // of the enclosed region
 };
 MembraneShape membrane_shape(const Patch& membrane, int thickness_dir = 0, int extra_gauss = 2);
+/// The same for a membrane made of parts (each a patch with the thickness along thickness_dir, together
+/// closed).
+MembraneShape membrane_shape(const std::vector<Patch>& parts, int thickness_dir = 0, int extra_gauss = 2);
 
 }  // namespace cellfsi::geometry

@@ -2,6 +2,7 @@
 // ellipsoids, the viscosity field's control values, how sharp nu^h is across a membrane, and the checks.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -82,6 +83,29 @@ TEST(InnerViscosity, InsideAHollowEllipsoidIsInsideItsMidSurface) {
   std::printf("  hollow ellipsoid: %d of %d points inside, all as the exact mid-surface says\n", n.inside,
               n.checked);
   EXPECT_GT(n.inside, 100);
+}
+
+// The red cell's six faces (geometry::biconcave_rbc_3d_faces) together enclose what the cell does: points a
+// tenth inside and outside the exact surface, along rays from the centre in every direction (the dimples
+// included), are inside and outside.
+TEST(InnerViscosity, InsideTheSixFacesOfARedCellIsInsideTheCell) {
+  const geometry::EvansFung ef;
+  const Vec3 c(6e-4, 6e-4, 6e-4);
+  const std::vector<geometry::Patch> faces = geometry::biconcave_rbc_3d_faces(3.1623e-5, 8, 2, c);
+  std::mt19937 rng(7);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::vector<Vec3> in, out;
+  for (int i = 0; i < 300; ++i) {
+    const Vec3 s = Vec3(g(rng), g(rng), g(rng)).normalized();
+    const double c2 = s[0] * s[0] + s[1] * s[1];
+    const Vec3 x(ef.R0 * s[0], ef.R0 * s[1], 0.5 * s[2] * (ef.C0 + ef.C2 * c2 + ef.C4 * c2 * c2));
+    in.push_back(c + 0.9 * x), out.push_back(c + 1.1 * x);
+  }
+  in.push_back(c);
+  const std::vector<char> a = coupling::inside_membrane(faces, in), b = coupling::inside_membrane(faces, out);
+  EXPECT_EQ(std::count(a.begin(), a.end(), 1), static_cast<long>(in.size()));
+  EXPECT_EQ(std::count(b.begin(), b.end(), 1), 0);
+  EXPECT_THROW(coupling::inside_membrane(std::vector<geometry::Patch>{}, in), std::invalid_argument);
 }
 
 // The field's control values take mu_in at the control points inside; nu^h is mu_in at the centre and mu_out

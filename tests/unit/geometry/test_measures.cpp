@@ -2,7 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <cstdio>
 #include <numbers>
+#include <vector>
 
 #include "geometry/builders.hpp"
 #include "geometry/measures.hpp"
@@ -59,6 +61,30 @@ TEST(Measures, PaperEllipsoidShellSwellingDegreeAndEffectiveRadius) {
   EXPECT_LT(rel(s.enclosed, 4.0 / 3.0 * pi * a * b * b), 1e-10);
   EXPECT_LT(rel(s.boundary, prolate_area(a, b)), 1e-10);
   EXPECT_LT(s.moments.centroid.norm(), 1e-10 * a);
+}
+
+// A membrane made of parts: one part gives the whole patch's measures; the red cell's six faces give the
+// polar shell's (Evans-Fung: 134.09 um^2, 94.09 um^3) and its centroid and moments, about one reference
+// point.
+TEST(Measures, MembraneShapeOfPartsAddsThemAboutOnePoint) {
+  const Patch shell = hollow_ellipsoid(3e-4, 2e-4, 2e-4, 5e-7, 16, 32, 2, Vec3(1e-3, 2e-3, 3e-3));
+  const MembraneShape whole = membrane_shape(shell, 0, 3),
+                      one = membrane_shape(std::vector<Patch>{shell}, 0, 3);
+  EXPECT_LT(rel(one.enclosed, whole.enclosed), 1e-12);
+  EXPECT_LT(rel(one.boundary, whole.boundary), 1e-12);
+  EXPECT_LT((one.moments.centroid - whole.moments.centroid).norm(), 1e-12 * 3e-4);
+  const double h = 3.1623e-5;
+  const Vec3 c(6e-4, 6e-4, 6e-4);
+  const MembraneShape faces = membrane_shape(biconcave_rbc_3d_faces(h, 8, 2, c), 0, 3);
+  const MembraneShape polar = membrane_shape(biconcave_rbc_3d(h, 40, 80, 2, c), 0, 3);
+  std::printf("  six faces: %.4f um^2, %.4f um^3; polar 1 x 40 x 80: %.4f um^2, %.4f um^3\n",
+              faces.boundary * 1e8, faces.enclosed * 1e12, polar.boundary * 1e8, polar.enclosed * 1e12);
+  EXPECT_NEAR(faces.boundary * 1e8, 134.09, 1e-3 * 134.09);
+  EXPECT_NEAR(faces.enclosed * 1e12, 94.09, 1e-3 * 94.09);
+  EXPECT_LT((faces.moments.centroid - c).norm(), 1e-6 * 3.91e-4);
+  const PrincipalAxes pf = principal_axes(faces.moments, 3), pp = principal_axes(polar.moments, 3);
+  for (int k = 0; k < 3; ++k) EXPECT_LT(rel(pf.values[k], pp.values[k]), 2e-3) << k;
+  EXPECT_GT(std::abs(pf.axes(2, 2)), 1 - 1e-9);  // the short axis along the cell's axis (z)
 }
 
 TEST(Measures, BulkyEllipseAndSphereRegions) {
