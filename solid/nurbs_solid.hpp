@@ -77,6 +77,8 @@ class NurbsSolid final : public SolidSolver {
   const std::vector<Vec3>& load_densities() const { return load_density_; }
 
   int n_points() const { return static_cast<int>(reference_points_.size()); }
+  /// The quadrature points' count (quadrature_data()'s size).
+  int n_quadrature_points() const { return static_cast<int>(q_X_.size()); }
   /// Step 3's solver (whether it goes direction by direction, or why not).
   const CollocationSolver& collocation_solver() const { return *collocation_solver_; }
   const std::vector<Vec3>& reference_points() const { return reference_points_; }

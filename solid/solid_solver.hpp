@@ -178,6 +178,9 @@ class SolidSolver {
   /// with the same knots.
   virtual geometry::Patch reference_patch() const = 0;
   virtual geometry::Patch current_patch() const = 0;
+  /// The same as a list: one patch, or a body's parts (solid/composite_solid.hpp), in their order.
+  virtual std::vector<geometry::Patch> reference_patches() const { return {reference_patch()}; }
+  virtual std::vector<geometry::Patch> current_patches() const { return {current_patch()}; }
   /// Cauchy stress sigma = J^{-1} F S F^T [dyn/cm^2] of the accepted state at parametric points (for output:
   /// NaN where F is undefined or inverted).
   virtual std::vector<Mat3> cauchy_stress(const std::vector<geometry::Param>& xi) const = 0;
