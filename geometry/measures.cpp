@@ -263,7 +263,7 @@ MomentSums enclosed_moment_sums(const Patch& boundary, int extra_gauss, const El
   return enclosed_sums_about(boundary, extra_gauss, share, reference_point(boundary), true);
 }
 
-MomentSums enclosed_moment_sums(const std::vector<Patch>& parts, int extra_gauss) {
+MomentSums enclosed_moment_sums(const std::vector<Patch>& parts, int extra_gauss, const ElementShare& share) {
   if (parts.empty()) throw std::invalid_argument("enclosed_moments: no parts");
   Vec3 lo, hi;
   parts[0].bounding_box(lo, hi);
@@ -274,7 +274,7 @@ MomentSums enclosed_moment_sums(const std::vector<Patch>& parts, int extra_gauss
   }
   MomentSums sums{0, Vec3::Zero(), Mat3::Zero(), 0.5 * (lo + hi)};
   for (const Patch& p : parts) {
-    const MomentSums s = enclosed_sums_about(p, extra_gauss, {}, sums.ref, false);
+    const MomentSums s = enclosed_sums_about(p, extra_gauss, share, sums.ref, false);
     sums.m0 += s.m0, sums.m1 += s.m1, sums.m2 += s.m2;
   }
   return sums;

@@ -65,8 +65,9 @@ MomentSums enclosed_moment_sums(const Patch& boundary, int extra_gauss = 2, cons
 /// The same for a boundary made of parts, each open and all of them together closed and oriented alike (a
 /// membrane's faces, geometry::biconcave_rbc_3d_faces' mid-surfaces): the parts' sums taken about one
 /// reference point, their common bounding box's centre (Green's and the divergence theorem's integrals add
-/// over the parts only about one point).
-MomentSums enclosed_moment_sums(const std::vector<Patch>& parts, int extra_gauss = 2);
+/// over the parts only about one point). A share: that share of each part's elements.
+MomentSums enclosed_moment_sums(const std::vector<Patch>& parts, int extra_gauss = 2,
+                                const ElementShare& share = {});
 
 /// Principal axes of a region: eigenvalues of the central second moment in descending order and the matching
 /// unit eigenvectors as columns. The first axis is the long axis (least moment of inertia).

@@ -45,12 +45,23 @@ Eigen::Matrix2d surface_metric(const geometry::MapValues& m, int dim) {
 }  // namespace
 
 BodyTracker::BodyTracker(const Patch& reference, bool membrane, int plane_dir, int n_material_points)
-    : membrane_(membrane), dim_(reference.physical_dim()), plane_dir_(plane_dir) {
-  if (reference.param_dim() != dim_)
-    throw std::invalid_argument("BodyTracker: the patch must fill its space");
+    : BodyTracker(std::vector<Patch>{reference}, membrane, plane_dir, n_material_points) {}
+
+BodyTracker::BodyTracker(const std::vector<Patch>& parts, bool membrane, int plane_dir, int n_material_points)
+    : membrane_(membrane),
+      dim_(parts.empty() ? 0 : parts[0].physical_dim()),
+      plane_dir_(plane_dir),
+      n_parts_(static_cast<int>(parts.size())) {
+  if (parts.empty()) throw std::invalid_argument("BodyTracker: no patch");
+  for (const Patch& p : parts)
+    if (p.param_dim() != dim_ || p.physical_dim() != dim_)
+      throw std::invalid_argument("BodyTracker: the patch must fill its space");
+  if (parts.size() > 1 && !membrane)
+    throw std::invalid_argument("BodyTracker: only a membrane may have parts");
   if (plane_dir < 1 || plane_dir >= dim_)
     throw std::invalid_argument("BodyTracker: plane_dir must be 1.." + std::to_string(dim_ - 1));
   if (n_material_points < 4) throw std::invalid_argument("BodyTracker: at least 4 material points");
+  const Patch& reference = parts[0];
   if (!membrane) {
     // Its inner face (direction 0's start) a point or a line, of no measure: the outer face bounds it.
     const geometry::KnotVector& k0 = reference.knots(0);
@@ -58,44 +69,54 @@ BodyTracker::BodyTracker(const Patch& reference, bool membrane, int plane_dir, i
                    1e-12 * geometry::patch_measure(geometry::isoparametric(reference, 0, k0.b()));
   }
   geometry::RegionMoments region;
-  measure(reference, {}, area0_, boundary0_, region);
+  measure(parts, {}, area0_, boundary0_, region);
   const geometry::PrincipalAxes ax = geometry::principal_axes(region, dim_);
   elongated_ = ax.values[0] > 1.01 * ax.values[dim_ - 1];
-  // Material points: mid-thickness of a membrane, the outer face of a bulky body.
-  const geometry::KnotVector& k0 = reference.knots(0);
-  const double xi0 = membrane ? 0.5 * (k0.a() + k0.b()) : k0.b();
-  const geometry::KnotVector& k1 = reference.knots(1);
-  if (dim_ == 2) {
-    for (int i = 0; i < n_material_points; ++i)
-      material_xi_.push_back({xi0, k1.a() + (k1.b() - k1.a()) * i / n_material_points, 0});
-  } else {
-    const geometry::KnotVector& k2 = reference.knots(2);
-    const int n1 = std::max(2, n_material_points / 2);
-    for (int j = 0; j < n1; ++j)
-      for (int i = 0; i < n_material_points; ++i)
-        material_xi_.push_back({xi0, k1.a() + (k1.b() - k1.a()) * (j + 0.5) / n1,
-                                k2.a() + (k2.b() - k2.a()) * i / n_material_points});
+  // Material points: mid-thickness of a membrane, the outer face of a bulky body; a part's share of them.
+  const int n_material = std::max(4, n_material_points / n_parts_);
+  for (int k = 0; k < n_parts_; ++k) {
+    const geometry::KnotVector& k0 = parts[k].knots(0);
+    const double xi0 = membrane ? 0.5 * (k0.a() + k0.b()) : k0.b();
+    const geometry::KnotVector& k1 = parts[k].knots(1);
+    if (dim_ == 2) {
+      for (int i = 0; i < n_material; ++i)
+        material_xi_.push_back({xi0, k1.a() + (k1.b() - k1.a()) * i / n_material, 0});
+    } else {
+      const geometry::KnotVector& k2 = parts[k].knots(2);
+      const int n1 = std::max(2, n_material / 2);
+      for (int j = 0; j < n1; ++j)
+        for (int i = 0; i < n_material; ++i)
+          material_xi_.push_back({xi0, k1.a() + (k1.b() - k1.a()) * (j + 0.5) / n1,
+                                  k2.a() + (k2.b() - k2.a()) * i / n_material});
+    }
+    material_part_.resize(material_xi_.size(), k);
   }
-  for (const Param& xi : material_xi_) {
-    const Vec3 y = reference.point(xi) - region.centroid;
+  for (std::size_t i = 0; i < material_xi_.size(); ++i) {
+    const Vec3 y = parts[material_part_[i]].point(material_xi_[i]) - region.centroid;
     weights_.push_back(dim_ == 2 ? 1.0 : y[0] * y[0] + y[plane_dir_] * y[plane_dir_]);
   }
   if (membrane) {
     // 4 points per element in each direction along the mid-surface (at the element's quarter points'
     // midpoints), where the largest stretch is looked for.
     const int per = 4;
-    auto samples = [&](int dir) {
-      std::vector<double> t;
-      if (dir >= dim_) return std::vector<double>{0.0};
-      const geometry::KnotVector& k = reference.knots(dir);
-      const int n = k.n_elements() * per;
-      for (int i = 0; i < n; ++i) t.push_back(k.a() + (k.b() - k.a()) * (i + 0.5) / n);
-      return t;
-    };
-    for (double t2 : samples(2))
-      for (double t1 : samples(1)) stretch_xi_.push_back({xi0, t1, t2});
-    for (const Param& xi : stretch_xi_)
-      reference_metric_inverse_.push_back(surface_metric(reference.evaluate(xi), dim_).inverse());
+    for (int k = 0; k < n_parts_; ++k) {
+      const geometry::KnotVector& k0 = parts[k].knots(0);
+      const double xi0 = 0.5 * (k0.a() + k0.b());
+      auto samples = [&](int dir) {
+        std::vector<double> t;
+        if (dir >= dim_) return std::vector<double>{0.0};
+        const geometry::KnotVector& kv = parts[k].knots(dir);
+        const int n = kv.n_elements() * per;
+        for (int i = 0; i < n; ++i) t.push_back(kv.a() + (kv.b() - kv.a()) * (i + 0.5) / n);
+        return t;
+      };
+      for (double t2 : samples(2))
+        for (double t1 : samples(1)) stretch_xi_.push_back({xi0, t1, t2});
+      stretch_part_.resize(stretch_xi_.size(), k);
+    }
+    for (std::size_t i = 0; i < stretch_xi_.size(); ++i)
+      reference_metric_inverse_.push_back(
+          surface_metric(parts[stretch_part_[i]].evaluate(stretch_xi_[i]), dim_).inverse());
   }
 }
 
@@ -202,15 +223,28 @@ void BodyTracker::restore(const std::vector<double>& state) {
   history_ = std::move(history);
 }
 
-void BodyTracker::measure(const Patch& p, const MetricShare& share, double& area, double& boundary,
-                          geometry::RegionMoments& region) const {
+void BodyTracker::measure(const std::vector<Patch>& parts, const MetricShare& share, double& area,
+                          double& boundary, geometry::RegionMoments& region) const {
+  if (static_cast<int>(parts.size()) != n_parts_)
+    throw std::invalid_argument("BodyTracker: " + std::to_string(parts.size()) + " patches for a body of " +
+                                std::to_string(n_parts_));
+  const Patch& p = parts[0];
   // A membrane: the band's own measure, the mid-surface's and the moments of the region it encloses
   // (geometry::membrane_shape's integrals); a bulky body: its outer face's measure and the moments of the
   // region that face encloses, which is the body.
   constexpr int kExtra = 2;
   double measures[2] = {0, 0};  // the body's own (a membrane's), the boundary's
   geometry::MomentSums sums;
-  if (membrane_) {
+  if (membrane_ && n_parts_ > 1) {
+    std::vector<Patch> mids;
+    for (const Patch& part : parts) {
+      const geometry::KnotVector& kv = part.knots(0);
+      mids.push_back(geometry::isoparametric(part, 0, 0.5 * (kv.a() + kv.b())));
+      measures[0] += geometry::patch_measure(part, kExtra, share.elements);
+      measures[1] += geometry::patch_measure(mids.back(), kExtra, share.elements);
+    }
+    sums = geometry::enclosed_moment_sums(mids, kExtra, share.elements);
+  } else if (membrane_) {
     const geometry::KnotVector& kv = p.knots(0);
     const Patch mid = geometry::isoparametric(p, 0, 0.5 * (kv.a() + kv.b()));
     measures[0] = geometry::patch_measure(p, kExtra, share.elements);
@@ -239,17 +273,19 @@ void BodyTracker::measure(const Patch& p, const MetricShare& share, double& area
   boundary = measures[1];
 }
 
-double BodyTracker::largest_stretch(const Patch& p, const MetricShare& share) const {
+double BodyTracker::largest_stretch(const std::vector<Patch>& parts_list, const MetricShare& share) const {
   // The squared principal stretches are the eigenvalues of G^{-1} g (G, g: the reference and current
   // metrics), which are those of the symmetric G^{-1/2} g G^{-1/2}; the larger of a 2 x 2 pair in closed form.
   double largest = 0;
   // (The share was checked by measure(), which record() calls first.)
+  const std::vector<Patch>& parts_of = parts_list;
   const std::size_t n = stretch_xi_.size(), parts = share.elements.parts, part = share.elements.part;
   if (share.elements.operations)
     *share.elements.operations += static_cast<double>(n * (part + 1) / parts - n * part / parts) *
-                                  (geometry::point_operations(p) + 20.0);
+                                  (geometry::point_operations(parts_of[0]) + 20.0);
   for (std::size_t i = n * part / parts; i < n * (part + 1) / parts; ++i) {
-    const Eigen::Matrix2d m = reference_metric_inverse_[i] * surface_metric(p.evaluate(stretch_xi_[i]), dim_);
+    const Eigen::Matrix2d m = reference_metric_inverse_[i] *
+                              surface_metric(parts_of[stretch_part_[i]].evaluate(stretch_xi_[i]), dim_);
     double l2 = m(0, 0);
     if (dim_ == 3) {
       const double tr = m.trace(), det = m.determinant();
@@ -261,17 +297,22 @@ double BodyTracker::largest_stretch(const Patch& p, const MetricShare& share) co
   return largest;
 }
 
-std::vector<double> BodyTracker::material_angles(const Patch& p, const Vec3& centroid) const {
+std::vector<double> BodyTracker::material_angles(const std::vector<Patch>& parts,
+                                                 const Vec3& centroid) const {
   std::vector<double> a;
   a.reserve(material_xi_.size());
-  for (const Param& xi : material_xi_) {
-    const Vec3 y = p.point(xi) - centroid;
+  for (std::size_t i = 0; i < material_xi_.size(); ++i) {
+    const Vec3 y = parts[material_part_[i]].point(material_xi_[i]) - centroid;
     a.push_back(std::atan2(y[plane_dir_], y[0]));
   }
   return a;
 }
 
 void BodyTracker::record(double time, const Patch& current, const MetricShare& share) {
+  record(time, std::vector<Patch>{current}, share);
+}
+
+void BodyTracker::record(double time, const std::vector<Patch>& current, const MetricShare& share) {
   if (!history_.empty() && !(time > history_.back().time))
     throw std::invalid_argument("BodyTracker::record: times must increase");
   double area = 0, boundary = 0;

@@ -61,10 +61,18 @@ class BodyTracker {
   /// centre, as the builders make it). `n_material_points` points along direction 1 (and 2 in 3D) are
   /// followed for omega.
   BodyTracker(const geometry::Patch& reference, bool membrane, int plane_dir = 1, int n_material_points = 64);
+  /// A body made of patches (solid/composite_solid.hpp: a membrane's parts, together closed), measured as
+  /// one: its integrals about one reference point, each part's share of the material points
+  /// (n_material_points over the parts, at least 4 along each direction of each part) and of the stretch
+  /// samples. One patch: as the constructor above.
+  BodyTracker(const std::vector<geometry::Patch>& reference, bool membrane, int plane_dir = 1,
+              int n_material_points = 64);
 
   /// Records the body's configuration at `time` (call once per step, in order). With a share, collective over
   /// the ranks that hold it: each calls it with the same patch and its own part.
   void record(double time, const geometry::Patch& current, const MetricShare& share = {});
+  /// The same for a body made of patches (as many as the reference's, in its order).
+  void record(double time, const std::vector<geometry::Patch>& current, const MetricShare& share = {});
 
   /// Values at the last record (omega: over the last interval; 0 before the second record; 3D: the short
   /// axis's angle to the vorticity direction, short_axis_to_vorticity_deg).
@@ -99,10 +107,11 @@ class BodyTracker {
     double material = 0;    // mean unwrapped angle of the material points [rad]
     geometry::Vec3 centroid = geometry::Vec3::Zero();
   };
-  void measure(const geometry::Patch& p, const MetricShare& share, double& area, double& boundary,
-               geometry::RegionMoments& region) const;
-  std::vector<double> material_angles(const geometry::Patch& p, const geometry::Vec3& centroid) const;
-  double largest_stretch(const geometry::Patch& p, const MetricShare& share) const;
+  void measure(const std::vector<geometry::Patch>& p, const MetricShare& share, double& area,
+               double& boundary, geometry::RegionMoments& region) const;
+  std::vector<double> material_angles(const std::vector<geometry::Patch>& p,
+                                      const geometry::Vec3& centroid) const;
+  double largest_stretch(const std::vector<geometry::Patch>& p, const MetricShare& share) const;
   std::vector<const Sample*> window(double average_from) const;
 
   bool membrane_;
@@ -116,12 +125,15 @@ class BodyTracker {
   // next).
   double deformation_index_ = std::numeric_limits<double>::quiet_NaN();
   double area0_ = 0, boundary0_ = 0;
+  int n_parts_ = 1;
   std::vector<geometry::Param> material_xi_;
+  std::vector<int> material_part_;   // the part of each material point
   std::vector<double> last_angles_;  // unwrapped, per material point
   std::vector<double> weights_;      // per material point (1 in 2D; squared in-plane radius in 3D)
   // Membranes: mid-surface points where the stretch is sampled, and the inverse of the reference surface's
   // metric there (2D: 1 / |dX/dxi_1|^2 in entry (0, 0)).
   std::vector<geometry::Param> stretch_xi_;
+  std::vector<int> stretch_part_;
   std::vector<Eigen::Matrix2d> reference_metric_inverse_;
   std::vector<Sample> history_;
 };
