@@ -90,6 +90,7 @@ int FluidRun::set_up(const std::string& default_name) {
     return -1;
   }
   if (const int sig = stop_requested_during_set_up()) return stopped_during_set_up(sig);
+  if (inter_ != MPI_COMM_NULL) check_bodies_on_solid_ranks(settings_);
   check_bodies(settings_, scene_->fluid().patch());
   if (const int sig = stop_requested_during_set_up()) return stopped_during_set_up(sig);
   // A run without cells solves with the fluid's own SNES and KSP, set up now so that misspelt options of its

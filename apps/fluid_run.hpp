@@ -98,7 +98,7 @@ class FluidRun {
   std::vector<std::string> user_options_;
   SceneSettings settings_;
   std::unique_ptr<Scene> scene_;
-  std::vector<std::unique_ptr<solid::NurbsSolid>> owned_;
+  std::vector<std::unique_ptr<solid::SolidSolver>> owned_;
   std::vector<std::unique_ptr<coupling::RemoteSolid>> remote_;
   std::unique_ptr<coupling::Exchange> exchange_;
   std::vector<solid::SolidSolver*> bodies_;

@@ -65,7 +65,7 @@ void print_failure(const std::string& message) {
 /// Prints nothing unless its own input is bad and the fluid side's is not (the fluid side reports first).
 int run_solid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
   std::string error;
-  std::vector<std::unique_ptr<solid::NurbsSolid>> owned;
+  std::vector<std::unique_ptr<solid::SolidSolver>> owned;
   std::vector<solid::SolidSolver*> mine;
   int state = 2;  // the Handshake's states
   try {
@@ -74,6 +74,7 @@ int run_solid(const std::string& default_name, MPI_Comm inter, Handshake& hs) {
     CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-help", &help));
     if (help) state = 1;
     if (state == 2) {
+      check_bodies_on_solid_ranks(settings);
       check_bodies(settings, build_domain(settings));
       owned = build_bodies(settings);
       int rank = 0, size = 1;

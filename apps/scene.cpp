@@ -18,6 +18,7 @@
 #include "coupling/placement.hpp"
 #include "coupling/repulsion.hpp"
 #include "geometry/measures.hpp"
+#include "solid/composite_solid.hpp"
 
 namespace cellfsi::app {
 
@@ -44,7 +45,13 @@ double fluid_element_size(const SceneSettings& s) {
   return h;
 }
 
+std::vector<geometry::Patch> make_body_parts(const SceneSettings& s, const BodySettings& b,
+                                             const std::array<int, 3>& n);
+
 geometry::Patch make_body(const SceneSettings& s, const BodySettings& b, const std::array<int, 3>& n) {
+  if (b.patches > 1)
+    throw std::logic_error("body '" + b.name + "' is made of " + std::to_string(b.patches) +
+                           " patches: build its parts");
   Vec3 c = b.center;
   if (!std::isfinite(c[0])) {
     Vec3 lo, hi;
@@ -69,6 +76,23 @@ geometry::Patch make_body(const SceneSettings& s, const BodySettings& b, const s
   return geometry::transformed(axis_aligned, A, c - A * c);
 }
 
+/// The body's patches: one, or the rbc_3d's six faces (n[1] x n[1] elements each), turned as make_body turns.
+std::vector<geometry::Patch> make_body_parts(const SceneSettings& s, const BodySettings& b,
+                                             const std::array<int, 3>& n) {
+  if (b.patches == 1) return {make_body(s, b, n)};
+  Vec3 c = b.center;
+  if (!std::isfinite(c[0])) {
+    Vec3 lo, hi;
+    build_domain(s).bounding_box(lo, hi);
+    c = 0.5 * (lo + hi);
+  }
+  const geometry::Mat3 A = Eigen::AngleAxisd(b.angle_deg * std::numbers::pi / 180, b.axis).toRotationMatrix();
+  std::vector<geometry::Patch> parts;
+  for (const geometry::Patch& p : geometry::biconcave_rbc_3d_faces(b.thickness, n[1], b.degree, c))
+    parts.push_back(geometry::transformed(p, A, c - A * c));
+  return parts;
+}
+
 }  // namespace
 
 std::array<int, 3> body_element_counts(const SceneSettings& s, const BodySettings& b) {
@@ -90,7 +114,7 @@ std::array<int, 3> body_element_counts(const SceneSettings& s, const BodySetting
   const int mult = 4;  // elements around: every builder needs a multiple of 4
   if (b.membrane()) n[0] = 1;
   std::array<int, 3> trial{b.membrane() ? 1 : 2, 16, 16};
-  if (D == 3) trial[1] = 8;
+  if (D == 3) trial[1] = b.patches > 1 ? 16 : 8;
   bool any_auto = false;
   for (int d = 0; d < D; ++d) any_auto = any_auto || n[d] == 0;
   if (!any_auto) return n;
@@ -98,23 +122,30 @@ std::array<int, 3> body_element_counts(const SceneSettings& s, const BodySetting
   // (which would build the fluid patch).
   BodySettings at_origin = b;
   if (!std::isfinite(at_origin.center[0])) at_origin.center = Vec3::Zero();
-  const geometry::Patch t = make_body(s, at_origin, trial);
+  const std::vector<geometry::Patch> parts = make_body_parts(s, at_origin, trial);
   for (int d = 0; d < D; ++d) {
     if (n[d] != 0) continue;
     // Largest extent along direction d of the trial mesh (measured as the Remark 3 check measures it).
     double ext = 0;
-    for (int e = 0; e < t.n_elements(); ++e) ext = std::max(ext, geometry::element_extents(t, e)[d]);
+    for (const geometry::Patch& t : parts)
+      for (int e = 0; e < t.n_elements(); ++e) ext = std::max(ext, geometry::element_extents(t, e)[d]);
     // Capped where int ends (a throat far narrower than the cell asks for billions): the memory check
     // refuses such a count with its estimate.
     const double m = std::min(std::max(d == 0 ? 2.0 : 4.0, std::ceil(trial[d] * ext / target)), 1e9);
-    const int step = d == 0 ? 1 : (D == 3 && d == 1 ? 2 : mult);
+    const int step = d == 0 || b.patches > 1 ? 1 : (D == 3 && d == 1 ? 2 : mult);
     n[d] = (static_cast<int>(m) + step - 1) / step * step;
   }
+  // The cube's faces: n x n on each (the larger of the two directions' counts).
+  if (b.patches > 1) n[1] = n[2] = std::max(n[1], n[2]);
   return n;
 }
 
 geometry::Patch build_body_patch(const SceneSettings& s, const BodySettings& b) {
   return make_body(s, b, body_element_counts(s, b));
+}
+
+std::vector<geometry::Patch> build_body_parts(const SceneSettings& s, const BodySettings& b) {
+  return make_body_parts(s, b, body_element_counts(s, b));
 }
 
 std::shared_ptr<const solid::Material> make_material(const BodySettings& b) {
@@ -137,20 +168,40 @@ std::vector<solid::PatchLoad> stretch_loads(const BodySettings& b, const geometr
   return {{ends[0], r, -b.stretch_force * b.stretch_axis}, {ends[1], r, b.stretch_force * b.stretch_axis}};
 }
 
-std::vector<std::unique_ptr<solid::NurbsSolid>> build_bodies(const SceneSettings& s) {
-  std::vector<std::unique_ptr<solid::NurbsSolid>> out;
+void check_bodies_on_solid_ranks(const SceneSettings& s) {
+  for (const BodySettings& b : s.bodies)
+    if (b.patches > 1)
+      bad_option(
+          "solid_" + b.name + "_patches", std::to_string(b.patches),
+          "1 with the bodies on solid ranks (-solid_ranks, cellfsi-solid): a body of several patches runs "
+          "in the fluid's ranks");
+}
+
+std::vector<std::unique_ptr<solid::SolidSolver>> build_bodies(const SceneSettings& s) {
+  std::vector<std::unique_ptr<solid::SolidSolver>> out;
   for (const BodySettings& b : s.bodies) {
+    if (b.patches > 1) {
+      // One NurbsSolid a face, one body (no loads: refused with the faces).
+      std::vector<std::unique_ptr<solid::NurbsSolid>> parts;
+      for (geometry::Patch& p : build_body_parts(s, b))
+        parts.push_back(
+            std::make_unique<solid::NurbsSolid>(b.name, std::move(p), make_material(b), b.density));
+      out.push_back(std::make_unique<solid::CompositeSolid>(b.name, std::move(parts)));
+      continue;
+    }
     geometry::Patch patch = build_body_patch(s, b);
     const std::vector<solid::PatchLoad> loads = stretch_loads(b, patch);
-    out.push_back(std::make_unique<solid::NurbsSolid>(b.name, std::move(patch), make_material(b), b.density));
+    auto body = std::make_unique<solid::NurbsSolid>(b.name, std::move(patch), make_material(b), b.density);
+    solid::NurbsSolid& nurbs = *body;
+    out.push_back(std::move(body));
     // The direction-by-direction solve is several times faster: say so when a body cannot have it.
-    if (const solid::CollocationSolver& cs = out.back()->collocation_solver(); !cs.by_direction())
+    if (const solid::CollocationSolver& cs = nurbs.collocation_solver(); !cs.by_direction())
       CELLFSI_PETSC(
           PetscPrintf(PETSC_COMM_WORLD,
                       "cellfsi: body '%s': collocation solves by a sparse LU of the whole matrix (%s)\n",
                       b.name.c_str(), cs.fallback_reason().c_str()));
     try {
-      out.back()->set_loads(loads, b.stretch_ramp);
+      nurbs.set_loads(loads, b.stretch_ramp);
     } catch (const std::invalid_argument& e) {
       bad_option("solid_" + b.name + "_stretch_patch", option_value_text(b.stretch_patch),
                  std::string("a contact diameter whose two patches hold material and do not overlap (") +
@@ -167,15 +218,19 @@ namespace {
 struct Outline {
   std::vector<Vec3> points;
   Vec3 lo, hi;
-  std::optional<geometry::Patch> membrane;
+  std::vector<geometry::Patch> membrane;  // (empty: a bulky body)
 };
 
-Outline outline_of(const geometry::Patch& p, bool membrane, int dim) {
+Outline outline_of(const std::vector<geometry::Patch>& parts, bool membrane, int dim) {
   Outline o;
+  const geometry::Patch& p = parts[0];
   const int n1 = 8 * p.n_elements(1), n2 = dim == 3 ? 4 * p.n_elements(2) : 1;
   if (membrane) {
-    o.points = solid::mid_surface_points(p, n1 + 1, n2 + 1);
-    o.membrane = p;
+    for (const geometry::Patch& part : parts) {
+      const std::vector<Vec3> x = solid::mid_surface_points(part, n1 + 1, n2 + 1);
+      o.points.insert(o.points.end(), x.begin(), x.end());
+    }
+    o.membrane = parts;
   } else {
     const geometry::KnotVector &k1 = p.knots(1), &k2 = p.knots(dim == 3 ? 2 : 1);
     for (int i = 0; i <= n1; ++i)
@@ -197,8 +252,8 @@ bool apart(const Outline& a, const Vec3& t, const Outline& b, double gap, int di
     for (const Vec3& y : b.points)
       if ((x + t - y).squaredNorm() < g2) return false;
   // Boundaries apart: one lies wholly inside the other or neither does; one point of each tells.
-  if (b.membrane && coupling::inside_membrane(*b.membrane, {a.points.front() + t})[0]) return false;
-  if (a.membrane && coupling::inside_membrane(*a.membrane, {b.points.front() - t})[0]) return false;
+  if (!b.membrane.empty() && coupling::inside_membrane(b.membrane, {a.points.front() + t})[0]) return false;
+  if (!a.membrane.empty() && coupling::inside_membrane(a.membrane, {b.points.front() - t})[0]) return false;
   return true;
 }
 
@@ -219,7 +274,7 @@ void place_scattered_copies(SceneSettings& s) {
   std::vector<Outline> placed;
   for (BodySettings& b : s.bodies) {
     if (!b.scattered) {
-      placed.push_back(outline_of(build_body_patch(s, b), b.membrane(), D));
+      placed.push_back(outline_of(build_body_parts(s, b), b.membrane(), D));
       continue;
     }
     b.elements = body_element_counts(s, b);  // (once, not at every draw)
@@ -228,7 +283,7 @@ void place_scattered_copies(SceneSettings& s) {
     bool found = false;
     for (int k = 0; k < kScatterTries && !found; ++k) {
       for (int d = 0; d < D; ++d) b.center[d] = lo[d] + (hi[d] - lo[d]) * uni(rng);
-      Outline o = outline_of(build_body_patch(s, b), b.membrane(), D);
+      Outline o = outline_of(build_body_parts(s, b), b.membrane(), D);
       found = std::all_of(o.points.begin(), o.points.end(), [&](const Vec3& x) {
         Vec3 n;
         return locator.locate(x).found && walls.wall_distance(x, n) >= gap;
@@ -275,8 +330,16 @@ void check_bodies(const SceneSettings& s, const geometry::Patch& domain) {
           << "xyz"[d];
         bad_option("solid_" + b.name + "_center", v.str(), w.str());
       }
-    coupling::BodyPlacement pl{b.name, build_body_patch(s, b), b.membrane()};
-    const coupling::Resolution r = coupling::resolution(fluid_element, pl);
+    // (A body of several patches: a placement each, of the body's name, which check_no_overlap does not set
+    // against each other.)
+    std::vector<coupling::BodyPlacement> pls;
+    for (geometry::Patch& p : build_body_parts(s, b)) pls.push_back({b.name, std::move(p), b.membrane()});
+    coupling::Resolution r;
+    for (const coupling::BodyPlacement& p : pls) {
+      const coupling::Resolution q = coupling::resolution(fluid_element, p);
+      if (q.ratio() >= r.ratio() || r.fluid_element == 0) r = q;
+    }
+    const coupling::BodyPlacement& pl = pls[0];
     if (r.ratio() > s.max_mesh_ratio) {
       std::ostringstream os;
       os << "Lagrangian elements no larger than " << s.max_mesh_ratio
@@ -298,7 +361,7 @@ void check_bodies(const SceneSettings& s, const geometry::Patch& domain) {
         bad_option("fluid_elements", v.str(), w.str());
       }
     }
-    placed.push_back(std::move(pl));
+    for (coupling::BodyPlacement& p : pls) placed.push_back(std::move(p));
   }
   const coupling::Locator locator(domain);
   for (const coupling::BodyPlacement& pl : placed) coupling::check_inside(locator, pl);
@@ -363,8 +426,8 @@ void Scene::attach_bodies(std::vector<solid::SolidSolver*> bodies) {
   raise_threshold_ = s_.s_interface_target / 2;
   const int plane = wall_dir_ > 0 ? wall_dir_ : 1;
   for (solid::SolidSolver* b : bodies_) {
-    trackers_.emplace_back(b->reference_patch(), b->is_membrane(), plane);
-    trackers_.back().record(fluid_->time(), b->current_patch(), metric_share());
+    trackers_.emplace_back(b->reference_patches(), b->is_membrane(), plane);
+    trackers_.back().record(fluid_->time(), b->current_patches(), metric_share());
     equilibrium_.emplace_back();
     if (body_settings(b->name()).stretched)
       equilibrium_.back().emplace(s_.equilibrium_tolerance, s_.equilibrium_window,
@@ -431,7 +494,7 @@ SceneStep Scene::step() {
     double operations = 0;  // (the integrals' estimate, each rank its share's: -log_view's count)
     share.elements.operations = &operations;
     for (size_t b = 0; b < bodies_.size(); ++b)
-      trackers_[b].record(fluid_->time(), bodies_[b]->current_patch(), share);
+      trackers_[b].record(fluid_->time(), bodies_[b]->current_patches(), share);
     CELLFSI_PETSC(PetscLogFlops(operations));
     record_diameters();
     if (suspension_on_) record_suspension();

@@ -37,6 +37,9 @@ struct BodySettings {
   std::array<int, 3> elements{0, 0, 0};  // Lagrangian elements per direction; 0: from the fluid mesh
   double element_ratio = 0;  // automatic counts: element size / smallest fluid element (0: the space's rule)
   int degree = 2;
+  // rbc_3d: 1, the polar patch (its poles at the dimples' centres), or 6, a cube's faces mapped onto the cell
+  // (no poles; geometry::biconcave_rbc_3d_faces, solid::CompositeSolid)
+  int patches = 1;
   double shear_modulus = 7500;           // G [dyn/cm^2], the small-strain shear modulus of every material law
   std::string material = "neo_hookean";  // neo_hookean | mooney_rivlin | strain_hardening | skalak |
                                          // strain_hardening_membrane
@@ -111,14 +114,21 @@ geometry::Patch build_domain(const SceneSettings& s);
 /// A body's Lagrangian element counts per direction: those given, and where 0, slightly smaller than the
 /// fluid's elements (found on a small trial mesh, without building the body).
 std::array<int, 3> body_element_counts(const SceneSettings& s, const BodySettings& b);
-/// The reference patch of a body (elements from the fluid mesh where not given).
+/// The reference patch of a body (elements from the fluid mesh where not given); a body of several patches
+/// (-solid_NAME_patches 6) has only build_body_parts (std::logic_error here).
 geometry::Patch build_body_patch(const SceneSettings& s, const BodySettings& b);
+/// The reference patches of a body: one, or its parts.
+std::vector<geometry::Patch> build_body_parts(const SceneSettings& s, const BodySettings& b);
 /// A body's material law (-solid_NAME_material and its constants; docs/materials.md).
 std::shared_ptr<const solid::Material> make_material(const BodySettings& b);
 /// A body's external loads: the stretching test's two forces (none when not stretched).
 std::vector<solid::PatchLoad> stretch_loads(const BodySettings& b, const geometry::Patch& reference);
-/// The scene's bodies as NurbsSolid (the solid side of a run), with their loads.
-std::vector<std::unique_ptr<solid::NurbsSolid>> build_bodies(const SceneSettings& s);
+/// Bodies that cannot live on solid ranks (-solid_ranks, cellfsi-solid) refused, naming the option: a body of
+/// several patches (-solid_NAME_patches 6).
+void check_bodies_on_solid_ranks(const SceneSettings& s);
+/// The scene's bodies (the solid side of a run): a NurbsSolid each, with its loads, or a CompositeSolid of a
+/// NurbsSolid a patch.
+std::vector<std::unique_ptr<solid::SolidSolver>> build_bodies(const SceneSettings& s);
 /// Centres for the copies of -solid_NAME_arrangement scattered, in the order of the bodies: drawn uniformly
 /// over the domain's box until the copy lies inside the domain at least one fluid element (the smallest
 /// element extent) from the walls and from every body placed before it (periodic images included), and

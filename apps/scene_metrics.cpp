@@ -28,12 +28,30 @@ double plasma_mean_velocity(const fluid::FluidOptions& fo, double H) {
   return fo.body_force[0] * H * H / (12 * fo.viscosity);
 }
 
-/// Points on both faces of a 2D membrane (its inner and outer boundary curves), n around each.
-std::vector<Vec3> membrane_face_points(const geometry::Patch& p, int n) {
+/// Points on both faces of a 2D membrane (its inner and outer boundary curves), n around each (of each
+/// patch).
+std::vector<Vec3> membrane_face_points(const std::vector<geometry::Patch>& parts, int n) {
   std::vector<Vec3> out;
-  const geometry::KnotVector &k0 = p.knots(0), &k1 = p.knots(1);
-  for (double xi0 : {k0.a(), k0.b()})
-    for (int i = 0; i < n; ++i) out.push_back(p.point({xi0, k1.a() + (k1.b() - k1.a()) * i / n, 0}));
+  for (const geometry::Patch& p : parts) {
+    const geometry::KnotVector &k0 = p.knots(0), &k1 = p.knots(1);
+    for (double xi0 : {k0.a(), k0.b()})
+      for (int i = 0; i < n; ++i) out.push_back(p.point({xi0, k1.a() + (k1.b() - k1.a()) * i / n, 0}));
+  }
+  return out;
+}
+
+/// A membrane's shape measures, of its one patch or of its parts together.
+geometry::MembraneShape shape_of(const std::vector<geometry::Patch>& parts) {
+  return parts.size() == 1 ? geometry::membrane_shape(parts[0], 0) : geometry::membrane_shape(parts, 0);
+}
+
+/// A membrane's mid-surface sampled (solid::mid_surface_points), each patch's points in turn.
+std::vector<Vec3> mid_points(const std::vector<geometry::Patch>& parts, int n1, int n2) {
+  std::vector<Vec3> out;
+  for (const geometry::Patch& p : parts) {
+    const std::vector<Vec3> x = solid::mid_surface_points(p, n1, n2);
+    out.insert(out.end(), x.begin(), x.end());
+  }
   return out;
 }
 
@@ -48,8 +66,8 @@ void Scene::record_suspension() {
   r.gap_low = r.gap_high = s_.size[1];
   for (const solid::SolidSolver* b : bodies_) {
     if (!b->is_membrane()) continue;
-    const geometry::Patch p = b->current_patch();
-    const geometry::MembraneShape m = geometry::membrane_shape(p, 0);
+    const std::vector<geometry::Patch> p = b->current_patches();
+    const geometry::MembraneShape m = shape_of(p);
     r.cell_area += m.enclosed;
     r.cell_x.push_back(m.moments.centroid[0]);
     // The membrane's extent across the channel: both faces sampled around.
@@ -340,10 +358,11 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
       m.emplace_back(name + "_throat_exit_time", t_out);
       m.emplace_back(name + "_throat_transit_time", t_out - t_in);
     }
-    const geometry::Patch reference = bodies_[b]->reference_patch();
+    const std::vector<geometry::Patch> references = bodies_[b]->reference_patches();
+    const geometry::Patch& reference = references[0];  // (its mesh: every part has the same)
     const BodySettings& bs = body_settings(name);
-    for (const auto& [k, v] : solid::dimensionless_numbers(reference, bodies_[b]->is_membrane(), bs.thickness,
-                                                           bs.shear_modulus, flow))
+    for (const auto& [k, v] : solid::dimensionless_numbers(references, bodies_[b]->is_membrane(),
+                                                           bs.thickness, bs.shear_modulus, flow))
       m.emplace_back(name + "_" + k, v);
     // The material law's constants (its name is in summary_text): G, and the law's own.
     m.emplace_back(name + "_shear_modulus", bs.shear_modulus);
@@ -371,9 +390,9 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     if (bodies_[b]->is_membrane()) {
       // The mid-surface encloses incompressible fluid: a change of its area/volume is a conservation error
       // of the coupling (r_A measures the band's own).
-      const double enclosed0 = geometry::membrane_shape(reference, 0).enclosed;
+      const double enclosed0 = shape_of(references).enclosed;
       m.emplace_back(name + "_enclosed_change",
-                     geometry::membrane_shape(bodies_[b]->current_patch(), 0).enclosed / enclosed0 - 1);
+                     shape_of(bodies_[b]->current_patches()).enclosed / enclosed0 - 1);
       // The bending modulus the solid shell implies, in erg: an incompressible thin plate's E h^3 / (12 (1 -
       // nu^2)) with E = 3 G, nu = 1/2 (G h^3 / 3); the surface laws (skalak, strain_hardening_membrane),
       // G (1 + C) h^3 / 6 (their area term stiffens every layer: docs/materials.md; C = 1 is the plate's).
@@ -386,8 +405,8 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
       const geometry::Vec3 c = geometry::patch_moments(reference).centroid;
       for (const solid::SolidSolver* o : bodies_) {
         if (!o->is_membrane()) continue;
-        const geometry::Patch mem = o->reference_patch();
-        const geometry::MembraneShape ms = geometry::membrane_shape(mem, 0);
+        const std::vector<geometry::Patch> mem = o->reference_patches();
+        const geometry::MembraneShape ms = shape_of(mem);
         if ((ms.moments.centroid - c).norm() < ms.effective_radius) {
           m.emplace_back(name + "_phi", solid::filling_fraction(reference, mem));
           break;
@@ -397,9 +416,12 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     // The Lagrangian mesh actually used (automatic counts are chosen from the fluid mesh).
     for (int d = 0; d < reference.param_dim(); ++d)
       m.emplace_back(name + "_elements_" + std::to_string(d), reference.n_elements(d));
-    const coupling::Resolution r =
-        coupling::resolution(fluid_element, {name, reference, bodies_[b]->is_membrane()});
-    m.emplace_back(name + "_mesh_ratio", r.ratio());
+    double ratio = 0;
+    for (const geometry::Patch& part : references)
+      ratio = std::max(ratio,
+                       coupling::resolution(fluid_element, {name, part, bodies_[b]->is_membrane()}).ratio());
+    m.emplace_back(name + "_mesh_ratio", ratio);
+    if (references.size() > 1) m.emplace_back(name + "_patches", static_cast<double>(references.size()));
   }
   return m;
 }
@@ -444,7 +466,7 @@ std::vector<std::pair<std::string, double>> Scene::metrics() {
     std::vector<Vec3> red;
     for (const solid::SolidSolver* b : bodies_)
       if (body_settings(b->name()).biconcave())
-        for (const Vec3& x : membrane_face_points(b->current_patch(), 256)) red.push_back(x);
+        for (const Vec3& x : membrane_face_points(b->current_patches(), 256)) red.push_back(x);
     if (!red.empty())
       last_.emplace_back("throat_cell_free_layer", solid::throat_gaps(red, s_.channel).mean());
   }
@@ -453,8 +475,16 @@ std::vector<std::pair<std::string, double>> Scene::metrics() {
     for (const auto& [k, v] : shape_symmetry(b)) last_.emplace_back(bodies_[b]->name() + "_" + k, v);
     if (bodies_[b]->is_membrane()) {
       // The mid-surface's bounding box [cm]: a cell's diameters in shear as peers report them.
-      const Vec3 e = s_.dim == 2 ? solid::mid_surface_extent(bodies_[b]->current_patch(), 256, 1)
-                                 : solid::mid_surface_extent(bodies_[b]->current_patch());
+      const std::vector<geometry::Patch> parts = bodies_[b]->current_patches();
+      Vec3 e;
+      if (parts.size() == 1) {
+        e = s_.dim == 2 ? solid::mid_surface_extent(parts[0], 256, 1) : solid::mid_surface_extent(parts[0]);
+      } else {  // (each part sampled about as densely as the default one patch's 65 x 129)
+        const std::vector<Vec3> x = mid_points(parts, 49, 49);
+        Vec3 lo = x.front(), hi = x.front();
+        for (const Vec3& y : x) lo = lo.cwiseMin(y), hi = hi.cwiseMax(y);
+        e = hi - lo;
+      }
       for (int d = 0; d < s_.dim; ++d) last_.emplace_back(bodies_[b]->name() + "_extent_" + "xyz"[d], e[d]);
     }
     if (equilibrium_[b]) {
@@ -471,16 +501,22 @@ int Scene::membrane_overlaps() const {
   // Each membrane's mid-surface sampled (2D: 256 points; 3D: 17 x 33, against 2 x 2 triangles per element
   // and direction: a check of crossing, not of the last chord's distance), against the bodies whose boxes
   // meet its own.
-  std::vector<geometry::Patch> patches;
+  std::vector<std::vector<geometry::Patch>> patches;
   std::vector<std::vector<Vec3>> samples;
   std::vector<Vec3> lo, hi;
   for (const solid::SolidSolver* b : bodies_) {
     if (!b->is_membrane()) continue;
-    patches.push_back(b->current_patch());
-    samples.push_back(s_.dim == 2 ? solid::mid_surface_points(patches.back(), 256, 1)
-                                  : solid::mid_surface_points(patches.back(), 17, 33));
+    patches.push_back(b->current_patches());
+    const bool parts = patches.back().size() > 1;  // (a part: about 17 x 33 / 6 points)
+    samples.push_back(s_.dim == 2 ? mid_points(patches.back(), 256, 1)
+                                  : mid_points(patches.back(), parts ? 9 : 17, parts ? 11 : 33));
     Vec3 l, h;
-    patches.back().bounding_box(l, h);
+    patches.back()[0].bounding_box(l, h);
+    for (const geometry::Patch& p : patches.back()) {
+      Vec3 pl, ph;
+      p.bounding_box(pl, ph);
+      l = l.cwiseMin(pl), h = h.cwiseMax(ph);
+    }
     lo.push_back(l), hi.push_back(h);
   }
   const std::vector<Vec3> shifts = geometry::neighbour_image_shifts(patch_);
@@ -518,9 +554,8 @@ double Scene::membrane_wall_gap() {
   double gap = std::numeric_limits<double>::infinity();
   for (const solid::SolidSolver* b : bodies_) {
     if (!b->is_membrane()) continue;
-    const geometry::Patch p = b->current_patch();
-    for (const Vec3& x :
-         s_.dim == 2 ? solid::mid_surface_points(p, 256, 1) : solid::mid_surface_points(p, 17, 33))
+    const std::vector<geometry::Patch> p = b->current_patches();
+    for (const Vec3& x : s_.dim == 2 ? mid_points(p, 256, 1) : mid_points(p, 17, 33))
       gap = std::min(gap, wall_probe_->wall_distance(x, normal));
   }
   return gap;

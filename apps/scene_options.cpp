@@ -212,7 +212,7 @@ double least_available_memory(MPI_Comm comm) {
 /// quadrature data; its placement checks and coupling data), measured per element at degree 2 and scaled
 /// with the (p + 1)^d basis functions an element's points couple with.
 double body_bytes(const BodySettings& b, int dim, const std::array<int, 3>& n) {
-  double elements = 1;
+  double elements = b.patches;  // (each of the patches has n[0] x n[1] x n[2] elements)
   for (int d = 0; d < dim; ++d) elements *= n[d];
   const double per_element = dim == 2 ? kBodyBytesPerElement2d : kBodyBytesPerElement3d;
   // The basis tabulated at the quadrature points (NurbsSolid, since the constants were measured): (p + 1)^d
@@ -288,6 +288,11 @@ void declare_body_options(OptionTable& t, BodySettings& b, BodyOptionValues& v, 
           between(0, 1, "", "(0: the space's rule)"))
       .integer("degree", b.degree, "Lagrangian degree, 2..4",
                {[](const long long& v) { return v >= 2 && v <= 4; }, "2, 3 or 4"})
+      .integer(
+          "patches", b.patches,
+          "rbc_3d: 1, the polar patch (its poles at the dimples' centres), or 6, the faces of a cube mapped "
+          "onto the cell, without poles (-elements 1,n,n: n x n on each face; docs/geometry.md)",
+          {[](const long long& v) { return v == 1 || v == 6; }, "1 or 6"})
       .real("shear_modulus", b.shear_modulus, "G [dyn/cm^2]",
             material(1e-6, kMaxShearModulus, "[dyn/cm^2]",
                      "stiffer than any cell, and a stiffer body needs a far smaller -dt"))
@@ -446,10 +451,19 @@ void check_law_and_elements(OptionTable& t, BodySettings& b, const BodyOptionVal
   if (b.membrane() && elements[0] > 1)
     t.bad("elements", std::to_string(elements[0]), "1 element through a membrane's thickness");
   const int around = D == 2 ? 1 : 2;  // every builder needs a multiple of 4 elements around
-  if (elements[around] % 4)
-    t.bad("elements", std::to_string(elements[around]), "a multiple of 4 around the body");
-  if (D == 3 && elements[1] % 2)
-    t.bad("elements", std::to_string(elements[1]), "an even number of polar elements");
+  if (b.patches > 1) {
+    // The cube's faces: n x n elements each, any n.
+    if (elements[1] && elements[2] && elements[1] != elements[2])
+      t.bad(
+          "elements",
+          std::to_string(elements[0]) + "," + std::to_string(elements[1]) + "," + std::to_string(elements[2]),
+          "1,n,n with -" + pre + "patches 6 (n x n elements on each face; 0: automatic)");
+  } else {
+    if (elements[around] % 4)
+      t.bad("elements", std::to_string(elements[around]), "a multiple of 4 around the body");
+    if (D == 3 && elements[1] % 2)
+      t.bad("elements", std::to_string(elements[1]), "an even number of polar elements");
+  }
   for (int d = 0; d < 3; ++d) b.elements[d] = d < D ? elements[d] : 1;
 }
 
@@ -522,6 +536,15 @@ void read_body(SceneSettings& s, const std::string& name) {
   check_body_geometry(t, b, v, D);
   check_membrane(t, b);
   check_stretching(t, b, v, D, pre);
+  if (b.patches > 1) {
+    // The faces are one body of several patches: what measures a single patch (the stretching test's ends,
+    // the random placement's outline) does not take them yet.
+    if (b.shape != "rbc_3d")
+      t.bad("patches", std::to_string(b.patches), "1 for shape " + b.shape + " (6: rbc_3d only)");
+    if (b.stretched)
+      t.bad("patches", std::to_string(b.patches), "1 with -" + pre + "stretch_force (the stretching test)");
+    if (v.count > 1) t.bad("patches", std::to_string(b.patches), "1 with -" + pre + "count 2 or more");
+  }
   check_law_and_elements(t, b, v, D, pre);
   // A ratio above Remark 3's bound would be refused later without naming it. (With no automatic count it
   // sizes nothing: not refused, so that a scene's ratio does not stand in the way of counts given.)

@@ -403,15 +403,17 @@ void FsiCoupler::update_viscosity() {
   if (!contrast_) return;
   EventScope ev(coupling_events().viscosity);
   const double mu_out = fluid_.options().viscosity;
-  std::vector<geometry::Patch> patches;
+  std::vector<std::vector<geometry::Patch>> patches;
   std::vector<size_t> which;
   for (size_t b = 0; b < bodies_.size(); ++b)
     if (opt_.inner_viscosity[b] > 0 && opt_.inner_viscosity[b] != mu_out) {
-      patches.push_back(bodies_[b]->current_patch());
+      patches.push_back(bodies_[b]->current_patches());
       which.push_back(b);
     }
   std::vector<InnerViscosity> inner;
-  for (size_t i = 0; i < patches.size(); ++i) inner.push_back({&patches[i], opt_.inner_viscosity[which[i]]});
+  for (size_t i = 0; i < patches.size(); ++i)
+    inner.push_back(
+        {&patches[i][0], opt_.inner_viscosity[which[i]], patches[i].size() > 1 ? &patches[i] : nullptr});
   const std::vector<double> mu = viscosity_values(fluid_.patch(), inner, mu_out);
   fluid_.set_viscosity([&](int node) { return mu[node]; });
   std::vector<int> viscous;

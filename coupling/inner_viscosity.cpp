@@ -126,7 +126,8 @@ std::vector<double> viscosity_values(const geometry::Patch& fluid, const std::ve
                                      double mu_out) {
   std::vector<double> mu(fluid.n_control(), mu_out);
   for (const InnerViscosity& b : inner) {
-    const std::vector<char> in = inside_membrane(*b.membrane, fluid.control_points());
+    const std::vector<char> in = b.parts ? inside_membrane(*b.parts, fluid.control_points())
+                                         : inside_membrane(*b.membrane, fluid.control_points());
     for (std::size_t k = 0; k < mu.size(); ++k)
       if (in[k]) mu[k] = b.viscosity;
   }

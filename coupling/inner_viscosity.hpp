@@ -35,6 +35,7 @@ std::vector<char> inside_membrane(const std::vector<geometry::Patch>& parts,
 struct InnerViscosity {
   const geometry::Patch* membrane = nullptr;  // its current configuration
   double viscosity = 0;                       // mu_in [g/(cm s)]
+  const std::vector<geometry::Patch>* parts = nullptr;  // or, a membrane made of patches, its parts
 };
 
 /// The control values mu_A of the fluid's viscosity field (size: fluid.n_control(), by natural index):

@@ -84,6 +84,7 @@ void check_no_overlap(const std::vector<BodyPlacement>& bodies) {
   for (size_t i = 0; i < bodies.size(); ++i)
     for (size_t j = i + 1; j < bodies.size(); ++j) {
       const BodyPlacement &a = bodies[i], &b = bodies[j];
+      if (a.name == b.name) continue;  // two patches of one body (its parts meet along their edges)
       bool overlap = false;
       if (a.patch.physical_dim() == 2) {
         overlap = CGAL::do_intersect(region_2d(a), region_2d(b));

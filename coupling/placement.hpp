@@ -22,7 +22,7 @@ void check_inside(const Locator& locator, const BodyPlacement& body);
 
 /// The solid regions of two bodies must not intersect (a nucleus inside a membrane's cavity is fine). 2D: an
 /// exact polygon test (CGAL) on the bodies' boundaries sampled 8 times per element; 3D: no sampled point of
-/// one body inside the other.
+/// one body inside the other. Placements of one name are the patches of one body, not set against each other.
 void check_no_overlap(const std::vector<BodyPlacement>& bodies);
 
 /// Element sizes: the largest extent of an element of the body along its interface (directions >= 1 for a

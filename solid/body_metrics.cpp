@@ -516,6 +516,24 @@ double tumbling_frequency(const std::vector<double>& times, const std::vector<do
   return -total / (2 * kPi * (times.back() - times.front()));  // not reached: the last record has turned n pi
 }
 
+namespace {
+
+/// Delta and R0, and the flow's numbers from R0.
+std::vector<Metric> numbers_from(double delta, double r0, bool membrane, double thickness,
+                                 double shear_modulus, const FlowScales& flow) {
+  std::vector<Metric> m{{"Delta", delta}, {"R0", r0}};
+  if (flow.half_width > 0) m.emplace_back("chi", r0 / flow.half_width);
+  if (flow.shear_rate > 0 && flow.viscosity > 0) {
+    m.emplace_back("Re", flow.density * flow.shear_rate * r0 * r0 / flow.viscosity);
+    if (shear_modulus > 0)
+      m.emplace_back("Ca", membrane ? flow.viscosity * flow.shear_rate * r0 / (thickness * shear_modulus)
+                                    : flow.viscosity * flow.shear_rate / shear_modulus);
+  }
+  return m;
+}
+
+}  // namespace
+
 std::vector<Metric> dimensionless_numbers(const Patch& reference, bool membrane, double thickness,
                                           double shear_modulus, const FlowScales& flow) {
   const int dim = reference.physical_dim();
@@ -529,18 +547,24 @@ std::vector<Metric> dimensionless_numbers(const Patch& reference, bool membrane,
     delta = geometry::swelling_degree(geometry::patch_measure(reference), boundary, dim);
     r0 = geometry::effective_radius(boundary, dim);
   }
-  std::vector<Metric> m{{"Delta", delta}, {"R0", r0}};
-  if (flow.half_width > 0) m.emplace_back("chi", r0 / flow.half_width);
-  if (flow.shear_rate > 0 && flow.viscosity > 0) {
-    m.emplace_back("Re", flow.density * flow.shear_rate * r0 * r0 / flow.viscosity);
-    if (shear_modulus > 0)
-      m.emplace_back("Ca", membrane ? flow.viscosity * flow.shear_rate * r0 / (thickness * shear_modulus)
-                                    : flow.viscosity * flow.shear_rate / shear_modulus);
-  }
-  return m;
+  return numbers_from(delta, r0, membrane, thickness, shear_modulus, flow);
 }
 
 double filling_fraction(const Patch& inclusion, const Patch& membrane) {
+  return geometry::patch_measure(inclusion) / geometry::membrane_shape(membrane, 0).enclosed;
+}
+
+std::vector<Metric> dimensionless_numbers(const std::vector<Patch>& reference, bool membrane,
+                                          double thickness, double shear_modulus, const FlowScales& flow) {
+  if (reference.size() == 1)
+    return dimensionless_numbers(reference[0], membrane, thickness, shear_modulus, flow);
+  if (!membrane) throw std::invalid_argument("dimensionless_numbers: only a membrane may have parts");
+  const geometry::MembraneShape s = geometry::membrane_shape(reference, 0);
+  return numbers_from(s.swelling, s.effective_radius, true, thickness, shear_modulus, flow);
+}
+
+double filling_fraction(const Patch& inclusion, const std::vector<Patch>& membrane) {
+  if (membrane.size() == 1) return filling_fraction(inclusion, membrane[0]);
   return geometry::patch_measure(inclusion) / geometry::membrane_shape(membrane, 0).enclosed;
 }
 

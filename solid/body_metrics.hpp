@@ -202,8 +202,13 @@ struct FlowScales {
 /// G), the surface capillary number; bulky bodies: mu gammadot / G, the bulk one).
 std::vector<Metric> dimensionless_numbers(const geometry::Patch& reference, bool membrane, double thickness,
                                           double shear_modulus, const FlowScales& flow);
+/// The same for a body of one patch or a membrane made of parts.
+std::vector<Metric> dimensionless_numbers(const std::vector<geometry::Patch>& reference, bool membrane,
+                                          double thickness, double shear_modulus, const FlowScales& flow);
 
 /// Filling fraction phi: the inclusion's area (volume) over the area (volume) its membrane encloses.
 double filling_fraction(const geometry::Patch& inclusion, const geometry::Patch& membrane);
+/// The same against a membrane of one patch or of parts.
+double filling_fraction(const geometry::Patch& inclusion, const std::vector<geometry::Patch>& membrane);
 
 }  // namespace cellfsi::solid

@@ -1,7 +1,8 @@
 #pragma once
 // Output of the immersed bodies: a ParaView time series (DIR/solid.pvd, one .vts per body and output step,
-// the bodies as parts) with the displacement [cm], J = det F and the Cauchy stress [dyn/cm^2] sampled on each
-// body's current configuration. Works through the SolidSolver interface, so it serves every solid
+// the bodies as parts; a body made of patches, solid/composite_solid.hpp, one .vts per patch, NAME_pK) with
+// the displacement [cm], J = det F and the Cauchy stress [dyn/cm^2] sampled on each body's current
+// configuration. Works through the SolidSolver interface, so it serves every solid
 // implementation and both launch modes.
 #include <limits>
 #include <string>
@@ -52,6 +53,9 @@ class SolidSeriesWriter {
   }
 
  private:
+  /// One dataset: body b's patch (the body itself, or one of its parts) as part `dataset` of the collection.
+  void write_body(double time, std::size_t b, int dataset, const SolidSolver& body,
+                  const std::string& file_name);
   std::string dir_;
   bool writes_;
   int samples_;

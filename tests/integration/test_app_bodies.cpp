@@ -234,6 +234,49 @@ TEST_F(CellfsiApp, MaterialLawOfThe3dRbcSwapsByOneOption) {
   EXPECT_LT(stretch[1], stretch[0] - 2e-3);
 }
 
+TEST_F(CellfsiApp, TheRedCellOnSixPatchesMovesAsThePolarOne) {
+  // -solid_rbc_patches 6: the 3D red cell's shell on the faces of a cube (no poles; solid::CompositeSolid),
+  // one body with six VTK pieces, against the polar shell with about as many elements (1 x 10 x 10 a face:
+  // 600; 1 x 16 x 32: 512), 2 steps at 12^3. Measured: theta 81.964 / 81.951 deg, deformation index 0.51577 /
+  // 0.51594, omega_TT 9.154 / 9.047 1/s, extent along x 3.2827 / 3.2817 um, r_A -3.0e-4 / -3.4e-4.
+  std::map<std::string, double> m[2];
+  const std::vector<std::vector<std::string>> shells = {
+      {"-solid_rbc_elements", "1,16,32"}, {"-solid_rbc_patches", "6", "-solid_rbc_elements", "1,10,10"}};
+  for (int k = 0; k < 2; ++k) {
+    const RunResult r = cellfsi(with({scene("rbc_shear_3d.yaml"), "-fluid_elements", "12,12,12",
+                                      "-final_time", "2e-3", "-output_every", "2"},
+                                     shells[k]),
+                                120);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    for (const auto& [key, v] : last_row(out_ / "metrics.csv")) m[k][key] = v;
+    if (k == 1) {
+      EXPECT_EQ(json_number(summary(), "rbc_patches").value_or(0), 6);
+      for (int part = 0; part < 6; ++part)
+        EXPECT_TRUE(fs::exists(out_ / ("solid_rbc_p" + std::to_string(part) + "_000001.vts"))) << part;
+    }
+    fs::remove_all(out_);
+  }
+  EXPECT_NEAR(m[1].at("rbc_theta_deg"), m[0].at("rbc_theta_deg"), 0.05);
+  EXPECT_NEAR(m[1].at("rbc_deformation_index"), m[0].at("rbc_deformation_index"), 1e-3);
+  EXPECT_NEAR(m[1].at("rbc_omega_tt"), m[0].at("rbc_omega_tt"), 0.03 * m[0].at("rbc_omega_tt"));
+  for (const char* e : {"rbc_extent_x", "rbc_extent_y", "rbc_extent_z"})
+    EXPECT_NEAR(m[1].at(e), m[0].at(e), 1e-3 * m[0].at(e)) << e;
+  EXPECT_LT(std::abs(m[1].at("rbc_r_A")), 1e-3);
+}
+
+TEST_F(CellfsiApp, ARedCellOnSixPatchesIsRefusedOnSolidRanks) {
+  // The solid ranks serve a body by one patch; the six faces run in the fluid's ranks.
+  const RunResult r = mpi_cellfsi(
+      2, {scene("rbc_shear_3d.yaml"), "-solid_rbc_patches", "6", "-solid_ranks", "1", "-final_time", "1e-3"});
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_EQ(count(r.output, "cellfsi: error:"), 1u) << r.output;
+  EXPECT_NE(
+      r.output.find("option -solid_rbc_patches = 6 is invalid; valid: 1 with the bodies on solid ranks"),
+      std::string::npos)
+      << r.output;
+  EXPECT_TRUE(nothing_written());
+}
+
 TEST_F(CellfsiApp, StretchedRbcElongatesStaysPutAndStopsAtEquilibrium) {
   // Issue 28, item 4: scenes/rbc_stretch_3d.yaml at 2 um fluid elements (12 x 4 x 6; 1 x 8 x 16 shell
   // elements), 190 pN, dt 1 ms, about 1.5 s a step. The cell elongates along the pull and narrows across it,
