@@ -4,7 +4,9 @@ layers, 60 x 120 grid cells with a pole's row of equal points at each end, as ce
 same shell scaled by 1.1 about its centre, with J given per layer. The table must give the layers' least J as
 written, the local and whole area ratios 1 and 1.21, the enclosed volume (4/3 pi a b c, 50.27 um^3, within the
 grid's 0.2 %) times 1 and 1.331, and the deformation index (a - b) / (a + b) = 1/3 in the x-y plane and
-(a - c) / (a + c) = 0.4545 in the x-z plane (--plane-dir 2), within 0.2 %; --every 0 is refused.
+(a - c) / (a + c) = 0.4545 in the x-z plane (--plane-dir 2), within 0.2 %, and where the least J lies; the same
+shell written as two parts (its two halves along the azimuth, as -solid_NAME_patches writes a body's faces) must
+give the same numbers, the least J in a part; --every 0 is refused.
 
   /usr/bin/python3 tests/bench/shell_states_check.py SOURCE_DIR WORK_DIR
 """
@@ -23,10 +25,11 @@ A, B, C, H = 4e-4, 2e-4, 1.5e-4, 3e-5
 CENTRE = np.array([6e-4, 6e-4, 6e-4])
 
 
-def write_shell(path, scale, j_per_layer):
-    layers, polar, azim = 5, 61, 121
+def write_shell(path, scale, j_per_layer, azimuths=slice(0, 121)):
+    layers, polar = 5, 61
     phi = np.linspace(0, math.pi, polar)[None, :, None]
-    theta = np.linspace(0, 2 * math.pi, azim)[:, None, None]
+    theta = np.linspace(0, 2 * math.pi, 121)[azimuths, None, None]
+    azim = theta.shape[0]
     off = (np.linspace(-0.5, 0.5, layers) * H)[None, None, :]
     pts = np.stack(np.broadcast_arrays((A + off) * np.sin(phi) * np.cos(theta), (B + off) * np.sin(phi) *
                                        np.sin(theta), (C + off) * np.cos(phi)), axis=-1)
@@ -46,8 +49,8 @@ def write_shell(path, scale, j_per_layer):
     writer.Write()
 
 
-def table(*extra):
-    out = subprocess.run(["/usr/bin/python3", os.path.join(SRC, "bench", "shell_states.py"), WORK, *extra],
+def table(work, *extra):
+    out = subprocess.run(["/usr/bin/python3", os.path.join(SRC, "bench", "shell_states.py"), work, *extra],
                          capture_output=True, text=True)
     return out.returncode, out.stdout, out.stderr
 
@@ -57,15 +60,22 @@ def rows(text):
             if line.startswith("| ") and line[2].isdigit()]
 
 
-shutil.rmtree(WORK, ignore_errors=True)
-os.makedirs(WORK)
-write_shell(os.path.join(WORK, "solid_rbc_000000.vts"), 1.0, [0.9, 1.0, 1.0, 1.0, 0.8])
-write_shell(os.path.join(WORK, "solid_rbc_000001.vts"), 1.1, [-0.2, 0.7, 1.0, 0.6, 0.5])
-with open(os.path.join(WORK, "solid.pvd"), "w") as f:
-    f.write('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1"><Collection>\n'
-            '<DataSet timestep="0" part="0" name="rbc" file="solid_rbc_000000.vts"/>\n'
-            '<DataSet timestep="0.002" part="0" name="rbc" file="solid_rbc_000001.vts"/>\n'
-            '</Collection></VTKFile>\n')
+def write_run(work, halves):
+    """The stand-in run in work: the whole shell (part 0), or its two halves along the azimuth (parts 0, 1)."""
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    parts = [slice(0, 61), slice(60, 121)] if halves else [slice(0, 121)]
+    entries = []
+    for step, (t, scale, J) in enumerate(((0, 1.0, [0.9, 1.0, 1.0, 1.0, 0.8]),
+                                          (0.002, 1.1, [-0.2, 0.7, 1.0, 0.6, 0.5]))):
+        for k, azimuths in enumerate(parts):
+            name = f"solid_rbc_p{k}_{step:06d}.vts" if halves else f"solid_rbc_{step:06d}.vts"
+            write_shell(os.path.join(work, name), scale, J, azimuths)
+            entries.append(f'<DataSet timestep="{t}" part="{k}" name="rbc" file="{name}"/>\n')
+    with open(os.path.join(work, "solid.pvd"), "w") as f:
+        f.write('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1"><Collection>\n' + "".join(entries)
+                + '</Collection></VTKFile>\n')
+
 
 failures = []
 
@@ -76,23 +86,29 @@ def check(what, ok):
 
 
 volume = 4 / 3 * math.pi * A * B * C * 1e12
-for plane, di in ((1, (A - B) / (A + B)), (2, (A - C) / (A + C))):
-    code, out, err = table("--plane-dir", str(plane))
-    check(f"exit code {code}: {err}", code == 0)
-    r = rows(out)
-    check(f"two rows in\n{out}", len(r) == 2)
-    if len(r) != 2:
-        continue
-    check(f"layers at 0 ms: {r[0][1:6]}", r[0][1:6] == ["0.900", "1.000", "1.000", "1.000", "0.800"])
-    check(f"layers at 2 ms: {r[1][1:6]}", r[1][1:6] == ["-0.200", "0.700", "1.000", "0.600", "0.500"])
-    check(f"local area at 0 ms: {r[0][6]}", r[0][6] == "1.000-1.000")
-    check(f"local area at 2 ms: {r[1][6]}", r[1][6] == "1.210-1.210")
-    check(f"whole area: {r[0][7]}, {r[1][7]}", (r[0][7], r[1][7]) == ("1.0000", "1.2100"))
-    check(f"volume {r[0][8]} against {volume:.2f}", abs(float(r[0][8]) / volume - 1) < 2e-3)
-    check(f"volume ratio {r[1][8]} / {r[0][8]}", abs(float(r[1][8]) / float(r[0][8]) - 1.331) < 1e-3)
-    for row in r:
-        check(f"plane {plane}: deformation index {row[9]} against {di:.4f}", abs(float(row[9]) / di - 1) < 2e-3)
-code, out, err = table("--every", "0")
+for halves in (False, True):
+    work = os.path.join(WORK, "parts" if halves else "whole")
+    write_run(work, halves)
+    for plane, di in ((1, (A - B) / (A + B)), (2, (A - C) / (A + C))):
+        code, out, err = table(work, "--plane-dir", str(plane))
+        check(f"exit code {code}: {err}", code == 0)
+        r = rows(out)
+        check(f"two rows in\n{out}", len(r) == 2)
+        if len(r) != 2:
+            continue
+        check(f"layers at 0 ms: {r[0][1:6]}", r[0][1:6] == ["0.900", "1.000", "1.000", "1.000", "0.800"])
+        check(f"layers at 2 ms: {r[1][1:6]}", r[1][1:6] == ["-0.200", "0.700", "1.000", "0.600", "0.500"])
+        check(f"local area at 0 ms: {r[0][6]}", r[0][6] == "1.000-1.000")
+        check(f"local area at 2 ms: {r[1][6]}", r[1][6] == "1.210-1.210")
+        check(f"whole area: {r[0][7]}, {r[1][7]}", (r[0][7], r[1][7]) == ("1.0000", "1.2100"))
+        check(f"volume {r[0][8]} against {volume:.2f}", abs(float(r[0][8]) / volume - 1) < 2e-3)
+        check(f"volume ratio {r[1][8]} / {r[0][8]}", abs(float(r[1][8]) / float(r[0][8]) - 1.331) < 1e-3)
+        for row in r:
+            check(f"plane {plane}: deformation index {row[9]} against {di:.4f}", abs(float(row[9]) / di - 1) < 2e-3)
+        # (J is uniform on a layer: its least lies first at the first sample of the first part, on layer 0.)
+        where = "part 0: 0.00, 0.00" if halves else "0.00, 0.00"
+        check(f"least J at {r[1][10]}, not {where}", r[1][10] == where)
+code, out, err = table(os.path.join(WORK, "whole"), "--every", "0")
 check(f"--every 0: exit code {code}, {err}", code == 1 and "--every 0 is invalid" in err)
 if failures:
     sys.exit("shell_states_check: " + "\n".join(failures))
