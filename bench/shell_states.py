@@ -2,8 +2,9 @@
 """What a 3D membrane's saved states show between the solver's quadrature points: per output of one body
 (solid_<body>_*.vts, in solid.pvd's order) the least J = det F on each sample layer through the thickness (the
 first and last layers are the shell's faces, where a fold shows first), the mid-surface's local area against the
-first output's (its least and largest ratio over the sample grid's cells) and the whole, and Taylor's deformation
-index (L - B) / (L + B) in the shear plane of the region the mid-surface encloses, as cellfsi's metric
+first output's (its least and largest ratio over the sample grid's cells) and the whole, the shell's own volume
+(between its two faces) against the first output's with the J below which 1 % of the samples lie (a shell that
+keeps its volume while its J spreads is squeezed here and swollen there), and Taylor's deformation index (L - B) / (L + B) in the shear plane of the region the mid-surface encloses, as cellfsi's metric
 BODY_deformation_index defines it (solid/body_metrics.hpp), here from the sample grid as a closed polyhedron. For
 runs made before that metric, and to see where a shell folded. A body of several patches (-solid_NAME_patches 6,
 one solid_<body>_p<K>_*.vts a part) is measured as one. Writes a markdown table (--table) or prints it.
@@ -59,6 +60,14 @@ def enclosed_moments(mids):
     return volume, second - volume * np.outer(centroid, centroid)
 
 
+def shell_volume(parts, layers):
+    """The shell's own volume: what its outer face encloses less what its inner face does (the parts' sample
+    grids, shaped (direction 2, direction 1, layer, 3))."""
+    inner = enclosed_moments([pts[:, :, 0, :] for pts in parts])[0]
+    outer = enclosed_moments([pts[:, :, layers - 1, :] for pts in parts])[0]
+    return abs(outer - inner)
+
+
 def deformation_index(second, plane_dir):
     """Taylor's (L - B) / (L + B) of the ellipse with the second moments' (x, plane_dir) block."""
     import numpy as np
@@ -97,6 +106,7 @@ def main():
     top = max(a.max() for a in area0)
     keep = [a > 1e-12 * top for a in area0]  # (the poles' rows of cells have no area)
     area0 = np.concatenate([a[k] for a, k in zip(area0, keep)])
+    shell0 = shell_volume(references, layers)
     chosen = [o for o in outputs if o[0] >= args.start - 1e-12]
     chosen = [o for i, o in enumerate(chosen) if i % args.every == 0 or i == len(chosen) - 1]
     faces = " | ".join(f"layer {k}" for k in range(layers))
@@ -107,27 +117,31 @@ def main():
              "run's own outputs (its options.yaml says its command).", "",
              f"Per output: the least J on each of the {layers} sample layers through the thickness (layer 0 and "
              f"layer {layers - 1}: the shell's faces), the mid-surface's local area against the first output's "
-             "(least and largest over the sample grid's cells) and the whole, the volume the mid-surface encloses, "
+             "(least and largest over the sample grid's cells) and the whole, the shell's own volume (between its "
+             "faces) against the first output's and the J below which 1 % of the samples lie, the volume the "
+             "mid-surface encloses, "
              "the deformation index in the shear plane (x and direction "
              f"{'xyz'[args.plane_dir]}) of that region, and where the least J lies: "
              + (f"the part (of {len(references)}) and " if several else "")
              + "its position along directions 1 and 2 of the sample grid (0 to 1; on the polar shell direction 1 "
              "runs from pole to pole).", "",
-             f"| t (ms) | {faces} | local area | whole area | volume (um^3) | deformation index | least J at |",
-             "|" + "---|" * (layers + 6)]
+             f"| t (ms) | {faces} | local area | whole area | shell's volume | J, 1 % below | volume (um^3) | deformation index | least J at |",
+             "|" + "---|" * (layers + 8)]
     for t, files in chosen:
         states = [read_body(os.path.join(args.run, f)) for f in files]
         mids = [pts[:, :, layers // 2, :] for pts, _ in states]
         areas = np.concatenate([cell_areas(mid)[k] for mid, k in zip(mids, keep)])
         ratio = areas / area0
         volume, second = enclosed_moments(mids)
+        shell = shell_volume([pts for pts, _ in states], layers) / shell0
+        low = np.percentile(np.concatenate([a["J"].reshape(-1) for _, a in states]), 1)
         least = " | ".join(f"{min(a['J'][:, :, k].min() for _, a in states):.3f}" for k in range(layers))
         part = min(range(len(states)), key=lambda q: states[q][1]["J"].min())
         J = states[part][1]["J"]
         k2, k1, _ = np.unravel_index(np.argmin(J), J.shape)
         where = f"{k1 / (J.shape[1] - 1):.2f}, {k2 / (J.shape[0] - 1):.2f}"
         lines.append(f"| {t * 1e3:.1f} | {least} | {ratio.min():.3f}-{ratio.max():.3f} | "
-                     f"{areas.sum() / area0.sum():.4f} | {volume * 1e12:.2f} | "
+                     f"{areas.sum() / area0.sum():.4f} | {shell:.4f} | {low:.3f} | {volume * 1e12:.2f} | "
                      f"{deformation_index(second, args.plane_dir):.4f} | "
                      + (f"part {part}: " if several else "") + f"{where} |")
     write_table(args.table, lines)

@@ -1,8 +1,11 @@
 #!/usr/bin/env python3
 """bench/shell_states.py on a stand-in run: an ellipsoidal shell (mid-surface semi-axes 4, 2 and 1.5 um, 5 sample
 layers, 60 x 120 grid cells with a pole's row of equal points at each end, as cellfsi's output has), then the
-same shell scaled by 1.1 about its centre, with J given per layer. The table must give the layers' least J as
-written, the local and whole area ratios 1 and 1.21, the enclosed volume (4/3 pi a b c, 50.27 um^3, within the
+same shell's mid-surface scaled by 1.1 about its centre (its faces the same 0.3 um from it), with J given per
+layer. The table must give the layers' least J as
+written, the local and whole area ratios 1 and 1.21, the shell's own volume (between its faces) 1 and 1.21
+times the first output's (the exact 4/3 pi ((a+h)(b+h)(c+h) - (a-h)(b-h)(c-h)), h = 0.15 um, within 0.1 %), the J below which 1 % of the samples lie (the least layer's: 0.8, then -0.2), the
+enclosed volume (4/3 pi a b c, 50.27 um^3, within the
 grid's 0.2 %) times 1 and 1.331, and the deformation index (a - b) / (a + b) = 1/3 in the x-y plane and
 (a - c) / (a + c) = 0.4545 in the x-z plane (--plane-dir 2), within 0.2 %, and where the least J lies; the same
 shell written as two parts (its two halves along the azimuth, as -solid_NAME_patches writes a body's faces) must
@@ -31,9 +34,9 @@ def write_shell(path, scale, j_per_layer, azimuths=slice(0, 121)):
     theta = np.linspace(0, 2 * math.pi, 121)[azimuths, None, None]
     azim = theta.shape[0]
     off = (np.linspace(-0.5, 0.5, layers) * H)[None, None, :]
-    pts = np.stack(np.broadcast_arrays((A + off) * np.sin(phi) * np.cos(theta), (B + off) * np.sin(phi) *
-                                       np.sin(theta), (C + off) * np.cos(phi)), axis=-1)
-    pts = CENTRE + scale * pts  # shaped (azimuth, polar, layer, 3): VTK's (k, j, i)
+    pts = np.stack(np.broadcast_arrays((scale * A + off) * np.sin(phi) * np.cos(theta), (scale * B + off) *
+                                       np.sin(phi) * np.sin(theta), (scale * C + off) * np.cos(phi)), axis=-1)
+    pts = CENTRE + pts  # shaped (azimuth, polar, layer, 3): VTK's (k, j, i)
     grid = vtk.vtkStructuredGrid()
     grid.SetDimensions(layers, polar, azim)
     points = vtk.vtkPoints()
@@ -86,6 +89,8 @@ def check(what, ok):
 
 
 volume = 4 / 3 * math.pi * A * B * C * 1e12
+P, h = A * B + B * C + C * A, H / 2
+SHELL = (1.21 * P + h * h) / (P + h * h)  # (the shell's volume, 8/3 pi h (s^2 P + h^2), at s = 1.1 against s = 1)
 for halves in (False, True):
     work = os.path.join(WORK, "parts" if halves else "whole")
     write_run(work, halves)
@@ -101,13 +106,15 @@ for halves in (False, True):
         check(f"local area at 0 ms: {r[0][6]}", r[0][6] == "1.000-1.000")
         check(f"local area at 2 ms: {r[1][6]}", r[1][6] == "1.210-1.210")
         check(f"whole area: {r[0][7]}, {r[1][7]}", (r[0][7], r[1][7]) == ("1.0000", "1.2100"))
-        check(f"volume {r[0][8]} against {volume:.2f}", abs(float(r[0][8]) / volume - 1) < 2e-3)
-        check(f"volume ratio {r[1][8]} / {r[0][8]}", abs(float(r[1][8]) / float(r[0][8]) - 1.331) < 1e-3)
+        check(f"shell's volume: {r[0][8]}, {r[1][8]}", r[0][8] == "1.0000" and abs(float(r[1][8]) / SHELL - 1) < 1e-3)
+        check(f"J, 1 % below: {r[0][9]}, {r[1][9]}", (r[0][9], r[1][9]) == ("0.800", "-0.200"))
+        check(f"volume {r[0][10]} against {volume:.2f}", abs(float(r[0][10]) / volume - 1) < 2e-3)
+        check(f"volume ratio {r[1][10]} / {r[0][10]}", abs(float(r[1][10]) / float(r[0][10]) - 1.331) < 1e-3)
         for row in r:
-            check(f"plane {plane}: deformation index {row[9]} against {di:.4f}", abs(float(row[9]) / di - 1) < 2e-3)
+            check(f"plane {plane}: deformation index {row[11]} against {di:.4f}", abs(float(row[11]) / di - 1) < 2e-3)
         # (J is uniform on a layer: its least lies first at the first sample of the first part, on layer 0.)
         where = "part 0: 0.00, 0.00" if halves else "0.00, 0.00"
-        check(f"least J at {r[1][10]}, not {where}", r[1][10] == where)
+        check(f"least J at {r[1][12]}, not {where}", r[1][12] == where)
 code, out, err = table(os.path.join(WORK, "whole"), "--every", "0")
 check(f"--every 0: exit code {code}, {err}", code == 1 and "--every 0 is invalid" in err)
 if failures:
