@@ -33,10 +33,10 @@ def cell_areas(mid):
     return 0.5 * (np.linalg.norm(np.cross(b - a, c - a), axis=-1) + np.linalg.norm(np.cross(c - a, d - a), axis=-1))
 
 
-def enclosed_moments(mids):
+def enclosed_moments(mids, second_moment=True):
     """(volume, second moment about the centroid) of the region closed sample grids enclose together (one grid, or
     the parts of one membrane, alike oriented): tetrahedra from the grids' mean point to each of their triangles (a
-    pole's row of equal points gives triangles of no volume)."""
+    pole's row of equal points gives triangles of no volume). second_moment=False: the volume alone (and None)."""
     import numpy as np
     o = np.concatenate([mid.reshape(-1, 3) for mid in mids]).mean(axis=0)
     volume, first, second = 0.0, np.zeros(3), np.zeros((3, 3))
@@ -50,11 +50,15 @@ def enclosed_moments(mids):
         v = np.einsum("ij,ij->i", a, np.cross(b, c)) / 6
         s = a + b + c
         volume += v.sum()
+        if not second_moment:
+            continue
         first += (v[:, None] * s).sum(axis=0) / 4
         # (a tetrahedron with one vertex at the origin: int x x^T = V / 20 (sum of v v^T + s s^T))
         for x in (a, b, c, s):
             second += np.einsum("i,ij,ik->jk", v / 20, x, x)
     sign = 1.0 if volume > 0 else -1.0  # (the grid's orientation)
+    if not second_moment:
+        return sign * volume, None
     volume, first, second = sign * volume, sign * first, sign * second
     centroid = first / volume
     return volume, second - volume * np.outer(centroid, centroid)
@@ -63,8 +67,8 @@ def enclosed_moments(mids):
 def shell_volume(parts, layers):
     """The shell's own volume: what its outer face encloses less what its inner face does (the parts' sample
     grids, shaped (direction 2, direction 1, layer, 3))."""
-    inner = enclosed_moments([pts[:, :, 0, :] for pts in parts])[0]
-    outer = enclosed_moments([pts[:, :, layers - 1, :] for pts in parts])[0]
+    inner = enclosed_moments([pts[:, :, 0, :] for pts in parts], False)[0]
+    outer = enclosed_moments([pts[:, :, layers - 1, :] for pts in parts], False)[0]
     return abs(outer - inner)
 
 
