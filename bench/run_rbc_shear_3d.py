@@ -15,14 +15,14 @@ along the flow, the gradient and the vorticity, the short axis's angle to the vo
 range over the last third), |r_A| and the cost; and a figure (docs/figures/rbc_shear_3d_ca046.png) of theta,
 the extents along the flow and the vorticity, and that angle against time.
 
-    python3 bench/run_rbc_shear_3d.py              # the twelve runs (35 min to 3 h each on one core)
+    python3 bench/run_rbc_shear_3d.py              # the thirteen runs (35 min to 5.5 h each on one core)
     python3 bench/run_rbc_shear_3d.py --report     # the table and figure from the runs in --runs
 
 Options: --runs DIR (out/rbc_shear_3d_ca046) --build DIR (build) --table FILE --figure FILE --report
 --cases box12,box24,tall24,box12_ratio5,box12_skalak,box12_tilt45,tall24_tilt45,box12_tilt10,box12_skalak_tilt45,
-box12_skalak_tilt10,box12_oblate_tilt45,box12_skalak_tilt10_faces (the runs to make or report). A run whose
-summary.json says "completed" is not run again (one made with other options is refused). Exit code 3 when a run
-did not complete. Needs python3-matplotlib for the figure (scripts/install-deps.sh)."""
+box12_skalak_tilt10,box12_oblate_tilt45,box12_skalak_tilt10_faces,box12_skalak_tilt10_faces_cubic (the runs
+to make or report; the last, the cubic membrane, about 5.5 h). A run whose summary.json says "completed" is not
+run again (one made with other options is refused). Exit code 3 when a run did not complete. Needs python3-matplotlib for the figure (scripts/install-deps.sh)."""
 import argparse
 import csv
 import itertools
@@ -96,6 +96,12 @@ CASES = {
                                   "shear plane, six patches (no poles)",
                                   ["-final_time", "0.1", "-solid_rbc_material", "skalak", "-solid_rbc_angle", "80",
                                    "-solid_rbc_patches", "6"]),
+    # (the same with a cubic membrane: four collocation points through the thickness instead of three, which held
+    # the shell's J three times better over the first 4 ms, bench/run_shell_j_spread.py; 19.4 s a step)
+    "box12_skalak_tilt10_faces_cubic": ("12 x 12 x 12 um, 16 x 16 x 16, Skalak's law (C = 10), axis 10 deg out of "
+                                        "the shear plane, six patches, cubic membrane",
+                                        ["-final_time", "0.1", "-solid_rbc_material", "skalak", "-solid_rbc_angle",
+                                         "80", "-solid_rbc_patches", "6", "-solid_rbc_degree", "3"]),
 }
 
 
