@@ -22,7 +22,8 @@ Options: --runs DIR (out/rbc_shear_3d_ca046) --build DIR (build) --table FILE --
 --cases box12,box24,tall24,box12_ratio5,box12_skalak,box12_tilt45,tall24_tilt45,box12_tilt10,box12_skalak_tilt45,
 box12_skalak_tilt10,box12_oblate_tilt45,box12_skalak_tilt10_faces,box12_skalak_tilt10_faces_cubic (the runs
 to make or report; the last, the cubic membrane, about 5.5 h). A run whose summary.json says "completed" is not
-run again (one made with other options is refused). Exit code 3 when a run did not complete. Needs python3-matplotlib for the figure (scripts/install-deps.sh)."""
+run again (one made with other options is refused). Exit code 3 when a run did not complete. Needs
+python3-matplotlib for the figure (scripts/install-deps.sh)."""
 import argparse
 import csv
 import itertools

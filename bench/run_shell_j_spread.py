@@ -13,10 +13,9 @@ shrinks with the step or a mesh, the fold is a discretisation error that converg
     python3 bench/run_shell_j_spread.py --report     # the table from the runs in --runs
 
 Options: --runs DIR (out/shell_j_spread) --build DIR (build) --table FILE
-(docs/validation/rbc_shell_j_spread.md) --cases base,dt5e-5,fluid24,membrane60,dc3,membrane_cubic
---report. A run whose
-summary.json says "completed" is not run again (one made with other options is refused). Needs Debian's
-python3-vtk9 (scripts/install-deps.sh)."""
+(docs/validation/rbc_shell_j_spread.md) --cases base,dt5e-5,fluid24,membrane60,dc3,membrane_cubic --report.
+A run whose summary.json says "completed" is not run again (one made with other options is refused). Needs
+Debian's python3-vtk9 (scripts/install-deps.sh)."""
 import argparse
 import json
 import os

@@ -4,7 +4,8 @@
 first and last layers are the shell's faces, where a fold shows first), the mid-surface's local area against the
 first output's (its least and largest ratio over the sample grid's cells) and the whole, the shell's own volume
 (between its two faces) against the first output's with the J below which 1 % of the samples lie (a shell that
-keeps its volume while its J spreads is squeezed here and swollen there), and Taylor's deformation index (L - B) / (L + B) in the shear plane of the region the mid-surface encloses, as cellfsi's metric
+keeps its volume while its J spreads is squeezed here and swollen there), and Taylor's deformation index
+(L - B) / (L + B) in the shear plane of the region the mid-surface encloses, as cellfsi's metric
 BODY_deformation_index defines it (solid/body_metrics.hpp), here from the sample grid as a closed polyhedron. For
 runs made before that metric, and to see where a shell folded. A body of several patches (-solid_NAME_patches 6,
 one solid_<body>_p<K>_*.vts a part) is measured as one. Writes a markdown table (--table) or prints it.
@@ -129,7 +130,8 @@ def main():
              + (f"the part (of {len(references)}) and " if several else "")
              + "its position along directions 1 and 2 of the sample grid (0 to 1; on the polar shell direction 1 "
              "runs from pole to pole).", "",
-             f"| t (ms) | {faces} | local area | whole area | shell's volume | J, 1 % below | volume (um^3) | deformation index | least J at |",
+             f"| t (ms) | {faces} | local area | whole area | shell's volume | J, 1 % below | volume (um^3) | "
+             "deformation index | least J at |",
              "|" + "---|" * (layers + 8)]
     for t, files in chosen:
         states = [read_body(os.path.join(args.run, f)) for f in files]
