@@ -18,6 +18,7 @@
 #include "coupling/placement.hpp"
 #include "coupling/repulsion.hpp"
 #include "geometry/measures.hpp"
+#include "geometry/refine.hpp"
 #include "solid/composite_solid.hpp"
 
 namespace cellfsi::app {
@@ -48,6 +49,13 @@ double fluid_element_size(const SceneSettings& s) {
 std::vector<geometry::Patch> make_body_parts(const SceneSettings& s, const BodySettings& b,
                                              const std::array<int, 3>& n);
 
+/// A membrane's patch raised to -thickness_degree through its thickness (direction 0; the map is unchanged).
+geometry::Patch through_thickness(geometry::Patch p, const BodySettings& b) {
+  if (b.membrane() && b.degree_through() > p.degree(0))
+    p = geometry::elevate_degree(p, 0, b.degree_through() - p.degree(0));
+  return p;
+}
+
 geometry::Patch make_body(const SceneSettings& s, const BodySettings& b, const std::array<int, 3>& n) {
   if (b.patches > 1)
     throw std::logic_error("body '" + b.name + "' is made of " + std::to_string(b.patches) +
@@ -61,11 +69,12 @@ geometry::Patch make_body(const SceneSettings& s, const BodySettings& b, const s
   const double angle = b.angle_deg * std::numbers::pi / 180;
   const std::vector<double>& a = b.semi_axes;
   if (b.shape == "hollow_ellipse")
-    return geometry::hollow_ellipse(a[0], a[1], b.thickness, n[1], b.degree, c, angle);
+    return through_thickness(geometry::hollow_ellipse(a[0], a[1], b.thickness, n[1], b.degree, c, angle), b);
   if (b.shape == "ellipse") return geometry::bulky_ellipse(a[0], a[1], n[0], n[1], b.degree, c, angle);
   if (b.shape == "rbc")
-    return geometry::biconcave_rbc(b.thickness, n[1], b.degree, c, angle,
-                                   b.area > 0 ? b.area : geometry::kRbcArea2d);
+    return through_thickness(geometry::biconcave_rbc(b.thickness, n[1], b.degree, c, angle,
+                                                     b.area > 0 ? b.area : geometry::kRbcArea2d),
+                             b);
   // 3D: built axis-aligned at c, then turned about c.
   const geometry::Mat3 A = Eigen::AngleAxisd(angle, b.axis).toRotationMatrix();
   const geometry::Patch axis_aligned =
@@ -73,7 +82,7 @@ geometry::Patch make_body(const SceneSettings& s, const BodySettings& b, const s
           ? geometry::hollow_ellipsoid(a[0], a[1], a[2], b.thickness, n[1], n[2], b.degree, c)
       : b.shape == "rbc_3d" ? geometry::biconcave_rbc_3d(b.thickness, n[1], n[2], b.degree, c)
                             : geometry::solid_ellipsoid(a[0], a[1], a[2], n[0], n[1], n[2], b.degree, c);
-  return geometry::transformed(axis_aligned, A, c - A * c);
+  return through_thickness(geometry::transformed(axis_aligned, A, c - A * c), b);
 }
 
 /// The body's patches: one, or the rbc_3d's six faces (n[1] x n[1] elements each), turned as make_body turns.
@@ -89,7 +98,7 @@ std::vector<geometry::Patch> make_body_parts(const SceneSettings& s, const BodyS
   const geometry::Mat3 A = Eigen::AngleAxisd(b.angle_deg * std::numbers::pi / 180, b.axis).toRotationMatrix();
   std::vector<geometry::Patch> parts;
   for (const geometry::Patch& p : geometry::biconcave_rbc_3d_faces(b.thickness, n[1], b.degree, c))
-    parts.push_back(geometry::transformed(p, A, c - A * c));
+    parts.push_back(through_thickness(geometry::transformed(p, A, c - A * c), b));
   return parts;
 }
 

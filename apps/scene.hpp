@@ -37,6 +37,10 @@ struct BodySettings {
   std::array<int, 3> elements{0, 0, 0};  // Lagrangian elements per direction; 0: from the fluid mesh
   double element_ratio = 0;  // automatic counts: element size / smallest fluid element (0: the space's rule)
   int degree = 2;
+  // Membranes: the degree through the thickness (direction 0), -degree or above (0: -degree). A thin shell's
+  // one element then holds thickness_degree + 1 collocation points across it instead of degree + 1.
+  int thickness_degree = 0;
+  int degree_through() const { return thickness_degree > 0 ? thickness_degree : degree; }
   // rbc_3d: 1, the polar patch (its poles at the dimples' centres), or 6, a cube's faces mapped onto the cell
   // (no poles; geometry::biconcave_rbc_3d_faces, solid::CompositeSolid)
   int patches = 1;

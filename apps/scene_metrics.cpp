@@ -416,6 +416,8 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
     // The Lagrangian mesh actually used (automatic counts are chosen from the fluid mesh).
     for (int d = 0; d < reference.param_dim(); ++d)
       m.emplace_back(name + "_elements_" + std::to_string(d), reference.n_elements(d));
+    for (int d = 0; d < reference.param_dim(); ++d)
+      m.emplace_back(name + "_degree_" + std::to_string(d), reference.degree(d));
     double ratio = 0;
     for (const geometry::Patch& part : references)
       ratio = std::max(ratio,

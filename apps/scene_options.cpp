@@ -218,9 +218,9 @@ double body_bytes(const BodySettings& b, int dim, const std::array<int, 3>& n) {
   // The basis tabulated at the quadrature points (NurbsSolid, since the constants were measured): (p + 1)^d
   // points of (p + 1)^d functions, each a value, a gradient and an unknown index; per point X, weight and
   // offset.
-  const double f = std::pow(b.degree + 1.0, dim);
+  const double f = std::pow(b.degree + 1.0, dim - 1) * (b.degree_through() + 1.0);
   const double table = f * (f * (8.0 * (dim + 1) + 4.0) + 36.0);
-  return elements * (per_element * std::pow((b.degree + 1) / 3.0, dim) + table);
+  return elements * (per_element * f / std::pow(3.0, dim) + table);
 }
 
 /// Bodies the machine cannot hold are refused before any is built (a membrane of 1 x 1e8 elements allocated
@@ -288,6 +288,10 @@ void declare_body_options(OptionTable& t, BodySettings& b, BodyOptionValues& v, 
           between(0, 1, "", "(0: the space's rule)"))
       .integer("degree", b.degree, "Lagrangian degree, 2..4",
                {[](const long long& v) { return v >= 2 && v <= 4; }, "2, 3 or 4"})
+      .integer("thickness_degree", b.thickness_degree,
+               "Membranes: Lagrangian degree through the thickness, from -degree to 4 (0: -degree); more "
+               "collocation points across a thin shell at less cost than a higher -degree (docs/geometry.md)",
+               {[](const long long& v) { return v == 0 || (v >= 2 && v <= 4); }, "0, 2, 3 or 4"})
       .integer(
           "patches", b.patches,
           "rbc_3d: 1, the polar patch (its poles at the dimples' centres), or 6, the faces of a cube mapped "
@@ -447,6 +451,16 @@ void check_law_and_elements(OptionTable& t, BodySettings& b, const BodyOptionVal
           "neo_hookean, mooney_rivlin or strain_hardening for " +
               std::string(D == 3 ? "a bulky body" : "a 2D body") + " (" + b.material +
               ": 3D membranes only)");
+  if (t.given("thickness_degree") && b.thickness_degree > 0) {
+    if (!b.membrane())
+      t.bad("thickness_degree", std::to_string(b.thickness_degree),
+            "0 for a bulky " + b.shape +
+                " (membranes only: shape hollow_ellipse, rbc, hollow_ellipsoid or "
+                "rbc_3d)");
+    else if (b.thickness_degree < b.degree)
+      t.bad("thickness_degree", std::to_string(b.thickness_degree),
+            "0 or from -" + pre + "degree (" + std::to_string(b.degree) + ") to 4");
+  }
   const std::vector<int>& elements = v.elements;
   if (b.membrane() && elements[0] > 1)
     t.bad("elements", std::to_string(elements[0]), "1 element through a membrane's thickness");

@@ -20,8 +20,9 @@ the extents along the flow and the vorticity, and that angle against time.
 
 Options: --runs DIR (out/rbc_shear_3d_ca046) --build DIR (build) --table FILE --figure FILE --report
 --cases box12,box24,tall24,box12_ratio5,box12_skalak,box12_tilt45,tall24_tilt45,box12_tilt10,box12_skalak_tilt45,
-box12_skalak_tilt10,box12_oblate_tilt45,box12_skalak_tilt10_faces,box12_skalak_tilt10_faces_cubic (the runs
-to make or report; the last, the cubic membrane, about 5.5 h). A run whose summary.json says "completed" is not
+box12_skalak_tilt10,box12_oblate_tilt45,box12_skalak_tilt10_faces,box12_skalak_tilt10_faces_cubic,
+box12_skalak_tilt10_faces_thick3 (the runs to make or report; the last two, the cubic membrane and the membrane cubic
+through its thickness only, about 5.5 and 3 h). A run whose summary.json says "completed" is not
 run again (one made with other options is refused). Exit code 3 when a run did not complete. Needs
 python3-matplotlib for the figure (scripts/install-deps.sh)."""
 import argparse
@@ -103,6 +104,12 @@ CASES = {
                                         "the shear plane, six patches, cubic membrane",
                                         ["-final_time", "0.1", "-solid_rbc_material", "skalak", "-solid_rbc_angle",
                                          "80", "-solid_rbc_patches", "6", "-solid_rbc_degree", "3"]),
+    # (cubic through the thickness only: the same four points across it, quadratic in-plane; it held J as well as
+    # the cubic membrane over the first 4 ms at about half its cost, bench/run_shell_j_spread.py)
+    "box12_skalak_tilt10_faces_thick3": ("12 x 12 x 12 um, 16 x 16 x 16, Skalak's law (C = 10), axis 10 deg out of "
+                                         "the shear plane, six patches, cubic through the thickness",
+                                         ["-final_time", "0.1", "-solid_rbc_material", "skalak", "-solid_rbc_angle",
+                                          "80", "-solid_rbc_patches", "6", "-solid_rbc_thickness_degree", "3"]),
 }
 
 

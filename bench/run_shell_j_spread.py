@@ -4,16 +4,18 @@ tilted Skalak cell of bench/run_rbc_shear_3d.py's case box12_skalak_tilt10_faces
 of the shear plane, six patches) run to 4 ms as it is and with one thing changed at a time: the step halved, the
 fluid mesh 1.5 times finer (the membrane's automatic elements with it), the membrane 1.5 times finer on the same
 fluid, the cubic instead of the quadratic divergence-conforming space, and a cubic membrane (its one element
-through the thickness then holds four collocation points, not three). Per run, from its saved states at 4 ms
+through the thickness then holds four collocation points, not three), and cubic or quartic through the thickness
+only (-solid_rbc_thickness_degree). Per run, from its saved states at 4 ms
 (bench/shell_states.py): the least J on the shell's two faces and at its middle, the J below which 1 % of the
 samples lie, the shell's own volume (between its faces) against its first, and the cost. If the spread of J
 shrinks with the step or a mesh, the fold is a discretisation error that converges; if it does not, it is not.
 
-    python3 bench/run_shell_j_spread.py              # the six runs (5-20 min each on one core)
+    python3 bench/run_shell_j_spread.py              # the eight runs (5-20 min each on one core)
     python3 bench/run_shell_j_spread.py --report     # the table from the runs in --runs
 
 Options: --runs DIR (out/shell_j_spread) --build DIR (build) --table FILE
-(docs/validation/rbc_shell_j_spread.md) --cases base,dt5e-5,fluid24,membrane60,dc3,membrane_cubic --report.
+(docs/validation/rbc_shell_j_spread.md) --cases base,dt5e-5,fluid24,membrane60,dc3,membrane_cubic,
+thickness_cubic,thickness_quartic --report.
 A run whose summary.json says "completed" is not run again (one made with other options is refused). Needs
 Debian's python3-vtk9 (scripts/install-deps.sh)."""
 import argparse
@@ -36,6 +38,10 @@ CASES = {
     "membrane60": ("the membrane 1 x 60 x 60 a face on the same fluid", {"solid_rbc_elements": "1,60,60"}),
     "dc3": ("the cubic divergence-conforming space", {"fluid_dc_degree": "3"}),
     "membrane_cubic": ("the membrane cubic (4 points through the thickness, not 3)", {"solid_rbc_degree": "3"}),
+    "thickness_cubic": ("the membrane cubic through the thickness only (4 points across it, quadratic in-plane)",
+                        {"solid_rbc_thickness_degree": "3"}),
+    "thickness_quartic": ("the membrane quartic through the thickness only (5 points across it)",
+                          {"solid_rbc_thickness_degree": "4"}),
 }
 
 

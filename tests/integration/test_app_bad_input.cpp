@@ -137,6 +137,14 @@ TEST_F(CellfsiApp, ValuesThatAreNumbersButNotInputAreRejected) {
        "option -solid_membrane_shear_modulus = 1e+300 is invalid"},
       {with(capsule, {"-solid_membrane_density", "1e300"}),
        "option -solid_membrane_density = 1e+300 is invalid"},
+      {with(capsule, {"-solid_membrane_thickness_degree", "5"}),
+       "option -solid_membrane_thickness_degree = 5 is invalid; valid: 0, 2, 3 or 4"},
+      {with(capsule, {"-solid_membrane_degree", "3", "-solid_membrane_thickness_degree", "2"}),
+       "option -solid_membrane_thickness_degree = 2 is invalid; valid: 0 or from -solid_membrane_degree (3) "
+       "to 4"},
+      {{scene("compound_capsule_shear.yaml"), "-solid_nucleus_thickness_degree", "3"},
+       "option -solid_nucleus_thickness_degree = 3 is invalid; valid: 0 for a bulky ellipse (membranes only: "
+       "shape hollow_ellipse, rbc, hollow_ellipsoid or rbc_3d)"},
       {with(capsule, {"-solid_membrane_patches", "3"}),
        "option -solid_membrane_patches = 3 is invalid; valid: 1 or 6"},
       {with(capsule, {"-solid_membrane_patches", "6"}),

@@ -264,6 +264,30 @@ TEST_F(CellfsiApp, TheRedCellOnSixPatchesMovesAsThePolarOne) {
   EXPECT_LT(std::abs(m[1].at("rbc_r_A")), 1e-3);
 }
 
+TEST_F(CellfsiApp, AMembraneCubicThroughItsThicknessOnlyKeepsItsShapeAndMotion) {
+  // -solid_NAME_thickness_degree 3: the capsule's membrane raised to cubic through its thickness (4
+  // collocation points across it), quadratic around: the same map, so, 0.02 s into the shear at 48 x 24, the
+  // same motion as the quadratic membrane to the discretisation's change through a thin shell. Measured:
+  // theta 34.7251 deg and deformation index 0.389923 on both, omega_TT 3.55551 / 3.55552 1/s.
+  std::map<std::string, double> m[2];
+  for (int k = 0; k < 2; ++k) {
+    std::vector<std::string> run =
+        with({scene("capsule_shear.yaml")}, with(kCapsuleSmall, {"-final_time", "0.02"}));
+    if (k == 1) run = with(run, {"-solid_membrane_thickness_degree", "3"});
+    ASSERT_EQ(cellfsi(run, 120).exit_code, 0) << last_output_;
+    const std::string js = summary();
+    EXPECT_EQ(json_number(js, "membrane_degree_0").value_or(0), k == 1 ? 3 : 2) << js;
+    EXPECT_EQ(json_number(js, "membrane_degree_1").value_or(0), 2) << js;
+    for (const auto& [key, v] : last_row(out_ / "metrics.csv")) m[k][key] = v;
+    fs::remove_all(out_);
+  }
+  EXPECT_NEAR(m[1].at("membrane_theta_deg"), m[0].at("membrane_theta_deg"), 1e-3);
+  EXPECT_NEAR(m[1].at("membrane_deformation_index"), m[0].at("membrane_deformation_index"), 1e-5);
+  EXPECT_NEAR(m[1].at("membrane_omega_tt"), m[0].at("membrane_omega_tt"),
+              1e-3 * m[0].at("membrane_omega_tt"));
+  EXPECT_NEAR(m[0].at("membrane_theta_deg"), 34.725, 0.01);
+}
+
 TEST_F(CellfsiApp, ARedCellOnSixPatchesIsRefusedOnSolidRanks) {
   // The solid ranks serve a body by one patch; the six faces run in the fluid's ranks.
   const RunResult r = mpi_cellfsi(
