@@ -21,11 +21,11 @@ Debian's python3-vtk9 (scripts/install-deps.sh)."""
 import argparse
 import json
 import os
-import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bench_common import ROOT, check_kept_runs, provenance, run_one, write_table  # noqa: E402
+from shell_states import StatesError, states  # noqa: E402
 
 TOOL = "run_shell_j_spread.py"
 BASE = {"shear_rate": "700", "fluid_space": "div_conforming", "fluid_dc_degree": "2", "solid_rbc_material": "skalak",
@@ -51,11 +51,12 @@ def options(tag):
 
 
 def states_at_end(args, tag):
-    """The last row of bench/shell_states.py's table for the run: its cells as strings, or None."""
-    out = subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "bench", "shell_states.py"),
-                          os.path.join(args.runs, tag)], capture_output=True, text=True)
-    rows = [line for line in out.stdout.splitlines() if line.startswith("| ") and line[2].isdigit()]
-    return [c.strip() for c in rows[-1].strip("|").split("|")] if out.returncode == 0 and rows else None
+    """bench/shell_states.py's measures of the run's last saved state (a dict), or None when it has none."""
+    try:
+        rows, _, _ = states(os.path.join(args.runs, tag))
+    except StatesError:
+        return None
+    return rows[-1] if rows else None
 
 
 def main():
@@ -100,11 +101,10 @@ def main():
             lines.append(f"| {tag} | {CASES[tag][0]} | - | - | - | {js.get('status')} (no saved states) | "
                          f"{cost:.1f} |")
             continue
-        # (shell_states' columns: t, the layers, local area, whole area, shell's volume, J 1 % below, ...)
-        layers = len(row) - 8
-        faces = f"{row[1]}, {row[1 + layers // 2]}, {row[layers]}"
-        lines.append(f"| {tag} | {CASES[tag][0]} | {faces} | {row[layers + 4]} | {row[layers + 3]} | "
-                     f"{js.get('status')} to {row[0]} ms | {cost:.1f} |")
+        least = row["least_J"]
+        faces = f"{least[0]:.3f}, {least[len(least) // 2]:.3f}, {least[-1]:.3f}"
+        lines.append(f"| {tag} | {CASES[tag][0]} | {faces} | {row['J_1pc']:.3f} | {row['shell']:.4f} | "
+                     f"{js.get('status')} to {row['t'] * 1e3:.1f} ms | {cost:.1f} |")
     write_table(args.table, lines)
 
 

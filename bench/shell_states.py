@@ -81,6 +81,55 @@ def deformation_index(second, plane_dir):
     return (large - small) / (large + small) if large > 0 else 0.0
 
 
+class StatesError(Exception):
+    """A run folder shell_states cannot read: no solid.pvd, or no output of the body."""
+
+
+def states(run, body="rbc", start=0.0, every=1, plane_dir=1):
+    """The measures of the table's columns, per chosen output of `body` in the run folder `run`: a list of dicts
+    (t in s; least_J, one per sample layer; area_min, area_max, area (the whole); shell; J_1pc; volume in cm^3;
+    deformation_index; least_part, least_at (two fractions)), with the count of parts and of layers."""
+    import numpy as np
+    pvd = os.path.join(run, "solid.pvd")
+    if not os.path.isfile(pvd):
+        raise StatesError(f"{run} has no solid.pvd")
+    # Per output time, the body's parts in order (one part, or the six faces of -solid_NAME_patches 6).
+    outputs = {}
+    for d in ET.parse(pvd).getroot().iter("DataSet"):
+        if os.path.basename(d.get("file")).startswith(f"solid_{body}_"):
+            outputs.setdefault(float(d.get("timestep")), []).append((int(d.get("part", 0)), d.get("file")))
+    if not outputs:
+        raise StatesError(f"no output of body '{body}' in {run}")
+    outputs = sorted((t, [f for _, f in sorted(parts)]) for t, parts in outputs.items())
+    references = [read_body(os.path.join(run, f))[0] for f in outputs[0][1]]
+    layers = references[0].shape[2]
+    area0 = [cell_areas(r[:, :, layers // 2, :]) for r in references]
+    top = max(a.max() for a in area0)
+    keep = [a > 1e-12 * top for a in area0]  # (the poles' rows of cells have no area)
+    area0 = np.concatenate([a[k] for a, k in zip(area0, keep)])
+    shell0 = shell_volume(references, layers)
+    chosen = [o for o in outputs if o[0] >= start - 1e-12]
+    chosen = [o for i, o in enumerate(chosen) if i % every == 0 or i == len(chosen) - 1]
+    rows = []
+    for t, files in chosen:
+        got = [read_body(os.path.join(run, f)) for f in files]
+        mids = [pts[:, :, layers // 2, :] for pts, _ in got]
+        areas = np.concatenate([cell_areas(mid)[k] for mid, k in zip(mids, keep)])
+        ratio = areas / area0
+        volume, second = enclosed_moments(mids)
+        part = min(range(len(got)), key=lambda q: got[q][1]["J"].min())
+        J = got[part][1]["J"]
+        k2, k1, _ = np.unravel_index(np.argmin(J), J.shape)
+        rows.append({"t": t,
+                     "least_J": [min(a["J"][:, :, k].min() for _, a in got) for k in range(layers)],
+                     "area_min": ratio.min(), "area_max": ratio.max(), "area": areas.sum() / area0.sum(),
+                     "shell": shell_volume([pts for pts, _ in got], layers) / shell0,
+                     "J_1pc": np.percentile(np.concatenate([a["J"].reshape(-1) for _, a in got]), 1),
+                     "volume": volume, "deformation_index": deformation_index(second, plane_dir),
+                     "least_part": part, "least_at": (k1 / (J.shape[1] - 1), k2 / (J.shape[0] - 1))})
+    return rows, len(references), layers
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("run", help="a run folder (with solid.pvd)")
@@ -93,29 +142,12 @@ def main():
     args = ap.parse_args()
     if args.every < 1:
         sys.exit(f"{TOOL}: --every {args.every} is invalid: give a whole number of 1 or more")
-    import numpy as np
-    pvd = os.path.join(args.run, "solid.pvd")
-    if not os.path.isfile(pvd):
-        sys.exit(f"{TOOL}: {args.run} has no solid.pvd")
-    # Per output time, the body's parts in order (one part, or the six faces of -solid_NAME_patches 6).
-    outputs = {}
-    for d in ET.parse(pvd).getroot().iter("DataSet"):
-        if os.path.basename(d.get("file")).startswith(f"solid_{args.body}_"):
-            outputs.setdefault(float(d.get("timestep")), []).append((int(d.get("part", 0)), d.get("file")))
-    if not outputs:
-        sys.exit(f"{TOOL}: no output of body '{args.body}' in {args.run}")
-    outputs = sorted((t, [f for _, f in sorted(parts)]) for t, parts in outputs.items())
-    references = [read_body(os.path.join(args.run, f))[0] for f in outputs[0][1]]
-    layers = references[0].shape[2]
-    area0 = [cell_areas(r[:, :, layers // 2, :]) for r in references]
-    top = max(a.max() for a in area0)
-    keep = [a > 1e-12 * top for a in area0]  # (the poles' rows of cells have no area)
-    area0 = np.concatenate([a[k] for a, k in zip(area0, keep)])
-    shell0 = shell_volume(references, layers)
-    chosen = [o for o in outputs if o[0] >= args.start - 1e-12]
-    chosen = [o for i, o in enumerate(chosen) if i % args.every == 0 or i == len(chosen) - 1]
+    try:
+        rows, parts, layers = states(args.run, args.body, args.start, args.every, args.plane_dir)
+    except StatesError as e:
+        sys.exit(f"{TOOL}: {e}")
     faces = " | ".join(f"layer {k}" for k in range(layers))
-    several = len(references) > 1
+    several = parts > 1
     lines = [f"# The saved states of body '{args.body}' in {os.path.basename(os.path.normpath(args.run))}", "",
              f"Generated by `/usr/bin/python3 bench/{TOOL} {' '.join(sys.argv[1:])}` on "
              f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, git {commit_of_head()}, from the "
@@ -127,29 +159,19 @@ def main():
              "mid-surface encloses, "
              "the deformation index in the shear plane (x and direction "
              f"{'xyz'[args.plane_dir]}) of that region, and where the least J lies: "
-             + (f"the part (of {len(references)}) and " if several else "")
+             + (f"the part (of {parts}) and " if several else "")
              + "its position along directions 1 and 2 of the sample grid (0 to 1; on the polar shell direction 1 "
              "runs from pole to pole).", "",
              f"| t (ms) | {faces} | local area | whole area | shell's volume | J, 1 % below | volume (um^3) | "
              "deformation index | least J at |",
              "|" + "---|" * (layers + 8)]
-    for t, files in chosen:
-        states = [read_body(os.path.join(args.run, f)) for f in files]
-        mids = [pts[:, :, layers // 2, :] for pts, _ in states]
-        areas = np.concatenate([cell_areas(mid)[k] for mid, k in zip(mids, keep)])
-        ratio = areas / area0
-        volume, second = enclosed_moments(mids)
-        shell = shell_volume([pts for pts, _ in states], layers) / shell0
-        low = np.percentile(np.concatenate([a["J"].reshape(-1) for _, a in states]), 1)
-        least = " | ".join(f"{min(a['J'][:, :, k].min() for _, a in states):.3f}" for k in range(layers))
-        part = min(range(len(states)), key=lambda q: states[q][1]["J"].min())
-        J = states[part][1]["J"]
-        k2, k1, _ = np.unravel_index(np.argmin(J), J.shape)
-        where = f"{k1 / (J.shape[1] - 1):.2f}, {k2 / (J.shape[0] - 1):.2f}"
-        lines.append(f"| {t * 1e3:.1f} | {least} | {ratio.min():.3f}-{ratio.max():.3f} | "
-                     f"{areas.sum() / area0.sum():.4f} | {shell:.4f} | {low:.3f} | {volume * 1e12:.2f} | "
-                     f"{deformation_index(second, args.plane_dir):.4f} | "
-                     + (f"part {part}: " if several else "") + f"{where} |")
+    for r in rows:
+        least = " | ".join(f"{j:.3f}" for j in r["least_J"])
+        where = f"{r['least_at'][0]:.2f}, {r['least_at'][1]:.2f}"
+        lines.append(f"| {r['t'] * 1e3:.1f} | {least} | {r['area_min']:.3f}-{r['area_max']:.3f} | "
+                     f"{r['area']:.4f} | {r['shell']:.4f} | {r['J_1pc']:.3f} | {r['volume'] * 1e12:.2f} | "
+                     f"{r['deformation_index']:.4f} | "
+                     + (f"part {r['least_part']}: " if several else "") + f"{where} |")
     write_table(args.table, lines)
 
 
