@@ -151,8 +151,9 @@ void add_solver_options(OptionTable& t, LinearSolverOptions& l, PCTypeOptions& p
                "marking stays (it is refreshed whenever the marking moves)",
                at_least(1, "(1: every step)"))
       .integer("coupling_refresh_lag", l.refresh_lag,
-               "Coupling iterations between refreshes of the Jacobian inside a step (0: none; cellfsi types "
-               "with their preconditioner; PETSc PCs the Jacobian alone, the PC by -coupling_pc_lag)",
+               "Coupling iterations between refreshes of the Jacobian (0: only the steps' refreshes; cellfsi "
+               "types with their preconditioner, counted since the last refresh, across steps; PETSc PCs the "
+               "Jacobian alone, counted within each step, the PC by -coupling_pc_lag)",
                at_least(0, "(0: none inside a step)"));
 }
 
