@@ -119,6 +119,10 @@ CoupledLinearSolver::CoupledLinearSolver(fluid::ImmersedFluid& fluid, LinearSolv
   CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-coupling_bulk_stencil", &stencil_given));
   if (const std::optional<bool> by_type = pc_type_bulk_stencil(pc_type()); by_type && !stencil_given)
     opt_.bulk_stencil = *by_type;
+  PetscBool steps_given = PETSC_FALSE;
+  CELLFSI_PETSC(PetscOptionsHasName(nullptr, nullptr, "-coupling_refresh_steps", &steps_given));
+  if (const std::optional<int> by_type = pc_type_refresh_steps(pc_type()); by_type && !steps_given)
+    opt_.refresh_steps = *by_type;
   path_ = make_solve_path(pc_type(), context_);
   path_->start(s, seq_baij);
 }

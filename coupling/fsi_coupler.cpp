@@ -331,7 +331,9 @@ void FsiCoupler::update_immersed(bool first_iteration) {
     linearization_refused_ = !fluid_.set_solid_linearization(lin);
   }
   fluid_.set_immersed_points(elements, xi, data);
-  if (!first_iteration) return;
+  // A fluid without s^h (the divergence-conforming space) has no marking: its Jacobian does not depend on
+  // one, so the cells' moving through the mesh refreshes nothing before -coupling_refresh_steps.
+  if (!first_iteration || !fluid_.uses_interface_scaling()) return;
   std::vector<int> marked = functions_near(locator_, interface, opt_.marking);
   // With s_I >> 1 the marked rows dominate the Jacobian: a new marking invalidates a reused preconditioner.
   if (marked != marked_) {

@@ -34,6 +34,11 @@ std::optional<bool> pc_type_bulk_stencil(const std::string& pc_type) {
   return std::nullopt;
 }
 
+std::optional<int> pc_type_refresh_steps(const std::string& pc_type) {
+  if (pc_type == solvers::kPCBulk) return 1;
+  return std::nullopt;
+}
+
 std::vector<std::pair<std::string, std::string>> PetscPCDefaults::options(bool pressure_null_space) {
   std::vector<std::pair<std::string, std::string>> defaults{
       {"-coupling_sub_pc_type", fluid::KrylovDefaults::sub_pc_type},
@@ -146,10 +151,12 @@ void add_solver_options(OptionTable& t, LinearSolverOptions& l, PCTypeOptions& p
                "cellfsi_band: steps between factorisations of the kept part (0: when the cells leave its "
                "region)",
                at_least(0, "(0: only when needed)"))
-      .integer("coupling_refresh_steps", l.refresh_steps,
-               "cellfsi types: steps between refreshes of the Jacobian and the preconditioner while the s^h "
-               "marking stays (it is refreshed whenever the marking moves)",
-               at_least(1, "(1: every step)"))
+      .integer(
+          "coupling_refresh_steps", l.refresh_steps,
+          "cellfsi types: steps between refreshes of the Jacobian and the preconditioner while the s^h "
+          "marking stays (it is refreshed whenever the marking moves; default 1 with cellfsi_bulk, whose "
+          "space has no marking)",
+          at_least(1, "(1: every step)"))
       .integer("coupling_refresh_lag", l.refresh_lag,
                "Coupling iterations between refreshes of the Jacobian (0: only the steps' refreshes; cellfsi "
                "types with their preconditioner, counted since the last refresh, across steps; PETSc PCs the "

@@ -81,6 +81,13 @@ LinearSolverOptions linear_solver_defaults(int dim);
 /// which keep the dimension's default (linear_solver_defaults).
 std::optional<bool> pc_type_bulk_stencil(const std::string& pc_type);
 
+/// -coupling_refresh_steps where it is not given and the PC type sets it: 1 with cellfsi_bulk, whose space
+/// has no s^h marking to move (what refreshed its Jacobian at nearly every step before). Measured: the
+/// default scene (2D, 128 x 64) diverges in step 2 with 3 or 10, and takes 0.82 of the time with 1 than with
+/// the marking's refreshes; the tilted 3D red cell (16^3, 30 steps) takes 0.80 with 1, 0.76 of that with 3;
+/// nothing for the other types (10: LinearSolverOptions).
+std::optional<int> pc_type_refresh_steps(const std::string& pc_type);
+
 /// The Krylov method of the cellfsi types: FGMRES (their preconditioners change between applications only
 /// through the region's LU in single precision; the true residual decides), restarted every `restart`
 /// iterations, at most `max_iterations` per solve.

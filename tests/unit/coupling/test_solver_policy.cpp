@@ -28,6 +28,9 @@ TEST(SolverPolicy, DefaultsPerDimension) {
   EXPECT_EQ(coupling::pc_type_bulk_stencil("cellfsi_bulk"), std::optional<bool>(true));
   EXPECT_EQ(coupling::pc_type_bulk_stencil("cellfsi_fourier"), std::nullopt);
   EXPECT_EQ(coupling::pc_type_bulk_stencil("asm"), std::nullopt);
+  EXPECT_EQ(coupling::pc_type_refresh_steps("cellfsi_bulk"), std::optional<int>(1));
+  EXPECT_EQ(coupling::pc_type_refresh_steps("cellfsi_fourier"), std::nullopt);
+  EXPECT_EQ(coupling::pc_type_refresh_steps("asm"), std::nullopt);
   // What does not depend on the dimension.
   for (const LinearSolverOptions& d : {d2, d3}) {
     EXPECT_EQ(d.pc_type, "");
