@@ -445,8 +445,10 @@ def t_rbc_shear_3d():
              code("cellfsi scenes/rbc_shear_3d.yaml -s_interface 1e9")]]
     sources = [f"REGISTRY['rbc_shear_3d'] ({note_link(d['note'])}; one rank beside other jobs)"]
     # Ca 0.46 on the divergence-conforming space (bench/run_rbc_shear_3d.py): each box's half turns; the shell
-    # without poles (-solid_rbc_patches 6) in its own table, its runs made later.
-    for path in (os.path.join(VAL, "rbc_shear_3d_ca046.md"), os.path.join(VAL, "rbc_shear_3d_ca046_faces.md")):
+    # without poles (-solid_rbc_patches 6) and that shell cubic through its thickness in their own tables, their
+    # runs made later.
+    for path in (os.path.join(VAL, name) for name in ("rbc_shear_3d_ca046.md", "rbc_shear_3d_ca046_faces.md",
+                                                      "rbc_shear_3d_ca046_thick3.md")):
         if not os.path.exists(path):
             continue
         sources.append(link_from_page(path))
