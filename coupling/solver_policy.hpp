@@ -83,8 +83,8 @@ std::optional<bool> pc_type_bulk_stencil(const std::string& pc_type);
 
 /// -coupling_refresh_steps where it is not given and the PC type sets it: 1 with cellfsi_bulk, whose space
 /// has no s^h marking to move (what refreshed its Jacobian at nearly every step before). Measured: the
-/// default scene (2D, 128 x 64) diverges in step 2 with 3 or 10, and takes 0.82 of the time with 1 than with
-/// the marking's refreshes; the tilted 3D red cell (16^3, 30 steps) takes 0.80 with 1, 0.76 of that with 3;
+/// default scene (2D, 128 x 64) diverges in step 2 with 3 or 10; with 1 it takes 659 coupling iterations
+/// against 695 with the marking's refreshes (0.96 of the time, paired runs, within their spread);
 /// nothing for the other types (10: LinearSolverOptions).
 std::optional<int> pc_type_refresh_steps(const std::string& pc_type);
 
