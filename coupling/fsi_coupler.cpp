@@ -97,8 +97,10 @@ void FsiCoupler::update_immersed(bool first_iteration) {
     int offset, n_control, first_point, n_points;
   };
   std::vector<Linearized> linearized;
-  std::vector<int> q_begin, q_unknown;
-  std::vector<double> q_grad;
+  // (the bodies' basis gradients: hundreds of MB at a 3D red cell, kept between calls like the buffers above)
+  std::vector<int>& q_begin = scratch_q_begin_;
+  std::vector<int>& q_unknown = scratch_q_unknown_;
+  std::vector<double>& q_grad = scratch_q_grad_;
   // Every body's points first, located: the repulsion between them needs them all. The material (stress,
   // tangent) is evaluated only at this rank's points: those of its fluid elements, or, where the fluid
   // assembles a point in any element, the rank's equal run of the body's points in the order of their

@@ -151,6 +151,8 @@ class FsiCoupler {
   std::vector<geometry::Param> scratch_xi_;
   std::vector<fluid::ImmersedPoint> scratch_data_;
   std::vector<std::vector<solid::QuadratureData>> scratch_q_;
+  std::vector<int> scratch_q_begin_, scratch_q_unknown_;
+  std::vector<double> scratch_q_grad_;
   fluid::SolidLinearization scratch_lin_;  // (given to the fluid, which gives its old one back)
   std::unique_ptr<Repulsion> repulsion_;
   bool repulsion_checked_ = false;  // repulsion_ built, or found not to apply

@@ -327,22 +327,33 @@ double NurbsSolid::control_increment_operations() const {
 
 bool NurbsSolid::basis_gradients(std::vector<int>& begin, std::vector<int>& unknown,
                                  std::vector<double>& grad, const std::vector<char>* wanted) const {
-  const int n_q = static_cast<int>(q_X_.size());
   if (wanted && wanted->size() != q_X_.size())
     throw std::invalid_argument("basis_gradients: " + std::to_string(wanted->size()) + " flags for " +
-                                std::to_string(n_q) + " points");
-  std::size_t n_listed = q_unknown_.size();  // (reserved at once: this runs at every refresh of the Jacobian)
-  if (wanted) {
-    n_listed = 0;
-    for (int p = 0; p < n_q; ++p)
-      if ((*wanted)[p]) n_listed += static_cast<std::size_t>(q_begin_[p + 1] - q_begin_[p]);
-  }
+                                std::to_string(q_X_.size()) + " points");
   begin.assign(1, 0);
-  begin.reserve(static_cast<std::size_t>(n_q) + 1);
   unknown.clear();
-  unknown.reserve(n_listed);
   grad.clear();
+  const char* w = wanted ? wanted->data() : nullptr;
+  const std::size_t n_listed = listed_entries(w);  // (reserved at once: this runs at every refresh)
+  begin.reserve(q_X_.size() + 1);
+  unknown.reserve(n_listed);
   grad.reserve(3 * n_listed);
+  return append_basis_gradients(begin, unknown, grad, w, 0);
+}
+
+std::size_t NurbsSolid::listed_entries(const char* wanted) const {
+  if (!wanted) return q_unknown_.size();
+  std::size_t n = 0;
+  for (std::size_t p = 0; p < q_X_.size(); ++p)
+    if (wanted[p]) n += static_cast<std::size_t>(q_begin_[p + 1] - q_begin_[p]);
+  return n;
+}
+
+bool NurbsSolid::append_basis_gradients(std::vector<int>& begin, std::vector<int>& unknown,
+                                        std::vector<double>& grad, const char* wanted,
+                                        int unknown_offset) const {
+  if (begin.empty()) throw std::logic_error("append_basis_gradients: begin must hold where the list starts");
+  const int n_q = static_cast<int>(q_X_.size());
   int visited = 0;
   // d N / d x = F^{-T} d N / d X at the configuration quadrature_data() describes (the points not wanted
   // are not evaluated).
@@ -355,7 +366,7 @@ bool NurbsSolid::basis_gradients(std::vector<int>& begin, std::vector<int>& unkn
         const Mat3 Finv = Fd.inverse();
         for (int k = q_begin_[q]; k < q_begin_[q + 1]; ++k) {
           const double* dN = q_dN_.data() + static_cast<std::size_t>(k) * dim_;
-          unknown.push_back(q_unknown_[k]);
+          unknown.push_back(q_unknown_[k] + unknown_offset);
           for (int l = 0; l < 3; ++l) {
             double g = 0;
             for (int a = 0; a < dim_ && l < dim_; ++a) g += dN[a] * Finv(a, l);
@@ -366,9 +377,8 @@ bool NurbsSolid::basis_gradients(std::vector<int>& begin, std::vector<int>& unkn
       },
       wanted);
   return visited ==
-         (wanted
-              ? static_cast<int>(std::count_if(wanted->begin(), wanted->end(), [](char f) { return f != 0; }))
-              : n_q);
+         (wanted ? static_cast<int>(std::count_if(wanted, wanted + n_q, [](char f) { return f != 0; }))
+                 : n_q);
 }
 
 Eigen::MatrixXd NurbsSolid::displacement_control_alpha() const { return c_n_ + time_.alpha_f * (c_ - c_n_); }
@@ -427,16 +437,22 @@ void point_kinematics(const double* c, const int* unknown, const double* N, cons
 void NurbsSolid::for_each_quadrature_point(
     const Eigen::MatrixXd& c, const std::function<void(int, const Vec3&, const Mat3&, double)>& visit,
     const std::vector<char>* only) const {
-  const int n_q = static_cast<int>(q_X_.size());
   if (only && only->size() != q_X_.size())
     throw std::logic_error("body '" + name_ + "': " + std::to_string(only->size()) + " point flags for " +
-                           std::to_string(n_q) + " quadrature points");
+                           std::to_string(q_X_.size()) + " quadrature points");
+  for_each_quadrature_point(c, visit, only ? only->data() : nullptr);
+}
+
+void NurbsSolid::for_each_quadrature_point(
+    const Eigen::MatrixXd& c, const std::function<void(int, const Vec3&, const Mat3&, double)>& visit,
+    const char* only) const {
+  const int n_q = static_cast<int>(q_X_.size());
   // The control values row by row (c is column-major: a point's 27 functions would read 3 strided columns).
   std::vector<double> rows(3 * static_cast<std::size_t>(c.rows()), 0.0);
   for (Eigen::Index r = 0; r < c.rows(); ++r)
     for (int i = 0; i < dim_; ++i) rows[3 * r + i] = c(r, i);
   for (int q = 0; q < n_q; ++q) {
-    if (only && !(*only)[q]) continue;
+    if (only && !only[q]) continue;
     Vec3 x = q_X_[q];
     Mat3 F;
     if (dim_ == 3)
@@ -492,9 +508,18 @@ std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density, bo
 void NurbsSolid::quadrature_data(double fluid_density, bool with_tangent,
                                  const std::function<bool(std::size_t, const Vec3&)>& wanted,
                                  std::vector<QuadratureData>& out, const std::vector<char>* only) const {
+  if (only && only->size() != q_X_.size())
+    throw std::logic_error("body '" + name_ + "': " + std::to_string(only->size()) + " point flags for " +
+                           std::to_string(q_X_.size()) + " quadrature points");
+  out.resize(q_X_.size());
+  quadrature_data_into(fluid_density, with_tangent, wanted, out.data(), only ? only->data() : nullptr);
+}
+
+void NurbsSolid::quadrature_data_into(double fluid_density, bool with_tangent,
+                                      const std::function<bool(std::size_t, const Vec3&)>& wanted,
+                                      QuadratureData* out, const char* only) const {
   if (!(fluid_density > 0)) throw std::invalid_argument("quadrature_data: fluid density must be > 0");
   const double beta = 1.0 - density_ / fluid_density;
-  out.resize(q_X_.size());
   for_each_quadrature_point(
       displacement_control_alpha(),
       [&](int q, const Vec3& x, const Mat3& F_global, double weight) {

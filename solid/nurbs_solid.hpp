@@ -49,6 +49,17 @@ class NurbsSolid final : public SolidSolver {
   int n_control() const override { return n_reduced_; }
   bool basis_gradients(std::vector<int>& begin, std::vector<int>& unknown, std::vector<double>& grad,
                        const std::vector<char>* wanted = nullptr) const override;
+  /// quadrature_data() into out[0, n_quadrature_points()) (`only`: null, or n_quadrature_points() flags), and
+  /// basis_gradients() appended to begin (not empty: its last entry is where this body's list starts),
+  /// unknown (each plus unknown_offset) and grad; listed_entries: what that appends to unknown. For a body of
+  /// several patches (CompositeSolid), which writes its parts' runs in place: at a 3D red cell of six patches
+  /// copying them through buffers of their own was a fifth of a step (-log_view, perf).
+  void quadrature_data_into(double fluid_density, bool with_tangent,
+                            const std::function<bool(std::size_t, const Vec3&)>& wanted, QuadratureData* out,
+                            const char* only) const;
+  bool append_basis_gradients(std::vector<int>& begin, std::vector<int>& unknown, std::vector<double>& grad,
+                              const char* wanted, int unknown_offset) const;
+  std::size_t listed_entries(const char* wanted) const;
   void end_step() override;
 
   /// Sets the displacement rate at the collocation points (e.g. the fluid velocity there at t = 0, so the
@@ -111,6 +122,9 @@ class NurbsSolid final : public SolidSolver {
   void for_each_quadrature_point(const Eigen::MatrixXd& c,
                                  const std::function<void(int, const Vec3&, const Mat3&, double)>& visit,
                                  const std::vector<char>* only = nullptr) const;
+  void for_each_quadrature_point(const Eigen::MatrixXd& c,
+                                 const std::function<void(int, const Vec3&, const Mat3&, double)>& visit,
+                                 const char* only) const;  // (only: null or n_quadrature_points() flags)
   std::string name_;
   geometry::Patch reference_;
   std::shared_ptr<const Material> material_;

@@ -118,10 +118,48 @@ TEST(CompositeSolid, SixFacesFollowASimpleShearAsOneBodyAndStayJoined) {
   EXPECT_EQ(grad.size(), 3 * unknown.size());
   EXPECT_LT(*std::max_element(unknown.begin(), unknown.end()), control);
   EXPECT_GE(unknown.back(), control - cell.part(5).n_control()) << "the last part's unknowns come last";
+  // Each part's run of the lists is the part's own (written in place), its unknowns after the earlier parts'.
+  std::size_t point = 0, entry = 0;
+  int first_unknown = 0, first_point = 0;
+  for (int k = 0; k < 6; ++k) {
+    const int n_q = cell.part(k).n_quadrature_points();
+    const std::vector<char> part_wanted(wanted.begin() + first_point, wanted.begin() + first_point + n_q);
+    std::vector<int> b, u;
+    std::vector<double> g;
+    ASSERT_TRUE(cell.part(k).basis_gradients(b, u, g, &part_wanted));
+    for (std::size_t i = 1; i < b.size(); ++i)
+      ASSERT_EQ(begin[point + i] - begin[point], b[i]) << "part " << k << ", listed point " << i;
+    double worst = 0, largest = 0;
+    for (std::size_t i = 0; i < u.size(); ++i) {
+      ASSERT_EQ(unknown[entry + i], u[i] + first_unknown) << "part " << k;
+      for (int c = 0; c < 3; ++c) {
+        worst = std::max(worst, std::abs(grad[3 * (entry + i) + c] - g[3 * i + c]));
+        largest = std::max(largest, std::abs(g[3 * i + c]));
+      }
+    }
+    EXPECT_LE(worst, 1e-14 * largest) << "part " << k;  // (the same arithmetic: equal to round-off)
+    point += b.size() - 1, entry += u.size();
+    first_unknown += cell.part(k).n_control(), first_point += n_q;
+  }
+  EXPECT_EQ(point + 1, begin.size());
+  EXPECT_EQ(entry, unknown.size());
   std::vector<std::size_t> visited;
   std::vector<solid::QuadratureData> q;
   cell.quadrature_data(
       1.025, false, [&](std::size_t i, const Vec3&) { return visited.push_back(i), true; }, q);
   ASSERT_EQ(visited.size(), static_cast<std::size_t>(quadrature));
   for (std::size_t i = 0; i < visited.size(); ++i) ASSERT_EQ(visited[i], i);
+  // With `only`, the points not flagged are not evaluated and keep what they held (another rank's points).
+  std::vector<solid::QuadratureData> some = q;
+  for (std::size_t i = 0; i < some.size(); ++i) some[i].weight = -1.0;
+  visited.clear();
+  cell.quadrature_data(
+      1.025, false, [&](std::size_t i, const Vec3&) { return visited.push_back(i), true; }, some, &wanted);
+  EXPECT_EQ(visited.size(), static_cast<std::size_t>((quadrature + 6) / 7));
+  for (std::size_t i = 0; i < some.size(); ++i) {
+    ASSERT_EQ(some[i].weight < 0, !wanted[i]) << "point " << i;
+    if (wanted[i]) {
+      ASSERT_LE((some[i].x - q[i].x).norm(), 1e-14 * q[i].x.norm()) << "point " << i;
+    }
+  }
 }
