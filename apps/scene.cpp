@@ -194,13 +194,19 @@ std::vector<std::unique_ptr<solid::SolidSolver>> build_bodies(const SceneSetting
       std::vector<std::unique_ptr<solid::NurbsSolid>> parts;
       for (geometry::Patch& p : build_body_parts(s, b))
         parts.push_back(
-            std::make_unique<solid::NurbsSolid>(b.name, std::move(p), make_material(b), b.density));
+            b.thin_shell
+                ? std::make_unique<solid::NurbsSolid>(b.name, geometry::mid_surface(p), b.thickness,
+                                                      make_material(b), b.density)
+                : std::make_unique<solid::NurbsSolid>(b.name, std::move(p), make_material(b), b.density));
       out.push_back(std::make_unique<solid::CompositeSolid>(b.name, std::move(parts)));
       continue;
     }
     geometry::Patch patch = build_body_patch(s, b);
     const std::vector<solid::PatchLoad> loads = stretch_loads(b, patch);
-    auto body = std::make_unique<solid::NurbsSolid>(b.name, std::move(patch), make_material(b), b.density);
+    auto body = b.thin_shell ? std::make_unique<solid::NurbsSolid>(b.name, geometry::mid_surface(patch),
+                                                                   b.thickness, make_material(b), b.density)
+                             : std::make_unique<solid::NurbsSolid>(b.name, std::move(patch), make_material(b),
+                                                                   b.density);
     solid::NurbsSolid& nurbs = *body;
     out.push_back(std::move(body));
     // The direction-by-direction solve is several times faster: say so when a body cannot have it.

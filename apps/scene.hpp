@@ -41,6 +41,8 @@ struct BodySettings {
   // one element then holds thickness_degree + 1 collocation points across it instead of degree + 1.
   int thickness_degree = 0;
   int degree_through() const { return thickness_degree > 0 ? thickness_degree : degree; }
+  // 3D membranes: a thin shell about the builder's mid-surface (solid::NurbsSolid's second constructor)
+  bool thin_shell = false;
   // rbc_3d: 1, the polar patch (its poles at the dimples' centres), or 6, a cube's faces mapped onto the cell
   // (no poles; geometry::biconcave_rbc_3d_faces, solid::CompositeSolid)
   int patches = 1;

@@ -418,6 +418,8 @@ std::vector<std::pair<std::string, double>> Scene::summary_metrics() {
       m.emplace_back(name + "_elements_" + std::to_string(d), reference.n_elements(d));
     for (int d = 0; d < reference.param_dim(); ++d)
       m.emplace_back(name + "_degree_" + std::to_string(d), reference.degree(d));
+    // (a thin shell's reference patch is its view as a solid shell, linear across: degree_0 1)
+    if (bs.thin_shell) m.emplace_back(name + "_thin_shell", 1.0);
     double ratio = 0;
     for (const geometry::Patch& part : references)
       ratio = std::max(ratio,

@@ -292,6 +292,10 @@ void declare_body_options(OptionTable& t, BodySettings& b, BodyOptionValues& v, 
                "Membranes: Lagrangian degree through the thickness, from -degree to 4 (0: -degree); more "
                "collocation points across a thin shell at less cost than a higher -degree (docs/geometry.md)",
                {[](const long long& v) { return v == 0 || (v >= 2 && v <= 4); }, "0, 2, 3 or 4"})
+      .flag("thin_shell", b.thin_shell,
+            "3D membranes: a thin shell described by its mid-surface alone (Kirchhoff-Love), the thickness "
+            "not an unknown; collocated at the mid-surface, its points at three heights through -thickness "
+            "(docs/geometry.md)")
       .integer(
           "patches", b.patches,
           "rbc_3d: 1, the polar patch (its poles at the dimples' centres), or 6, the faces of a cube mapped "
@@ -460,6 +464,15 @@ void check_law_and_elements(OptionTable& t, BodySettings& b, const BodyOptionVal
     else if (b.thickness_degree < b.degree)
       t.bad("thickness_degree", std::to_string(b.thickness_degree),
             "0 or from -" + pre + "degree (" + std::to_string(b.degree) + ") to 4");
+  }
+  if (b.thin_shell) {
+    if (!(D == 3 && b.membrane()))
+      t.bad("thin_shell", "true",
+            "false for " + std::string(D == 3 ? "a bulky body" : "a 2D body") +
+                " (3D membranes only: shape hollow_ellipsoid or rbc_3d)");
+    else if (t.given("thickness_degree") && b.thickness_degree > 0)
+      t.bad("thickness_degree", std::to_string(b.thickness_degree),
+            "0 with -" + pre + "thin_shell (a thin shell has no degree through its thickness)");
   }
   const std::vector<int>& elements = v.elements;
   if (b.membrane() && elements[0] > 1)

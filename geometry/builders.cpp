@@ -488,4 +488,34 @@ std::vector<Patch> biconcave_rbc_3d_faces(double h, int n_face, int degree, cons
   return faces;
 }
 
+Patch mid_surface(const Patch& shell) {
+  if (shell.param_dim() != 3 || shell.physical_dim() != 3)
+    throw std::invalid_argument(
+        "mid_surface: a solid shell's patch (parametric dimension 3 in 3D) is needed");
+  const KnotVector& kv = shell.knots(0);
+  const int p = kv.degree();
+  const double u = 0.5 * (kv.a() + kv.b());
+  const int span = kv.find_span(u);
+  std::vector<double> N(static_cast<std::size_t>(p) + 1);
+  bspline_basis(kv, span, u, 0, N.data());
+  const int n0 = shell.n_control(0), n1 = shell.n_control(1), n2 = shell.n_control(2);
+  std::vector<Vec3> cps;
+  std::vector<double> weights;
+  for (int k = 0; k < n2; ++k)
+    for (int j = 0; j < n1; ++j) {
+      Vec3 pw = Vec3::Zero();
+      double w = 0;
+      for (int a = 0; a <= p; ++a) {
+        const int i = (span - p + a) % n0;  // (direction 0 is open: unwrapped = folded)
+        const int c = i + n0 * (j + n1 * k);
+        pw += N[a] * shell.weights()[c] * shell.control_points()[c];
+        w += N[a] * shell.weights()[c];
+      }
+      cps.push_back(pw / w);
+      weights.push_back(w);
+    }
+  return Patch({shell.knots(1), shell.knots(2)}, 3, std::move(cps), std::move(weights),
+               {shell.shifts()[1], shell.shifts()[2], Vec3::Zero()});
+}
+
 }  // namespace cellfsi::geometry

@@ -106,4 +106,11 @@ std::vector<Patch> biconcave_rbc_3d_faces(double h, int n_face, int degree, cons
 Patch solid_ellipsoid(double a, double b, double c, int n_radial, int n_polar, int n_azimuth, int degree,
                       const Vec3& center = Vec3::Zero());
 
+/// The surface of a solid shell's patch (parametric dimension 3, direction 0 through the thickness) at the
+/// middle of direction 0's range, exactly: a surface patch (parametric dimension 2 in 3D) over directions 1
+/// and 2, its control points and weights the combinations of the layers' in homogeneous coordinates. For the
+/// builders' membranes, whose layers interpolate X + (r - 1/2) h n, the interpolant of X: a thin shell's
+/// mid-surface.
+Patch mid_surface(const Patch& shell);
+
 }  // namespace cellfsi::geometry

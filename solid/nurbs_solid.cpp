@@ -10,6 +10,7 @@
 #include <string>
 
 #include "geometry/quadrature.hpp"
+#include "solid/shell_kinematics.hpp"
 
 namespace cellfsi::solid {
 
@@ -28,8 +29,32 @@ NurbsSolid::NurbsSolid(std::string name, geometry::Patch reference, std::shared_
   if (reference_.param_dim() != dim_)
     throw std::invalid_argument("NurbsSolid '" + name_ +
                                 "': the patch must fill its space (param dim == dim)");
+  set_up();
+}
+
+NurbsSolid::NurbsSolid(std::string name, geometry::Patch mid_surface, double thickness,
+                       std::shared_ptr<const Material> material, double density)
+    : name_(std::move(name)),
+      reference_(std::move(mid_surface)),
+      material_(std::move(material)),
+      density_(density) {
+  if (reference_.param_dim() != 2 || reference_.physical_dim() != 3)
+    throw std::invalid_argument(
+        "NurbsSolid '" + name_ +
+        "': a thin shell's mid-surface is a surface patch in 3D (parametric dimension 2, "
+        "not " +
+        std::to_string(reference_.param_dim()) + " in " + std::to_string(reference_.physical_dim()) + "D)");
+  if (!(thickness > 0) || !std::isfinite(thickness))
+    throw std::invalid_argument("NurbsSolid '" + name_ + "': a thin shell's thickness must be > 0 cm, not " +
+                                std::to_string(thickness));
+  dim_ = 3;
+  shell_thickness_ = thickness;
+  set_up();
+}
+
+void NurbsSolid::set_up() {
   if (!material_) throw std::invalid_argument("NurbsSolid '" + name_ + "': no material");
-  if (!(density > 0)) throw std::invalid_argument("NurbsSolid '" + name_ + "': density must be > 0");
+  if (!(density_ > 0)) throw std::invalid_argument("NurbsSolid '" + name_ + "': density must be > 0");
   time_ = TimeParameters::from_rho_inf(0.5, 1.0);
 
   // Step 3's solver owns the points and the unknowns (a closed direction's last control layer folded onto
@@ -45,15 +70,17 @@ NurbsSolid::NurbsSolid(std::string name, geometry::Patch reference, std::shared_
   reduced_.resize(reference_.n_control());
   for (int k = 0; k < reference_.n_control(); ++k) reduced_[k] = cs.unknown(k);
   const std::array<std::vector<double>, 3> tau = {cs.abscissae(0), cs.abscissae(1), cs.abscissae(2)};
+  const auto abscissa = [&](int d, int i) { return d < reference_.param_dim() ? tau[d][i] : 0.0; };
   int p = 0;
   for (int c = 0; c < m[2]; ++c)
     for (int b = 0; b < m[1]; ++b)
       for (int a = 0; a < m[0]; ++a, ++p) {
-        const Param xi{tau[0][a], tau[1][b], tau[2][c]};
+        const Param xi{abscissa(0, a), abscissa(1, b), abscissa(2, c)};
         point_xi_.push_back(xi);
         reference_points_.push_back(reference_.point(xi));
         // Interface faces: both ends of direction 0, unless a face collapses to a point (a body's centre).
-        if (a == 0 || a == m[0] - 1) face_points_.push_back(p);
+        // A thin shell's faces are not collocated: they lie at +-h/2 from its mid-surface.
+        if ((a == 0 || a == m[0] - 1) && !(shell_thickness_ > 0)) face_points_.push_back(p);
       }
   // Drop a degenerate face (all its points coincide).
   bool degenerate = false;
@@ -74,7 +101,7 @@ NurbsSolid::NurbsSolid(std::string name, geometry::Patch reference, std::shared_
       face_points_ = keep;
     }
   }
-  membrane_ = !degenerate;
+  membrane_ = !degenerate || shell_thickness_ > 0;
   if (material_->membrane_surface_law() && !(membrane_ && dim_ == 3))
     throw std::invalid_argument("NurbsSolid '" + name_ + "': the " + material_->name() +
                                 " law is a law of a 3D membrane's surface; this body is " +
@@ -85,7 +112,10 @@ NurbsSolid::NurbsSolid(std::string name, geometry::Patch reference, std::shared_
   rate_n_ = u_;
   c_ = Eigen::MatrixXd::Zero(n_reduced_, dim_);
   c_n_ = c_;
-  tabulate_quadrature();
+  if (shell_thickness_ > 0)
+    tabulate_shell_quadrature();
+  else
+    tabulate_quadrature();
 }
 
 namespace {
@@ -146,6 +176,102 @@ void NurbsSolid::tabulate_quadrature() {
       q_weight_.push_back(q.weight * std::abs(dXdxi.topLeftCorner(dim_, dim_).determinant()));
       if (membrane_) q_area_.push_back(q_weight_.back() / (dXdxi.col(0).norm() * range0));
       if (material_->membrane_surface_law()) q_frame_.push_back(membrane_frame(dXdxi));
+    }
+  }
+}
+
+void NurbsSolid::tabulate_shell_quadrature() {
+  // Three Gauss heights through the thickness: the energy through it, of a law's stress at F linear in zeta
+  // to first order, is integrated exactly to degree 5 (the thick shell's quadratic direction had three too).
+  const geometry::GaussRule& layers = geometry::gauss_legendre(3);
+  const double h = shell_thickness_;
+  s_zeta_.clear();
+  for (double z : layers.points) s_zeta_.push_back(0.5 * h * z);
+  std::vector<geometry::QuadraturePoint> qp;
+  const Index3 ng = geometry::default_gauss(reference_);
+  BasisValues bv;
+  s_begin_.assign(1, 0);
+  for (int e = 0; e < reference_.n_elements(); ++e) {
+    const Index3 m = reference_.element_multi_index(e);
+    geometry::element_quadrature(reference_, m, ng, qp);
+    for (const auto& q : qp) {
+      reference_.basis(q.xi, 2, bv, &m);
+      MapValues ref;
+      reference_.map(bv, ref);
+      for (int k = 0; k < bv.n; ++k) {
+        s_unknown_.push_back(reduced_[bv.index[k]]);
+        const double* d2 = &bv.d2[9 * static_cast<std::size_t>(k)];
+        for (double v : {bv.value[k], bv.d1[3 * k], bv.d1[3 * k + 1], d2[0], d2[1], d2[4]})
+          s_basis_.push_back(v);
+      }
+      s_begin_.push_back(static_cast<int>(s_unknown_.size()));
+      s_ref_.push_back(ref);
+      for (std::size_t l = 0; l < s_zeta_.size(); ++l) {
+        // The reference shell's point (the same map values twice: no deformation).
+        const ShellPoint p = shell_point(ref, ref, s_zeta_[l]);
+        const double w = q.weight * 0.5 * h * layers.weights[l] * p.ref_jacobian;
+        q_X_.push_back(p.x);
+        q_weight_.push_back(w);
+        // (the area this point stands for: its column's share of the mid-surface's, as for the solid shell)
+        q_area_.push_back(q.weight * 0.5 * layers.weights[l] * ref.dx.col(0).cross(ref.dx.col(1)).norm());
+        if (material_->membrane_surface_law()) q_frame_.push_back(p.frame);
+      }
+    }
+  }
+}
+
+void NurbsSolid::for_each_shell_point(const double* rows,
+                                      const std::function<void(int, const Vec3&, const Mat3&, double)>& visit,
+                                      const char* only) const {
+  const int layers = static_cast<int>(s_zeta_.size());
+  const int n_surface = static_cast<int>(s_ref_.size());
+  const int per_element = n_surface / reference_.n_elements();
+  MapValues cur;
+  for (int s = 0; s < n_surface; ++s) {
+    bool any = !only;
+    for (int l = 0; l < layers && !any; ++l) any = only[s * layers + l] != 0;
+    if (!any) continue;
+    // The current mid-surface: the reference's map values plus the displacement's (the map is linear in the
+    // control points, the weights fixed).
+    cur = s_ref_[s];
+    for (int k = s_begin_[s]; k < s_begin_[s + 1]; ++k) {
+      const double* b = s_basis_.data() + 6 * static_cast<std::size_t>(k);
+      const double* ck = rows + 3 * static_cast<std::size_t>(s_unknown_[k]);
+      for (int i = 0; i < 3; ++i) {
+        cur.x[i] += b[0] * ck[i];
+        cur.dx(i, 0) += b[1] * ck[i];
+        cur.dx(i, 1) += b[2] * ck[i];
+        cur.d2x[i](0, 0) += b[3] * ck[i];
+        cur.d2x[i](0, 1) += b[4] * ck[i];
+        cur.d2x[i](1, 0) += b[4] * ck[i];
+        cur.d2x[i](1, 1) += b[5] * ck[i];
+      }
+    }
+    for (int l = 0; l < layers; ++l) {
+      const int q = s * layers + l;
+      if (only && !only[q]) continue;
+      const auto where = [&] {
+        const Index3 m = reference_.element_multi_index(s / per_element);
+        char text[200];
+        std::snprintf(
+            text, sizeof text,
+            "; body '%s', thin-shell element (%d, %d) of %d x %d, at x = (%.4g, %.4g, %.4g) cm, %.3g of "
+            "the thickness above its mid-surface",
+            name_.c_str(), m[0], m[1], reference_.n_elements(0), reference_.n_elements(1), cur.x[0], cur.x[1],
+            cur.x[2], s_zeta_[l] / shell_thickness_);
+        return std::string(text);
+      };
+      ShellPoint p;
+      try {
+        p = shell_point(s_ref_[s], cur, s_zeta_[l]);
+      } catch (const std::invalid_argument& e) {  // (the current mid-surface collapsed here: inverted)
+        throw std::runtime_error(std::string("inverted solid element: ") + e.what() + where());
+      }
+      try {
+        visit(q, p.x, p.F, q_weight_[q]);
+      } catch (const std::runtime_error& e) {  // an inverted element (the material refuses det F <= 0)
+        throw std::runtime_error(e.what() + where());
+      }
     }
   }
 }
@@ -342,6 +468,7 @@ bool NurbsSolid::basis_gradients(std::vector<int>& begin, std::vector<int>& unkn
 }
 
 std::size_t NurbsSolid::listed_entries(const char* wanted) const {
+  if (shell_thickness_ > 0) return 0;  // (not available for a thin shell: append_basis_gradients says so)
   if (!wanted) return q_unknown_.size();
   std::size_t n = 0;
   for (std::size_t p = 0; p < q_X_.size(); ++p)
@@ -353,6 +480,9 @@ bool NurbsSolid::append_basis_gradients(std::vector<int>& begin, std::vector<int
                                         std::vector<double>& grad, const char* wanted,
                                         int unknown_offset) const {
   if (begin.empty()) throw std::logic_error("append_basis_gradients: begin must hold where the list starts");
+  // A thin shell's point moves with the normal's and lambda3's variation too: not written yet, so the
+  // coupler gives it the consistent tangent instead of the collocation one.
+  if (shell_thickness_ > 0) return false;
   const int n_q = static_cast<int>(q_X_.size());
   int visited = 0;
   // d N / d x = F^{-T} d N / d X at the configuration quadrature_data() describes (the points not wanted
@@ -385,6 +515,32 @@ Eigen::MatrixXd NurbsSolid::displacement_control_alpha() const { return c_n_ + t
 
 void NurbsSolid::kinematics(const Eigen::MatrixXd& c, const Param& xi, const Index3* element, Vec3& x,
                             Mat3& F, double& ref_jacobian, Mat3* frame) const {
+  if (shell_thickness_ > 0) {  // xi in reference_patch()'s parameters: direction 0 across, over [0, 1]
+    const Param theta{xi[1], xi[2], 0};
+    thread_local BasisValues sb;
+    reference_.basis(theta, 2, sb);
+    MapValues ref, cur;
+    reference_.map(sb, ref);
+    cur = ref;
+    for (int k = 0; k < sb.n; ++k) {
+      const int r = reduced_[sb.index[k]];
+      const double* d2 = &sb.d2[9 * static_cast<std::size_t>(k)];
+      for (int i = 0; i < 3; ++i) {
+        cur.x[i] += sb.value[k] * c(r, i);
+        for (int a = 0; a < 2; ++a) {
+          cur.dx(i, a) += sb.d1[3 * k + a] * c(r, i);
+          for (int b = 0; b < 2; ++b) cur.d2x[i](a, b) += d2[3 * a + b] * c(r, i);
+        }
+      }
+    }
+    const ShellPoint p = shell_point(ref, cur, (xi[0] - 0.5) * shell_thickness_);
+    x = p.x;
+    F = p.F;
+    ref_jacobian = p.ref_jacobian * shell_thickness_;
+    if (frame) *frame = p.frame;
+    (void)element;
+    return;
+  }
   thread_local BasisValues bv;
   thread_local MapValues mv;
   reference_.basis(xi, 1, bv, element);
@@ -451,6 +607,10 @@ void NurbsSolid::for_each_quadrature_point(
   std::vector<double> rows(3 * static_cast<std::size_t>(c.rows()), 0.0);
   for (Eigen::Index r = 0; r < c.rows(); ++r)
     for (int i = 0; i < dim_; ++i) rows[3 * r + i] = c(r, i);
+  if (shell_thickness_ > 0) {
+    for_each_shell_point(rows.data(), visit, only);
+    return;
+  }
   for (int q = 0; q < n_q; ++q) {
     if (only && !only[q]) continue;
     Vec3 x = q_X_[q];
@@ -582,8 +742,13 @@ std::vector<Mat3> NurbsSolid::cauchy_stress(const std::vector<Param>& xi) const 
     Vec3 x;
     Mat3 F, frame;
     double jac0 = 0;
-    kinematics(c_n_, xi[i], nullptr, x, F, jac0,
-               q_frame_.empty() ? nullptr : &frame);  // only a surface law's
+    try {
+      kinematics(c_n_, xi[i], nullptr, x, F, jac0,
+                 q_frame_.empty() ? nullptr : &frame);  // only a surface law's
+    } catch (const std::invalid_argument&) {            // (a thin shell's collapsed mid-surface)
+      out[i] = Mat3::Constant(std::numeric_limits<double>::quiet_NaN());
+      continue;
+    }
     if (!q_frame_.empty()) F = F * frame;
     const double J = F.topLeftCorner(dim_, dim_).determinant();
     // Output only: NaN where F is undefined (a degenerate point) or inverted, instead of stopping the run.
@@ -594,6 +759,20 @@ std::vector<Mat3> NurbsSolid::cauchy_stress(const std::vector<Param>& xi) const 
 }
 
 std::vector<Vec3> NurbsSolid::interface_points() const {
+  if (shell_thickness_ > 0) {  // both faces above and below each collocation point
+    std::vector<geometry::Vec3> cps = reference_.control_points();
+    const Eigen::MatrixXd c = displacement_control_alpha();
+    for (int k = 0; k < reference_.n_control(); ++k)
+      for (int i = 0; i < 3; ++i) cps[k][i] += c(reduced_[k], i);
+    const geometry::Patch now(reference_.all_knots(), 3, std::move(cps), reference_.weights(),
+                              reference_.shifts());
+    std::vector<Vec3> out;
+    for (const Param& xi : point_xi_)
+      for (double side : {-0.5, 0.5})
+        out.push_back(
+            shell_point(reference_.evaluate(xi, 2), now.evaluate(xi, 2), side * shell_thickness_).x);
+    return out;
+  }
   const std::vector<Vec3> x = collocation_points();
   std::vector<Vec3> out;
   for (int q : face_points_) out.push_back(x[q]);
@@ -608,7 +787,43 @@ void NurbsSolid::end_step() {
   c_n_ = c_;
 }
 
+geometry::Patch NurbsSolid::reference_patch() const {
+  if (shell_thickness_ > 0) return shell_as_thick_patch(Eigen::MatrixXd::Zero(n_reduced_, dim_));
+  return reference_;
+}
+
+geometry::Patch NurbsSolid::shell_as_thick_patch(const Eigen::MatrixXd& c) const {
+  std::vector<geometry::Vec3> mid = reference_.control_points();
+  for (int k = 0; k < reference_.n_control(); ++k)
+    for (int i = 0; i < 3; ++i) mid[k][i] += c(reduced_[k], i);
+  const geometry::Patch now(reference_.all_knots(), 3, mid, reference_.weights(), reference_.shifts());
+  const std::vector<double> g0 = reference_.knots(0).greville(), g1 = reference_.knots(1).greville();
+  const int n0 = reference_.n_control(0), n1 = reference_.n_control(1);
+  std::vector<geometry::Vec3> cps(2 * mid.size());
+  std::vector<double> weights(2 * mid.size());
+  for (int j = 0; j < n1; ++j)
+    for (int i = 0; i < n0; ++i) {
+      const int k = i + n0 * j;
+      const Param theta{g0[i], g1[j], 0};
+      const MapValues r = reference_.evaluate(theta, 1), m = now.evaluate(theta, 1);
+      const Vec3 cr = r.dx.col(0).cross(r.dx.col(1)), cm = m.dx.col(0).cross(m.dx.col(1));
+      // (where the mid-surface degenerates, no offset: its layers meet there)
+      const Vec3 offset = cm.norm() > 0 && cr.norm() > 0
+                              ? Vec3(0.5 * shell_thickness_ * cr.norm() / cm.squaredNorm() * cm)
+                              : Vec3::Zero();
+      for (int a = 0; a < 2; ++a) {
+        cps[a + 2 * k] = mid[k] + (a == 0 ? -offset : offset);
+        weights[a + 2 * k] = reference_.weights()[k];
+      }
+    }
+  const std::array<geometry::Vec3, 3> shifts = {geometry::Vec3::Zero(), reference_.shifts()[0],
+                                                reference_.shifts()[1]};
+  return geometry::Patch({geometry::KnotVector::open_uniform(1, 1), reference_.knots(0), reference_.knots(1)},
+                         3, std::move(cps), std::move(weights), shifts);
+}
+
 geometry::Patch NurbsSolid::current_patch() const {
+  if (shell_thickness_ > 0) return shell_as_thick_patch(c_n_);
   std::vector<geometry::Vec3> cps = reference_.control_points();
   for (int k = 0; k < reference_.n_control(); ++k)
     for (int i = 0; i < dim_; ++i) cps[k][i] += c_n_(reduced_[k], i);

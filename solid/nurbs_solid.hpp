@@ -29,6 +29,17 @@ class NurbsSolid final : public SolidSolver {
   /// builders' convention), which is where interface points are taken. density: rho_2 [g/cm^3].
   NurbsSolid(std::string name, geometry::Patch reference, std::shared_ptr<const Material> material,
              double density);
+  /// A thin shell (Kirchhoff-Love, solid/shell_kinematics.hpp) of thickness h [cm] about `mid_surface`, a
+  /// surface patch (parametric dimension 2 in 3D): collocated at the mid-surface's Greville points, its
+  /// quadrature points at three Gauss heights through the thickness above each of the surface's, where the
+  /// law sees the F of shell_point (a membrane surface law in the shell's frame). A membrane; the thickness
+  /// is not an unknown. Its parameters for cauchy_stress are those of reference_patch() (direction 0 across
+  /// the thickness, over [0, 1]). Not yet available: the collocation tangent's basis gradients
+  /// (basis_gradients says so: false; the coupler then gives the shell the consistent tangent).
+  NurbsSolid(std::string name, geometry::Patch mid_surface, double thickness,
+             std::shared_ptr<const Material> material, double density);
+  /// The thin shell's thickness [cm] (0: a solid body, the first constructor's).
+  double shell_thickness() const { return shell_thickness_; }
 
   std::string name() const override { return name_; }
   int dim() const override { return dim_; }
@@ -70,7 +81,11 @@ class NurbsSolid final : public SolidSolver {
   void set_state(const std::vector<double>& state) override;
 
   bool is_membrane() const override { return membrane_; }
-  geometry::Patch reference_patch() const override { return reference_; }
+  /// A thin shell's: the shell as a solid shell's patch (direction 0 linear across the thickness over [0, 1],
+  /// its two control layers the mid-surface's control points -+ h/2 lambda3 n at their Greville points),
+  /// whose mid-surface is the shell's exactly and whose faces are the offset surfaces' interpolants, so that
+  /// the metrics and the output read it as they read a solid shell.
+  geometry::Patch reference_patch() const override;
   geometry::Patch current_patch() const override;
   std::vector<Mat3> cauchy_stress(const std::vector<geometry::Param>& xi) const override;
 
@@ -157,6 +172,20 @@ class NurbsSolid final : public SolidSolver {
   std::vector<Vec3> q_X_;                      // reference position
   std::vector<Mat3> q_frame_;  // a membrane surface law's reference frame (T1, T2, N; else empty)
   void tabulate_quadrature();
+  void set_up();  // (both constructors' common part, after the members are set)
+  // A thin shell's tables (shell_thickness_ > 0): per surface quadrature point s, its functions [s_begin_[s],
+  // s_begin_[s + 1]) of s_unknown_ and s_basis_ (6 values each: R, dR / dtheta_0, dR / dtheta_1 and the
+  // second derivatives 00, 01, 11) and the reference mid-surface's map values; quadrature point q = s *
+  // layers + l at height s_zeta_[l].
+  double shell_thickness_ = 0;
+  std::vector<int> s_begin_, s_unknown_;
+  std::vector<double> s_basis_, s_zeta_;
+  std::vector<geometry::MapValues> s_ref_;
+  void tabulate_shell_quadrature();
+  geometry::Patch shell_as_thick_patch(const Eigen::MatrixXd& c) const;  // (c: control displacements)
+  void for_each_shell_point(const double* rows,
+                            const std::function<void(int, const Vec3&, const Mat3&, double)>& visit,
+                            const char* only) const;
 };
 
 }  // namespace cellfsi::solid

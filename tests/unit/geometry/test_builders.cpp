@@ -284,6 +284,28 @@ TEST(Builders, Rbc3dShellOnSixFacesIsClosedAndHasNoPoles) {
   EXPECT_GT(shortest / longest, 0.3);
 }
 
+TEST(Builders, MidSurfaceIsTheShellsMiddleExactly) {
+  // A face of the cell's shell, quadratic and cubic: the mid-surface patch equals the shell at the middle of
+  // direction 0 wherever it is evaluated, its normal towards increasing xi_0 (outward).
+  const double h = 3.1623e-5;
+  for (int degree : {2, 3}) {
+    const Patch face = biconcave_rbc_3d_faces(h, 6, degree)[4];
+    const Patch mid = mid_surface(face);
+    ASSERT_EQ(mid.param_dim(), 2);
+    ASSERT_EQ(mid.n_control(), face.n_control(1) * face.n_control(2));
+    double worst = 0;
+    for (double s : {0.0, 0.13, 0.5, 0.71, 1.0})
+      for (double t : {0.0, 0.29, 0.5, 0.93, 1.0}) {
+        worst = std::max(worst, (mid.point({s, t, 0}) - face.point({0.5, s, t})).norm() / h);
+        const MapValues m = mid.evaluate({s, t, 0}, 1), f = face.evaluate({0.5, s, t}, 1);
+        const Vec3 n = m.dx.col(0).cross(m.dx.col(1)).normalized();
+        EXPECT_GT(n.dot(f.dx.col(0)), 0) << "the normal points to increasing xi_0";
+      }
+    EXPECT_LT(worst, 1e-12) << "degree " << degree;
+  }
+  EXPECT_THROW(mid_surface(mid_surface(biconcave_rbc_3d_faces(h, 6, 2)[0])), std::invalid_argument);
+}
+
 TEST(Builders, NucleusMeshOfThePaper) {
   const Patch nucleus = bulky_ellipse(2e-4, 2e-4, 40, 192, 2);  // CTC inclusion, paper Sec. 4.4
   EXPECT_EQ(nucleus.n_elements(0), 40);

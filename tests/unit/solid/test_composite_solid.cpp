@@ -5,6 +5,7 @@
 #include <memory>
 #include <vector>
 
+#include "../../support/step_in_flow.hpp"
 #include "geometry/builders.hpp"
 #include "solid/composite_solid.hpp"
 #include "solid/material.hpp"
@@ -21,19 +22,6 @@ std::vector<std::unique_ptr<solid::NurbsSolid>> face_solids(const std::vector<ge
     parts.push_back(std::make_unique<solid::NurbsSolid>(
         "rbc", faces[k], std::make_shared<solid::DeviatoricNeoHookean>(189.74), 1.1));
   return parts;
-}
-
-/// One step of dt in v = L (x - c), the kinematic update made twice (the second finds nothing to correct).
-template <class Body>
-void step(Body& s, const Mat3& L, const Vec3& c, double dt) {
-  s.begin_step(solid::TimeParameters::from_rho_inf(0.5, dt));
-  for (int it = 0; it < 2; ++it) {
-    const std::vector<Vec3> x = s.collocation_points();
-    std::vector<solid::VelocitySample> vs(x.size());
-    for (std::size_t i = 0; i < x.size(); ++i) vs[i].v = L * (x[i] - c), vs[i].grad_v = L;
-    s.kinematic_update(vs);
-  }
-  s.end_step();
 }
 
 }  // namespace
@@ -68,7 +56,7 @@ TEST(CompositeSolid, SixFacesFollowASimpleShearAsOneBodyAndStayJoined) {
   for (const Vec3& X : alone.collocation_points()) rate_alone.push_back(L * (X - c));
   alone.set_rate(rate_alone);
   const int steps = 20;
-  for (int n = 0; n < steps; ++n) step(cell, L, c, dt), step(alone, L, c, dt);
+  for (int n = 0; n < steps; ++n) test::step_in_flow(cell, L, c, dt), test::step_in_flow(alone, L, c, dt);
 
   // Every point of every face where the exact motion puts it, and the part as it moves alone.
   const double t = steps * dt;
