@@ -145,6 +145,13 @@ TEST_F(CellfsiApp, ValuesThatAreNumbersButNotInputAreRejected) {
       {{scene("compound_capsule_shear.yaml"), "-solid_nucleus_thickness_degree", "3"},
        "option -solid_nucleus_thickness_degree = 3 is invalid; valid: 0 for a bulky ellipse (membranes only: "
        "shape hollow_ellipse, rbc, hollow_ellipsoid or rbc_3d)"},
+      {with(capsule, {"-solid_membrane_thin_shell", "true"}),
+       "option -solid_membrane_thin_shell = true is invalid; valid: false for a 2D body (3D membranes only: "
+       "shape hollow_ellipsoid or rbc_3d)"},
+      {{scene("rbc_shear_3d.yaml"), "-solid_rbc_thin_shell", "true", "-solid_rbc_thickness_degree", "3"},
+       "option -solid_rbc_thickness_degree = 3 is invalid; valid: 0 with -solid_rbc_thin_shell (a thin shell "
+       "has "
+       "no degree through its thickness)"},
       {with(capsule, {"-solid_membrane_patches", "3"}),
        "option -solid_membrane_patches = 3 is invalid; valid: 1 or 6"},
       {with(capsule, {"-solid_membrane_patches", "6"}),
