@@ -448,11 +448,16 @@ def t_rbc_shear_3d():
     # without poles (-solid_rbc_patches 6) and that shell cubic through its thickness in their own tables, their
     # runs made later.
     for path in (os.path.join(VAL, name) for name in ("rbc_shear_3d_ca046.md", "rbc_shear_3d_ca046_faces.md",
-                                                      "rbc_shear_3d_ca046_thick3.md")):
+                                                      "rbc_shear_3d_ca046_thick3.md",
+                                                      "rbc_shear_3d_ca046_plane24.md",
+                                                      "rbc_shear_3d_ca046_thin.md")):
         if not os.path.exists(path):
             continue
         sources.append(link_from_page(path))
-        for r in md_tables(path)[0]:
+        tables = md_tables(path)
+        # (A cell that swings in the shear plane without flipping: its row of the table's second table, if any.)
+        swings = {w["box, fluid elements"]: w for w in (tables[1] if len(tables) > 1 else [])}
+        for r in tables[0]:
             # (A run that failed is reported up to where it stopped, and says so.)
             if not r["status"].startswith(("completed", "failed")):
                 continue
@@ -464,6 +469,22 @@ def t_rbc_shear_3d():
             half_turn = math.pi * (aspect + 1 / aspect) / RATE_RBC
             jeffery = f"{1e3 * half_turn:.1f} (Jeffery's rigid oblate spheroid, r = {aspect:g})"
             what = ", ".join(f"{h:.1f}" for h in half) if half else f"flips at {flips} ms"
+            swing = swings.get(r["box, fluid elements"])
+            if flips == "-" and swing:
+                # Swings in the shear plane (Abkarian, Faivre & Viallat 2007: a swing period half the
+                # tank-treading period).
+                what = (f"no flip, swings {r['status'].split(', ', 1)[1]}: period {swing['swing period']} ms, theta "
+                        f"{swing['theta mean; range']} deg, DI {swing['DI']}, tank-treading period "
+                        f"{swing['1 / omega_TT']} ms")
+                if "folded" in r["status"]:
+                    what += f" ({r['status'].split('(', 1)[1].split(')')[0]})"
+                ratio = float(swing["swing / tank-treading period"])
+                rows.append([f"{mesh.replace(' x ', 'x')} ({box} box), membrane 1 x {r['membrane']} a face", 2,
+                             "1e-4", "Ca 0.46, divergence-conforming space: swing period over the tank-treading "
+                             "period", what, "0.5 (Abkarian, Faivre & Viallat 2007, experiments)",
+                             f"{100 * (ratio / 0.5 - 1):+.0f} %", r["s/step"], "-", commit_of(path),
+                             code("python3 bench/run_rbc_shear_3d.py")])
+                continue
             if flips == "-":
                 # No flip (a start out of the shear plane): the short axis's angle to the vorticity at the start
                 # and its range over the run's last third instead.
@@ -598,7 +619,10 @@ def t_inertial_migration():
         # The command that runs them (not the one that redrew the table from kept runs, nor where they were kept).
         cmd = re.sub(r" --report| --runs \S+", "", m.group(1)) if m else "-"
         sources.append(link_from_page(path))
-        for r in md_tables(path)[0]:
+        tables = md_tables(path)
+        # (A cell that swings in the shear plane without flipping: its row of the table's second table, if any.)
+        swings = {w["box, fluid elements"]: w for w in (tables[1] if len(tables) > 1 else [])}
+        for r in tables[0]:
             if r["status"] != "completed" or r.get("body", "stiff disk") != "stiff disk":
                 continue
             re_m = float(r["Re (measured)"])

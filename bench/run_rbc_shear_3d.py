@@ -21,8 +21,8 @@ the extents along the flow and the vorticity, and that angle against time.
 Options: --runs DIR (out/rbc_shear_3d_ca046) --build DIR (build) --table FILE --figure FILE --report
 --cases box12,box24,tall24,box12_ratio5,box12_skalak,box12_tilt45,tall24_tilt45,box12_tilt10,box12_skalak_tilt45,
 box12_skalak_tilt10,box12_oblate_tilt45,box12_skalak_tilt10_faces,box12_skalak_tilt10_faces_cubic,
-box12_skalak_tilt10_faces_thick3 (the runs to make or report; the last two, the cubic membrane and the membrane cubic
-through its thickness only, about 5.5 and 3 h). A run whose summary.json says "completed" is not
+box12_skalak_tilt10_faces_thick3,box12_skalak_tilt10_faces_thin,box24_skalak_faces_thick3 (the runs to make or report; the cubic membrane and the
+membrane cubic through its thickness only, about 5.5 and 3 h; the last, in the plane in the 24 um box, about 1.5 h). A run whose summary.json says "completed" is not
 run again (one made with other options is refused). Exit code 3 when a run did not complete. Needs
 python3-matplotlib for the figure (scripts/install-deps.sh)."""
 import argparse
@@ -110,6 +110,20 @@ CASES = {
                                          "the shear plane, six patches, cubic through the thickness",
                                          ["-final_time", "0.1", "-solid_rbc_material", "skalak", "-solid_rbc_angle",
                                           "80", "-solid_rbc_patches", "6", "-solid_rbc_thickness_degree", "3"]),
+    # (the tilted start on the thin shell, -solid_rbc_thin_shell: the mid-surface alone, the thickness not an
+    # unknown; the solid shells fold at a dimple's inner face from 48-60 ms)
+    "box12_skalak_tilt10_faces_thin": ("12 x 12 x 12 um, 16 x 16 x 16, Skalak's law (C = 10), axis 10 deg out of "
+                                       "the shear plane, six patches, thin shell",
+                                       ["-final_time", "0.1", "-solid_rbc_material", "skalak", "-solid_rbc_angle",
+                                        "80", "-solid_rbc_patches", "6", "-solid_rbc_thin_shell", "true"]),
+    # (in the shear plane with that shell, in the box twice as long along the flow: the mirror symmetry keeps the
+    # cell in the plane, where it tumbles; does the tumbling settle to a periodic state on a shell that holds, in
+    # a box the stretched cell does not fill (up to 10.7 um along the flow in the 24 um box)?)
+    "box24_skalak_faces_thick3": ("24 x 12 x 12 um, 32 x 16 x 16, Skalak's law (C = 10), six patches, cubic "
+                                  "through the thickness",
+                                  ["-final_time", "0.07", "-domain_size", "0.0024,0.0012,0.0012", "-fluid_elements",
+                                   "32,16,16", "-solid_rbc_material", "skalak", "-solid_rbc_patches", "6",
+                                   "-solid_rbc_thickness_degree", "3"]),
 }
 
 
@@ -149,6 +163,40 @@ def crossings(rows):
             if high - low > FLIP_RISE:
                 flips.append(0.5 * (a["time"] + b["time"]))
     return down, flips
+
+
+# A swing's peak: theta the largest within SWING_WINDOW s either side (the in-plane swings of the 24 um box have a
+# period of about 20 ms and rise by 15 deg from their dips: docs/validation.md, "A red blood cell in 3D").
+SWING_WINDOW = 2e-3
+
+
+def swing_row(box, rows):
+    """A row of the swinging table for a cell that never flips: theta's peaks (after the start's transient, the
+    first SWING_WINDOW s), the swing period (their mean spacing), and over the last whole swing (between the last
+    two peaks) theta's mean and range, the deformation index's range and the mean omega_TT (turns per second:
+    solid/body_metrics.hpp), with the tank-treading period 1 / omega_TT against the swing's. None without two
+    peaks."""
+    if not rows or crossings(rows)[1]:
+        return None
+    times = [r["time"] for r in rows]
+    theta = [r["rbc_theta_deg"] for r in rows]
+    eps = 1e-9 * SWING_WINDOW
+    peaks = [i for i, t in enumerate(times)
+             if times[0] + SWING_WINDOW < t < times[-1] - SWING_WINDOW
+             and theta[i] == max(th for u, th in zip(times, theta) if abs(u - t) <= SWING_WINDOW + eps)
+             and theta[i - 1] < theta[i]]  # (a flat top counts once: its first sample)
+    if len(peaks) < 2:
+        return None
+    period = (times[peaks[-1]] - times[peaks[0]]) / (len(peaks) - 1)
+    last = rows[peaks[-2]:peaks[-1] + 1]
+    mean = sum(r["rbc_theta_deg"] for r in last) / len(last)
+    omega = sum(r["rbc_omega_tt"] for r in last) / len(last)
+    di = [r["rbc_deformation_index"] for r in last] if "rbc_deformation_index" in last[0] else []
+    tt = 1 / omega if omega > 0 else float("nan")
+    return (f"| {box} | {', '.join(f'{times[i] * 1e3:.1f} ({theta[i]:.1f})' for i in peaks)} | {period * 1e3:.1f} | "
+            f"{mean:.1f}; {min(r['rbc_theta_deg'] for r in last):.1f}-{max(r['rbc_theta_deg'] for r in last):.1f} | "
+            f"{(f'{min(di):.3f}-{max(di):.3f}' if di else '-')} | {omega:.1f} | {tt * 1e3:.1f} | "
+            f"{period / tt:.2f} |")
 
 
 def seconds_per_step(log):
@@ -200,7 +248,7 @@ def row_of(args, tag, box, rows):
     if js.get("rbc_fold_time") is not None:
         status += f" (folded between quadrature points from {js['rbc_fold_time'] * 1e3:.1f} ms)"
     # (A failed run's summary has not the membrane's elements; its error names them when a shell element failed.)
-    shell = re.search(r" of 1 x (\d+) x (\d+)", js.get("status", ""))
+    shell = re.search(r" of (?:1 x )?(\d+) x (\d+)", js.get("status", ""))
     elements = [js.get("rbc_elements_1", shell and float(shell.group(1))),
                 js.get("rbc_elements_2", shell and float(shell.group(2)))]
     # (A failed run's summary has no run-wide maximum: the largest in its metrics.csv.)
@@ -302,6 +350,14 @@ def main():
            "| box, fluid elements | status | theta = 0 (down) | flips | half turns | omega_TT | extents x, y, z "
            "| DI | short axis to vorticity | max abs r_A | membrane | s/step |",
            "|---|---|---|---|---|---|---|---|---|---|---|---|"] + lines
+    swinging = [row for row in (swing_row(CASES[c][0], runs[c]) for c in cases) if row]
+    if swinging:
+        out += ["", "The cells that never flip but swing: theta's peaks (time ms, theta deg; after the first "
+                f"{SWING_WINDOW * 1e3:g} ms), the swing period (their mean spacing, ms), and over the last whole swing "
+                "theta's mean and range (deg), the deformation index's range, the mean omega_TT (turns per second) and "
+                "the tank-treading period 1 / omega_TT (ms) against the swing's.", "",
+                "| box, fluid elements | peaks | swing period | theta mean; range | DI | omega_TT | 1 / omega_TT | "
+                "swing / tank-treading period |", "|---|---|---|---|---|---|---|---|"] + swinging
     write_table(args.table, out)
     figure(args, runs)
     if failed:
