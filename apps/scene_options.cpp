@@ -293,9 +293,10 @@ void declare_body_options(OptionTable& t, BodySettings& b, BodyOptionValues& v, 
                "collocation points across a thin shell at less cost than a higher -degree (docs/geometry.md)",
                {[](const long long& v) { return v == 0 || (v >= 2 && v <= 4); }, "0, 2, 3 or 4"})
       .flag("thin_shell", b.thin_shell,
-            "3D membranes: a thin shell described by its mid-surface alone (Kirchhoff-Love), the thickness "
-            "not an unknown; collocated at the mid-surface, its points at three heights through -thickness "
-            "(docs/geometry.md)")
+            "3D membranes on six patches (rbc_3d, -patches 6): a thin shell described by its mid-surface "
+            "alone (Kirchhoff-Love), the thickness not an unknown; collocated at the mid-surface, its points "
+            "at "
+            "three heights through -thickness; not fit for runs yet (docs/geometry.md)")
       .integer(
           "patches", b.patches,
           "rbc_3d: 1, the polar patch (its poles at the dimples' centres), or 6, the faces of a cube mapped "
@@ -470,6 +471,13 @@ void check_law_and_elements(OptionTable& t, BodySettings& b, const BodyOptionVal
       t.bad("thin_shell", "true",
             "false for " + std::string(D == 3 ? "a bulky body" : "a 2D body") +
                 " (3D membranes only: shape hollow_ellipsoid or rbc_3d)");
+    else if (!(b.shape == "rbc_3d" && b.patches == 6))
+      // (a polar mid-surface has no normal at its poles, where the thin shell's faces and view are taken)
+      t.bad("thin_shell", "true",
+            "false for shape " + b.shape +
+                " on one patch (a thin shell needs a mid-surface without poles: "
+                "shape rbc_3d with -" +
+                pre + "patches 6)");
     else if (t.given("thickness_degree") && b.thickness_degree > 0)
       t.bad("thickness_degree", std::to_string(b.thickness_degree),
             "0 with -" + pre + "thin_shell (a thin shell has no degree through its thickness)");

@@ -478,8 +478,12 @@ def t_rbc_shear_3d():
                         f"{swing['1 / omega_TT']} ms")
                 if "folded" in r["status"]:
                     what += f" ({r['status'].split('(', 1)[1].split(')')[0]})"
+                failed = re.search(r" in step (\d+) at", r["status"]) if r["status"].startswith("failed") else None
+                if failed:
+                    what += f" (then failed in step {failed.group(1)}: {r['status'].split(':')[1].strip()})"
                 ratio = float(swing["swing / tank-treading period"])
-                rows.append([f"{mesh.replace(' x ', 'x')} ({box} box), membrane 1 x {r['membrane']} a face", 2,
+                faces = " a face" if "six patches" in mesh else ""
+                rows.append([f"{mesh.replace(' x ', 'x')} ({box} box), membrane 1 x {r['membrane']}{faces}", 2,
                              "1e-4", "Ca 0.46, divergence-conforming space: swing period over the tank-treading "
                              "period", what, "0.5 (Abkarian, Faivre & Viallat 2007, experiments)",
                              f"{100 * (ratio / 0.5 - 1):+.0f} %", r["s/step"], "-", commit_of(path),
@@ -619,10 +623,7 @@ def t_inertial_migration():
         # The command that runs them (not the one that redrew the table from kept runs, nor where they were kept).
         cmd = re.sub(r" --report| --runs \S+", "", m.group(1)) if m else "-"
         sources.append(link_from_page(path))
-        tables = md_tables(path)
-        # (A cell that swings in the shear plane without flipping: its row of the table's second table, if any.)
-        swings = {w["box, fluid elements"]: w for w in (tables[1] if len(tables) > 1 else [])}
-        for r in tables[0]:
+        for r in md_tables(path)[0]:
             if r["status"] != "completed" or r.get("body", "stiff disk") != "stiff disk":
                 continue
             re_m = float(r["Re (measured)"])

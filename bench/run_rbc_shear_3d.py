@@ -171,12 +171,13 @@ SWING_WINDOW = 2e-3
 
 
 def swing_row(box, rows):
-    """A row of the swinging table for a cell that never flips: theta's peaks (after the start's transient, the
+    """A row of the swinging table for a cell started in the shear plane that never flips: theta's peaks (after the start's transient, the
     first SWING_WINDOW s), the swing period (their mean spacing), and over the last whole swing (between the last
     two peaks) theta's mean and range, the deformation index's range and the mean omega_TT (turns per second:
     solid/body_metrics.hpp), with the tank-treading period 1 / omega_TT against the swing's. None without two
     peaks."""
-    if not rows or crossings(rows)[1]:
+    # (started in the shear plane: a tilted start's axis leaves it, and its theta is a projection's)
+    if not rows or crossings(rows)[1] or rows[0].get("rbc_short_axis_to_vorticity_deg", 90.0) != 90.0:
         return None
     times = [r["time"] for r in rows]
     theta = [r["rbc_theta_deg"] for r in rows]

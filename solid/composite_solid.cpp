@@ -75,7 +75,7 @@ void CompositeSolid::quadrature_data(double fluid_density, bool with_tangent,
                            std::to_string(n) + " quadrature points");
   out.resize(n);
   // Each part writes its run of `out` in place (through buffers of their own, at a red cell of six patches
-  // the copies were a tenth of a step: -log_view, perf).
+  // the copies were a twentieth of the run: perf).
   for (int k = 0; k < n_parts(); ++k) {
     const std::size_t first = static_cast<std::size_t>(quadrature_begin_[k]);
     parts_[k]->quadrature_data_into(

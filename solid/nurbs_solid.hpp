@@ -64,7 +64,7 @@ class NurbsSolid final : public SolidSolver {
   /// basis_gradients() appended to begin (not empty: its last entry is where this body's list starts),
   /// unknown (each plus unknown_offset) and grad; listed_entries: what that appends to unknown. For a body of
   /// several patches (CompositeSolid), which writes its parts' runs in place: at a 3D red cell of six patches
-  /// copying them through buffers of their own was a fifth of a step (-log_view, perf).
+  /// copying them through buffers of their own, made at each call, was an eighth of the run (perf).
   void quadrature_data_into(double fluid_density, bool with_tangent,
                             const std::function<bool(std::size_t, const Vec3&)>& wanted, QuadratureData* out,
                             const char* only) const;
@@ -83,7 +83,7 @@ class NurbsSolid final : public SolidSolver {
   bool is_membrane() const override { return membrane_; }
   /// A thin shell's: the shell as a solid shell's patch (direction 0 linear across the thickness over [0, 1],
   /// its two control layers the mid-surface's control points -+ h/2 lambda3 n at their Greville points),
-  /// whose mid-surface is the shell's exactly and whose faces are the offset surfaces' interpolants, so that
+  /// whose mid-surface is the shell's exactly and whose faces only approximate the offset surfaces, so that
   /// the metrics and the output read it as they read a solid shell.
   geometry::Patch reference_patch() const override;
   geometry::Patch current_patch() const override;

@@ -148,7 +148,12 @@ TEST_F(CellfsiApp, ValuesThatAreNumbersButNotInputAreRejected) {
       {with(capsule, {"-solid_membrane_thin_shell", "true"}),
        "option -solid_membrane_thin_shell = true is invalid; valid: false for a 2D body (3D membranes only: "
        "shape hollow_ellipsoid or rbc_3d)"},
-      {{scene("rbc_shear_3d.yaml"), "-solid_rbc_thin_shell", "true", "-solid_rbc_thickness_degree", "3"},
+      {{scene("rbc_shear_3d.yaml"), "-solid_rbc_thin_shell", "true"},
+       "option -solid_rbc_thin_shell = true is invalid; valid: false for shape rbc_3d on one patch (a thin "
+       "shell "
+       "needs a mid-surface without poles: shape rbc_3d with -solid_rbc_patches 6)"},
+      {{scene("rbc_shear_3d.yaml"), "-solid_rbc_thin_shell", "true", "-solid_rbc_patches", "6",
+        "-solid_rbc_thickness_degree", "3"},
        "option -solid_rbc_thickness_degree = 3 is invalid; valid: 0 with -solid_rbc_thin_shell (a thin shell "
        "has "
        "no degree through its thickness)"},
