@@ -203,10 +203,8 @@ std::vector<std::unique_ptr<solid::SolidSolver>> build_bodies(const SceneSetting
     }
     geometry::Patch patch = build_body_patch(s, b);
     const std::vector<solid::PatchLoad> loads = stretch_loads(b, patch);
-    auto body = b.thin_shell ? std::make_unique<solid::NurbsSolid>(b.name, geometry::mid_surface(patch),
-                                                                   b.thickness, make_material(b), b.density)
-                             : std::make_unique<solid::NurbsSolid>(b.name, std::move(patch), make_material(b),
-                                                                   b.density);
+    // (a thin shell is refused on one patch: a polar mid-surface has no normal at its poles)
+    auto body = std::make_unique<solid::NurbsSolid>(b.name, std::move(patch), make_material(b), b.density);
     solid::NurbsSolid& nurbs = *body;
     out.push_back(std::move(body));
     // The direction-by-direction solve is several times faster: say so when a body cannot have it.

@@ -180,6 +180,29 @@ void NurbsSolid::tabulate_quadrature() {
   }
 }
 
+namespace {
+/// A thin shell's function at a point, as tabulated: R, dR / dtheta_0, dR / dtheta_1 and the second derivatives
+/// 00, 01, 11, from the patch's basis values (function k).
+std::array<double, 6> shell_basis(const BasisValues& bv, int k) {
+  const double* d2 = &bv.d2[9 * static_cast<std::size_t>(k)];
+  return {bv.value[k], bv.d1[3 * k], bv.d1[3 * k + 1], d2[0], d2[1], d2[4]};
+}
+
+/// Adds one function's share of a control displacement c (3 values) to a mid-surface's map values (the map is
+/// linear in the control points, the weights fixed).
+void add_shell_displacement(geometry::MapValues& m, const double* b, const double* c) {
+  for (int i = 0; i < 3; ++i) {
+    m.x[i] += b[0] * c[i];
+    m.dx(i, 0) += b[1] * c[i];
+    m.dx(i, 1) += b[2] * c[i];
+    m.d2x[i](0, 0) += b[3] * c[i];
+    m.d2x[i](0, 1) += b[4] * c[i];
+    m.d2x[i](1, 0) += b[4] * c[i];
+    m.d2x[i](1, 1) += b[5] * c[i];
+  }
+}
+}  // namespace
+
 void NurbsSolid::tabulate_shell_quadrature() {
   // Three Gauss heights through the thickness: the energy through it, of a law's stress at F linear in zeta
   // to first order, is integrated exactly to degree 5 (the thick shell's quadratic direction had three too).
@@ -200,9 +223,7 @@ void NurbsSolid::tabulate_shell_quadrature() {
       reference_.map(bv, ref);
       for (int k = 0; k < bv.n; ++k) {
         s_unknown_.push_back(reduced_[bv.index[k]]);
-        const double* d2 = &bv.d2[9 * static_cast<std::size_t>(k)];
-        for (double v : {bv.value[k], bv.d1[3 * k], bv.d1[3 * k + 1], d2[0], d2[1], d2[4]})
-          s_basis_.push_back(v);
+        for (double v : shell_basis(bv, k)) s_basis_.push_back(v);
       }
       s_begin_.push_back(static_cast<int>(s_unknown_.size()));
       s_ref_.push_back(ref);
@@ -231,22 +252,11 @@ void NurbsSolid::for_each_shell_point(const double* rows,
     bool any = !only;
     for (int l = 0; l < layers && !any; ++l) any = only[s * layers + l] != 0;
     if (!any) continue;
-    // The current mid-surface: the reference's map values plus the displacement's (the map is linear in the
-    // control points, the weights fixed).
+    // The current mid-surface: the reference's map values plus the displacement's.
     cur = s_ref_[s];
-    for (int k = s_begin_[s]; k < s_begin_[s + 1]; ++k) {
-      const double* b = s_basis_.data() + 6 * static_cast<std::size_t>(k);
-      const double* ck = rows + 3 * static_cast<std::size_t>(s_unknown_[k]);
-      for (int i = 0; i < 3; ++i) {
-        cur.x[i] += b[0] * ck[i];
-        cur.dx(i, 0) += b[1] * ck[i];
-        cur.dx(i, 1) += b[2] * ck[i];
-        cur.d2x[i](0, 0) += b[3] * ck[i];
-        cur.d2x[i](0, 1) += b[4] * ck[i];
-        cur.d2x[i](1, 0) += b[4] * ck[i];
-        cur.d2x[i](1, 1) += b[5] * ck[i];
-      }
-    }
+    for (int k = s_begin_[s]; k < s_begin_[s + 1]; ++k)
+      add_shell_displacement(cur, s_basis_.data() + 6 * static_cast<std::size_t>(k),
+                             rows + 3 * static_cast<std::size_t>(s_unknown_[k]));
     for (int l = 0; l < layers; ++l) {
       const int q = s * layers + l;
       if (only && !only[q]) continue;
@@ -524,14 +534,8 @@ void NurbsSolid::kinematics(const Eigen::MatrixXd& c, const Param& xi, const Ind
     cur = ref;
     for (int k = 0; k < sb.n; ++k) {
       const int r = reduced_[sb.index[k]];
-      const double* d2 = &sb.d2[9 * static_cast<std::size_t>(k)];
-      for (int i = 0; i < 3; ++i) {
-        cur.x[i] += sb.value[k] * c(r, i);
-        for (int a = 0; a < 2; ++a) {
-          cur.dx(i, a) += sb.d1[3 * k + a] * c(r, i);
-          for (int b = 0; b < 2; ++b) cur.d2x[i](a, b) += d2[3 * a + b] * c(r, i);
-        }
-      }
+      const double ck[3] = {c(r, 0), c(r, 1), c(r, 2)};
+      add_shell_displacement(cur, shell_basis(sb, k).data(), ck);
     }
     const ShellPoint p = shell_point(ref, cur, (xi[0] - 0.5) * shell_thickness_);
     x = p.x;

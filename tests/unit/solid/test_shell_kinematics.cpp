@@ -277,6 +277,15 @@ TEST(ThinShell, FollowsAHomogeneousFlowWithItsNormalAndThicknessFromTheMidSurfac
   }
   ASSERT_EQ(k, q.size());
   EXPECT_LT(worst_off, 1e-9);
+  // The output's Cauchy stress at the view's parameters (direction 0 across, over [0, 1]) likewise.
+  double worst_cauchy = 0;
+  for (const geometry::Param xi : {geometry::Param{0.2, 0.3, 0.6}, geometry::Param{0.9, 0.71, 0.05}}) {
+    const solid::ShellPoint sp = solid::shell_point(mid.evaluate({xi[1], xi[2], 0}, 2),
+                                                    now.evaluate({xi[1], xi[2], 0}, 2), (xi[0] - 0.5) * h);
+    const Mat3 sigma = sp.F * law->second_piola(sp.F, 3) * sp.F.transpose() / sp.F.determinant();
+    worst_cauchy = std::max(worst_cauchy, (shell.cauchy_stress({xi})[0] - sigma).norm() / G);
+  }
+  EXPECT_LT(worst_cauchy, 1e-9);
   EXPECT_LT(worst_mid, 1e-12);
   EXPECT_LT(worst_layer, 1e-10);
   EXPECT_LT(worst_det, 1e-12);
