@@ -170,11 +170,29 @@ std::shared_ptr<const solid::Material> make_material(const BodySettings& b) {
   return std::make_shared<solid::DeviatoricNeoHookean>(b.shear_modulus);
 }
 
-std::vector<solid::PatchLoad> stretch_loads(const BodySettings& b, const geometry::Patch& reference) {
+std::vector<solid::PatchLoad> stretch_loads(const BodySettings& b,
+                                            const std::vector<geometry::Patch>& reference) {
   if (!b.stretched || b.stretch_force == 0) return {};
-  const std::array<Vec3, 2> ends = solid::membrane_ends(reference, b.stretch_axis);
+  std::vector<Vec3> points;
+  for (const geometry::Patch& p : reference) {
+    const std::vector<Vec3> some = solid::mid_surface_points(p);
+    points.insert(points.end(), some.begin(), some.end());
+  }
+  const std::array<Vec3, 2> ends = solid::membrane_ends(points, b.stretch_axis);
   const double r = b.stretch_patch / 2;
   return {{ends[0], r, -b.stretch_force * b.stretch_axis}, {ends[1], r, b.stretch_force * b.stretch_axis}};
+}
+
+/// Body::set_loads, a refusal said as the contact diameter's.
+template <class Body>
+void set_stretch_loads(Body& body, const BodySettings& b, const std::vector<solid::PatchLoad>& loads) {
+  try {
+    body.set_loads(loads, b.stretch_ramp);
+  } catch (const std::invalid_argument& e) {
+    bad_option("solid_" + b.name + "_stretch_patch", option_value_text(b.stretch_patch),
+               std::string("a contact diameter whose two patches hold material and do not overlap (") +
+                   e.what() + ")");
+  }
 }
 
 void check_bodies_on_solid_ranks(const SceneSettings& s) {
@@ -190,19 +208,23 @@ std::vector<std::unique_ptr<solid::SolidSolver>> build_bodies(const SceneSetting
   std::vector<std::unique_ptr<solid::SolidSolver>> out;
   for (const BodySettings& b : s.bodies) {
     if (b.patches > 1) {
-      // One NurbsSolid a face, one body (no loads: refused with the faces).
+      // One NurbsSolid a face, one body.
+      std::vector<geometry::Patch> faces = build_body_parts(s, b);
+      const std::vector<solid::PatchLoad> loads = stretch_loads(b, faces);
       std::vector<std::unique_ptr<solid::NurbsSolid>> parts;
-      for (geometry::Patch& p : build_body_parts(s, b))
+      for (geometry::Patch& p : faces)
         parts.push_back(
             b.thin_shell
                 ? std::make_unique<solid::NurbsSolid>(b.name, geometry::mid_surface(p), b.thickness,
                                                       make_material(b), b.density)
                 : std::make_unique<solid::NurbsSolid>(b.name, std::move(p), make_material(b), b.density));
-      out.push_back(std::make_unique<solid::CompositeSolid>(b.name, std::move(parts)));
+      auto body = std::make_unique<solid::CompositeSolid>(b.name, std::move(parts));
+      set_stretch_loads(*body, b, loads);
+      out.push_back(std::move(body));
       continue;
     }
     geometry::Patch patch = build_body_patch(s, b);
-    const std::vector<solid::PatchLoad> loads = stretch_loads(b, patch);
+    const std::vector<solid::PatchLoad> loads = stretch_loads(b, std::vector<geometry::Patch>{patch});
     // (a thin shell is refused on one patch: a polar mid-surface has no normal at its poles)
     auto body = std::make_unique<solid::NurbsSolid>(b.name, std::move(patch), make_material(b), b.density);
     solid::NurbsSolid& nurbs = *body;
@@ -213,13 +235,7 @@ std::vector<std::unique_ptr<solid::SolidSolver>> build_bodies(const SceneSetting
           PetscPrintf(PETSC_COMM_WORLD,
                       "cellfsi: body '%s': collocation solves by a sparse LU of the whole matrix (%s)\n",
                       b.name.c_str(), cs.fallback_reason().c_str()));
-    try {
-      nurbs.set_loads(loads, b.stretch_ramp);
-    } catch (const std::invalid_argument& e) {
-      bad_option("solid_" + b.name + "_stretch_patch", option_value_text(b.stretch_patch),
-                 std::string("a contact diameter whose two patches hold material and do not overlap (") +
-                     e.what() + ")");
-    }
+    set_stretch_loads(nurbs, b, loads);
   }
   return out;
 }
@@ -566,10 +582,15 @@ void Scene::raise_interface_scaling() {
 
 void Scene::record_diameters() {
   for (size_t b = 0; b < bodies_.size(); ++b)
-    if (equilibrium_[b])
-      equilibrium_[b]->record(fluid_->time(),
-                              solid::stretch_diameters(solid::mid_surface_points(bodies_[b]->current_patch()),
-                                                       body_settings(bodies_[b]->name()).stretch_axis));
+    if (equilibrium_[b]) {
+      std::vector<Vec3> points;  // (every part's mid-surface)
+      for (const geometry::Patch& p : bodies_[b]->current_patches()) {
+        const std::vector<Vec3> some = solid::mid_surface_points(p);
+        points.insert(points.end(), some.begin(), some.end());
+      }
+      equilibrium_[b]->record(
+          fluid_->time(), solid::stretch_diameters(points, body_settings(bodies_[b]->name()).stretch_axis));
+    }
 }
 
 bool Scene::at_equilibrium() const {

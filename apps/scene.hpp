@@ -127,8 +127,10 @@ geometry::Patch build_body_patch(const SceneSettings& s, const BodySettings& b);
 std::vector<geometry::Patch> build_body_parts(const SceneSettings& s, const BodySettings& b);
 /// A body's material law (-solid_NAME_material and its constants; docs/materials.md).
 std::shared_ptr<const solid::Material> make_material(const BodySettings& b);
-/// A body's external loads: the stretching test's two forces (none when not stretched).
-std::vector<solid::PatchLoad> stretch_loads(const BodySettings& b, const geometry::Patch& reference);
+/// A body's external loads: the stretching test's two forces at the ends of its patches' mid-surface (none
+/// when not stretched).
+std::vector<solid::PatchLoad> stretch_loads(const BodySettings& b,
+                                            const std::vector<geometry::Patch>& reference);
 /// Bodies that cannot live on solid ranks (-solid_ranks, cellfsi-solid) refused, naming the option: a body of
 /// several patches (-solid_NAME_patches 6).
 void check_bodies_on_solid_ranks(const SceneSettings& s);

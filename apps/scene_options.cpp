@@ -296,7 +296,9 @@ void declare_body_options(OptionTable& t, BodySettings& b, BodyOptionValues& v, 
             "3D membranes on six patches (rbc_3d, -patches 6): a thin shell described by its mid-surface "
             "alone (Kirchhoff-Love), the thickness not an unknown; collocated at the mid-surface, its points "
             "at "
-            "three heights through -thickness; not fit for runs yet (docs/geometry.md)")
+            "three heights through -thickness, its internal force handed to the fluid on its mid-surface; "
+            "not yet "
+            "fit for long runs (docs/geometry.md)")
       .integer(
           "patches", b.patches,
           "rbc_3d: 1, the polar patch (its poles at the dimples' centres), or 6, the faces of a cube mapped "
@@ -572,12 +574,10 @@ void read_body(SceneSettings& s, const std::string& name) {
   check_membrane(t, b);
   check_stretching(t, b, v, D, pre);
   if (b.patches > 1) {
-    // The faces are one body of several patches: what measures a single patch (the stretching test's ends,
-    // the random placement's outline) does not take them yet.
+    // The faces are one body of several patches: what measures a single patch (the random placement's
+    // outline) does not take them yet.
     if (b.shape != "rbc_3d")
       t.bad("patches", std::to_string(b.patches), "1 for shape " + b.shape + " (6: rbc_3d only)");
-    if (b.stretched)
-      t.bad("patches", std::to_string(b.patches), "1 with -" + pre + "stretch_force (the stretching test)");
     if (v.count > 1) t.bad("patches", std::to_string(b.patches), "1 with -" + pre + "count 2 or more");
   }
   check_law_and_elements(t, b, v, D, pre);

@@ -189,6 +189,30 @@ std::vector<geometry::Patch> CompositeSolid::reference_patches() const {
   return out;
 }
 
+void CompositeSolid::set_loads(const std::vector<PatchLoad>& loads, double ramp) {
+  std::vector<Vec3> X, part_X;
+  std::vector<double> w, part_w;
+  std::vector<std::size_t> begin{0};
+  for (const auto& p : parts_) {
+    p->reference_quadrature(part_X, part_w);
+    X.insert(X.end(), part_X.begin(), part_X.end());
+    w.insert(w.end(), part_w.begin(), part_w.end());
+    begin.push_back(X.size());
+  }
+  std::vector<Vec3> density;
+  try {
+    if (!loads.empty()) density = load_densities(X, w, loads);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("body '" + name_ + "': " + e.what());
+  }
+  for (std::size_t k = 0; k < parts_.size(); ++k)
+    parts_[k]->set_load_densities(
+        density.empty() ? std::vector<Vec3>{}
+                        : std::vector<Vec3>(density.begin() + static_cast<std::ptrdiff_t>(begin[k]),
+                                            density.begin() + static_cast<std::ptrdiff_t>(begin[k + 1])),
+        ramp);
+}
+
 std::vector<geometry::Patch> CompositeSolid::current_patches() const {
   std::vector<geometry::Patch> out;
   for (const auto& p : parts_) out.push_back(p->current_patch());

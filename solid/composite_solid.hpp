@@ -51,6 +51,9 @@ class CompositeSolid final : public SolidSolver {
   /// At parametric points of the first part (the output asks each part: part(k).cauchy_stress).
   std::vector<Mat3> cauchy_stress(const std::vector<geometry::Param>& xi) const override;
 
+  /// External loads over the whole body (NurbsSolid::set_loads, each force spread over the points of all
+  /// parts within its radius, so a contact patch may straddle a seam). Throws as NurbsSolid::set_loads.
+  void set_loads(const std::vector<PatchLoad>& loads, double ramp = 0);
   int n_parts() const { return static_cast<int>(parts_.size()); }
   const NurbsSolid& part(int k) const { return *parts_[k]; }
   NurbsSolid& part(int k) { return *parts_[k]; }

@@ -57,7 +57,11 @@ std::vector<Vec3> mid_surface_points(const geometry::Patch& p, int n1, int n2) {
 }
 
 std::array<Vec3, 2> membrane_ends(const geometry::Patch& membrane, const Vec3& axis) {
-  const std::vector<Vec3> pts = mid_surface_points(membrane);
+  return membrane_ends(mid_surface_points(membrane), axis);
+}
+
+std::array<Vec3, 2> membrane_ends(const std::vector<Vec3>& pts, const Vec3& axis) {
+  if (pts.empty()) throw std::invalid_argument("membrane_ends: no points");
   auto along = [&](const Vec3& a, const Vec3& b) { return a.dot(axis) < b.dot(axis); };
   return {*std::min_element(pts.begin(), pts.end(), along), *std::max_element(pts.begin(), pts.end(), along)};
 }

@@ -40,6 +40,9 @@ std::vector<geometry::Vec3> mid_surface_points(const geometry::Patch& membrane, 
 /// The two ends of a membrane along the unit vector `axis`: its mid-surface points with the smallest and the
 /// largest projection on the axis, in that order.
 std::array<geometry::Vec3, 2> membrane_ends(const geometry::Patch& membrane, const geometry::Vec3& axis);
+/// The same among given mid-surface points (a body of several patches: all of theirs).
+std::array<geometry::Vec3, 2> membrane_ends(const std::vector<geometry::Vec3>& points,
+                                            const geometry::Vec3& axis);
 
 /// The stretching test's diameters of a membrane's mid-surface: the axial one, its extent along the unit
 /// vector `axis`, and the transverse one, its largest extent across the axis (the widest of its projections

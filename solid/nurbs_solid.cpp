@@ -227,6 +227,7 @@ void NurbsSolid::tabulate_shell_quadrature() {
       }
       s_begin_.push_back(static_cast<int>(s_unknown_.size()));
       s_ref_.push_back(ref);
+      s_area_.push_back(q.weight * ref.dx.col(0).cross(ref.dx.col(1)).norm());
       for (std::size_t l = 0; l < s_zeta_.size(); ++l) {
         // The reference shell's point (the same map values twice: no deformation).
         const ShellPoint p = shell_point(ref, ref, s_zeta_[l]);
@@ -239,6 +240,130 @@ void NurbsSolid::tabulate_shell_quadrature() {
       }
     }
   }
+  // The reference mid-surface's mass matrix in the reduced unknowns (the force density's projection).
+  std::vector<Eigen::Triplet<double>> entries;
+  for (std::size_t s = 0; s + 1 < s_begin_.size(); ++s)
+    for (int k = s_begin_[s]; k < s_begin_[s + 1]; ++k)
+      for (int l = s_begin_[s]; l < s_begin_[s + 1]; ++l)
+        entries.emplace_back(s_unknown_[k], s_unknown_[l],
+                             s_area_[s] * s_basis_[6 * static_cast<std::size_t>(k)] *
+                                 s_basis_[6 * static_cast<std::size_t>(l)]);
+  Eigen::SparseMatrix<double> mass(n_reduced_, n_reduced_);
+  mass.setFromTriplets(entries.begin(), entries.end());
+  s_mass_ = std::make_unique<Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>>(mass);
+  if (s_mass_->info() != Eigen::Success)
+    throw std::invalid_argument("NurbsSolid '" + name_ +
+                                "': the thin shell's mid-surface mass matrix is singular");
+}
+
+void NurbsSolid::shell_quadrature_data(double fluid_density, bool with_tangent,
+                                       const std::function<bool(std::size_t, const Vec3&)>& wanted,
+                                       QuadratureData* out, const char* only) const {
+  const double beta = 1.0 - density_ / fluid_density;
+  const Eigen::MatrixXd c = displacement_control_alpha();
+  std::vector<double> rows(3 * static_cast<std::size_t>(c.rows()), 0.0);
+  for (Eigen::Index r = 0; r < c.rows(); ++r)
+    for (int i = 0; i < 3; ++i) rows[3 * r + i] = c(r, i);
+  const int layers = static_cast<int>(s_zeta_.size());
+  const int middle = layers / 2;  // (zeta = 0: an odd Gauss rule)
+  const int n_surface = static_cast<int>(s_ref_.size());
+  // The internal force -dE / dc / rho_1, row by row: each point's dE / dm (m: the mid-surface's derivatives,
+  // ShellBasisDerivative) through its functions' derivatives.
+  Eigen::MatrixXd f = Eigen::MatrixXd::Zero(n_reduced_, 3);
+  Eigen::Matrix<double, 15, 1> dE;
+  Eigen::Matrix<double, 9, 1> Q;
+  MapValues cur;
+  for (int s = 0; s < n_surface; ++s) {
+    cur = s_ref_[s];
+    for (int k = s_begin_[s]; k < s_begin_[s + 1]; ++k)
+      add_shell_displacement(cur, s_basis_.data() + 6 * static_cast<std::size_t>(k),
+                             rows.data() + 3 * static_cast<std::size_t>(s_unknown_[k]));
+    const auto where = [&](int l) { return shell_where(s, l, cur.x); };
+    ShellBasisDerivative D;
+    try {
+      D = shell_basis_derivative(s_ref_[s], cur);
+    } catch (const std::invalid_argument& e) {  // (the current mid-surface collapsed here: inverted)
+      throw std::runtime_error(std::string("inverted solid element: ") + e.what() + where(middle));
+    }
+    dE.setZero();
+    for (int l = 0; l < layers; ++l) {
+      const int q = s * layers + l;
+      const double zeta = s_zeta_[l];
+      ShellPoint p;
+      try {
+        p = shell_point(s_ref_[s], cur, zeta);
+      } catch (const std::invalid_argument& e) {
+        throw std::runtime_error(std::string("inverted solid element: ") + e.what() + where(l));
+      }
+      const Mat3 F = q_frame_.empty() ? p.F : Mat3(p.F * q_frame_[q]);
+      Mat3 tau;
+      try {
+        tau = F * material_->second_piola(F, 3) * F.transpose() / fluid_density;
+      } catch (const std::runtime_error& e) {  // an inverted element (the material refuses det F <= 0)
+        throw std::runtime_error(e.what() + where(l));
+      }
+      // P : dF = (tau g^-T) : dg, g = g0 + zeta g1 (F = g G^-1, P = tau F^-T)
+      const Mat3 g = D.g0 + zeta * D.g1;
+      Eigen::Map<Mat3>(Q.data()) = tau * g.inverse().transpose();
+      dE.noalias() += q_weight_[q] * (D.d_g0 + zeta * D.d_g1).transpose() * Q;
+      if (only && !only[q]) continue;
+      QuadratureData& d = out[q];
+      d = QuadratureData{};
+      d.x = p.x;
+      d.weight = q_weight_[q];
+      d.beta = beta;
+      d.shear_modulus = material_->tangent_shear_modulus();
+      d.area = q_area_[q];
+      if (with_tangent) {
+        d.has_tangent = true;
+        const Voigt6 tangent = material_->spatial_tangent(F, 3);
+        for (int r = 0, t = 0; r < 6; ++r)
+          for (int k = r; k < 6; ++k, ++t) d.tangent[t] = tangent(r, k) / fluid_density;
+      }
+      if (!load_density_.empty()) d.force = load_factor() * load_density_[q] / fluid_density;
+      wanted(q, p.x);  // (the caller locates the point; every point is evaluated here whatever it answers)
+    }
+    for (int k = s_begin_[s]; k < s_begin_[s + 1]; ++k) {
+      const double* b = s_basis_.data() + 6 * static_cast<std::size_t>(k);
+      Vec3 fk = Vec3::Zero();
+      for (int j = 0; j < 5; ++j) fk += b[1 + j] * dE.segment<3>(3 * j);
+      f.row(s_unknown_[k]) -= fk.transpose();
+    }
+  }
+  // The force density's coefficients, and its value at each surface point on the middle layer's point.
+  const Eigen::MatrixXd density = s_mass_->solve(f);
+  for (int s = 0; s < n_surface; ++s) {
+    const int q = s * layers + middle;
+    if (only && !only[q]) continue;
+    Vec3 fs = Vec3::Zero();
+    for (int k = s_begin_[s]; k < s_begin_[s + 1]; ++k)
+      fs += s_basis_[6 * static_cast<std::size_t>(k)] * density.row(s_unknown_[k]).transpose();
+    out[q].force += fs * (s_area_[s] / q_weight_[q]);
+  }
+}
+
+double NurbsSolid::strain_energy() const {
+  double energy = 0;
+  for_each_quadrature_point(
+      c_n_,
+      [&](int q, const Vec3&, const Mat3& F, double weight) {
+        energy += weight * material_->strain_energy(q_frame_.empty() ? F : Mat3(F * q_frame_[q]), dim_);
+      },
+      static_cast<const char*>(nullptr));
+  return energy;
+}
+
+std::string NurbsSolid::shell_where(int s, int l, const Vec3& x) const {
+  const Index3 m =
+      reference_.element_multi_index(s / (static_cast<int>(s_ref_.size()) / reference_.n_elements()));
+  char text[200];
+  std::snprintf(
+      text, sizeof text,
+      "; body '%s', thin-shell element (%d, %d) of %d x %d, at x = (%.4g, %.4g, %.4g) cm, %.3g of the "
+      "thickness above its mid-surface",
+      name_.c_str(), m[0], m[1], reference_.n_elements(0), reference_.n_elements(1), x[0], x[1], x[2],
+      s_zeta_[l] / shell_thickness_);
+  return text;
 }
 
 void NurbsSolid::for_each_shell_point(const double* rows,
@@ -246,7 +371,6 @@ void NurbsSolid::for_each_shell_point(const double* rows,
                                       const char* only) const {
   const int layers = static_cast<int>(s_zeta_.size());
   const int n_surface = static_cast<int>(s_ref_.size());
-  const int per_element = n_surface / reference_.n_elements();
   MapValues cur;
   for (int s = 0; s < n_surface; ++s) {
     bool any = !only;
@@ -260,17 +384,7 @@ void NurbsSolid::for_each_shell_point(const double* rows,
     for (int l = 0; l < layers; ++l) {
       const int q = s * layers + l;
       if (only && !only[q]) continue;
-      const auto where = [&] {
-        const Index3 m = reference_.element_multi_index(s / per_element);
-        char text[200];
-        std::snprintf(
-            text, sizeof text,
-            "; body '%s', thin-shell element (%d, %d) of %d x %d, at x = (%.4g, %.4g, %.4g) cm, %.3g of "
-            "the thickness above its mid-surface",
-            name_.c_str(), m[0], m[1], reference_.n_elements(0), reference_.n_elements(1), cur.x[0], cur.x[1],
-            cur.x[2], s_zeta_[l] / shell_thickness_);
-        return std::string(text);
-      };
+      const auto where = [&] { return shell_where(s, l, cur.x); };
       ShellPoint p;
       try {
         p = shell_point(s_ref_[s], cur, s_zeta_[l]);
@@ -646,20 +760,34 @@ double NurbsSolid::load_factor() const {
 void NurbsSolid::set_loads(const std::vector<PatchLoad>& loads, double ramp) {
   if (!(ramp >= 0) || !std::isfinite(ramp))
     throw std::invalid_argument("body '" + name_ + "': the loads' ramp time must be >= 0 s");
-  load_ramp_ = ramp;
-  // The quadrature points in the reference configuration (zero displacement), in quadrature_data()'s order.
   std::vector<Vec3> X;
   std::vector<double> w;
+  reference_quadrature(X, w);
+  try {
+    set_load_densities(loads.empty() ? std::vector<Vec3>{} : solid::load_densities(X, w, loads), ramp);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("body '" + name_ + "': " + e.what());
+  }
+}
+
+void NurbsSolid::set_load_densities(std::vector<Vec3> density, double ramp) {
+  if (!(ramp >= 0) || !std::isfinite(ramp))
+    throw std::invalid_argument("body '" + name_ + "': the loads' ramp time must be >= 0 s");
+  if (!density.empty() && density.size() != q_X_.size())
+    throw std::invalid_argument("body '" + name_ + "': " + std::to_string(density.size()) +
+                                " load densities for " + std::to_string(q_X_.size()) + " quadrature points");
+  load_ramp_ = ramp;
+  load_density_ = std::move(density);
+}
+
+void NurbsSolid::reference_quadrature(std::vector<Vec3>& X, std::vector<double>& w) const {
+  X.clear();
+  w.clear();
   for_each_quadrature_point(Eigen::MatrixXd::Zero(n_reduced_, dim_),
                             [&](int, const Vec3& x, const Mat3&, double weight) {
                               X.push_back(x);
                               w.push_back(weight);
                             });
-  try {
-    load_density_ = loads.empty() ? std::vector<Vec3>{} : solid::load_densities(X, w, loads);
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument("body '" + name_ + "': " + e.what());
-  }
 }
 
 std::vector<QuadratureData> NurbsSolid::quadrature_data(double fluid_density, bool with_tangent) const {
@@ -683,6 +811,10 @@ void NurbsSolid::quadrature_data_into(double fluid_density, bool with_tangent,
                                       const std::function<bool(std::size_t, const Vec3&)>& wanted,
                                       QuadratureData* out, const char* only) const {
   if (!(fluid_density > 0)) throw std::invalid_argument("quadrature_data: fluid density must be > 0");
+  if (shell_thickness_ > 0) {  // (every point: the force at one depends on its functions' points)
+    shell_quadrature_data(fluid_density, with_tangent, wanted, out, only);
+    return;
+  }
   const double beta = 1.0 - density_ / fluid_density;
   for_each_quadrature_point(
       displacement_control_alpha(),

@@ -34,12 +34,26 @@ class NurbsSolid final : public SolidSolver {
   /// quadrature points at three Gauss heights through the thickness above each of the surface's, where the
   /// law sees the F of shell_point (a membrane surface law in the shell's frame). A membrane; the thickness
   /// is not an unknown. Its parameters for cauchy_stress are those of reference_patch() (direction 0 across
-  /// the thickness, over [0, 1]). Not yet available: the collocation tangent's basis gradients
-  /// (basis_gradients says so: false; the coupler then gives the shell the consistent tangent).
+  /// the thickness, over [0, 1]).
+  ///
+  /// The fluid receives the shell's internal force, not its stress: f_A = -dE / dx_A on the mid-surface's
+  /// control points (the energy through the thickness, E = sum W(F) dV), spread as a force density on the
+  /// mid-surface, sum_A R_A ftilde_A with M ftilde = f (M the reference mid-surface's mass matrix, factored
+  /// once), carried by the middle layer's points as QuadratureData::force (stress zero at every point). The
+  /// fluid's power against a velocity in the shell's space is then the energy's rate exactly. A stress at
+  /// the points off the mid-surface would pair the bending moment with the fluid's shear across the shell,
+  /// which does not turn the shell's normal: the bending would resist nothing the mid-surface does
+  /// (measured: the rim creased within 3-5 ms). Every rank evaluates the whole shell (the force at a point
+  /// depends on all of its functions' points). The coupling's tangent: the law's at each point
+  /// (QuadratureData::tangent; no geometric term). Not yet available: the collocation tangent's basis
+  /// gradients (basis_gradients says so: false).
   NurbsSolid(std::string name, geometry::Patch mid_surface, double thickness,
              std::shared_ptr<const Material> material, double density);
   /// The thin shell's thickness [cm] (0: a solid body, the first constructor's).
   double shell_thickness() const { return shell_thickness_; }
+  /// The elastic energy at t_n, sum W(F) dV over the quadrature points [erg] (a thin shell's through its
+  /// thickness, the energy whose gradient is its internal force).
+  double strain_energy() const;
 
   std::string name() const override { return name_; }
   int dim() const override { return dim_; }
@@ -95,6 +109,13 @@ class NurbsSolid final : public SolidSolver {
   /// t_{n+alpha_f} (TimeParameters::t_n); 0: in full from the start. Throws std::invalid_argument when a
   /// patch holds no quadrature point, two patches overlap or ramp < 0.
   void set_loads(const std::vector<PatchLoad>& loads, double ramp = 0);
+  /// The loads as densities per unit reference volume at the quadrature points, in quadrature_data()'s order
+  /// (empty: none), and their ramp (set_loads'); a body of several patches spreads its loads over all of its
+  /// parts' points (CompositeSolid::set_loads). Throws std::invalid_argument for another count or ramp < 0.
+  void set_load_densities(std::vector<Vec3> density, double ramp);
+  /// The quadrature points in the reference configuration and their reference volume weights, in
+  /// quadrature_data()'s order.
+  void reference_quadrature(std::vector<Vec3>& X, std::vector<double>& w) const;
   /// The loads' share of their full size in the current step (1 without a ramp; with one, 0 before the first
   /// step).
   double load_factor() const;
@@ -181,7 +202,15 @@ class NurbsSolid final : public SolidSolver {
   std::vector<int> s_begin_, s_unknown_;
   std::vector<double> s_basis_, s_zeta_;
   std::vector<geometry::MapValues> s_ref_;
+  std::vector<double> s_area_;  // the reference mid-surface's area element times the Gauss weight
+  std::unique_ptr<Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>> s_mass_;  // M, factored
   void tabulate_shell_quadrature();
+  /// The text appended to a thin shell's inverted point's error: surface point s, layer l, at x.
+  std::string shell_where(int s, int l, const Vec3& x) const;
+  /// The thin shell's quadrature_data_into (the force-based coupling above).
+  void shell_quadrature_data(double fluid_density, bool with_tangent,
+                             const std::function<bool(std::size_t, const Vec3&)>& wanted, QuadratureData* out,
+                             const char* only) const;
   geometry::Patch shell_as_thick_patch(const Eigen::MatrixXd& c) const;  // (c: control displacements)
   void for_each_shell_point(const double* rows,
                             const std::function<void(int, const Vec3&, const Mat3&, double)>& visit,

@@ -36,4 +36,16 @@ struct ShellPoint {
 /// that inverts the reference shell there (det [G_1 G_2 N] <= 0: zeta beyond a curvature radius).
 ShellPoint shell_point(const geometry::MapValues& ref, const geometry::MapValues& cur, double zeta);
 
+/// The current covariant basis at height zeta is g0 + zeta g1 (columns g_1, g_2, g_3): g0 = [a_1, a_2,
+/// lambda3 n], g1 = [d (lambda3 n) / dtheta_1, d (lambda3 n) / dtheta_2, 0]; F = (g0 + zeta g1) G^-1. Their
+/// derivatives in the current mid-surface's 15 derivatives m = (a_1, a_2, a_11, a_12, a_22), 3 components
+/// each, are what a shell's internal force needs (its energy's gradient in the control points, by the chain
+/// rule through the basis functions' derivatives): rows are g's entries column by column.
+struct ShellBasisDerivative {
+  Mat3 g0, g1;
+  Eigen::Matrix<double, 9, 15> d_g0, d_g1;
+};
+/// The same arguments and refusals as shell_point (a degenerate mid-surface).
+ShellBasisDerivative shell_basis_derivative(const geometry::MapValues& ref, const geometry::MapValues& cur);
+
 }  // namespace cellfsi::solid

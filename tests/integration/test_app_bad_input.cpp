@@ -163,9 +163,6 @@ TEST_F(CellfsiApp, ValuesThatAreNumbersButNotInputAreRejected) {
        "option -solid_membrane_patches = 6 is invalid; valid: 1 for shape hollow_ellipse (6: rbc_3d only)"},
       {{scene("rbc_shear_3d.yaml"), "-solid_rbc_patches", "6", "-solid_rbc_elements", "1,8,12"},
        "option -solid_rbc_elements = 1,8,12 is invalid; valid: 1,n,n with -solid_rbc_patches 6"},
-      {{scene("rbc_stretch_3d.yaml"), "-solid_rbc_patches", "6"},
-       "option -solid_rbc_patches = 6 is invalid; valid: 1 with -solid_rbc_stretch_force (the stretching "
-       "test)"},
       {with(capsule, {"-solid_membrane_element_ratio", "1.5"}),
        "option -solid_membrane_element_ratio = 1.5 is invalid; valid: 0 ... 1 (0: the space's rule)"},
       {with(capsule, {"-solid_membrane_element_ratio", "0.8", "-coupling_max_mesh_ratio", "0.5"}),
