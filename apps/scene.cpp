@@ -208,16 +208,19 @@ std::vector<std::unique_ptr<solid::SolidSolver>> build_bodies(const SceneSetting
   std::vector<std::unique_ptr<solid::SolidSolver>> out;
   for (const BodySettings& b : s.bodies) {
     if (b.patches > 1) {
-      // One NurbsSolid a face, one body.
+      // One NurbsSolid a face, one body; each face named as its output files are (NAME_pK), so that a
+      // part's error says which face.
       std::vector<geometry::Patch> faces = build_body_parts(s, b);
       const std::vector<solid::PatchLoad> loads = stretch_loads(b, faces);
       std::vector<std::unique_ptr<solid::NurbsSolid>> parts;
-      for (geometry::Patch& p : faces)
-        parts.push_back(
-            b.thin_shell
-                ? std::make_unique<solid::NurbsSolid>(b.name, geometry::mid_surface(p), b.thickness,
-                                                      make_material(b), b.density)
-                : std::make_unique<solid::NurbsSolid>(b.name, std::move(p), make_material(b), b.density));
+      for (std::size_t k = 0; k < faces.size(); ++k) {
+        const std::string part = b.name + "_p" + std::to_string(k);
+        parts.push_back(b.thin_shell
+                            ? std::make_unique<solid::NurbsSolid>(part, geometry::mid_surface(faces[k]),
+                                                                  b.thickness, make_material(b), b.density)
+                            : std::make_unique<solid::NurbsSolid>(part, std::move(faces[k]), make_material(b),
+                                                                  b.density));
+      }
       auto body = std::make_unique<solid::CompositeSolid>(b.name, std::move(parts));
       set_stretch_loads(*body, b, loads);
       out.push_back(std::move(body));
